@@ -1,0 +1,1 @@
+"""silpose.datagen"""

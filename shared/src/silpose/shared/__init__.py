@@ -1,0 +1,1 @@
+"""silpose.shared: conventions every package agrees on (skeleton, cameras, contours, dataset)."""

@@ -1,0 +1,45 @@
+"""The one ``silpose`` command, composed from the installed packages.
+
+Each package declares its subcommands as entry points in the group ``silpose.commands``
+(name = subcommand, value = a plain function with typer-annotated parameters). Loading them
+imports only the packages' light ``cli`` modules: heavy work (bpy, sklearn) is imported inside
+the commands, so ``silpose --help`` stays fast and never touches Blender.
+"""
+
+from __future__ import annotations
+
+import sys
+from importlib.metadata import entry_points
+
+import typer
+
+ENTRY_POINT_GROUP = "silpose.commands"
+
+
+def build_app() -> typer.Typer:
+    app = typer.Typer(
+        name="silpose",
+        help=(
+            "Infer 3D body structure from multi-view silhouettes: generate data in Blender, "
+            "fit the shape+structure prior (mixture of PPCA), infer joints, evaluate."
+        ),
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            func = ep.load()
+        except Exception as exc:  # a broken plugin must not take the whole CLI down
+            print(f"silpose: cannot load command {ep.name!r} from {ep.value}: {exc}", file=sys.stderr)
+            continue
+        app.command(name=ep.name)(func)
+    return app
+
+
+def main() -> None:
+    build_app()()
+
+
+if __name__ == "__main__":
+    main()

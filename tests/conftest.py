@@ -1,0 +1,1 @@
+"""Shared pytest fixtures. Never import bpy here: Blender runs only in spawned workers."""
