@@ -1,0 +1,303 @@
+"""Silhouette contours: extraction, arc-length resampling, normalisation, rasterisation (DESIGN §2).
+
+Conventions (binding for every package):
+
+- Pixel coordinates: x right, y down, pixel centres at integer coordinates (OpenCV's).
+- A contour is the OUTER boundary of the largest 8-connected foreground blob (holes ignored),
+  traced through the centres of the blob's boundary pixels (``cv2.findContours``), so it lies
+  about half a pixel inside the silhouette's geometric edge.
+- Orientation: clockwise as seen on screen, i.e. a positive shoelace area
+  ``A = 1/2 sum_i (x_i y_{i+1} - x_{i+1} y_i)`` in (x, y-down) coordinates.
+- Start point: the upward vertical ray from the blob's area centroid (mean of its pixel
+  centres) meets the outline; of all crossings of the vertical line ``x = c_x`` with the
+  outline, the farthest up (smallest y) is taken, interpolated on the polyline. For a standing
+  person that is the top of the head; unlike the topmost pixel it does not jump when an arm rises.
+- Resampling: ``n_points`` points equally spaced in arc length along the closed polyline
+  (linear interpolation), the first one at the start point.
+- Normalisation (per view): translation by the centroid (mean of the n resampled points) and
+  scale by THE scale measure ``s = sqrt(mean_i ||p_i - c||^2)`` (RMS distance from the centroid).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "EmptyMaskError",
+    "Contour",
+    "extract_contour",
+    "extract_contours",
+    "normalise",
+    "denormalise",
+    "draw_contour",
+    "signed_area",
+]
+
+N_POINTS = 200  #: default number of resampled contour points (the paper's n)
+
+
+class EmptyMaskError(ValueError):
+    """The mask has no foreground pixel, so there is no contour."""
+
+
+@dataclass(frozen=True, eq=False)
+class Contour:
+    """The resampled outer contour of a silhouette's largest blob.
+
+    Attributes:
+        points: (n, 2) float32 pixel coordinates (x right, y down), clockwise on screen,
+            starting at the top of the head (see the module docstring).
+        area: pixels in the largest blob.
+        length: perimeter in pixels of the raw (not resampled) boundary, ``cv2.arcLength``.
+        n_blobs: number of 8-connected foreground components in the mask.
+        touches_border: the largest blob has a pixel on the image border.
+    """
+
+    points: np.ndarray
+    area: int
+    length: float
+    n_blobs: int
+    touches_border: bool
+
+
+def signed_area(points: np.ndarray) -> np.ndarray:
+    """Shoelace area of closed polygons, positive when clockwise on screen (y down).
+
+    ``A = 1/2 sum_i (x_i y_{i+1} - x_{i+1} y_i)``.
+
+    Args:
+        points: (..., n, 2) vertices in pixel coordinates.
+    Returns:
+        (...,) signed area in square pixels (float64).
+    """
+    p = np.asarray(points, dtype=np.float64)
+    x, y = p[..., 0], p[..., 1]
+    xn, yn = np.roll(x, -1, axis=-1), np.roll(y, -1, axis=-1)
+    return 0.5 * np.sum(x * yn - xn * y, axis=-1)
+
+
+def _as_mask(mask: np.ndarray) -> np.ndarray:
+    m = np.asarray(mask)
+    if m.ndim != 2:
+        raise ValueError(f"mask must be 2-D (H, W), got shape {m.shape}")
+    if m.size == 0:
+        raise EmptyMaskError(f"mask of shape {m.shape} has no pixels")
+    return (m != 0).astype(np.uint8)
+
+
+def _start_on_polyline(poly: np.ndarray, cx: float) -> tuple[int, np.ndarray]:
+    """Farthest-up crossing of the closed polyline with the vertical line ``x = cx``.
+
+    Args:
+        poly: (m, 2) float64 closed polyline vertices (the edge m-1 -> 0 is implied).
+        cx: x of the blob's area centroid.
+    Returns:
+        (i, p): the crossing lies on edge i -> i+1 (mod m), at point p (2,).
+        Without any crossing (degenerate outlines) the vertex nearest to the line, topmost
+        among ties, is returned with its outgoing edge.
+    """
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    x0, y0, x1, y1 = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
+    lo, hi = np.minimum(x0, x1), np.maximum(x0, x1)
+    spans = (lo <= cx) & (cx <= hi)
+    dx = x1 - x0
+    safe = np.where(dx == 0, 1.0, dx)
+    t = np.where(dx == 0, 0.0, (cx - x0) / safe)
+    y = y0 + t * (y1 - y0)
+    # An edge lying on the line: both of its ends are crossings; the upper one counts.
+    y = np.where(dx == 0, np.minimum(y0, y1), y)
+    t = np.where((dx == 0) & (y1 < y0), 1.0, t)
+    if np.any(spans):
+        cand = np.flatnonzero(spans)
+        i = int(cand[np.argmin(y[cand])])  # first of ties: deterministic
+        p = a[i] + t[i] * (b[i] - a[i])
+        return i, p
+    key = np.lexsort((a[:, 1], np.abs(a[:, 0] - cx)))  # nearest in x, then topmost
+    i = int(key[0])
+    return i, a[i].copy()
+
+
+def resample_closed(poly: np.ndarray, start_edge: int, start: np.ndarray, n_points: int) -> np.ndarray:
+    """Resample a closed polyline to ``n_points`` points equally spaced in arc length.
+
+    Args:
+        poly: (m, 2) vertices of the closed polyline (edge m-1 -> 0 implied).
+        start_edge: index i of the edge i -> i+1 holding the start point.
+        start: (2,) start point on that edge.
+        n_points: number of output points.
+    Returns:
+        (n_points, 2) float64; point k at arc length ``k L / n_points`` from the start, in the
+        polyline's direction (L = perimeter). A zero-length outline gives n copies of ``start``.
+    """
+    m = len(poly)
+    order = (np.arange(1, m + 1) + start_edge) % m  # vertices after the start, once round
+    path = np.vstack([start[None], poly[order], start[None]])
+    seg = np.hypot(*np.diff(path, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    total = s[-1]
+    if not total > 0:
+        return np.repeat(start[None].astype(np.float64), n_points, axis=0)
+    targets = np.arange(n_points) * (total / n_points)
+    return np.stack([np.interp(targets, s, path[:, 0]), np.interp(targets, s, path[:, 1])], axis=1)
+
+
+def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
+    """Outer contour of the largest 8-connected blob of a silhouette, resampled.
+
+    Args:
+        mask: (H, W) bool or integer array; non-zero is foreground.
+        n_points: number of resampled points (>= 1).
+    Returns:
+        A :class:`Contour` whose ``points`` are (n_points, 2) float32 pixel coordinates,
+        clockwise on screen (positive shoelace area in y-down coordinates), starting where the
+        upward vertical ray from the blob's centroid leaves the outline for the last time.
+        Degenerate blobs (one pixel, one-pixel-thin lines) give coinciding or back-and-forth
+        points, never NaN.
+    Raises:
+        EmptyMaskError: the mask has no foreground pixel.
+    """
+    import cv2
+
+    if int(n_points) < 1:
+        raise ValueError(f"n_points must be >= 1, got {n_points}")
+    m = _as_mask(mask)
+    h, w = m.shape
+    n_labels, labels, stats, centroids = cv2.connectedComponentsWithStats(m, connectivity=8)
+    if n_labels <= 1:
+        raise EmptyMaskError(f"mask of shape {m.shape} has no foreground pixel")
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    best = 1 + int(np.argmax(areas))  # first of equal areas: deterministic
+    left, top = stats[best, cv2.CC_STAT_LEFT], stats[best, cv2.CC_STAT_TOP]
+    bw, bh = stats[best, cv2.CC_STAT_WIDTH], stats[best, cv2.CC_STAT_HEIGHT]
+    touches = bool(left == 0 or top == 0 or left + bw == w or top + bh == h)
+    blob = (labels == best).astype(np.uint8)
+    # Pad so the border rows are traced like any other pixels, then undo the offset.
+    padded = cv2.copyMakeBorder(blob, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    found, _ = cv2.findContours(padded, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    raw = max(found, key=len)  # one outer contour for an 8-connected blob
+    length = float(cv2.arcLength(raw, closed=True))
+    poly = raw.reshape(-1, 2).astype(np.float64) - 1.0
+    if signed_area(poly) < 0:  # make it clockwise on screen
+        poly = poly[::-1].copy()
+    cx = float(centroids[best, 0])
+    i, start = _start_on_polyline(poly, cx)
+    pts = resample_closed(poly, i, start, int(n_points))
+    return Contour(
+        points=pts.astype(np.float32),
+        area=int(areas[best - 1]),
+        length=length,
+        n_blobs=int(n_labels - 1),
+        touches_border=touches,
+    )
+
+
+def extract_contours(masks: np.ndarray, n_points: int = N_POINTS) -> dict[str, np.ndarray]:
+    """:func:`extract_contour` for a stack of masks (e.g. the K views of a sample).
+
+    Args:
+        masks: (K, H, W) bool or integer masks.
+        n_points: number of resampled points per contour.
+    Returns:
+        dict with ``points`` (K, n_points, 2) float32, ``area`` (K,) int32, ``length`` (K,)
+        float32, ``n_blobs`` (K,) int32, ``touches_border`` (K,) bool.
+    Raises:
+        EmptyMaskError: some mask is empty (the message names its index).
+    """
+    masks = np.asarray(masks)
+    if masks.ndim != 3:
+        raise ValueError(f"masks must have shape (K, H, W), got {masks.shape}")
+    k = masks.shape[0]
+    out = {
+        "points": np.zeros((k, int(n_points), 2), np.float32),
+        "area": np.zeros(k, np.int32),
+        "length": np.zeros(k, np.float32),
+        "n_blobs": np.zeros(k, np.int32),
+        "touches_border": np.zeros(k, bool),
+    }
+    for j in range(k):
+        try:
+            c = extract_contour(masks[j], n_points)
+        except EmptyMaskError as exc:
+            raise EmptyMaskError(f"mask {j} of {k}: {exc}") from None
+        out["points"][j] = c.points
+        out["area"][j] = c.area
+        out["length"][j] = c.length
+        out["n_blobs"][j] = c.n_blobs
+        out["touches_border"][j] = c.touches_border
+    return out
+
+
+def normalise(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Remove translation and scale from contours (per contour).
+
+    ``c = mean_i p_i``, ``s = sqrt(mean_i ||p_i - c||^2)`` (RMS distance from the centroid,
+    THE scale measure), ``q_i = (p_i - c) / s``. A degenerate contour (s == 0, all points
+    equal) returns ``s = 0`` and ``q = 0`` (it is divided by 1 instead of 0), so
+    :func:`denormalise` still gives the points back exactly; never NaN.
+
+    Args:
+        points: (..., n, 2) pixel coordinates.
+    Returns:
+        normalised (..., n, 2), centroid (..., 2), scale (...,); floating dtype of the input
+        (float32 stays float32, integers become float64), computed in float64.
+    """
+    p = np.asarray(points)
+    if p.ndim < 2 or p.shape[-1] != 2:
+        raise ValueError(f"points must have shape (..., n, 2), got {p.shape}")
+    dtype = p.dtype if np.issubdtype(p.dtype, np.floating) else np.float64
+    p64 = p.astype(np.float64)
+    c = p64.mean(axis=-2)
+    d = p64 - c[..., None, :]
+    s = np.sqrt(np.mean(np.sum(d * d, axis=-1), axis=-1))
+    safe = np.where(s > 0, s, 1.0)
+    q = d / safe[..., None, None]
+    return q.astype(dtype), c.astype(dtype), s.astype(dtype)
+
+
+def denormalise(normalised: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`normalise`: ``p_i = s q_i + c``.
+
+    Args:
+        normalised: (..., n, 2); centroid: (..., 2) px; scale: (...,) px.
+    Returns:
+        (..., n, 2) pixel coordinates, float64 unless all inputs are float32.
+    """
+    q = np.asarray(normalised)
+    c = np.asarray(centroid)
+    s = np.asarray(scale)
+    return q * s[..., None, None] + c[..., None, :]
+
+
+_SHIFT = 4  # cv2 fixed-point bits: coordinates in 1/16 px
+
+
+def draw_contour(points: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Rasterise a closed contour as a 1-pixel-wide 8-connected line.
+
+    Uses ``cv2.polylines`` with sub-pixel precision (``shift`` = 4 bits, 1/16 px); the parts
+    outside the image are clipped by OpenCV.
+
+    Args:
+        points: (n, 2) pixel coordinates (x right, y down, pixel centres at integers).
+        height, width: image size in pixels.
+    Returns:
+        (height, width) bool image, True on the contour.
+    """
+    import cv2
+
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"points must have shape (n, 2), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points contain NaN or infinity")
+    img = np.zeros((int(height), int(width)), np.uint8)
+    if len(p) == 0:
+        return img.astype(bool)
+    # Keep fixed-point coordinates far inside int32; lines that far out are clipped anyway.
+    p = np.clip(p, -1e6, 1e6)
+    fixed = np.round(p * (1 << _SHIFT)).astype(np.int32).reshape(-1, 1, 2)
+    cv2.polylines(img, [fixed], isClosed=True, color=1, thickness=1, lineType=cv2.LINE_8, shift=_SHIFT)
+    return img.astype(bool)
