@@ -1,0 +1,198 @@
+"""The shape+structure vector (paper eq. 4) and its layout.
+
+A shape vector is the selected views' *normalised* contours, each ``n x 2`` flattened as
+``x0, y0, x1, y1, ...``, concatenated in the order of ``views``, followed by the 19 x 3
+root-relative joints (``silpose.shared.skeleton.root_relative``, metres, world orientation)
+flattened joint by joint (``x, y, z``) and multiplied by the *structure weight* ``w``::
+
+    o = (c_1, ..., c_K, w * s_1, ..., w * s_z)          (paper eq. 4, d = 2 K n + 3 z)
+
+The weight exists because the mixture of PPCA uses one isotropic noise variance per
+component (DESIGN §4): the relative scale of the contour block (normalised units: RMS
+distance of the points from their centroid = 1) and the structure block (metres) changes the
+fit, so ``w`` is a hyperparameter chosen on validation joint error (``silpose.model.selection``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from silpose.shared.skeleton import N_JOINTS, root_relative
+
+LAYOUT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class FeatureLayout:
+    """Where each block lives in a shape vector.
+
+    Attributes:
+        views: rig view indices of the modelled views, in vector order.
+        n_points: contour points per view (n).
+        n_joints: number of joints (z), 19 for the silpose skeleton.
+        structure_weight: factor ``w`` multiplying the root-relative joints (metres -> feature units).
+    """
+
+    views: tuple[int, ...]
+    n_points: int
+    n_joints: int = N_JOINTS
+    structure_weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        views = tuple(int(v) for v in self.views)
+        object.__setattr__(self, "views", views)
+        object.__setattr__(self, "structure_weight", float(self.structure_weight))
+        if not views:
+            raise ValueError("FeatureLayout.views must name at least one view")
+        if len(set(views)) != len(views) or min(views) < 0:
+            raise ValueError(f"FeatureLayout.views must be distinct non-negative indices, got {views}")
+        if int(self.n_points) < 3:
+            raise ValueError(f"FeatureLayout.n_points must be >= 3, got {self.n_points}")
+        if int(self.n_joints) < 1:
+            raise ValueError(f"FeatureLayout.n_joints must be >= 1, got {self.n_joints}")
+        if not np.isfinite(self.structure_weight) or self.structure_weight <= 0:
+            raise ValueError(f"FeatureLayout.structure_weight must be finite and > 0, got {self.structure_weight}")
+
+    # ------------------------------------------------------------------ sizes and slices
+    @property
+    def n_views(self) -> int:
+        return len(self.views)
+
+    @property
+    def view_dim(self) -> int:
+        """Dimensions of one view's contour block (2 n)."""
+        return 2 * self.n_points
+
+    @property
+    def contour_dim(self) -> int:
+        """Dimensions of all contour blocks (2 K n)."""
+        return self.n_views * self.view_dim
+
+    @property
+    def structure_dim(self) -> int:
+        """Dimensions of the structure block (3 z)."""
+        return 3 * self.n_joints
+
+    @property
+    def dim(self) -> int:
+        """Total dimension d = 2 K n + 3 z."""
+        return self.contour_dim + self.structure_dim
+
+    def view_slice(self, position: int) -> slice:
+        """Slice of the ``position``-th modelled view (0 <= position < n_views) in a shape vector."""
+        if not 0 <= position < self.n_views:
+            raise IndexError(f"view position {position} out of range for {self.n_views} modelled views")
+        return slice(position * self.view_dim, (position + 1) * self.view_dim)
+
+    def position_of(self, rig_view: int) -> int:
+        """Position in the vector of rig view ``rig_view``; ValueError if it is not modelled."""
+        try:
+            return self.views.index(int(rig_view))
+        except ValueError:
+            raise ValueError(f"view {rig_view} is not modelled (modelled views: {self.views})") from None
+
+    @property
+    def structure_slice(self) -> slice:
+        return slice(self.contour_dim, self.dim)
+
+    # ------------------------------------------------------------------ masks
+    def observed_mask(self, present: Sequence[bool] | np.ndarray) -> np.ndarray:
+        """(d,) bool: True on the contour dimensions of the present views.
+
+        Args:
+            present: (n_views,) bool, one flag per *modelled* view (vector order).
+        The structure block is never observed at inference (paper section 4).
+        """
+        present = np.asarray(present, dtype=bool)
+        if present.shape != (self.n_views,):
+            raise ValueError(f"present must have shape ({self.n_views},), got {present.shape}")
+        mask = np.zeros(self.dim, dtype=bool)
+        mask[: self.contour_dim] = np.repeat(present, self.view_dim)
+        return mask
+
+    def observed_mask_for_views(self, rig_views: Iterable[int]) -> np.ndarray:
+        """(d,) bool observed mask for a subset of rig view indices (each must be modelled)."""
+        present = np.zeros(self.n_views, dtype=bool)
+        for v in rig_views:
+            present[self.position_of(v)] = True
+        return self.observed_mask(present)
+
+    # ------------------------------------------------------------------ build / split
+    def build(self, contours_norm: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """Shape vectors from normalised contours and joints (paper eq. 4).
+
+        Args:
+            contours_norm: (N, n_views, n_points, 2) normalised contours of the modelled views, vector order.
+            joints: (N, n_joints, 3) joint positions in metres (absolute or root-relative; made root-relative here).
+        Returns:
+            (N, d) float64.
+        """
+        c = np.asarray(contours_norm, dtype=np.float64)
+        j = np.asarray(joints, dtype=np.float64)
+        if c.ndim != 4 or c.shape[1:] != (self.n_views, self.n_points, 2):
+            raise ValueError(
+                f"contours_norm must have shape (N, {self.n_views}, {self.n_points}, 2), got {c.shape}"
+            )
+        if j.ndim != 3 or j.shape[1:] != (self.n_joints, 3):
+            raise ValueError(f"joints must have shape (N, {self.n_joints}, 3), got {j.shape}")
+        if c.shape[0] != j.shape[0]:
+            raise ValueError(f"contours_norm has {c.shape[0]} rows but joints has {j.shape[0]}")
+        if self.n_joints == N_JOINTS:
+            j = root_relative(j)
+        n = c.shape[0]
+        out = np.empty((n, self.dim), dtype=np.float64)
+        out[:, : self.contour_dim] = c.reshape(n, -1)
+        out[:, self.structure_slice] = self.structure_weight * j.reshape(n, -1)
+        return out
+
+    def split(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Inverse of ``build``: (N, d) -> (contours (N, n_views, n_points, 2), joints (N, n_joints, 3) metres)."""
+        X = np.asarray(X)
+        if X.ndim != 2 or X.shape[1] != self.dim:
+            raise ValueError(f"X must have shape (N, {self.dim}), got {X.shape}")
+        n = X.shape[0]
+        contours = X[:, : self.contour_dim].reshape(n, self.n_views, self.n_points, 2)
+        joints = X[:, self.structure_slice].reshape(n, self.n_joints, 3) / self.structure_weight
+        return contours, joints
+
+    # ------------------------------------------------------------------ serialisation
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["views"] = list(self.views)
+        d["layout_version"] = LAYOUT_VERSION
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "layout") -> "FeatureLayout":
+        if not isinstance(d, dict):
+            raise ValueError(f"{source}: feature layout must be a JSON object, got {type(d).__name__}")
+        version = d.get("layout_version", LAYOUT_VERSION)
+        if version != LAYOUT_VERSION:
+            raise ValueError(f"{source}: feature layout version {version!r} is not supported (expected {LAYOUT_VERSION})")
+        for key in ("views", "n_points", "n_joints", "structure_weight"):
+            if key not in d:
+                raise ValueError(f"{source}: feature layout is missing field {key!r}")
+        try:
+            return cls(
+                views=tuple(int(v) for v in d["views"]),
+                n_points=int(d["n_points"]),
+                n_joints=int(d["n_joints"]),
+                structure_weight=float(d["structure_weight"]),
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{source}: invalid feature layout: {exc}") from None
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "layout") -> "FeatureLayout":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{source}: feature layout is not valid JSON: {exc}") from None
+        return cls.from_dict(d, source)
