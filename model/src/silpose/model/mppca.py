@@ -1,0 +1,258 @@
+"""Mixture of probabilistic principal component analysers (MPPCA), fitted by EM.
+
+Tipping & Bishop (1999), "Mixtures of probabilistic principal component analysers", Neural
+Computation 11(2):443-482. Component i models x ~ N(mu_i, C_i) with C_i = W_i W_i^T + sigma_i^2 I,
+W_i (d, q). The E-step and M-step cost O(N d q) per component through the q x q matrix
+M_i = W_i^T W_i + sigma_i^2 I (see ``_ppca``); no d x d matrix is ever formed.
+
+Used by the shape+structure model (paper eq. 3-4) as the prior over multi-view contour + joint
+vectors; ``silpose.model.conditional`` does the Bayesian reconstruction of missing blocks.
+"""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+
+import numpy as np
+from scipy.special import logsumexp
+from sklearn.base import BaseEstimator, DensityMixin
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from silpose.model import _ppca
+
+
+class MPPCA(DensityMixin, BaseEstimator):
+    """Mixture of probabilistic PCA, a scikit-learn density estimator.
+
+    Parameters
+    ----------
+    n_components : int, number of mixture components M (>= 1).
+    n_latent : int, latent dimension q of every component (1 <= q < n_features).
+    tol : float, EM stops when the mean log-likelihood per sample rises by less than ``tol``.
+    max_iter : int, maximum EM iterations per initialisation.
+    n_init : int, number of full EM runs from different initialisations; the best final
+        log-likelihood wins.
+    init : {"kmeans", "random"}, hard assignment used to start each run: one k-means run
+        (sklearn ``KMeans``) or random data points as centres (nearest-centre assignment);
+        each cluster then gets its closed-form PPCA (T&B 1999 PPCA, eqs. 7-8).
+    reg_variance : float, floor on every noise variance sigma_i^2, relative to the mean
+        per-feature variance of the training data.
+    random_state : None, int or numpy Generator; every random draw comes from
+        ``numpy.random.default_rng(random_state)``.
+    callback : callable(iteration: int, lower_bound: float) or None, called after each EM
+        iteration (the CLI turns it into a progress display).
+    verbose : int, 0 silent, 1 prints one line per initialisation, 2 one per iteration.
+
+    Fitted attributes
+    -----------------
+    weights_ (M,), means_ (M, d), components_ (M, d, q) the W matrices, noise_variance_ (M,),
+    converged_ (bool), n_iter_ (int), lower_bound_ (float, mean log-likelihood per sample of
+    the training data under the final parameters), lower_bounds_ (list of floats, the same after
+    each EM iteration of the best run, non-decreasing), n_features_in_.
+    """
+
+    def __init__(self, n_components=5, n_latent=10, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
+                 reg_variance=1e-6, random_state=None, callback=None, verbose=0):
+        self.n_components = n_components
+        self.n_latent = n_latent
+        self.tol = tol
+        self.max_iter = max_iter
+        self.n_init = n_init
+        self.init = init
+        self.reg_variance = reg_variance
+        self.random_state = random_state
+        self.callback = callback
+        self.verbose = verbose
+
+    # ------------------------------------------------------------------ validation
+    def _check_params(self, n_samples: int, n_features: int) -> None:
+        def _int(name, lo):
+            v = getattr(self, name)
+            if not isinstance(v, numbers.Integral) or isinstance(v, bool) or v < lo:
+                raise ValueError(f"MPPCA: {name} must be an integer >= {lo}, got {v!r}")
+
+        _int("n_components", 1)
+        _int("n_latent", 1)
+        _int("max_iter", 1)
+        _int("n_init", 1)
+        for name in ("tol", "reg_variance"):
+            v = getattr(self, name)
+            if not isinstance(v, numbers.Real) or not np.isfinite(v) or v < 0:
+                raise ValueError(f"MPPCA: {name} must be a finite number >= 0, got {v!r}")
+        if self.init not in ("kmeans", "random"):
+            raise ValueError(f"MPPCA: init must be 'kmeans' or 'random', got {self.init!r}")
+        if self.callback is not None and not callable(self.callback):
+            raise ValueError("MPPCA: callback must be callable(iteration, lower_bound) or None")
+        if n_samples < max(2, self.n_components):
+            raise ValueError(f"MPPCA: n_samples = {n_samples} but at least max(2, n_components = "
+                             f"{self.n_components}) samples are needed")
+        if self.n_latent >= n_features:
+            raise ValueError(f"MPPCA: n_latent = {self.n_latent} must be smaller than n_features = "
+                             f"{n_features}")
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, X, y=None) -> "MPPCA":
+        """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self."""
+        X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
+        n, d = X.shape
+        self._check_params(n, d)
+        rng = np.random.default_rng(self.random_state)
+        data_var = float(np.mean(X.var(axis=0)))
+        var_floor = self.reg_variance * data_var if data_var > 0 else max(self.reg_variance, 1e-300)
+        var_floor = max(var_floor, 1e-300)
+
+        best = None
+        for init_idx in range(self.n_init):
+            run = self._fit_one(X, rng, var_floor, init_idx)
+            if best is None or run["lower_bound"] > best["lower_bound"]:
+                best = run
+        self.weights_ = best["weights"]
+        self.means_ = best["means"]
+        self.components_ = best["components"]
+        self.noise_variance_ = best["noise_variance"]
+        self.converged_ = best["converged"]
+        self.n_iter_ = best["n_iter"]
+        self.lower_bound_ = best["lower_bound"]
+        self.lower_bounds_ = best["lower_bounds"]
+        if not self.converged_:
+            warnings.warn(f"MPPCA: EM did not converge in max_iter = {self.max_iter} iterations "
+                          f"(tol = {self.tol}); try more iterations or a larger tol.", ConvergenceWarning)
+        return self
+
+    def _initial_labels(self, X, rng) -> np.ndarray:
+        m = self.n_components
+        if m == 1:
+            return np.zeros(X.shape[0], dtype=np.intp)
+        if self.init == "kmeans":
+            from sklearn.cluster import KMeans
+
+            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1)))
+            return km.fit(X).labels_
+        centres = X[rng.choice(X.shape[0], size=m, replace=False)]
+        d2 = (np.einsum("ij,ij->i", X, X)[:, None] - 2.0 * X @ centres.T
+              + np.einsum("ij,ij->i", centres, centres)[None, :])
+        return np.argmin(d2, axis=1)
+
+    def _fit_one(self, X, rng, var_floor, init_idx) -> dict:
+        n, d = X.shape
+        m, q = self.n_components, self.n_latent
+        labels = self._initial_labels(X, rng)
+        weights = np.empty(m)
+        means = np.empty((m, d))
+        comps = np.empty((m, d, q))
+        s2 = np.empty(m)
+        for i in range(m):
+            members = X[labels == i]
+            if members.shape[0] == 0:  # empty cluster: restart it on one random sample
+                members = X[rng.integers(n)][None, :]
+            weights[i] = max(members.shape[0], 1) / n
+            means[i], comps[i], s2[i] = _ppca.ppca_closed_form(members, q, var_floor, rng)
+            s2[i] = max(s2[i], var_floor)
+        weights /= weights.sum()
+
+        ll = _ppca.weighted_log_prob(X, weights, means, comps, s2)
+        log_norm = logsumexp(ll, axis=1)
+        prev = float(np.mean(log_norm))
+        bounds: list[float] = []
+        converged = False
+        it = 0
+        for it in range(1, self.max_iter + 1):
+            resp = np.exp(ll - log_norm[:, None])  # E-step posteriors R_ni (T&B eq. 21)
+            for i in range(m):  # M-step per component (T&B Appendix C)
+                n_i, means[i], comps[i], s2[i] = _ppca.m_step_component(X, resp[:, i], comps[i], s2[i], var_floor)
+                weights[i] = n_i / n
+            weights /= weights.sum()
+            del resp
+            ll = _ppca.weighted_log_prob(X, weights, means, comps, s2)
+            log_norm = logsumexp(ll, axis=1)
+            cur = float(np.mean(log_norm))
+            bounds.append(cur)
+            if self.verbose >= 2:
+                print(f"MPPCA init {init_idx} iteration {it}: mean log-likelihood {cur:.6f}")
+            if self.callback is not None:
+                self.callback(it, cur)
+            if abs(cur - prev) < self.tol:
+                converged = True
+                break
+            prev = cur
+        if self.verbose >= 1:
+            print(f"MPPCA init {init_idx}: {'converged' if converged else 'not converged'} after {it} "
+                  f"iterations, mean log-likelihood {bounds[-1]:.6f}")
+        return dict(weights=weights, means=means, components=comps, noise_variance=s2, converged=converged,
+                    n_iter=it, lower_bound=bounds[-1], lower_bounds=bounds)
+
+    # ------------------------------------------------------------------ inference
+    def _validate_predict(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return validate_data(self, X, dtype=np.float64, reset=False)
+
+    def _estimate_weighted_log_prob(self, X) -> np.ndarray:
+        return _ppca.weighted_log_prob(X, self.weights_, self.means_, self.components_, self.noise_variance_)
+
+    def score_samples(self, X) -> np.ndarray:
+        """Log density log p(x_n) of each row. X (N, d). Returns (N,) in nats."""
+        X = self._validate_predict(X)
+        return logsumexp(self._estimate_weighted_log_prob(X), axis=1)
+
+    def score(self, X, y=None) -> float:
+        """Mean log-likelihood per sample of X (N, d). y ignored."""
+        return float(np.mean(self.score_samples(X)))
+
+    def predict_proba(self, X) -> np.ndarray:
+        """Posterior component probabilities p(i | x_n). X (N, d). Returns (N, M), rows sum to 1."""
+        X = self._validate_predict(X)
+        wlp = self._estimate_weighted_log_prob(X)
+        return np.exp(wlp - logsumexp(wlp, axis=1)[:, None])
+
+    def predict(self, X) -> np.ndarray:
+        """Most probable component of each row. X (N, d). Returns (N,) int."""
+        X = self._validate_predict(X)
+        return np.argmax(self._estimate_weighted_log_prob(X), axis=1)
+
+    def fit_predict(self, X, y=None) -> np.ndarray:
+        """Fit, then return the component labels of X (N,)."""
+        return self.fit(X).predict(X)
+
+    def sample(self, n_samples=1, random_state=None):
+        """Draw samples from the fitted mixture.
+
+        Returns X (n_samples, d) and labels (n_samples,). Draws come from
+        ``numpy.random.default_rng(random_state)`` (or ``self.random_state`` when None):
+        label ~ Categorical(weights_), x = mu + W z + sigma eps, z ~ N(0, I_q), eps ~ N(0, I_d).
+        """
+        check_is_fitted(self)
+        if not isinstance(n_samples, numbers.Integral) or n_samples < 1:
+            raise ValueError(f"MPPCA.sample: n_samples must be an integer >= 1, got {n_samples!r}")
+        rng = np.random.default_rng(self.random_state if random_state is None else random_state)
+        m, d, q = self.components_.shape
+        counts = rng.multinomial(n_samples, self.weights_)
+        labels = np.repeat(np.arange(m), counts)
+        z = rng.standard_normal((n_samples, q))
+        eps = rng.standard_normal((n_samples, d))
+        X = np.empty((n_samples, d))
+        for i in range(m):
+            sel = labels == i
+            X[sel] = self.means_[i] + z[sel] @ self.components_[i].T + np.sqrt(self.noise_variance_[i]) * eps[sel]
+        return X, labels
+
+    def n_parameters(self) -> int:
+        """Free parameters: (M-1) weights + per component d (mean) + d q - q (q-1)/2 (W up to a
+        rotation) + 1 (sigma^2)."""
+        check_is_fitted(self)
+        m, d, q = self.components_.shape
+        return int((m - 1) + m * (d + d * q - q * (q - 1) // 2 + 1))
+
+    def bic(self, X) -> float:
+        """Bayesian information criterion on X (N, d): -2 log L + k log N (lower is better)."""
+        X = self._validate_predict(X)
+        return float(-2.0 * self.score(X) * X.shape[0] + self.n_parameters() * np.log(X.shape[0]))
+
+    def aic(self, X) -> float:
+        """Akaike information criterion on X (N, d): -2 log L + 2 k (lower is better)."""
+        X = self._validate_predict(X)
+        return float(-2.0 * self.score(X) * X.shape[0] + 2 * self.n_parameters())
+
+
+__all__ = ["MPPCA"]
