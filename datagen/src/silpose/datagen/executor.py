@@ -1,0 +1,158 @@
+"""Run shard tasks in worker processes: a local spawn pool or Ray tasks.
+
+A task renders one shard: ``render(config, split, indices) -> list[record]`` where ``render``
+is named by a ``"module:function"`` string (default ``silpose.datagen.worker:render_samples``)
+and imported inside the worker. The driver never imports bpy (DESIGN §3): workers are spawned,
+never forked, and the render module is imported only in them.
+
+Executors yield ``(task, result)`` as tasks finish (any order); a result is a dict with
+``records``, ``seconds`` (render wall time), ``pid`` and ``rss_mb`` of the worker after the task.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import time
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+DEFAULT_RENDER = "silpose.datagen.worker:render_samples"
+#: Shard tasks a worker runs before it is replaced (bounds memory growth in long runs).
+DEFAULT_MAX_TASKS_PER_CHILD = 20
+
+
+@dataclass(frozen=True)
+class ShardTask:
+    """One shard to render: ``indices`` of ``split`` written to ``file`` (a name, not a path)."""
+
+    split: str
+    shard: int
+    n_shards: int
+    indices: tuple[int, ...]
+    file: str
+
+
+class ExecutorError(RuntimeError):
+    """A worker failed; the message names the shard and the worker's error."""
+
+
+def _resolve(target: str):
+    module, _, name = target.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def run_task(target: str, config: dict, split: str, indices: list[int]) -> dict:
+    """Worker side: render one shard with ``target`` and time it."""
+    t0 = time.perf_counter()
+    records = _resolve(target)(config, split, list(indices))
+    seconds = time.perf_counter() - t0
+    try:
+        import psutil
+
+        rss_mb = psutil.Process().memory_info().rss / 2**20
+    except ImportError:  # pragma: no cover - psutil is a dependency
+        rss_mb = float("nan")
+    return {"records": records, "seconds": seconds, "pid": os.getpid(), "rss_mb": rss_mb}
+
+
+def _run_task_star(args: tuple) -> tuple:
+    task, target, config = args
+    try:
+        return task, run_task(target, config, task.split, list(task.indices)), None
+    except Exception as exc:  # report which shard failed; the driver raises
+        return task, None, f"{type(exc).__name__}: {exc}"
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def run_local(
+    tasks: Iterable[ShardTask],
+    config: dict,
+    target: str = DEFAULT_RENDER,
+    workers: int | None = None,
+    max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
+) -> Iterator[tuple[ShardTask, dict]]:
+    """Run ``tasks`` on a ``multiprocessing`` spawn pool of ``workers`` processes (default: all cores).
+
+    Uses ``Pool(maxtasksperchild=...)``, not ``ProcessPoolExecutor(max_tasks_per_child=...)``, which
+    can deadlock on Python 3.11 (DESIGN §3).
+    """
+    import multiprocessing
+
+    tasks = list(tasks)
+    if not tasks:
+        return
+    n = min(workers or default_workers(), len(tasks))
+    ctx = multiprocessing.get_context("spawn")
+    pool = ctx.Pool(processes=n, maxtasksperchild=max_tasks_per_child)
+    try:
+        for task, result, error in pool.imap_unordered(_run_task_star, [(t, target, config) for t in tasks]):
+            if error is not None:
+                raise ExecutorError(f"shard {task.file}: worker failed: {error}")
+            yield task, result
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()
+
+
+def run_ray(
+    tasks: Iterable[ShardTask],
+    config: dict,
+    target: str = DEFAULT_RENDER,
+    workers: int | None = None,
+    max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
+) -> Iterator[tuple[ShardTask, dict]]:
+    """Run ``tasks`` as Ray tasks (``ray.remote``), at most ``2 * workers`` in flight.
+
+    Uses the running Ray instance if ``ray.init`` was called (or ``RAY_ADDRESS`` is set), else
+    starts a local one with ``workers`` CPUs. Each Ray worker process runs at most
+    ``max_tasks_per_child`` tasks (``max_calls``) to bound memory.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise ExecutorError("executor 'ray': ray is not installed (install the 'ray' extra)") from None
+    tasks = list(tasks)
+    if not tasks:
+        return
+    if not ray.is_initialized():
+        if os.environ.get("RAY_ADDRESS"):
+            ray.init()
+        else:
+            ray.init(num_cpus=workers or default_workers(), include_dashboard=False, log_to_driver=False)
+    remote = ray.remote(num_cpus=1, max_calls=max_tasks_per_child)(run_task)
+    config_ref = ray.put(config)
+    in_flight_limit = 2 * (workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
+    pending: dict = {}
+    queue = list(tasks)
+    try:
+        while queue or pending:
+            while queue and len(pending) < in_flight_limit:
+                t = queue.pop(0)
+                pending[remote.remote(target, config_ref, t.split, list(t.indices))] = t
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                task = pending.pop(ref)
+                try:
+                    result = ray.get(ref)
+                except Exception as exc:
+                    msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+                    raise ExecutorError(f"shard {task.file}: Ray task failed: {msg}") from None
+                yield task, result
+    finally:
+        for ref in pending:
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # already finished or gone
+                pass
+
+
+EXECUTORS = {"local": run_local, "ray": run_ray}

@@ -1,0 +1,210 @@
+"""Generate a dataset folder: plan shards, skip complete ones, render the rest, write the manifest.
+
+Sample ``i`` of a split is a pure function of ``(seed, split, i)`` (computed by the renderer), and a
+shard holds the fixed index range ``[i * shard_size, (i + 1) * shard_size)``, so the data do not
+depend on the number of workers, the executor or on interruptions: a rerun into the same folder
+verifies the shards already there (footer row count, sample ids, config) and renders only the
+missing ones. Shards are written under a temporary name and renamed; stale temporaries from a
+killed run are deleted first. A lock file keeps two runs out of one folder.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from silpose.shared.dataset import SHARD_RE, DatasetError, build_metadata, read_metadata, shard_name, write_shard
+
+from .config import GenConfig
+from .executor import DEFAULT_MAX_TASKS_PER_CHILD, DEFAULT_RENDER, EXECUTORS, ShardTask, default_workers
+from .manifest import MANIFEST, MANIFEST_VERSION, FolderLock, sha256_file, write_json_atomic
+
+
+class GenerationError(RuntimeError):
+    """The output folder cannot be used or a shard could not be produced."""
+
+
+def plan_shards(config: GenConfig) -> list[ShardTask]:
+    """All shards of the dataset, ``{split}-{i:05d}-of-{n:05d}.parquet``, in split then index order."""
+    tasks = []
+    for split, count in config.splits.items():
+        n = math.ceil(count / config.shard_size)
+        for i in range(n):
+            idx = tuple(range(i * config.shard_size, min(count, (i + 1) * config.shard_size)))
+            tasks.append(ShardTask(split, i, n, idx, shard_name(split, i, n)))
+    return tasks
+
+
+def dataset_metadata(config: GenConfig) -> dict:
+    return build_metadata(config.rig.to_dict()["cameras"], config.to_dict(), config.n_points)
+
+
+def _remove_temporaries(root: Path) -> list[Path]:
+    stale = [p for p in root.glob(".*.tmp") if ".parquet." in p.name or p.name.startswith(f".{MANIFEST}.")]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
+
+
+def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
+    """True if ``path`` is a readable shard of this config holding exactly ``task.indices``.
+
+    Reads the footer (metadata, row count) and the ``sample_id`` column only. Raises
+    GenerationError if the shard belongs to another configuration.
+    """
+    import pyarrow.parquet as pq
+
+    try:
+        meta = read_metadata(path)
+    except DatasetError:
+        return False  # unreadable or foreign: it will be rewritten
+    if meta["config"] != metadata["config"] or meta["cameras"] != metadata["cameras"]:
+        raise GenerationError(
+            f"{path}: field 'config' differs from this run's; the folder holds another dataset "
+            "(choose another --out or delete it)"
+        )
+    pf = pq.ParquetFile(path)
+    if pf.metadata.num_rows != len(task.indices):
+        return False
+    ids = pf.read(columns=["sample_id"]).column("sample_id").to_numpy()
+    return bool(np.array_equal(ids, np.asarray(task.indices)))
+
+
+def _check_records(records: list[dict], task: ShardTask) -> None:
+    ids = [r.get("sample_id") for r in records]
+    if ids != list(task.indices) or any(r.get("split") != task.split for r in records):
+        raise GenerationError(
+            f"shard {task.file}: field 'sample_id': renderer returned ids {ids[:3]}... for split "
+            f"{records[0].get('split') if records else '?'}, expected {list(task.indices[:3])}... of {task.split}"
+        )
+
+
+def prepare_folder(out: Path) -> None:
+    """Create ``out`` (and parents) or raise GenerationError naming it."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GenerationError(f"{out}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not out.is_dir():
+        raise GenerationError(f"{out}: output path exists and is not a folder")
+    probe = out / f".silpose-write-probe"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise GenerationError(f"{out}: output folder is not writable ({exc.strerror or exc})") from None
+
+
+def generate(
+    config: GenConfig,
+    out: str | Path,
+    workers: int | None = None,
+    executor: str = "local",
+    render: str = DEFAULT_RENDER,
+    progress: bool = True,
+    max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
+) -> dict:
+    """Generate (or complete) the dataset of ``config`` in ``out``; returns the manifest.
+
+    Args:
+        config: a validated config (``load_config``).
+        out: dataset folder (created).
+        workers: worker processes (default: all cores).
+        executor: ``"local"`` (spawn pool) or ``"ray"``.
+        render: ``"module:function"`` with the signature of ``worker.render_samples``.
+        progress: show a rich progress bar (samples/s) on stderr.
+        max_tasks_per_child: shard tasks per worker process before it is replaced.
+    """
+    if executor not in EXECUTORS:
+        raise GenerationError(f"executor: must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+    out = Path(out)
+    prepare_folder(out)
+    workers = workers or default_workers()
+    with FolderLock(out):
+        _remove_temporaries(out)
+        metadata = dataset_metadata(config)
+        tasks = plan_shards(config)
+        planned = {t.file for t in tasks}
+        foreign = sorted(p.name for p in out.iterdir() if SHARD_RE.match(p.name) and p.name not in planned)
+        if foreign:
+            raise GenerationError(
+                f"{out / foreign[0]}: shard of another configuration (this config plans "
+                f"{tasks[0].file} ...); choose another --out or delete the folder"
+            )
+        todo = [t for t in tasks if not ((out / t.file).exists() and shard_is_complete(out / t.file, t, metadata))]
+        for t in todo:
+            (out / t.file).unlink(missing_ok=True)
+        stats = _run(todo, config, out, metadata, workers, executor, render, progress, max_tasks_per_child)
+        manifest = build_manifest(config, out, tasks, stats, workers, executor, skipped=len(tasks) - len(todo))
+        write_json_atomic(out / MANIFEST, manifest)
+    return manifest
+
+
+def _run(todo, config, out, metadata, workers, executor, render, progress, max_tasks_per_child) -> dict:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    total = sum(len(t.indices) for t in todo)
+    stats = {"seconds": 0.0, "samples": 0, "worker_seconds": 0.0, "worker_rss_mb": {}, "shard_seconds": {}}
+    t0 = time.perf_counter()
+    columns = [
+        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:>7.1f} samples/s"), TimeElapsedColumn(), TimeRemainingColumn(),
+    ]
+    with Progress(*columns, console=Console(stderr=True), disable=not progress or total == 0, transient=False) as bar:
+        job = bar.add_task(f"gen {config.name}", total=total, rate=0.0)
+        results = EXECUTORS[executor](todo, config.worker_config(), render, workers, max_tasks_per_child)
+        try:
+            for task, result in results:
+                records = result["records"]
+                _check_records(records, task)
+                write_shard(out / task.file, records, metadata)
+                stats["samples"] += len(records)
+                stats["worker_seconds"] += result["seconds"]
+                stats["shard_seconds"][task.file] = round(result["seconds"], 3)
+                stats["worker_rss_mb"].setdefault(str(result["pid"]), []).append(round(result["rss_mb"], 1))
+                elapsed = time.perf_counter() - t0
+                bar.update(job, advance=len(records), rate=stats["samples"] / max(elapsed, 1e-9))
+        finally:
+            results.close()
+    stats["seconds"] = time.perf_counter() - t0
+    return stats
+
+
+def build_manifest(config: GenConfig, out: Path, tasks, stats: dict, workers: int, executor: str, skipped: int) -> dict:
+    """The manifest of a complete dataset folder (hashes every shard)."""
+    import pyarrow.parquet as pq
+
+    shards, redraws = [], {s: 0 for s in config.splits}
+    for t in tasks:
+        path = out / t.file
+        r = pq.read_table(path, columns=["redraws"]).column("redraws").to_numpy()
+        redraws[t.split] += int(r.sum())
+        shards.append({
+            "file": t.file, "split": t.split, "rows": len(t.indices),
+            "sample_ids": [t.indices[0], t.indices[-1]], "redraws": int(r.sum()),
+            "bytes": path.stat().st_size, "sha256": sha256_file(path),
+        })
+    rate = stats["samples"] / stats["seconds"] if stats["seconds"] > 0 else None
+    return {
+        "manifest_version": MANIFEST_VERSION,
+        "name": config.name,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "config": config.to_dict(),
+        "seeds": {
+            "dataset_seed": config.seed,
+            "rule": "sample i of split s is a pure function of (dataset_seed, s, i)",
+        },
+        "counts": dict(config.splits),
+        "redraws": redraws,
+        "shards": shards,
+        "timing": {
+            "executor": executor, "workers": workers, "shards_rendered": len(tasks) - skipped,
+            "shards_skipped": skipped, "samples_rendered": stats["samples"],
+            "wall_seconds": round(stats["seconds"], 3), "samples_per_second": round(rate, 2) if rate else None,
+            "worker_seconds": round(stats["worker_seconds"], 3), "worker_rss_mb": stats["worker_rss_mb"],
+        },
+    }

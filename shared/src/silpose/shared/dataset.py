@@ -1,0 +1,443 @@
+"""Read and write silpose datasets: Parquet shards of multi-view silhouettes and 3D joints.
+
+The format (schema and metadata) is documented in ``silpose.shared.dataset_schema`` and in every
+dataset's card; other tools read it without this code (pyarrow, pandas, DuckDB, Polars, HF
+``datasets``). This module gives numpy arrays out, zero-copy per Parquet chunk where pyarrow allows,
+and checks every file it reads, naming the file and the field in its errors.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, Sequence
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .camera import Rig, RigError
+from .dataset_schema import (
+    ALL_COLUMNS,
+    KNOWN_VERSIONS,
+    METADATA_KEY,
+    REQUIRED_METADATA,
+    SCALAR_COLUMNS,
+    TENSOR_COLUMNS,
+    TENSOR_DTYPES,
+    build_metadata,
+    build_schema,
+    per_view_fields,
+)
+from .skeleton import JOINT_NAMES, N_JOINTS
+
+__all__ = [
+    "DatasetError",
+    "DatasetSplit",
+    "build_metadata",
+    "iter_shards",
+    "list_shards",
+    "load_split",
+    "read_metadata",
+    "shard_name",
+    "write_shard",
+]
+
+SHARD_RE = re.compile(r"^(?P<split>[A-Za-z0-9_]+)-(?P<i>\d{5})-of-(?P<n>\d{5})\.parquet$")
+#: Default columns ``load_split`` reads (masks only with ``with_masks=True``).
+DEFAULT_COLUMNS = tuple(c for c in ALL_COLUMNS if c != "masks")
+#: Columns that must be free of NaN / infinity.
+FINITE_COLUMNS = ("joints", "contours", "contour_centroid", "contour_scale", "contour_length")
+
+
+class DatasetError(ValueError):
+    """A dataset file or record is malformed; the message names the file and the field."""
+
+
+def shard_name(split: str, i: int, n: int) -> str:
+    """``{split}-{i:05d}-of-{n:05d}.parquet``."""
+    return f"{split}-{i:05d}-of-{n:05d}.parquet"
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
+    """Write ``records`` as one Parquet shard (zstd), atomically: temporary name, then ``os.replace``.
+
+    Args:
+        path: the shard's final path.
+        records: dicts with the keys of the schema (see ``dataset_schema``); per record
+            ``joints`` (19, 3) metres, ``masks`` (K, H, W) uint8 0/1, ``contours`` (K, n, 2) px,
+            ``contour_centroid`` (K, 2) px, ``contour_scale`` (K,) px, ``contour_length`` (K,) px,
+            ``area`` (K,), ``n_blobs`` (K,), ``touches_border`` (K,) bool, ``subject`` / ``gait``
+            dicts of floats with the same keys in every record.
+        metadata: the ``silpose`` document (``build_metadata``); K, H, W and n come from it.
+    """
+    path = Path(path)
+    _check_metadata(metadata, str(path))
+    if not records:
+        raise DatasetError(f"{path}: no records to write")
+    table = records_to_table(records, metadata, source=str(path))
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records))
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def records_to_table(records: list[dict], metadata: dict, source: str = "records") -> pa.Table:
+    """Arrow table of ``records`` (see ``write_shard``), shapes checked against ``metadata``."""
+    cams = metadata["cameras"]
+    K, H, W, n = len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"])
+    subject_fields = list(records[0].get("subject", {}))
+    gait_fields = list(records[0].get("gait", {}))
+    schema = build_schema(metadata, subject_fields, gait_fields)
+    types = per_view_fields(K, H, W, n)
+    shapes = {name: tuple(typ.shape) for name, typ in types.items() if name != "touches_border"}
+    shapes["touches_border"] = (K,)
+    arrays = {}
+    for col, typ in SCALAR_COLUMNS.items():
+        values = [_field(r, col, source, i) for i, r in enumerate(records)]
+        arrays[col] = pa.array(values, type=typ)
+    for col, names in (("subject", subject_fields), ("gait", gait_fields)):
+        cols = {}
+        for name in names:
+            vals = np.empty(len(records), np.float32)
+            for i, r in enumerate(records):
+                d = _field(r, col, source, i)
+                if list(d) != names:
+                    raise DatasetError(f"{source}: record {i} field {col}: keys {list(d)} differ from {names}")
+                vals[i] = d[name]
+            cols[name] = pa.array(vals)
+        arrays[col] = pa.StructArray.from_arrays(list(cols.values()), names=names) if names else pa.array(
+            [{}] * len(records), type=pa.struct([])
+        )
+    for col in TENSOR_COLUMNS + ("touches_border",):
+        dtype = bool if col == "touches_border" else TENSOR_DTYPES[col]
+        stacked = np.empty((len(records),) + shapes[col], dtype=dtype)
+        for i, r in enumerate(records):
+            value = np.asarray(_field(r, col, source, i))
+            if value.shape != shapes[col]:
+                raise DatasetError(f"{source}: record {i} field {col}: expected shape {shapes[col]}, got {value.shape}")
+            stacked[i] = value
+        if col in ("joints", "contours", "contour_centroid", "contour_scale") and not np.all(np.isfinite(stacked)):
+            bad = int(np.flatnonzero(~np.isfinite(stacked.reshape(len(records), -1)).all(1))[0])
+            raise DatasetError(f"{source}: record {bad} field {col}: contains NaN or infinity")
+        if col == "touches_border":
+            arrays[col] = pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), K)
+        else:
+            arrays[col] = pa.ExtensionArray.from_storage(
+                types[col], pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), int(np.prod(shapes[col])))
+            )
+    return pa.Table.from_arrays([arrays[f.name] for f in schema], schema=schema)
+
+
+def _field(record: dict, name: str, source: str, i: int):
+    try:
+        return record[name]
+    except KeyError:
+        raise DatasetError(f"{source}: record {i} lacks field {name}") from None
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+@dataclass
+class DatasetSplit:
+    """One split (or one shard) of a dataset as numpy arrays. N samples, K views, n contour points.
+
+    Attributes:
+        sample_id: (N,) int64.
+        joints: (N, 19, 3) float32, world, metres.
+        contours: (N, K, n, 2) float32, pixels.
+        centroid: (N, K, 2) float32, pixels (contour normalisation offset).
+        scale: (N, K) float32, pixels (contour normalisation scale).
+        touches_border: (N, K) bool.
+        masks: (N, K, H, W) uint8 0/1, or None unless asked for.
+        subject, gait: dicts of (N,) float32 arrays.
+        extra: other per-sample columns read (seed, redraws, contour_length, area, n_blobs, split).
+        rig: the cameras, in view order.
+        metadata: the ``silpose`` metadata document.
+        files: the shards read, in order.
+    """
+
+    sample_id: np.ndarray
+    joints: np.ndarray | None
+    contours: np.ndarray | None
+    centroid: np.ndarray | None
+    scale: np.ndarray | None
+    touches_border: np.ndarray | None
+    masks: np.ndarray | None
+    subject: dict[str, np.ndarray]
+    gait: dict[str, np.ndarray]
+    rig: Rig
+    metadata: dict
+    files: list[Path] = field(default_factory=list)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_views(self) -> int:
+        return len(self.rig)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.metadata["n_points"])
+
+    def __len__(self) -> int:
+        return int(self.sample_id.shape[0])
+
+
+def list_shards(root: str | Path, split: str) -> list[Path]:
+    """The shards ``{split}-{i:05d}-of-{n:05d}.parquet`` of ``split`` under ``root``, in order.
+
+    Raises DatasetError if the shard numbering is incomplete or inconsistent.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(f"{root}: dataset folder not found")
+    found: dict[int, tuple[int, Path]] = {}
+    for p in root.iterdir():
+        m = SHARD_RE.match(p.name)
+        if m and m["split"] == split:
+            found[int(m["i"])] = (int(m["n"]), p)
+    if not found:
+        return []
+    totals = {n for n, _ in found.values()}
+    if len(totals) != 1:
+        raise DatasetError(f"{root}: split {split!r} mixes shard counts {sorted(totals)} in its file names")
+    n = totals.pop()
+    missing = sorted(set(range(n)) - set(found))
+    if missing:
+        raise DatasetError(f"{root}: split {split!r} lacks shard(s) {[shard_name(split, i, n) for i in missing[:3]]}")
+    return [found[i][1] for i in range(n)]
+
+
+def _open(path: Path) -> pq.ParquetFile:
+    try:
+        return pq.ParquetFile(path)
+    except (pa.ArrowException, OSError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DatasetError(f"{path}: not a readable Parquet file ({first})") from None
+
+
+def _metadata_from_schema(schema: pa.Schema, source: str) -> dict:
+    raw = (schema.metadata or {}).get(METADATA_KEY)
+    if raw is None:
+        raise DatasetError(f"{source}: schema metadata key 'silpose' missing (not a silpose dataset shard)")
+    try:
+        meta = json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{source}: schema metadata key 'silpose' is not valid JSON ({exc})") from None
+    _check_metadata(meta, source)
+    return meta
+
+
+def _check_metadata(meta: dict, source: str) -> None:
+    if not isinstance(meta, dict):
+        raise DatasetError(f"{source}: metadata 'silpose' must be a JSON object")
+    for key in REQUIRED_METADATA:
+        if key not in meta:
+            raise DatasetError(f"{source}: metadata field {key!r} missing")
+    if meta["format_version"] not in KNOWN_VERSIONS:
+        raise DatasetError(
+            f"{source}: metadata field 'format_version': unknown version {meta['format_version']!r} "
+            f"(this reader knows {list(KNOWN_VERSIONS)})"
+        )
+    if list(meta["joint_names"]) != list(JOINT_NAMES):
+        raise DatasetError(f"{source}: metadata field 'joint_names' differs from silpose's 19-joint skeleton")
+    try:
+        Rig.from_dict({"cameras": meta["cameras"]}, source=f"{source}: metadata field 'cameras'")
+    except RigError as exc:
+        raise DatasetError(str(exc)) from None
+    if not isinstance(meta["n_points"], int) or meta["n_points"] < 3:
+        raise DatasetError(f"{source}: metadata field 'n_points': expected an integer >= 3")
+
+
+def read_metadata(path: str | Path) -> dict:
+    """The validated ``silpose`` metadata document of one shard (reads only the footer)."""
+    path = Path(path)
+    return _metadata_from_schema(_open(path).schema_arrow, str(path))
+
+
+def _check_schema(schema: pa.Schema, meta: dict, source: str) -> None:
+    cams = meta["cameras"]
+    expected = per_view_fields(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(meta["n_points"]))
+    expected.update(SCALAR_COLUMNS)
+    for name, typ in expected.items():
+        idx = schema.get_field_index(name)
+        if idx < 0:
+            raise DatasetError(f"{source}: column {name!r} missing")
+        if not schema.field(idx).type.equals(typ):
+            raise DatasetError(f"{source}: column {name!r}: expected type {typ}, got {schema.field(idx).type}")
+    for name in ("subject", "gait"):
+        idx = schema.get_field_index(name)
+        if idx < 0:
+            raise DatasetError(f"{source}: column {name!r} missing")
+        typ = schema.field(idx).type
+        if not pa.types.is_struct(typ) or any(not typ.field(j).type.equals(pa.float32()) for j in range(typ.num_fields)):
+            raise DatasetError(f"{source}: column {name!r}: expected a struct of float32, got {typ}")
+
+
+def _to_numpy(column: pa.ChunkedArray, name: str) -> np.ndarray:
+    """(rows, ...) numpy array of a tensor / fixed-size-list / scalar column."""
+    chunks = column.chunks or [pa.array([], type=column.type)]
+    out = []
+    for chunk in chunks:
+        if isinstance(chunk.type, pa.FixedShapeTensorType):
+            out.append(chunk.to_numpy_ndarray())  # zero-copy per chunk
+        elif pa.types.is_fixed_size_list(chunk.type):
+            out.append(chunk.flatten().to_numpy(zero_copy_only=False).reshape(len(chunk), chunk.type.list_size))
+        else:
+            out.append(chunk.to_numpy(zero_copy_only=False))
+    return out[0] if len(out) == 1 else np.concatenate(out)
+
+
+def _read_shard(path: Path, columns: Sequence[str], reference: dict | None) -> tuple[dict, dict]:
+    """(metadata, {column: array}) of one shard, validated."""
+    source = str(path)
+    pf = _open(path)
+    meta = _metadata_from_schema(pf.schema_arrow, source)
+    if reference is not None:
+        for key in ("format_version", "cameras", "n_points", "joint_names", "config"):
+            if meta.get(key) != reference.get(key):
+                raise DatasetError(f"{source}: metadata field {key!r} differs from the split's first shard")
+    _check_schema(pf.schema_arrow, meta, source)
+    try:
+        table = pf.read(columns=list(columns))
+    except (pa.ArrowException, OSError) as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise DatasetError(f"{source}: cannot read data ({first})") from None
+    arrays: dict = {}
+    for name in columns:
+        col = table.column(name)
+        if col.null_count:
+            raise DatasetError(f"{source}: column {name!r} has {col.null_count} null value(s)")
+        if name in ("subject", "gait"):
+            struct = col.combine_chunks()
+            arrays[name] = {
+                struct.type.field(j).name: struct.field(j).to_numpy(zero_copy_only=False)
+                for j in range(struct.type.num_fields)
+            }
+        else:
+            arrays[name] = _to_numpy(col, name)
+        if name in FINITE_COLUMNS and not np.all(np.isfinite(arrays[name])):
+            row = int(np.flatnonzero(~np.isfinite(arrays[name].reshape(len(table), -1)).all(1))[0])
+            raise DatasetError(f"{source}: column {name!r} contains NaN or infinity (row {row})")
+    return meta, arrays
+
+
+def _columns(columns: Sequence[str] | None, with_masks: bool) -> list[str]:
+    cols = list(DEFAULT_COLUMNS if columns is None else columns)
+    unknown = [c for c in cols if c not in ALL_COLUMNS]
+    if unknown:
+        raise DatasetError(f"columns: unknown column(s) {unknown}; known: {list(ALL_COLUMNS)}")
+    if with_masks and "masks" not in cols:
+        cols.append("masks")
+    if "sample_id" not in cols:
+        cols.insert(0, "sample_id")
+    return cols
+
+
+def _assemble(parts: list[dict], meta: dict, files: list[Path], columns: list[str]) -> DatasetSplit:
+    def cat(name):
+        if name not in columns:
+            return None
+        arrs = [p[name] for p in parts]
+        return arrs[0] if len(arrs) == 1 else np.concatenate(arrs)
+
+    def cat_dict(name):
+        if name not in columns:
+            return {}
+        return {k: (np.concatenate([p[name][k] for p in parts]) if len(parts) > 1 else parts[0][name][k])
+                for k in parts[0][name]}
+
+    extra_names = [c for c in ("split", "seed", "redraws", "contour_length", "area", "n_blobs") if c in columns]
+    return DatasetSplit(
+        sample_id=cat("sample_id"),
+        joints=cat("joints"),
+        contours=cat("contours"),
+        centroid=cat("contour_centroid"),
+        scale=cat("contour_scale"),
+        touches_border=cat("touches_border"),
+        masks=cat("masks"),
+        subject=cat_dict("subject"),
+        gait=cat_dict("gait"),
+        rig=Rig.from_dict({"cameras": meta["cameras"]}),
+        metadata=meta,
+        files=list(files),
+        extra={c: cat(c) for c in extra_names},
+    )
+
+
+def iter_shards(
+    root: str | Path, split: str, columns: Sequence[str] | None = None, with_masks: bool = False
+) -> Iterator[tuple[Path, DatasetSplit]]:
+    """Yield ``(path, DatasetSplit)`` one shard at a time (streaming; arrays of one shard only)."""
+    cols = _columns(columns, with_masks)
+    files = list_shards(root, split)
+    if not files:
+        raise DatasetError(f"{root}: no shards for split {split!r} ({shard_name(split, 0, 1)} ...)")
+    reference = None
+    for path in files:
+        meta, arrays = _read_shard(path, cols, reference)
+        reference = reference or meta
+        yield path, _assemble([arrays], meta, [path], cols)
+
+
+def load_split(
+    root: str | Path, split: str, columns: Sequence[str] | None = None, with_masks: bool = False
+) -> DatasetSplit:
+    """Load one split of the dataset in ``root`` as numpy arrays (see ``DatasetSplit``).
+
+    Args:
+        root: the dataset folder.
+        split: ``"train"`` or ``"test"`` (any split name present).
+        columns: columns to read (default: all but ``masks``); ``sample_id`` is always read.
+        with_masks: also read ``masks`` (N, K, H, W) uint8 — 300 KiB per sample in memory at 4 x 320x240.
+    Raises:
+        DatasetError naming the file and the field: missing or foreign or truncated shard, schema or
+        metadata mismatch, NaN, duplicate sample ids.
+    """
+    cols = _columns(columns, with_masks)
+    parts, files, meta = [], [], None
+    for path, shard in iter_shards(root, split, cols, with_masks):
+        meta = meta or shard.metadata
+        files.append(path)
+        parts.append(_shard_arrays(shard, cols))
+    result = _assemble(parts, meta, files, cols)
+    ids, counts = np.unique(result.sample_id, return_counts=True)
+    if np.any(counts > 1):
+        raise DatasetError(f"{root}: split {split!r} column 'sample_id': duplicate id(s) {ids[counts > 1][:5].tolist()}")
+    return result
+
+
+def _shard_arrays(shard: DatasetSplit, cols: list[str]) -> dict:
+    named = {
+        "sample_id": shard.sample_id,
+        "joints": shard.joints,
+        "contours": shard.contours,
+        "contour_centroid": shard.centroid,
+        "contour_scale": shard.scale,
+        "touches_border": shard.touches_border,
+        "masks": shard.masks,
+        "subject": shard.subject,
+        "gait": shard.gait,
+        **shard.extra,
+    }
+    return {c: named[c] for c in cols}
+
+
+def expected_shapes(metadata: dict) -> dict[str, tuple[int, ...]]:
+    """Per-row shape of every tensor column for ``metadata`` (K views, H x W, n points)."""
+    cams = metadata["cameras"]
+    types = per_view_fields(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"]))
+    shapes = {k: tuple(t.shape) for k, t in types.items() if k != "touches_border"}
+    shapes["touches_border"] = (len(cams),)
+    assert shapes["joints"] == (N_JOINTS, 3)
+    return shapes
