@@ -1,0 +1,433 @@
+"""The shape+structure model: an MPPCA prior over multi-view contours and 3D joints (paper sections 3-4).
+
+Training vectors are built by :class:`~silpose.model.features.FeatureLayout` (paper eq. 4):
+the modelled views' normalised contours followed by the weighted root-relative joints. A mixture
+of PPCA (:class:`silpose.model.mppca.MPPCA`, paper eq. 3) is the prior density.
+
+Inference (paper section 4): the observed dimensions are the *present views'* contour
+coordinates; the missing dimensions are the absent views' contours and the whole structure block.
+Missing dimensions are marginalised by dropping their rows (``silpose.model.conditional``), never
+zero-filled; rows with different missing-view patterns are grouped and conditioned separately.
+Every modelled view gets a reconstruction: missing views from the conditional mean, present views
+from their Bayesian (MAP-style) reconstruction ``mu_a + W_a E[x | a]`` (the shape model of [8]),
+obtained by conditioning on a copy of the observed rows (see :func:`_augment`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from silpose.shared.contours import denormalise, normalise
+from silpose.shared.skeleton import N_JOINTS
+
+from .features import FeatureLayout
+
+# Defaults. See selection.py and the comments there for how they were chosen; the values below
+# are overwritten by the measured ones (command, data and date are recorded next to them).
+DEFAULT_N_COMPONENTS = 5
+DEFAULT_N_LATENT = 20
+DEFAULT_STRUCTURE_WEIGHT = 1.0
+DEFAULT_NOISE_VARIANCE = 1e-3
+
+
+@dataclass
+class InferenceResult:
+    """Output of :meth:`ShapeStructureModel.infer` for N frames and K modelled views.
+
+    Attributes:
+        joints: (N, 19, 3) root-relative joints, metres, mixture posterior mean.
+        joints_best: (N, 19, 3) the most probable component's conditional mean, metres.
+        joint_std: (N, 19, 3) posterior standard deviation per coordinate, metres.
+        contours_norm: (N, K, n, 2) reconstructed normalised contours of every modelled view.
+        contours_px: (N, K, n, 2) reconstructions in pixels; NaN where the view's normalisation is unknown.
+        centroid: (N, K, 2) px normalisation centroid used (NaN where unknown).
+        scale: (N, K) px normalisation scale used (NaN where unknown).
+        views_present: (N, K) bool, which modelled views were observed.
+        responsibilities: (N, M) component posteriors given the observed rows.
+        log_marginal: (N,) log density of the observed rows under the prior.
+        views: rig indices of the K modelled views.
+    """
+
+    joints: np.ndarray
+    joints_best: np.ndarray
+    joint_std: np.ndarray
+    contours_norm: np.ndarray
+    contours_px: np.ndarray
+    centroid: np.ndarray
+    scale: np.ndarray
+    views_present: np.ndarray
+    responsibilities: np.ndarray
+    log_marginal: np.ndarray
+    views: tuple[int, ...] = field(default=())
+
+
+def _augment(params, observed: np.ndarray):
+    """Parameters with a noiseless-observation copy of the observed rows appended.
+
+    Conditioning on rows ``a`` gives, per component, ``x_hat = M_a^-1 W_a^T (a - mu_a)`` and the
+    missing-row mean ``mu_b + W_b x_hat`` (DESIGN §4). Appending copies of rows ``a`` as extra
+    *missing* rows therefore returns ``mu_a + W_a x_hat``, the Bayesian reconstruction of the
+    observed contours, from the same exact conditioning code.
+
+    Args:
+        params: object with ``weights_ (M,)``, ``means_ (M, d)``, ``components_ (M, d, q)``, ``noise_variance_ (M,)``.
+        observed: (d,) bool.
+    Returns:
+        (params with d + d_obs rows, observed mask (d + d_obs,)).
+    """
+    idx = np.flatnonzero(observed)
+    aug = SimpleNamespace(
+        weights_=params.weights_,
+        means_=np.concatenate([params.means_, params.means_[:, idx]], axis=1),
+        components_=np.concatenate([params.components_, params.components_[:, idx, :]], axis=1),
+        noise_variance_=params.noise_variance_,
+    )
+    mask = np.concatenate([observed, np.zeros(idx.size, dtype=bool)])
+    return aug, mask
+
+
+class ShapeStructureModel:
+    """Mixture-of-PPCA prior over multi-view contours + 3D joints, with Bayesian inference.
+
+    Parameters (stored only; validated in ``fit``):
+        n_components: mixture components M.
+        n_latent: latent dimension q of each PPCA component.
+        structure_weight: factor on the root-relative joints in the shape vector (DESIGN §4).
+        views: rig view indices to model (vector order); None = every view of the training data.
+        noise_variance: observation noise s^2 on the contours at inference, normalised contour units^2.
+        tol, max_iter, n_init, random_state, callback: passed to :class:`~silpose.model.mppca.MPPCA`.
+
+    Fitted attributes: ``layout_`` (FeatureLayout), ``mixture_`` (fitted MPPCA), ``n_rig_views_``,
+    ``rig_`` (Rig or None), ``fit_time_`` (s), ``n_train_``.
+    """
+
+    def __init__(
+        self,
+        n_components: int = DEFAULT_N_COMPONENTS,
+        n_latent: int = DEFAULT_N_LATENT,
+        *,
+        structure_weight: float = DEFAULT_STRUCTURE_WEIGHT,
+        views: Sequence[int] | None = None,
+        noise_variance: float = DEFAULT_NOISE_VARIANCE,
+        tol: float = 1e-4,
+        max_iter: int = 200,
+        n_init: int = 3,
+        random_state: int | None = 0,
+        callback: Callable | None = None,
+        verbose: int = 0,
+    ) -> None:
+        self.n_components = n_components
+        self.n_latent = n_latent
+        self.structure_weight = structure_weight
+        self.views = views
+        self.noise_variance = noise_variance
+        self.tol = tol
+        self.max_iter = max_iter
+        self.n_init = n_init
+        self.random_state = random_state
+        self.callback = callback
+        self.verbose = verbose
+
+    # ------------------------------------------------------------------ fitting
+    def get_params(self) -> dict:
+        """Hyperparameters as a JSON-friendly dict (no callback)."""
+        return {
+            "n_components": int(self.n_components),
+            "n_latent": int(self.n_latent),
+            "structure_weight": float(self.structure_weight),
+            "views": None if self.views is None else [int(v) for v in self.views],
+            "noise_variance": float(self.noise_variance),
+            "tol": float(self.tol),
+            "max_iter": int(self.max_iter),
+            "n_init": int(self.n_init),
+            "random_state": None if self.random_state is None else int(self.random_state),
+        }
+
+    def _check_hyperparameters(self) -> None:
+        if int(self.n_components) < 1:
+            raise ValueError(f"n_components must be >= 1, got {self.n_components}")
+        if int(self.n_latent) < 1:
+            raise ValueError(f"n_latent must be >= 1, got {self.n_latent}")
+        if not np.isfinite(self.noise_variance) or self.noise_variance < 0:
+            raise ValueError(f"noise_variance must be finite and >= 0, got {self.noise_variance}")
+
+    def _make_mixture(self):
+        from .mppca import MPPCA
+
+        return MPPCA(
+            n_components=int(self.n_components),
+            n_latent=int(self.n_latent),
+            tol=float(self.tol),
+            max_iter=int(self.max_iter),
+            n_init=int(self.n_init),
+            random_state=self.random_state,
+            callback=self.callback,
+            verbose=self.verbose,
+        )
+
+    def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
+        layout = self._layout()
+        c = _check_contours(contours_px, "contours_px")
+        if c.shape[1] != self.n_rig_views_:
+            raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {self.n_rig_views_}")
+        norm, _, _ = normalise(c[:, list(layout.views)].astype(np.float64))
+        return layout.build(norm, joints)
+
+    def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None) -> "ShapeStructureModel":
+        """Fit the prior.
+
+        Args:
+            contours_px: (N, K, n, 2) contours in pixels for all K views of the rig (``views`` selects among them).
+            joints: (N, 19, 3) joint positions in metres (absolute or root-relative).
+            rig: optional ``silpose.shared.camera.Rig`` of the K views (kept for persistence and PNG inference).
+        Returns:
+            self.
+        """
+        self._check_hyperparameters()
+        c = _check_contours(contours_px, "contours_px")
+        j = np.asarray(joints, dtype=np.float64)
+        if j.ndim != 3 or j.shape[1:] != (N_JOINTS, 3):
+            raise ValueError(f"joints must have shape (N, {N_JOINTS}, 3), got {j.shape}")
+        if j.shape[0] != c.shape[0]:
+            raise ValueError(f"contours_px has {c.shape[0]} samples but joints has {j.shape[0]}")
+        if not np.all(np.isfinite(c)):
+            raise ValueError("contours_px contains NaN or inf")
+        if not np.all(np.isfinite(j)):
+            raise ValueError("joints contains NaN or inf")
+        n_rig = c.shape[1]
+        if rig is not None and len(rig) != n_rig:
+            raise ValueError(f"rig has {len(rig)} cameras but contours_px has {n_rig} views")
+        views = tuple(range(n_rig)) if self.views is None else tuple(int(v) for v in self.views)
+        bad = [v for v in views if not 0 <= v < n_rig]
+        if bad:
+            raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
+        self.layout_ = FeatureLayout(views, c.shape[2], N_JOINTS, float(self.structure_weight))
+        self.n_rig_views_ = n_rig
+        self.rig_ = rig
+        X = self.features(c, j)
+        t0 = time.perf_counter()
+        self.mixture_ = self._make_mixture().fit(X)
+        self.fit_time_ = time.perf_counter() - t0
+        self.n_train_ = int(X.shape[0])
+        return self
+
+    def fit_dataset(self, split) -> "ShapeStructureModel":
+        """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig)."""
+        return self.fit(split.contours, split.joints, rig=split.rig)
+
+    # ------------------------------------------------------------------ scoring
+    def _layout(self) -> FeatureLayout:
+        if not hasattr(self, "layout_"):
+            raise RuntimeError("ShapeStructureModel is not fitted: call fit() or load_model() first")
+        return self.layout_
+
+    def score_samples(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """(N,) log density of the full shape+structure vectors (contours and joints observed)."""
+        return self.mixture_.score_samples(self.features(contours_px, joints))
+
+    # ------------------------------------------------------------------ inference
+    def infer(
+        self,
+        contours_px: np.ndarray,
+        views_present: np.ndarray | None = None,
+        noise_variance: float | None = None,
+        *,
+        input_views: Sequence[int] | None = None,
+        centroid: np.ndarray | None = None,
+        scale: np.ndarray | None = None,
+    ) -> InferenceResult:
+        """Infer joints and reconstruct every modelled view's contour from the observed views.
+
+        Args:
+            contours_px: (N, K_in, n, 2) pixel contours. By default K_in is either the number of
+                modelled views (model order) or the number of rig views (rig order); otherwise pass
+                ``input_views``. Rows of absent views may hold anything (e.g. NaN).
+            views_present: (N, K_in) bool; None = every input view present.
+            noise_variance: observation noise s^2 (normalised units^2); None = the model's ``noise_variance``.
+            input_views: rig indices of the K_in input views. Input views that are not modelled are ignored;
+                modelled views missing from the input are treated as absent.
+            centroid, scale: optional (N, K_in, 2) / (N, K_in) true pixel normalisation factors, used to map
+                absent views' reconstructions to pixels (present views use their own factors).
+        Returns:
+            :class:`InferenceResult` over the K modelled views.
+        """
+        layout = self._layout()
+        s2 = self.noise_variance if noise_variance is None else noise_variance
+        if not np.isfinite(s2) or s2 < 0:
+            raise ValueError(f"noise_variance must be finite and >= 0, got {s2}")
+        c_in = _check_contours(contours_px, "contours_px", n_points=layout.n_points)
+        n, k_in = c_in.shape[:2]
+        cols = self._input_columns(k_in, input_views)  # (K,) input column of each modelled view or -1
+        present_in = _check_present(views_present, n, k_in)
+
+        kmod = layout.n_views
+        present = np.zeros((n, kmod), dtype=bool)
+        c_mod = np.full((n, kmod, layout.n_points, 2), np.nan)
+        cen_true = np.full((n, kmod, 2), np.nan)
+        sc_true = np.full((n, kmod), np.nan)
+        cen_in, sc_in = _check_factors(centroid, scale, n, k_in)
+        for p, col in enumerate(cols):
+            if col < 0:
+                continue
+            present[:, p] = present_in[:, col]
+            c_mod[:, p] = c_in[:, col]
+            if cen_in is not None:
+                cen_true[:, p] = cen_in[:, col]
+                sc_true[:, p] = sc_in[:, col]
+        obs_c = c_mod[present]  # (n_obs_views, n, 2)
+        bad = ~np.isfinite(obs_c).all(axis=(1, 2))
+        if bad.any():
+            rows, pos = np.nonzero(present)
+            r, p = rows[bad][0], pos[bad][0]
+            raise ValueError(
+                f"contours_px has NaN/inf in an observed view: frame {r}, view {layout.views[p]} "
+                f"({int(bad.sum())} observed views affected); mark such views absent in views_present"
+            )
+        none = ~present.any(axis=1)
+        if none.any():
+            raise ValueError(
+                f"every modelled view is missing in {int(none.sum())} frame(s) (first: frame "
+                f"{int(np.flatnonzero(none)[0])}); at least one of views {layout.views} must be observed"
+            )
+
+        norm = np.zeros_like(c_mod)
+        cen = cen_true.copy()
+        sc = sc_true.copy()
+        q, c_obs, s_obs = normalise(obs_c)
+        norm[present] = q
+        cen[present] = c_obs
+        sc[present] = s_obs
+
+        d = layout.dim
+        M = int(self.mixture_.weights_.shape[0])
+        mean = np.empty((n, d))
+        best = np.empty((n, d))
+        var = np.zeros((n, d))
+        resp = np.empty((n, M))
+        logm = np.empty(n)
+        flat = norm.reshape(n, -1)
+        patterns, inverse = np.unique(present, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        for g, pattern in enumerate(patterns):
+            rows = np.flatnonzero(inverse == g)
+            observed = layout.observed_mask(pattern)
+            x_obs = flat[rows][:, observed[: layout.contour_dim]]
+            res = self._conditioner(pattern, float(s2))(x_obs)
+            miss = ~observed
+            n_miss = int(miss.sum())
+            mean[np.ix_(rows, np.flatnonzero(miss))] = res.mean[:, :n_miss]
+            mean[np.ix_(rows, np.flatnonzero(observed))] = res.mean[:, n_miss:]
+            best[np.ix_(rows, np.flatnonzero(miss))] = res.best_mean[:, :n_miss]
+            best[np.ix_(rows, np.flatnonzero(observed))] = res.best_mean[:, n_miss:]
+            var[np.ix_(rows, np.flatnonzero(miss))] = res.variance[:, :n_miss]
+            var[np.ix_(rows, np.flatnonzero(observed))] = res.variance[:, n_miss:]
+            resp[rows] = res.responsibilities
+            logm[rows] = res.log_marginal
+
+        rec, joints = layout.split(mean)
+        _, joints_best = layout.split(best)
+        # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
+        joint_std = np.sqrt(np.maximum(var[:, layout.structure_slice], 0.0)).reshape(n, layout.n_joints, 3)
+        joint_std /= layout.structure_weight
+        px = denormalise(rec, cen, sc)
+        return InferenceResult(
+            joints=joints,
+            joints_best=joints_best,
+            joint_std=joint_std,
+            contours_norm=rec,
+            contours_px=px,
+            centroid=cen,
+            scale=sc,
+            views_present=present,
+            responsibilities=resp,
+            log_marginal=logm,
+            views=layout.views,
+        )
+
+    def _conditioner(self, pattern: np.ndarray, s2: float):
+        """Cached :class:`~silpose.model.conditional.Conditioner` for one present-view pattern and s^2.
+
+        The q x q factorisations depend only on the pattern and s^2, so they are computed once per
+        (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O(d_obs q M).
+        """
+        from .conditional import Conditioner
+
+        cache = getattr(self, "_cond_cache", None)
+        if cache is None or cache[0] is not self.mixture_:
+            cache = (self.mixture_, {})
+            self._cond_cache = cache
+        key = (np.asarray(pattern, dtype=bool).tobytes(), s2)
+        cond = cache[1].get(key)
+        if cond is None:
+            if len(cache[1]) >= 64:  # bounded: K views give at most 2^K - 1 patterns per s^2
+                cache[1].clear()
+            aug, aug_mask = _augment(self.mixture_, self._layout().observed_mask(pattern))
+            cond = cache[1][key] = Conditioner(aug, aug_mask, noise_variance=s2)
+        return cond
+
+    def _input_columns(self, k_in: int, input_views: Sequence[int] | None) -> np.ndarray:
+        """(K_mod,) input column of each modelled view, -1 when the input does not contain it."""
+        layout = self._layout()
+        if input_views is None:
+            if k_in == self.n_rig_views_:
+                input_views = tuple(range(k_in))
+            elif k_in == layout.n_views:
+                input_views = layout.views
+            else:
+                raise ValueError(
+                    f"contours_px has {k_in} views; expected {layout.n_views} (the modelled views "
+                    f"{layout.views}) or {self.n_rig_views_} (all rig views), or pass input_views"
+                )
+        input_views = [int(v) for v in input_views]
+        if len(input_views) != k_in:
+            raise ValueError(f"input_views names {len(input_views)} views but contours_px has {k_in}")
+        unknown = [v for v in input_views if not 0 <= v < self.n_rig_views_]
+        if unknown:
+            raise ValueError(f"unknown view indices {unknown}: the model's rig has views 0..{self.n_rig_views_ - 1}")
+        if len(set(input_views)) != len(input_views):
+            raise ValueError(f"input_views has duplicates: {input_views}")
+        return np.array([input_views.index(v) if v in input_views else -1 for v in layout.views])
+
+
+def _check_contours(contours: np.ndarray, name: str, n_points: int | None = None) -> np.ndarray:
+    c = np.asarray(contours, dtype=np.float64)
+    if c.ndim != 4 or c.shape[-1] != 2 or c.shape[1] < 1:
+        raise ValueError(f"{name} must have shape (N, K, n, 2), got {c.shape}")
+    if c.shape[0] == 0:
+        raise ValueError(f"{name} is empty (N = 0)")
+    if n_points is not None and c.shape[2] != n_points:
+        raise ValueError(f"{name} has {c.shape[2]} points per contour, the model expects {n_points}")
+    return c
+
+
+def _check_present(views_present, n: int, k_in: int) -> np.ndarray:
+    if views_present is None:
+        return np.ones((n, k_in), dtype=bool)
+    p = np.asarray(views_present)
+    if p.shape != (n, k_in):
+        raise ValueError(f"views_present must have shape ({n}, {k_in}), got {p.shape}")
+    if p.dtype != bool:
+        if not np.isin(p, (0, 1)).all():
+            raise ValueError("views_present must be boolean (or 0/1)")
+        p = p.astype(bool)
+    return p
+
+
+def _check_factors(centroid, scale, n: int, k_in: int):
+    if centroid is None and scale is None:
+        return None, None
+    if centroid is None or scale is None:
+        raise ValueError("pass both centroid and scale, or neither")
+    cen = np.asarray(centroid, dtype=np.float64)
+    sc = np.asarray(scale, dtype=np.float64)
+    if cen.shape != (n, k_in, 2):
+        raise ValueError(f"centroid must have shape ({n}, {k_in}, 2), got {cen.shape}")
+    if sc.shape != (n, k_in):
+        raise ValueError(f"scale must have shape ({n}, {k_in}), got {sc.shape}")
+    return cen, sc

@@ -1,0 +1,160 @@
+"""ShapeStructureModel on synthetic data with a known linear contour <- joints link.
+
+References: the trivial mean-pose baseline, and dense Gaussian conditioning (full d x d
+covariances built here, scipy's multivariate normal) for the marginalisation of missing views.
+"""
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+from scipy.stats import multivariate_normal
+
+from silpose.model.shape_model import ShapeStructureModel
+from silpose.model.synthetic import make_linear_shapes
+from silpose.shared.contours import normalise
+from silpose.shared.skeleton import root_relative
+
+N_POINTS = 16
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    train = make_linear_shapes(400, n_views=3, n_points=N_POINTS, seed=3)
+    # same fixed structure (seed), new samples: the last 80 of a longer draw
+    test = make_linear_shapes(480, n_views=3, n_points=N_POINTS, seed=3)
+    test.contours, test.joints = test.contours[400:], test.joints[400:]
+    test.centroid, test.scale = test.centroid[400:], test.scale[400:]
+    model = ShapeStructureModel(
+        n_components=2, n_latent=6, structure_weight=2.0, noise_variance=1e-4, n_init=2, random_state=0
+    ).fit(train.contours, train.joints)
+    return model, train, test
+
+
+def _err_cm(pred, joints):
+    return 100 * np.linalg.norm(pred - root_relative(joints.astype(np.float64)), axis=-1).mean()
+
+
+def test_infers_joints_and_beats_mean_pose(fitted):
+    model, train, test = fitted
+    res = model.infer(test.contours)
+    err = _err_cm(res.joints, test.joints)
+    baseline = _err_cm(np.broadcast_to(root_relative(train.joints).mean(0), res.joints.shape), test.joints)
+    assert err < 0.2 * baseline, (err, baseline)
+    assert _err_cm(res.joints_best, test.joints) < 0.3 * baseline
+    assert res.joints.shape == res.joint_std.shape == (80, 19, 3)
+    assert res.contours_norm.shape == res.contours_px.shape == (80, 3, N_POINTS, 2)
+    np.testing.assert_allclose(res.responsibilities.sum(1), 1.0, atol=1e-10)
+    assert np.all(res.joint_std >= 0) and np.all(np.isfinite(res.log_marginal))
+    # observed views are reconstructed close to their input (pixel noise 0.3 px, sizes 40-60 px)
+    assert np.abs(res.contours_px - test.contours).mean() < 1.0
+
+
+def _dense_reference(model, x_obs, observed, s2):
+    """Dense per-component Gaussian conditioning with full covariances (O(d^3), small d only)."""
+    mix = model.mixture_
+    miss = ~observed
+    logp, means, recs = [], [], []
+    for pi, mu, W, sig2 in zip(mix.weights_, mix.means_, mix.components_, mix.noise_variance_):
+        C = W @ W.T + sig2 * np.eye(len(mu))
+        Caa = C[np.ix_(observed, observed)] + s2 * np.eye(observed.sum())
+        Cba = C[np.ix_(miss, observed)]
+        diff = x_obs - mu[observed]
+        sol = np.linalg.solve(Caa, diff.T).T
+        logp.append(np.log(pi) + multivariate_normal(mu[observed], Caa).logpdf(x_obs))
+        means.append(mu[miss] + sol @ Cba.T)
+        Wa = W[observed]
+        recs.append(mu[observed] + sol @ Wa @ Wa.T)  # mu_a + W_a E[x | a]
+    logp = np.array(logp).T  # (N, M)
+    resp = np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
+    mean = np.einsum("nm,mnd->nd", resp, np.array(means))
+    rec = np.einsum("nm,mnd->nd", resp, np.array(recs))
+    return mean, rec, resp, logsumexp(logp, axis=1)
+
+
+def test_missing_view_is_marginalised_exactly(fitted):
+    model, _, test = fitted
+    lay = model.layout_
+    present = np.ones((80, 3), dtype=bool)
+    present[::2, 1] = False  # two missing patterns in one batch: grouped internally
+    present[1::4, 0] = False
+    contours = test.contours.astype(np.float64).copy()
+    contours[~present] = np.nan  # absent rows may hold anything
+    s2 = 1e-3
+    res = model.infer(contours, present, noise_variance=s2)
+    norm, _, _ = normalise(test.contours.astype(np.float64))
+    for pattern in np.unique(present, axis=0):
+        rows = np.flatnonzero((present == pattern).all(1))
+        observed = lay.observed_mask(pattern)
+        x_obs = norm[rows].reshape(len(rows), -1)[:, observed[: lay.contour_dim]]
+        mean, rec, resp, logm = _dense_reference(model, x_obs, observed, s2)
+        full = np.empty((len(rows), lay.dim))
+        full[:, ~observed] = mean
+        full[:, observed] = rec
+        c_ref, j_ref = lay.split(full)
+        np.testing.assert_allclose(res.joints[rows], j_ref, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(res.contours_norm[rows], c_ref, rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(res.responsibilities[rows], resp, atol=1e-8)
+        np.testing.assert_allclose(res.log_marginal[rows], logm, rtol=1e-9)
+    # the same frames given only the present view columns (input_views) give the same answer
+    sub = model.infer(test.contours[:, [0, 2]], noise_variance=s2, input_views=(0, 2))
+    rows = np.flatnonzero((present == [True, False, True]).all(1))
+    np.testing.assert_allclose(sub.joints[rows], res.joints[rows], rtol=1e-9, atol=1e-12)
+    # missing views: NaN in pixels unless the true normalisation factors are given
+    assert np.isnan(res.contours_px[~present]).all() and np.isfinite(res.contours_px[present]).all()
+    _, cen, sc = normalise(test.contours.astype(np.float64))  # the true factors (eval passes them)
+    placed = model.infer(contours, present, s2, centroid=cen, scale=sc)
+    assert np.isfinite(placed.contours_px).all()
+    assert np.abs(placed.contours_px[~present] - test.contours[~present]).mean() < 3.0
+
+
+def test_zero_filling_differs_and_is_worse(fitted):
+    model, _, test = fitted
+    present = np.ones((80, 3), dtype=bool)
+    present[:, 1] = False
+    marg = model.infer(test.contours, present)
+    zero = test.contours.astype(np.float64).copy()
+    zero[:, 1] = 0.0  # normalises to an all-zero contour: zero-filling in feature space
+    filled = model.infer(zero)  # view 1 "observed" as zeros
+    assert not np.allclose(marg.joints, filled.joints, atol=1e-3)
+    assert _err_cm(marg.joints, test.joints) < _err_cm(filled.joints, test.joints)
+    full = model.infer(test.contours)
+    # fewer views: larger posterior uncertainty on average
+    assert marg.joint_std.mean() > full.joint_std.mean()
+
+
+def test_single_view_model_takes_rig_views(fitted):
+    _, train, test = fitted
+    m1 = ShapeStructureModel(2, 4, views=(2,), n_init=1, random_state=1).fit(train.contours, train.joints)
+    a = m1.infer(test.contours)  # all rig views: selects view 2
+    b = m1.infer(test.contours[:, 2:3])  # only the modelled view
+    np.testing.assert_allclose(a.joints, b.joints, rtol=1e-10, atol=1e-12)
+    assert a.contours_norm.shape == (80, 1, N_POINTS, 2) and a.views == (2,)
+
+
+def test_input_validation(fitted):
+    model, _, test = fitted
+    c = test.contours
+    with pytest.raises(ValueError, match=r"\(N, K, n, 2\)"):
+        model.infer(c[0])
+    with pytest.raises(ValueError, match="points per contour"):
+        model.infer(c[:, :, :5])
+    with pytest.raises(ValueError, match="expected 3"):
+        model.infer(c[:, :2])
+    with pytest.raises(ValueError, match="unknown view indices \\[7\\]"):
+        model.infer(c[:, :2], input_views=(0, 7))
+    bad = c.astype(np.float64).copy()
+    bad[3, 2, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="frame 3, view 2"):
+        model.infer(bad)
+    with pytest.raises(ValueError, match="every modelled view is missing"):
+        model.infer(c, np.zeros((80, 3), bool))
+    with pytest.raises(ValueError, match="views_present must have shape"):
+        model.infer(c, np.ones((80, 2), bool))
+    with pytest.raises(ValueError, match="noise_variance"):
+        model.infer(c, noise_variance=-1.0)
+    with pytest.raises(RuntimeError, match="not fitted"):
+        ShapeStructureModel().infer(c)
+    with pytest.raises(ValueError, match="views \\[5\\] do not exist"):
+        ShapeStructureModel(1, 2, views=(5,)).fit(c, test.joints)
+    with pytest.raises(ValueError, match="NaN"):
+        ShapeStructureModel(1, 2).fit(bad, test.joints)
