@@ -218,8 +218,24 @@ class ShapeStructureModel:
         return self
 
     def fit_dataset(self, split) -> "ShapeStructureModel":
-        """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig)."""
-        return self.fit(split.contours, split.joints, rig=split.rig)
+        """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig).
+
+        Records the dataset folder and the sha256 of its ``manifest.json`` (when present) in
+        ``dataset_info_``, which persistence stores in the model file.
+        """
+        self.fit(split.contours, split.joints, rig=split.rig)
+        info: dict = {"n_samples": int(len(split.joints))}
+        files = list(getattr(split, "files", []) or [])
+        if files:
+            from .persistence import file_sha256
+
+            root = files[0].parent
+            manifest = root / "manifest.json"
+            info["root"] = str(root)
+            info["manifest_sha256"] = file_sha256(manifest) if manifest.is_file() else None
+            info["config_name"] = (split.metadata.get("config") or {}).get("name")
+        self.dataset_info_ = info
+        return self
 
     # ------------------------------------------------------------------ scoring
     def _layout(self) -> FeatureLayout:
