@@ -1,0 +1,169 @@
+"""Tests of silpose.shared.camera against OpenCV and hand-written references."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from silpose.shared.camera import (
+    WORKSPACE_HALF_SIZE,
+    Camera,
+    Rig,
+    RigError,
+    default_rig,
+    load_rig,
+    look_at,
+    ring_rig,
+)
+
+DIST = np.array([-0.21, 0.08, 0.0013, -0.0009, -0.012])
+
+
+def random_points(rng, n=100):
+    """(n, 3) points in the workspace volume, metres."""
+    return rng.uniform([-1.5, -1.5, 0.0], [1.5, 1.5, 2.0], size=(n, 3))
+
+
+def brown_conrady(cam: Camera, X: np.ndarray) -> np.ndarray:
+    """Reference projection written from the OpenCV documentation's distortion model (k1 k2 p1 p2 k3)."""
+    xc = X @ cam.R.T + cam.t
+    x, y = xc[:, 0] / xc[:, 2], xc[:, 1] / xc[:, 2]
+    k1, k2, p1, p2, k3 = cam.dist
+    r2 = x * x + y * y
+    radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    K = cam.K
+    return np.stack([K[0, 0] * xd + K[0, 1] * yd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)
+
+
+def test_project_matches_opencv_without_distortion():
+    rng = np.random.default_rng(0)
+    X = random_points(rng)
+    for cam in default_rig():
+        rvec, _ = cv2.Rodrigues(cam.R)
+        ref, _ = cv2.projectPoints(X, rvec, cam.t, cam.K, np.zeros(5))
+        np.testing.assert_allclose(cam.project(X), ref.reshape(-1, 2), rtol=1e-10, atol=1e-9)
+        # Leading dimensions are kept.
+        assert cam.project(X.reshape(4, 25, 3)).shape == (4, 25, 2)
+
+
+def test_project_with_distortion_matches_opencv_and_the_written_out_model():
+    rng = np.random.default_rng(1)
+    X = random_points(rng)
+    for c in default_rig():
+        cam = Camera(c.name, c.K, c.R, c.t, c.width, c.height, dist=DIST)
+        rvec, _ = cv2.Rodrigues(cam.R)
+        ref, _ = cv2.projectPoints(X, rvec, cam.t, cam.K, DIST)
+        got = cam.project(X)
+        np.testing.assert_allclose(got, ref.reshape(-1, 2), rtol=1e-10, atol=1e-9)
+        np.testing.assert_allclose(got, brown_conrady(cam, X), rtol=1e-10, atol=1e-8)
+        assert np.abs(got - c.project(X)).max() > 1.0  # the distortion really acts
+
+
+def test_rig_json_round_trip_is_exact(tmp_path):
+    rig = ring_rig(n_cameras=3, azimuth_start_deg=12.3, focal_px=512.7)
+    cams = list(rig.cameras)
+    c = cams[1]
+    cams[1] = Camera(c.name, c.K, c.R, c.t, c.width, c.height, dist=DIST)
+    rig = Rig(tuple(cams))
+    path = tmp_path / "rig.json"
+    path.write_text(rig.to_json())
+    for back in (Rig.from_json(rig.to_json()), load_rig(path)):
+        assert back.names == rig.names
+        for a, b in zip(rig, back):
+            for f in ("K", "R", "t", "dist"):
+                assert np.array_equal(getattr(a, f), getattr(b, f)), f
+            assert (a.width, a.height) == (b.width, b.height)
+
+
+def test_look_at_gives_a_rotation_pointing_at_the_target():
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        eye = rng.uniform(-8, 8, 3)
+        target = rng.uniform(-1, 1, 3)
+        R, t = look_at(eye, target)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(R) == pytest.approx(1.0)
+        forward = (target - eye) / np.linalg.norm(target - eye)
+        np.testing.assert_allclose(R[2], forward, atol=1e-12)  # camera z axis in world coordinates
+        np.testing.assert_allclose(-R.T @ t, eye, atol=1e-9)  # camera centre
+        assert R[0, 2] == pytest.approx(0.0, abs=1e-12)  # no roll: the x axis stays horizontal
+        assert R[1, 2] < 0  # image "down" points down in the world
+        cam = Camera("c", np.array([[500, 0, 160], [0, 500, 120], [0, 0, 1.0]]), R, t, 320, 240)
+        np.testing.assert_allclose(cam.project(target), [160, 120], atol=1e-9)
+    with pytest.raises(RigError, match="parallel"):
+        look_at((0, 0, 5), (0, 0, 0))
+
+
+def test_default_rig_sees_the_workspace_45_degrees_apart_at_equal_height():
+    rig = default_rig()
+    assert len(rig) == 4 and rig.image_size == (320, 240)
+    rig.check_sees_workspace()
+    rig.check_sees_workspace(height=1.8)  # a standing person anywhere in the workspace
+    centres = np.array([c.center for c in rig])
+    np.testing.assert_allclose(centres[:, 2], centres[0, 2], atol=1e-9)
+    az = np.degrees(np.arctan2(centres[:, 1], centres[:, 0]))
+    np.testing.assert_allclose(np.diff(az), 45.0, atol=1e-9)
+    # Every camera looks towards the workspace centre axis (it projects near the image centre).
+    for cam in rig:
+        px = cam.project(np.array([0.0, 0.0, 0.9]))
+        np.testing.assert_allclose(px, [(cam.width - 1) / 2, (cam.height - 1) / 2], atol=1e-6)
+    # A 1.75 m person at the centre spans a good part of the image height (docstring: ~115 px).
+    h = [abs(np.diff(cam.project(np.array([[0, 0, 0], [0, 0, 1.75]]))[:, 1])[0]) for cam in rig]
+    assert 100 < min(h) and max(h) < 130
+
+
+def test_check_sees_workspace_names_the_camera_turned_away():
+    rig = default_rig()
+    cams = list(rig.cameras)
+    c = cams[2]
+    away = c.center + (c.center - np.array([0.0, 0.0, 0.9]))  # looking outwards, away from the workspace
+    R, t = look_at(c.center, away)
+    cams[2] = Camera(c.name, c.K, R, t, c.width, c.height)
+    with pytest.raises(RigError, match="cam2"):
+        Rig(tuple(cams)).check_sees_workspace()
+    # Zoomed in so far that the corners fall outside the image.
+    cams = list(rig.cameras)
+    c = cams[1]
+    cams[1] = Camera(c.name, c.K * np.array([[4, 1, 1], [1, 4, 1], [1, 1, 1]]), c.R, c.t, c.width, c.height)
+    with pytest.raises(RigError, match=r"cam1.*workspace corner"):
+        Rig(tuple(cams)).check_sees_workspace(WORKSPACE_HALF_SIZE)
+
+
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        (dict(R=np.diag([1.0, 1.0, 2.0])), "field R"),
+        (dict(R=np.diag([1.0, 1.0, -1.0])), "field R"),  # a reflection is not a rotation
+        (dict(K=np.eye(3)[:2]), "field K"),
+        (dict(K=np.diag([-400.0, 400.0, 1.0])), "field K"),
+        (dict(t=[0.0, np.nan, 5.0]), "field t"),
+        (dict(t=[0.0, 5.0]), "field t"),
+        (dict(R="abc"), "field R"),
+        (dict(dist=[0.1, 0.2, 0.3]), "field dist"),
+        (dict(width=320.0), "width"),
+        (dict(height=0), "height"),
+    ],
+)
+def test_bad_camera_fields_raise_rig_error_naming_the_field(change, field):
+    base = dict(name="camX", K=np.diag([400.0, 400.0, 1.0]), R=np.eye(3), t=[0, 0, 5.0], width=320, height=240)
+    base.update(change)
+    with pytest.raises(RigError, match=field) as info:
+        Camera(**base)
+    assert "camX" in str(info.value)
+
+
+def test_rig_errors():
+    cam = default_rig()[0]
+    with pytest.raises(RigError, match="no cameras"):
+        Rig(())
+    with pytest.raises(RigError, match="unique"):
+        Rig((cam, cam))
+    with pytest.raises(RigError, match="not valid JSON"):
+        Rig.from_json("{nope")
+    with pytest.raises(RigError, match="lacks field"):
+        Rig.from_dict({"cameras": [{"name": "a"}]})
+    with pytest.raises(RigError, match="not found"):
+        load_rig("/nonexistent/rig.json")
