@@ -196,7 +196,7 @@ def build_manifest(config: GenConfig, out: Path, tasks, stats: dict, workers: in
         "config": config.to_dict(),
         "seeds": {
             "dataset_seed": config.seed,
-            "rule": "sample i of split s is a pure function of (dataset_seed, s, i)",
+            "rule": "sample i of split s is a pure function of (dataset_seed, s, i): draw r uses numpy SeedSequence([dataset_seed, split_code, i, r]) with split_code train=0, test=1; rejected draws are counted in redraws",
         },
         "counts": dict(config.splits),
         "redraws": redraws,

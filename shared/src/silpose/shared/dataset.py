@@ -42,6 +42,7 @@ __all__ = [
     "list_shards",
     "load_split",
     "read_metadata",
+    "read_shard",
     "shard_name",
     "write_shard",
 ]
@@ -373,6 +374,14 @@ def _assemble(parts: list[dict], meta: dict, files: list[Path], columns: list[st
         files=list(files),
         extra={c: cat(c) for c in extra_names},
     )
+
+
+def read_shard(path: str | Path, columns: Sequence[str] | None = None, with_masks: bool = False) -> DatasetSplit:
+    """One shard file as a DatasetSplit (validated like ``load_split``)."""
+    path = Path(path)
+    cols = _columns(columns, with_masks)
+    meta, arrays = _read_shard(path, cols, None)
+    return _assemble([arrays], meta, [path], cols)
 
 
 def iter_shards(

@@ -54,6 +54,7 @@ REQUIRED_METADATA = (
 
 UNITS = {
     "joints": "metres, world frame",
+    "masks": "0/1 silhouette (uint8), one per view",
     "contours": "pixels",
     "contour_centroid": "pixels",
     "contour_scale": "pixels",

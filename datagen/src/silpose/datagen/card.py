@@ -1,0 +1,177 @@
+"""The dataset card ``README.md`` of a dataset folder (Hugging Face style front matter).
+
+It documents the files, the schema, units and conventions, the camera rig, the subject and gait
+distributions (documented and as measured), how to load the data with pyarrow, pandas, DuckDB,
+Polars, Hugging Face ``datasets`` and silpose, and embeds the preview contact sheet.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from silpose.shared.dataset import list_shards, load_split, read_metadata
+from silpose.shared.dataset_schema import TENSOR_DTYPES
+
+from .manifest import read_manifest
+from .preview import PREVIEW_NAME
+
+CARD = "README.md"
+
+
+def _front_matter(name: str, splits: list[str]) -> str:
+    lines = ["---", f"pretty_name: silpose {name}", "tags:", "- silhouettes", "- multi-view", "- 3d-human-pose",
+             "- synthetic", "configs:", "- config_name: default", "  data_files:"]
+    for s in splits:
+        lines += [f"  - split: {s}", f'    path: "{s}-*.parquet"']
+    return "\n".join(lines + ["---", ""])
+
+
+def _rig_table(meta: dict) -> str:
+    rows = ["| camera | fx | fy | cx | cy | centre x, y, z (m) | image | dist |", "|---|---|---|---|---|---|---|---|"]
+    for c in meta["cameras"]:
+        K, R, t = np.array(c["K"]), np.array(c["R"]), np.array(c["t"])
+        centre = -R.T @ t
+        rows.append(
+            f"| {c['name']} | {K[0, 0]:.2f} | {K[1, 1]:.2f} | {K[0, 2]:.2f} | {K[1, 2]:.2f} | "
+            f"{centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f} | {c['width']}x{c['height']} | "
+            f"{'zeros' if not np.any(c.get('dist', [])) else c['dist']} |"
+        )
+    return "\n".join(rows)
+
+
+def _schema_table(meta: dict, subject: list[str], gait: list[str]) -> str:
+    K, (W, H), n = len(meta["cameras"]), meta["image_size"], meta["n_points"]
+    shapes = {
+        "joints": "19, 3", "masks": f"{K}, {H}, {W}", "contours": f"{K}, {n}, 2", "contour_centroid": f"{K}, 2",
+        "contour_scale": f"{K}", "contour_length": f"{K}", "area": f"{K}", "n_blobs": f"{K}",
+    }
+    units = meta["units"]
+    rows = ["| column | type | per-row shape | unit / meaning |", "|---|---|---|---|",
+            "| sample_id | int64 | | index within the split |", "| split | string | | train / test |",
+            "| seed | int64 | | dataset seed |", "| redraws | int32 | | draws rejected (not fully visible) before this one |",
+            f"| subject | struct of float32 | | {', '.join(subject)} |", f"| gait | struct of float32 | | {', '.join(gait)} |"]
+    for col, dt in TENSOR_DTYPES.items():
+        rows.append(f"| {col} | fixed_shape_tensor<{dt}> | ({shapes[col]}) | {units.get(col, meta['conventions'].get(col, ''))} |")
+    rows.append(f"| touches_border | fixed_size_list<bool>[{K}] | ({K}) | {meta['conventions'].get('touches_border', '')} |")
+    return "\n".join(rows)
+
+
+def _distribution_section(split: str) -> str:
+    try:
+        from .subjects import describe_distribution
+
+        d = describe_distribution(split)
+    except Exception as exc:  # the card must still be written
+        return f"(documented distribution unavailable: {exc})\n"
+    lines = ["| field | distribution | low | high |", "|---|---|---|---|"]
+    for key, spec in d.get("fields", {}).items():
+        if "value" in spec:
+            lines.append(f"| {key} | constant | {spec['value']} | {spec['value']} |")
+        else:
+            lines.append(f"| {key} | {spec.get('distribution', '')} | {spec.get('low', '')} | {spec.get('high', '')} |")
+    for k, v in d.get("clothing_probability", {}).items():
+        lines.append(f"\n- probability of {k}: {v}")
+    for note in d.get("notes", []):
+        lines.append(f"\n- {note}")
+    return "\n".join(lines) + "\n"
+
+
+def _measured_table(values: dict[str, np.ndarray]) -> str:
+    rows = ["| field | mean | std | min | max |", "|---|---|---|---|---|"]
+    for k, v in values.items():
+        v = np.asarray(v, np.float64)
+        rows.append(f"| {k} | {v.mean():.4g} | {v.std():.4g} | {v.min():.4g} | {v.max():.4g} |")
+    return "\n".join(rows)
+
+
+def _loading(name: str) -> str:
+    return f"""```python
+import glob, json
+
+# pyarrow: tensor columns come back as numpy arrays without copying
+import pyarrow.parquet as pq
+files = sorted(glob.glob("{name}/train-*.parquet"))
+table = pq.read_table(files)
+joints = table["joints"].combine_chunks().to_numpy_ndarray()   # (N, 19, 3) float32, metres
+meta = json.loads(pq.read_schema(files[0]).metadata[b"silpose"])  # cameras, joint names, conventions
+
+# pandas (tensor columns become flat arrays; reshape with the shapes above)
+df = table.select(["sample_id", "gait", "joints"]).to_pandas()
+
+# DuckDB
+import duckdb
+duckdb.sql("SELECT split, count(*), avg(gait.stride) FROM '{name}/*.parquet' GROUP BY split").show()
+
+# Polars
+import polars as pl
+df = pl.read_parquet("{name}/train-*.parquet", columns=["sample_id", "joints"])
+
+# Hugging Face datasets
+from datasets import load_dataset
+hf = load_dataset("parquet", data_files={{"train": "{name}/train-*.parquet", "test": "{name}/test-*.parquet"}})
+
+# silpose
+from silpose.shared.dataset import load_split
+train = load_split("{name}", "train", with_masks=True)   # numpy arrays, rig, metadata
+```"""
+
+
+def write_card(root: str | Path) -> Path:
+    """Write ``root/README.md`` from the shards, the manifest and (if present) the preview."""
+    root = Path(root)
+    manifest = read_manifest(root)
+    splits = [s for s in manifest["counts"] if list_shards(root, s)]
+    meta = read_metadata(list_shards(root, splits[0])[0])
+    loaded = {s: load_split(root, s, columns=["subject", "gait", "contour_length", "area"]) for s in splits}
+    first = loaded[splits[0]]
+    subject, gait = list(first.subject), list(first.gait)
+    cfg = manifest["config"]
+    parts = [
+        _front_matter(manifest["name"], splits),
+        f"# silpose dataset `{manifest['name']}`\n",
+        "Synthetic multi-view silhouettes of walking people with exact 3D joints, generated by "
+        f"`silpose gen` ({meta['generator']['name']} {meta['generator']['version']}) for the shape+structure "
+        "model of Grauman, Shakhnarovich & Darrell (ICCV 2003). Test subjects are drawn from a *different* "
+        "distribution (other proportions, clothing, hair) than training subjects.\n",
+        "## Files\n",
+        "| split | samples | shards | redraws |\n|---|---|---|---|",
+        *[f"| {s} | {manifest['counts'][s]} | {len(list_shards(root, s))} | {manifest['redraws'].get(s, 0)} |" for s in splits],
+        f"\nShards `{{split}}-{{i:05d}}-of-{{n:05d}}.parquet` (zstd). `manifest.json` holds the config, seeds, "
+        "counts, per-shard sha256 and timing. Config: "
+        f"seed {cfg['seed']}, renderer `{cfg['renderer']}`"
+        f"{' (' + cfg['blender_engine'] + ')' if cfg['renderer'] == 'blender' else ''}, "
+        f"{cfg['n_points']} contour points, shard size {cfg['shard_size']}.\n",
+    ]
+    if (root / PREVIEW_NAME).is_file():
+        parts.append(f"![mask, contour and projected joints of a few samples in every view]({PREVIEW_NAME})\n")
+    parts += [
+        "## Schema\n", _schema_table(meta, subject, gait),
+        "\nEvery shard's Arrow schema metadata holds one JSON document under the key `silpose`: "
+        "`format_version`, `cameras` (name, K, R, t, width, height, dist), `joint_names`, `parents`, "
+        "`terminal_joints`, `n_points`, `units`, `conventions`, `generator`, `config`.\n",
+        "## Units and conventions\n",
+        *[f"- **{k}**: {v}" for k, v in meta["conventions"].items()],
+        f"\nJoints (`joint_names` order, parent in brackets): "
+        + ", ".join(f"{i} {n} ({p})" for i, (n, p) in enumerate(zip(meta["joint_names"], meta["parents"]))) + "\n",
+        "## Camera rig\n",
+        "World->camera `x ~ K (R X + t)` (OpenCV axes); K, R, t of every camera are in the metadata.\n",
+        _rig_table(meta), "",
+        "## Subjects and gait\n",
+    ]
+    for s in splits:
+        parts += [f"### {s}: documented subject distribution\n", _distribution_section(s),
+                  f"### {s}: measured subject parameters\n", _measured_table(loaded[s].subject), "",
+                  f"### {s}: measured gait parameters\n", _measured_table(loaded[s].gait), "",
+                  f"### {s}: measured silhouettes (mean over samples)\n",
+                  "| view | contour length px | area px |\n|---|---|---|",
+                  *[f"| {n} | {loaded[s].extra['contour_length'][:, k].mean():.1f} | "
+                    f"{loaded[s].extra['area'][:, k].mean():.1f} |" for k, n in enumerate(first.rig.names)], ""]
+    parts += ["## Loading\n", _loading(root.name)]
+    path = root / CARD
+    tmp = path.with_name(f".{CARD}.{os.getpid()}.tmp")
+    tmp.write_text("\n".join(parts) + "\n")
+    os.replace(tmp, path)
+    return path

@@ -1,0 +1,119 @@
+"""``silpose gen``, ``silpose validate`` and ``silpose preview``.
+
+Only light modules are imported here; numpy, pyarrow, matplotlib and the generator are imported
+inside the commands, and bpy only ever inside spawned worker processes.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from typing_extensions import Annotated
+
+
+def _fail(command: str, message: str, code: int = 2) -> None:
+    print(f"silpose {command}: error: {message}", file=sys.stderr)
+    raise typer.Exit(code)
+
+
+def gen(
+    preset: Annotated[str, typer.Argument(help="Preset name in configs/ (smoke, default, paper) or a TOML file.")] = "default",
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Dataset folder (default: data/<name>).")] = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Worker processes (default: all cores).")] = None,
+    executor: Annotated[str, typer.Option(help="local (spawn process pool) or ray.")] = "local",
+    rig: Annotated[
+        Optional[List[Path]],
+        typer.Option("--rig", help="Rig JSON file, or OpenCV calibration files (repeat --rig, one per camera)."),
+    ] = None,
+    rig_unit: Annotated[float, typer.Option(help="Metres per unit of the OpenCV files' translations (0.001 for mm).")] = 1.0,
+    renderer: Annotated[Optional[str], typer.Option(help="Override the config: raster or blender.")] = None,
+    blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,
+    seed: Annotated[Optional[int], typer.Option(help="Override the config's dataset seed.")] = None,
+    progress: Annotated[bool, typer.Option(help="Show a progress bar.")] = True,
+    preview: Annotated[bool, typer.Option(help="Write preview.png (shown in the card).")] = True,
+) -> None:
+    """Generate a dataset of multi-view silhouettes and 3D joints (Parquet shards, card, manifest, preview).
+
+    A rerun into the same folder resumes: complete shards are kept, the rest are rendered.
+    """
+    from silpose.shared.camera import RigError
+    from silpose.shared.dataset import DatasetError
+
+    from .config import ConfigError, load_config
+    from .executor import ExecutorError
+    from .manifest import LockError
+    from .pipeline import GenerationError, generate
+
+    overrides: dict = {"renderer": renderer, "blender_engine": blender_engine, "seed": seed}
+    if rig:
+        files = [str(p.expanduser().resolve()) for p in rig]
+        if len(files) == 1 and files[0].endswith(".json"):
+            overrides["rig"] = {"file": files[0]}
+        else:
+            overrides["rig"] = {"opencv": files, "unit": rig_unit}
+    try:
+        config = load_config(preset, **overrides)
+        target = out if out is not None else Path("data") / config.name
+        manifest = generate(config, target, workers=workers, executor=executor, progress=progress)
+        if preview:
+            from .preview import write_preview
+
+            write_preview(target)
+        from .card import write_card
+
+        card = write_card(target)
+    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
+        _fail("gen", str(exc))
+    except KeyboardInterrupt:
+        _fail("gen", "interrupted; rerun the same command to resume", 130)
+    t = manifest["timing"]
+    counts = ", ".join(f"{n} {s}" for s, n in manifest["counts"].items())
+    rate = f"{t['samples_per_second']} samples/s" if t["samples_per_second"] else "nothing to render"
+    print(
+        f"{target}: {counts} samples in {len(manifest['shards'])} shards "
+        f"({t['shards_rendered']} rendered, {t['shards_skipped']} already complete; {rate}); card {card.name}"
+    )
+
+
+def validate(
+    path: Annotated[Path, typer.Argument(help="Dataset folder (or a single shard .parquet file).")],
+) -> None:
+    """Check a dataset: schema, counts, NaNs, joints inside silhouettes, contours on the boundary, hashes."""
+    from silpose.shared.dataset import DatasetError, read_shard
+
+    from .validate import validate_dataset
+
+    if path.is_file():
+        try:
+            shard = read_shard(path, with_masks=True)
+        except DatasetError as exc:
+            _fail("validate", str(exc), 1)
+        print(f"{path}: readable silpose shard, {len(shard)} samples, {shard.n_views} views")
+        return
+    if not path.is_dir():
+        _fail("validate", f"{path}: no such dataset folder or shard file", 1)
+    report = validate_dataset(path)
+    print(report.format())
+    if not report.ok:
+        raise typer.Exit(1)
+
+
+def preview(
+    path: Annotated[Path, typer.Argument(help="Dataset folder.")],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="PNG path (default: DIR/preview.png).")] = None,
+    samples: Annotated[int, typer.Option(min=1, max=32, help="Samples (rows) in the sheet.")] = 4,
+    split: Annotated[Optional[str], typer.Option(help="Split to show (default: train).")] = None,
+) -> None:
+    """Write a contact sheet PNG: a few samples x all views, mask, contour and projected joints."""
+    from silpose.shared.dataset import DatasetError
+
+    from .preview import write_preview
+
+    try:
+        written = write_preview(path, out, n_samples=samples, split=split)
+    except (DatasetError, StopIteration) as exc:
+        _fail("preview", str(exc) or f"{path}: no shards", 1)
+    print(written)
