@@ -144,7 +144,7 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
         true_px: (N, K, n, 2) true clean contours, px.
         recon_px: (N, K, m, 2) reconstructions, px (NaN rows give NaN errors).
         image_size: (height, width) for all views, or (K, 2) per view.
-        cache: optional dict reused across calls holding the true contours' pixel masks and
+        cache: optional dict reused across calls holding the true contours' pixel coordinates and
             a ``scipy.spatial.cKDTree`` of their pixels (for the reverse direction D(I, T),
             equally exact), keyed by ``(keys[i], k)``.
         keys: (N,) sample identifiers for the cache (required with ``cache``).
@@ -169,16 +169,16 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
             h, w = int(sizes[k, 0]), int(sizes[k, 1])
             key = None if cache is None else (int(keys[i]), k)
             if key is not None and key in cache:
-                t_img, t_tree = cache[key]
+                t_pix, t_tree = cache[key]
             else:
-                t_img = _raster(t[i, k], h, w)
-                t_tree = cKDTree(np.argwhere(t_img)) if t_img.any() else None
+                t_pix = np.argwhere(_raster(t[i, k], h, w))  # (m, 2) row, col
+                t_tree = cKDTree(t_pix) if len(t_pix) else None
                 if key is not None:
-                    cache[key] = (t_img, t_tree)
+                    cache[key] = (t_pix, t_tree)
             r_img = _raster(r[i, k], h, w)
             if not r_img.any() or t_tree is None:
                 continue
-            d_tr = float(_distance_to(r_img)[t_img].mean())
+            d_tr = float(_distance_to(r_img)[t_pix[:, 0], t_pix[:, 1]].mean())
             d_rt = float(t_tree.query(np.argwhere(r_img))[0].mean())
             one[i, k] = d_tr
             sym[i, k] = 0.5 * (d_tr + d_rt)

@@ -1,0 +1,77 @@
+"""``silpose eval``: the paper's experiments on a generated dataset and a trained model.
+
+Only light imports at module level (typer, pathlib, typing): numpy, sklearn, matplotlib and the
+model are imported inside the command so ``silpose --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def evaluate(
+    preset_or_data_dir: str = typer.Argument("default", help="Preset name (reads data/<preset>/) or a dataset folder."),
+    model: Optional[Path] = typer.Option(None, help="Model file (default: models/<name>.npz)."),
+    out: Optional[Path] = typer.Option(None, help="Output folder (default: reports/<name>/)."),
+    n_test: Optional[int] = typer.Option(None, help="Use the first N test examples (default: all)."),
+    seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
+    experiments: str = typer.Option("E1,E2,E3,E4,E5", help="Comma-separated subset of E1..E5."),
+    jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1.5)."),
+    patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 6)."),
+    n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 3)."),
+    patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 16)."),
+    quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 4px, patches 12px, mask strong)."),
+) -> None:
+    """Run experiments E1-E5 of the paper (section 6) and write reports/<name>/: summary.md, results.parquet,
+    headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from .experiments import DEFAULT_SWEEP, EvalConfig
+    from .noise import STANDARD_NOISE
+    from .run import EvalInputError, run_evaluation
+
+    console = Console(stderr=True)
+    given = Path(preset_or_data_dir)
+    if given.is_dir():
+        data_dir, name = given, given.name
+    else:
+        data_dir, name = Path("data") / preset_or_data_dir, preset_or_data_dir
+    model = model or Path("models") / f"{name}.npz"
+    out = out or Path("reports") / name
+    exps = tuple(e.strip().upper() for e in experiments.split(",") if e.strip())
+    bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5")]
+    if bad:
+        raise typer.BadParameter(f"unknown experiment(s) {bad}; choose from E1,E2,E3,E4,E5", param_hint="--experiments")
+    changes = {k: v for k, v in dict(jitter_px=jitter_px, patch_depth_px=patch_depth_px, n_patches=n_patches,
+                                      patch_length=patch_length).items() if v is not None}
+    try:
+        noise = STANDARD_NOISE.with_(**changes) if changes else STANDARD_NOISE
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from None
+    sweep = DEFAULT_SWEEP
+    if quick_sweep:
+        sweep = tuple(s for s in DEFAULT_SWEEP if s.label in ("clean", "jitter 4px", "patches 12px", "mask strong"))
+    config = EvalConfig(n_test=n_test, seed=seed, noise=noise, sweep=sweep, experiments=exps)
+
+    with Progress(TextColumn("[bold]{task.description:<42}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  TimeElapsedColumn(), console=console, transient=False) as progress:
+        tasks: dict[str, int] = {}
+
+        def on_step(what: str, done: int, total: int) -> None:
+            key = what.split(":")[0]
+            if key not in tasks:
+                tasks[key] = progress.add_task(key, total=total)
+            progress.update(tasks[key], completed=done, total=total, description=what[:42])
+
+        try:
+            ev, written = run_evaluation(data_dir, model, out, config, progress=on_step, title=f"silpose evaluation — {name}")
+        except EvalInputError as exc:
+            console.print(f"[red]error:[/red] {exc}")
+            raise typer.Exit(code=2) from None
+    console.print(f"wrote {len(written)} artefacts to {out}/ in {sum(ev.timings.values()):.0f} s:")
+    for key, path in written.items():
+        console.print(f"  {path}")

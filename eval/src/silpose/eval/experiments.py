@@ -1,0 +1,381 @@
+"""The experiments of paper §6 (DESIGN §5) on our data: E1-E4 as per-example result rows.
+
+Inputs (the same for every method): the test split's CLEAN contours (px) are corrupted with the
+configured noise (:data:`silpose.eval.noise.STANDARD_NOISE` unless told otherwise), deterministically
+per ``(seed, sample_id)``; every method sees exactly these noisy contours of the views it is
+given. Absent views are passed as absent (``views_present``), never as zeros. Contour errors
+compare each reconstruction with the TRUE CLEAN contour of its view: present views' reconstructions
+are mapped to pixels with the noisy input's own normalisation, missing views' with the view's true
+(clean) factors. Pose errors are root-relative cm (:mod:`silpose.eval.metrics`).
+
+- **E1** single-view vs multi-view training (paper Fig. 5). For each view k a model with
+  ``views=(k,)`` (the 4-view model's hyperparameters) is fitted on the same training split and given
+  the noisy contour of view k; the 4-view model is given the noisy contours of all 4 views of the
+  same examples. Pose: mean over (example, k) of the single-view models vs mean over examples of
+  the 4-view model. Contours: single-view model k's error in view k vs the 4-view model's error in
+  view k. For reference E2's rows hold the 4-view model given view k alone.
+- **E2** the 4-view model given every non-empty subset of views: 4; 3 (each view left out in
+  turn); 2 and 1 (all combinations) — every subset on every example, so all combinations are
+  covered equally (paper Fig. 8).
+- **E3** noise sweep: each :class:`NoiseSpec` of ``config.sweep`` on the 4-view model with the
+  input subsets ``config.sweep_inputs`` (default all views, and view 0 alone), and kNN/ridge with
+  all views.
+- **E4** chance (one random training pose per example) and kNN / ridge regression fitted per view
+  subset (:mod:`silpose.eval.baselines`) on the standard noisy inputs of E2.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
+
+__all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "view_subsets", "views_label"]
+
+#: E3: the noise settings swept by default (magnitudes in px; see silpose.eval.noise).
+DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
+    NoiseSpec(label="clean"),
+    *(NoiseSpec(label=f"jitter {m:g}px", jitter_px=m) for m in (1.0, 2.0, 4.0, 8.0)),
+    *(NoiseSpec(label=f"patches {d:g}px", n_patches=3, patch_length=16, patch_depth_px=d) for d in (3.0, 6.0, 12.0, 24.0)),
+    STANDARD_NOISE,
+    NoiseSpec(label="mask mild", mask_holes=2, mask_hole_radius_px=4, mask_blobs=2, mask_blob_radius_px=4, mask_shadow_px=12),
+    NoiseSpec(label="mask strong", mask_holes=4, mask_hole_radius_px=7, mask_blobs=4, mask_blob_radius_px=7, mask_shadow_px=30),
+)
+
+Progress = Callable[[str, int, int], None]  # (task description, completed, total)
+
+
+def view_subsets(n_views: int) -> list[tuple[int, ...]]:
+    """Every non-empty subset of views, largest first: 4; 3 (each left out); 2; 1."""
+    return [s for r in range(n_views, 0, -1) for s in itertools.combinations(range(n_views), r)]
+
+
+def views_label(views: Sequence[int]) -> str:
+    """'0123'-style label of a view subset ('-' when empty)."""
+    return "".join(str(int(v)) for v in views) or "-"
+
+
+@dataclass
+class EvalConfig:
+    """Settings of one evaluation run.
+
+    Attributes:
+        n_test: test examples used (the first ``n_test`` of the split; None = all).
+        seed: seed of the noise streams and the chance draws.
+        noise: the test noise of E1, E2, E4.
+        sweep: E3's noise settings.
+        sweep_inputs: E3's input view subsets (None = all views and view 0 alone).
+        knn_neighbors: k of the kNN baseline.
+        experiments: which of "E1".."E5" to run.
+    """
+
+    n_test: int | None = None
+    seed: int = 0
+    noise: NoiseSpec = STANDARD_NOISE
+    sweep: tuple[NoiseSpec, ...] = DEFAULT_SWEEP
+    sweep_inputs: tuple[tuple[int, ...], ...] | None = None
+    knn_neighbors: int = 5
+    experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5")
+
+    def to_dict(self) -> dict:
+        return {
+            "n_test": self.n_test,
+            "seed": self.seed,
+            "noise": self.noise.to_dict(),
+            "sweep": [s.to_dict() for s in self.sweep],
+            "sweep_inputs": None if self.sweep_inputs is None else [list(v) for v in self.sweep_inputs],
+            "knn_neighbors": self.knn_neighbors,
+            "experiments": list(self.experiments),
+        }
+
+
+@dataclass
+class EvalData:
+    """Training and test arrays (N_train / N test examples, K views, n points).
+
+    Attributes:
+        train_contours: (N_train, K, n, 2) clean px; train_joints: (N_train, 19, 3) metres.
+        test_ids: (N,) sample ids; test_joints: (N, 19, 3) metres; test_contours: (N, K, n, 2)
+            clean px; test_centroid (N, K, 2), test_scale (N, K): their normalisation factors;
+            test_masks: (N, K, H, W) uint8 or None.
+        image_size: (K, 2) (height, width) px per view.
+    """
+
+    train_contours: np.ndarray
+    train_joints: np.ndarray
+    test_ids: np.ndarray
+    test_joints: np.ndarray
+    test_contours: np.ndarray
+    test_centroid: np.ndarray
+    test_scale: np.ndarray
+    image_size: np.ndarray
+    test_masks: np.ndarray | None = None
+    rig: object = None
+
+    @property
+    def n_views(self) -> int:
+        return int(self.test_contours.shape[1])
+
+    @classmethod
+    def from_splits(cls, train, test, n_test: int | None = None) -> "EvalData":
+        """Build from two ``silpose.shared.dataset.DatasetSplit`` (test optionally with masks)."""
+        from silpose.shared.contours import normalise
+
+        n = len(test) if n_test is None else min(int(n_test), len(test))
+        if n <= 0:
+            raise ValueError("the test split is empty (or n_test <= 0)")
+        clean = np.asarray(test.contours[:n], np.float64)
+        _, cen, sc = normalise(clean)  # the same definition the dataset stores; recomputed in float64
+        sizes = np.array([[cam.height, cam.width] for cam in test.rig.cameras], dtype=int)
+        return cls(
+            train_contours=np.asarray(train.contours, np.float64),
+            train_joints=np.asarray(train.joints, np.float64),
+            test_ids=np.asarray(test.sample_id[:n]),
+            test_joints=np.asarray(test.joints[:n], np.float64),
+            test_contours=clean,
+            test_centroid=cen,
+            test_scale=sc,
+            image_size=sizes,
+            test_masks=None if test.masks is None else test.masks[:n],
+            rig=test.rig,
+        )
+
+
+@dataclass
+class Evaluation:
+    """Runs E1-E4 for one 4-view model and collects per-example rows.
+
+    Args:
+        data: the arrays.
+        model: a fitted ``ShapeStructureModel`` over all views.
+        config: the settings.
+        progress: optional ``(description, completed, total)`` callback.
+        single_view_models: optional {view: fitted single-view model}; missing ones are fitted.
+    """
+
+    data: EvalData
+    model: object
+    config: EvalConfig = field(default_factory=EvalConfig)
+    progress: Progress | None = None
+    single_view_models: dict = field(default_factory=dict)
+    rows: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self._chamfer_cache: dict = {}
+        self._noisy: dict = {}
+        self._regressors: dict = {}
+
+    # ---------------------------------------------------------------- helpers
+    def _tick(self, what: str, done: int, total: int) -> None:
+        if self.progress is not None:
+            self.progress(what, done, total)
+
+    def noisy(self, spec: NoiseSpec) -> np.ndarray:
+        """(N, K, n, 2) noisy test contours for ``spec`` (cached)."""
+        if spec not in self._noisy:
+            d = self.data
+            self._noisy[spec] = apply_noise(spec, d.test_contours, d.test_ids, self.config.seed, masks=d.test_masks)
+        return self._noisy[spec]
+
+    def _present(self, views: Sequence[int]) -> np.ndarray:
+        p = np.zeros((len(self.data.test_ids), self.data.n_views), bool)
+        p[:, list(views)] = True
+        return p
+
+    def _add(self, base: dict, **arrays) -> None:
+        n = len(self.data.test_ids)
+        row = {"sample_id": self.data.test_ids}
+        row.update({k: np.full(n, v, dtype=object if isinstance(v, str) else None) for k, v in base.items()})
+        row.update(arrays)
+        self.rows.append(row)
+
+    def score_model(self, model, noisy: np.ndarray, views: Sequence[int]) -> dict:
+        """Infer from ``noisy`` with only ``views`` present; per-example errors.
+
+        Returns:
+            dict of (N,) arrays: pose_cm, pose_pa_cm, chamfer_px (one-sided true->recon, mean over
+            the modelled views), chamfer_sym_px, chamfer_observed_px, chamfer_missing_px and
+            chamfer_v{k} for each rig view (NaN where view k is not modelled).
+        """
+        from .metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
+
+        d = self.data
+        present = self._present(views)
+        res = model.infer(noisy, views_present=present, centroid=d.test_centroid, scale=d.test_scale)
+        recon = np.full(d.test_contours.shape[:2] + res.contours_px.shape[2:], np.nan)
+        recon[:, list(res.views)] = res.contours_px
+        one, sym = chamfer_errors(d.test_contours, recon, d.image_size, cache=self._chamfer_cache, keys=d.test_ids)
+        modelled = np.zeros(d.n_views, bool)
+        modelled[list(res.views)] = True
+        obs = present & modelled
+        miss = ~present & modelled
+        with np.errstate(invalid="ignore"), _quiet_nanmean():
+            out = {
+                "pose_cm": pose_error_cm(res.joints, d.test_joints),
+                "pose_pa_cm": pose_error_procrustes_cm(res.joints, d.test_joints),
+                "chamfer_px": np.nanmean(one, axis=1),
+                "chamfer_sym_px": np.nanmean(sym, axis=1),
+                "chamfer_observed_px": np.nanmean(np.where(obs, one, np.nan), axis=1),
+                "chamfer_missing_px": np.nanmean(np.where(miss, one, np.nan), axis=1),
+            }
+        for k in range(d.n_views):
+            out[f"chamfer_v{k}"] = one[:, k]
+        return out
+
+    def single_view_model(self, k: int):
+        """The model trained on view k alone (fitted on first use with the 4-view model's hyperparameters)."""
+        if k not in self.single_view_models:
+            from silpose.model.shape_model import ShapeStructureModel
+
+            params = dict(self.model.get_params())
+            params["views"] = (int(k),)
+            self.single_view_models[k] = ShapeStructureModel(**params).fit(
+                self.data.train_contours, self.data.train_joints, rig=self.data.rig
+            )
+        return self.single_view_models[k]
+
+    def regressor(self, kind: str, views: Sequence[int]):
+        """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached)."""
+        from silpose.shared.contours import normalise
+
+        from .baselines import ViewSubsetRegressor
+
+        key = (kind, tuple(views))
+        if key not in self._regressors:
+            if not hasattr(self, "_train_norm"):
+                self._train_norm = normalise(self.data.train_contours)[0]
+            self._regressors[key] = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
+                self._train_norm, self.data.train_joints
+            )
+        return self._regressors[key]
+
+    def score_regressor(self, kind: str, views: Sequence[int], noisy: np.ndarray) -> dict:
+        from silpose.shared.contours import normalise
+
+        from .metrics import pose_error_cm, pose_error_procrustes_cm
+
+        pred = self.regressor(kind, views).predict(normalise(noisy)[0])
+        return {"pose_cm": pose_error_cm(pred, self.data.test_joints),
+                "pose_pa_cm": pose_error_procrustes_cm(pred, self.data.test_joints)}
+
+    # ---------------------------------------------------------------- experiments
+    def run(self) -> "Evaluation":
+        """Run the configured experiments (E5 figures are drawn by :mod:`silpose.eval.figures`)."""
+        for name in ("E1", "E2", "E3", "E4"):
+            if name in self.config.experiments:
+                t0 = time.perf_counter()
+                getattr(self, f"run_{name.lower()}")()
+                self.timings[name] = time.perf_counter() - t0
+        return self
+
+    def run_e1(self) -> None:
+        K = self.data.n_views
+        all_views = tuple(range(K))
+        noisy = self.noisy(self.config.noise)
+        total = 2 * K + 1
+        for k in range(K):
+            self._tick(f"E1: fitting the view-{k} model", k, total)
+            self.single_view_model(k)
+        for k in range(K):
+            self._tick(f"E1: single-view model {k}", K + k, total)
+            s = self.score_model(self.single_view_model(k), noisy, (k,))
+            self._add(dict(experiment="E1", method="mppca", training="single-view", trained_views=str(k),
+                           input_views=str(k), n_input_views=1, noise=self.config.noise.label), **s)
+        self._tick("E1: multi-view model", 2 * K, total)
+        s = self.score_model(self.model, noisy, all_views)
+        self._add(dict(experiment="E1", method="mppca", training="multi-view", trained_views=views_label(all_views),
+                       input_views=views_label(all_views), n_input_views=K, noise=self.config.noise.label), **s)
+        self._tick("E1", total, total)
+
+    def run_e2(self) -> None:
+        K = self.data.n_views
+        noisy = self.noisy(self.config.noise)
+        subsets = view_subsets(K)
+        for i, views in enumerate(subsets):
+            self._tick(f"E2: views {views_label(views)}", i, len(subsets))
+            s = self.score_model(self.model, noisy, views)
+            self._add(dict(experiment="E2", method="mppca", training="multi-view", trained_views=views_label(range(K)),
+                           input_views=views_label(views), n_input_views=len(views), noise=self.config.noise.label), **s)
+        self._tick("E2", len(subsets), len(subsets))
+
+    def run_e3(self) -> None:
+        K = self.data.n_views
+        inputs = self.config.sweep_inputs or (tuple(range(K)), (0,))
+        specs = [s for s in self.config.sweep if not (s.needs_masks and self.data.test_masks is None)]
+        skipped = [s.label for s in self.config.sweep if s not in specs]
+        if skipped:
+            self.notes.append(f"E3: skipped {skipped}: the test masks were not loaded")
+        total = len(specs) * (len(inputs) + 2)
+        step = 0
+        for spec in specs:
+            noisy = self.noisy(spec)
+            for views in inputs:
+                self._tick(f"E3: {spec.label}, views {views_label(views)}", step, total)
+                s = self.score_model(self.model, noisy, views)
+                self._add(dict(experiment="E3", method="mppca", training="multi-view", trained_views=views_label(range(K)),
+                               input_views=views_label(views), n_input_views=len(views), noise=spec.label), **s)
+                step += 1
+            for kind in ("knn", "ridge"):
+                self._tick(f"E3: {spec.label}, {kind}", step, total)
+                s = self.score_regressor(kind, tuple(range(K)), noisy)
+                self._add(dict(experiment="E3", method=kind, training="multi-view", trained_views=views_label(range(K)),
+                               input_views=views_label(range(K)), n_input_views=K, noise=spec.label), **s)
+                step += 1
+        for spec in list(self._noisy):
+            if spec != self.config.noise:
+                del self._noisy[spec]
+        self._tick("E3", total, total)
+
+    def run_e4(self) -> None:
+        from .baselines import ChanceBaseline
+        from .metrics import pose_error_cm, pose_error_procrustes_cm
+
+        K = self.data.n_views
+        noisy = self.noisy(self.config.noise)
+        chance = ChanceBaseline(random_state=self.config.seed).fit(self.data.train_joints)
+        pred = chance.predict(len(self.data.test_ids))
+        self._add(dict(experiment="E4", method="chance", training="-", trained_views="-", input_views="-",
+                       n_input_views=0, noise="-"),
+                  pose_cm=pose_error_cm(pred, self.data.test_joints),
+                  pose_pa_cm=pose_error_procrustes_cm(pred, self.data.test_joints))
+        subsets = view_subsets(K)
+        for i, views in enumerate(subsets):
+            self._tick(f"E4: kNN and ridge, views {views_label(views)}", i, len(subsets))
+            for kind in ("knn", "ridge"):
+                s = self.score_regressor(kind, views, noisy)
+                self._add(dict(experiment="E4", method=kind, training="multi-view", trained_views=views_label(views),
+                               input_views=views_label(views), n_input_views=len(views), noise=self.config.noise.label), **s)
+        self._tick("E4", len(subsets), len(subsets))
+
+    # ---------------------------------------------------------------- output
+    def frame(self):
+        """All rows as a pandas DataFrame (one row per experiment condition and test example)."""
+        import pandas as pd
+
+        frames = [pd.DataFrame(r) for r in self.rows]
+        df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+        for col in ("experiment", "method", "training", "trained_views", "input_views", "noise"):
+            if col in df:
+                df[col] = df[col].astype(str)
+        return df
+
+
+class _quiet_nanmean:
+    """Silence 'Mean of empty slice' (an all-NaN row is a legitimate NaN result here)."""
+
+    def __enter__(self):
+        import warnings
+
+        self._ctx = warnings.catch_warnings()
+        self._ctx.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+
+    def __exit__(self, *exc):
+        return self._ctx.__exit__(*exc)

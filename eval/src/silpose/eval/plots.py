@@ -1,0 +1,140 @@
+"""Box plots in the paper's style (Figs. 5 and 8): median line, quartile box, dashed whiskers to the
+most extreme point within 1.5 IQR of the box, outliers beyond them marked '+'.
+
+Files are written to a temporary name and renamed (crash safety). matplotlib runs headless (Agg).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+__all__ = ["paper_boxplot", "save_figure", "plot_e1", "plot_e2", "plot_e3", "plot_e4"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def paper_boxplot(ax, data: Sequence[np.ndarray], labels: Sequence[str], ylabel: str, title: str = "") -> None:
+    """Draw one paper-style box plot: each entry of ``data`` (finite values used) is one box."""
+    clean = [np.asarray(d, np.float64)[np.isfinite(np.asarray(d, np.float64))] for d in data]
+    clean = [d if len(d) else np.array([np.nan]) for d in clean]
+    ax.boxplot(
+        clean,
+        whis=1.5,
+        widths=0.5,
+        medianprops={"color": "red", "linewidth": 1.5},
+        boxprops={"color": "blue"},
+        whiskerprops={"color": "black", "linestyle": "--"},
+        capprops={"color": "black"},
+        flierprops={"marker": "+", "markeredgecolor": "red", "markersize": 5, "linestyle": "none"},
+        showfliers=True,
+    )
+    ax.set_xticks(np.arange(1, len(labels) + 1), labels)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(axis="y", alpha=0.3)
+
+
+def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
+    """Save ``fig`` as PNG through a temporary file + os.replace; closes the figure."""
+    plt = _plt()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def _sel(df, **eq):
+    m = np.ones(len(df), bool)
+    for k, v in eq.items():
+        m &= (df[k] == v).to_numpy()
+    return df[m]
+
+
+def plot_e1(df, path) -> Path | None:
+    """E1: pose (left) and contour (right) error distributions, single- vs multi-view training."""
+    from .report import e1_comparison
+
+    e1 = _sel(df, experiment="E1")
+    if e1.empty:
+        return None
+    c = e1_comparison(df)
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(8, 4))
+    paper_boxplot(axes[0], [_sel(e1, training="single-view")["pose_cm"], _sel(e1, training="multi-view")["pose_cm"]],
+                  ["single-view\ntraining", "multi-view\ntraining"], "pose error (cm)", "Pose")
+    paper_boxplot(axes[1], [c["_sv_chamfer"], c["_mv_chamfer"]], ["single-view\ntraining", "multi-view\ntraining"],
+                  "Chamfer distance true→recon (px)", "Contours")
+    fig.suptitle("E1: training on single vs multiple views (cf. paper Fig. 5)")
+    return save_figure(fig, path)
+
+
+def plot_e2(df, path) -> Path | None:
+    """E2: pose and contour errors for 4, 3, 2, 1 input views with the 4-view model."""
+    e2 = _sel(df, experiment="E2")
+    if e2.empty:
+        return None
+    ns = sorted(e2["n_input_views"].unique(), reverse=True)
+    labels = [f"{n} view{'s' if n > 1 else ''}" for n in ns]
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
+    paper_boxplot(axes[0], [_sel(e2, n_input_views=n)["pose_cm"] for n in ns], labels, "pose error (cm)", "Pose")
+    paper_boxplot(axes[1], [_sel(e2, n_input_views=n)["chamfer_px"] for n in ns], labels,
+                  "Chamfer distance true→recon (px)", "Contours (all 4 views)")
+    fig.suptitle("E2: 4-view model given a subset of views (cf. paper Fig. 8)")
+    return save_figure(fig, path)
+
+
+def plot_e3(df, path) -> Path | None:
+    """E3: pose error per noise setting (4-view model, all views; and the first other input subset)."""
+    e3 = _sel(df, experiment="E3", method="mppca")
+    if e3.empty:
+        return None
+    subsets = list(dict.fromkeys(e3["input_views"]))
+    noises = list(dict.fromkeys(e3["noise"]))
+    plt = _plt()
+    fig, axes = plt.subplots(len(subsets), 1, figsize=(max(8, 0.8 * len(noises)), 3.2 * len(subsets)), squeeze=False)
+    for ax, views in zip(axes[:, 0], subsets):
+        paper_boxplot(ax, [_sel(e3, input_views=views, noise=nz)["pose_cm"] for nz in noises], noises,
+                      "pose error (cm)", f"E3: noise sweep, input views {views}")
+        ax.tick_params(axis="x", labelrotation=30)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_e4(df, path) -> Path | None:
+    """E4: pose error of MPPCA, kNN and ridge per number of input views, plus chance."""
+    e4 = _sel(df, experiment="E4")
+    e2 = _sel(df, experiment="E2")
+    if e4.empty:
+        return None
+    data, labels = [], []
+    for n in sorted(e4["n_input_views"].unique(), reverse=True):
+        if n == 0:
+            continue
+        if not e2.empty:
+            data.append(_sel(e2, n_input_views=n)["pose_cm"])
+            labels.append(f"MPPCA\n{n}v")
+        for m in ("knn", "ridge"):
+            data.append(_sel(e4, n_input_views=n, method=m)["pose_cm"])
+            labels.append(f"{m}\n{n}v")
+    data.append(_sel(e4, method="chance")["pose_cm"])
+    labels.append("chance")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(max(8, 0.7 * len(labels)), 4))
+    paper_boxplot(ax, data, labels, "pose error (cm)", "E4: MPPCA vs kNN vs ridge vs chance")
+    return save_figure(fig, path)

@@ -1,0 +1,139 @@
+"""Load data and model, run the experiments, write every artefact into ``reports/<preset>/``.
+
+Artefacts (each written to a temporary name, then renamed):
+``results.parquet`` (one row per experiment condition and test example), ``headline.json``,
+``summary.md``, ``e1_single_vs_multi.png``, ``e2_missing_views.png``, ``e3_noise.png``,
+``e4_baselines.png``, ``e5_single_view.png``, ``e5_missing_view.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .experiments import EvalConfig, EvalData, Evaluation, Progress
+
+__all__ = ["load_data", "write_reports", "run_evaluation", "EvalInputError"]
+
+
+class EvalInputError(FileNotFoundError):
+    """Data or model missing or unreadable; the message tells the user what to run."""
+
+
+def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool) -> EvalData:
+    """Read ``data_dir``'s train and test splits (test masks only if ``with_masks``)."""
+    from silpose.shared.dataset import DatasetError, load_split
+
+    data_dir = Path(data_dir)
+    if not data_dir.is_dir():
+        raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {data_dir.name}`)")
+    try:
+        train = load_split(data_dir, "train")
+        test = load_split(data_dir, "test", with_masks=with_masks)
+    except DatasetError as exc:
+        raise EvalInputError(f"cannot read the dataset in {data_dir}: {exc} (regenerate with `just gen {data_dir.name}`)") from exc
+    if len(train) == 0 or len(test) == 0:
+        raise EvalInputError(f"{data_dir}: the train or test split is empty")
+    return EvalData.from_splits(train, test, n_test)
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return None if not np.isfinite(x) else float(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: str) -> dict[str, Path]:
+    """Write the per-example rows, the headline JSON, the box plots, the E5 figures and summary.md."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from . import figures, plots
+    from .report import headline, markdown_summary
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    df = ev.frame()
+    written: dict[str, Path] = {}
+    tmp = out / ".results.parquet.tmp"
+    pq.write_table(pa.Table.from_pandas(df, preserve_index=False), tmp, compression="zstd")
+    os.replace(tmp, out / "results.parquet")
+    written["results"] = out / "results.parquet"
+    for name, fn in (("e1_single_vs_multi", plots.plot_e1), ("e2_missing_views", plots.plot_e2),
+                     ("e3_noise", plots.plot_e3), ("e4_baselines", plots.plot_e4)):
+        p = fn(df, out / f"{name}.png")
+        if p is not None:
+            written[name] = p
+    if "E5" in ev.config.experiments and "E2" in ev.config.experiments:
+        for stem, views, caption in figures.default_examples(ev.data.n_views):
+            from .experiments import views_label
+
+            sid = figures.median_example(df, "E2", views_label(views))
+            if sid is not None:
+                written[stem] = figures.example_figure(ev, sid, views, out / f"{stem}.png",
+                                                       caption + " — example nearest the median pose error")
+    head = _jsonable({**headline(df), "settings": settings, "timings_s": ev.timings})
+    _atomic_write(out / "headline.json", json.dumps(head, indent=2).encode())
+    written["headline"] = out / "headline.json"
+    pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
+    md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes)
+    _atomic_write(out / "summary.md", md.encode())
+    written["summary"] = out / "summary.md"
+    return written
+
+
+def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | Path, config: EvalConfig,
+                   progress: Progress | None = None, title: str | None = None) -> tuple[Evaluation, dict[str, Path]]:
+    """Everything ``silpose eval`` does, without the terminal UI."""
+    from silpose.model.persistence import load_model
+
+    model_path = Path(model_path)
+    if not model_path.is_file():
+        raise EvalInputError(f"model file {model_path} not found: train it first (`just train {Path(data_dir).name}`)")
+    t0 = time.perf_counter()
+    needs_masks = "E3" in config.experiments and any(s.needs_masks for s in config.sweep)
+    data = load_data(data_dir, config.n_test, with_masks=needs_masks)
+    try:
+        model = load_model(model_path)
+    except Exception as exc:  # persistence raises clear ValueErrors; keep its message
+        raise EvalInputError(f"cannot load the model {model_path}: {exc}") from exc
+    if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
+        raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
+                             f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")
+    load_s = time.perf_counter() - t0
+    ev = Evaluation(data=data, model=model, config=config, progress=progress).run()
+    ev.timings["load"] = load_s
+    settings = {
+        "data": str(data_dir),
+        "model": str(model_path),
+        "model_hyperparameters": model.get_params(),
+        "n_train": int(len(data.train_joints)),
+        "n_test": int(len(data.test_ids)),
+        "n_views": data.n_views,
+        "config": config.to_dict(),
+        "chamfer_canvas_margin_px": __import__("silpose.eval.metrics", fromlist=["x"]).CANVAS_MARGIN_PX,
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
+    }
+    t1 = time.perf_counter()
+    written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}")
+    ev.timings["reports"] = time.perf_counter() - t1
+    return ev, written
