@@ -97,9 +97,10 @@ class Camera:
         if np.any(self.dist):
             import cv2
 
-            flat = points.reshape(-1, 3)
-            rvec, _ = cv2.Rodrigues(self.R)
-            uv, _ = cv2.projectPoints(flat, rvec, self.t, self.K, self.dist)
+            # Project the camera-frame points with a zero pose: going through cv2.Rodrigues(R)
+            # would lose ~1e-8 near a rotation angle of pi (the default rig's cam2 has exactly pi).
+            flat = np.ascontiguousarray(xc.reshape(-1, 3))
+            uv, _ = cv2.projectPoints(flat, np.zeros(3), np.zeros(3), self.K, self.dist)
             return uv.reshape(points.shape[:-1] + (2,))
         z = xc[..., 2:3]
         xy = xc[..., :2] / z

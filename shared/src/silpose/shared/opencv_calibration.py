@@ -38,7 +38,7 @@ import numpy as np
 
 from .camera import Camera, RigError
 
-__all__ = ["read_opencv_cameras", "write_opencv_camera"]
+__all__ = ["read_opencv_cameras", "write_opencv_camera", "rotation_to_rvec"]
 
 K_KEYS = ("camera_matrix", "cameraMatrix", "K", "M")
 DIST_KEYS = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "dist")
@@ -119,6 +119,32 @@ class _Fields:
 def _check_rotation(R: np.ndarray, where: str) -> None:
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
         raise RigError(f"{where}: not a rotation matrix (R R^T != I or det(R) != +1)")
+
+
+def rotation_to_rvec(R: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) -> Rodrigues vector (3,) = angle * unit axis, accurate to ~1e-16 at any angle.
+
+    ``cv2.Rodrigues`` loses about 1e-8 near an angle of pi (a camera facing -x, like the default
+    rig's cam2). Here (Rodrigues' formula ``R = cos(th) I + sin(th) [a]x + (1 - cos(th)) a a^T``):
+    ``sin(th) a = vee(R - R^T) / 2``, ``cos(th) = (tr R - 1) / 2``, ``th = atan2(|sin(th) a|, cos(th))``;
+    for th > 90 deg the axis comes from the symmetric part ``(R + R^T)/2 - cos(th) I = (1 - cos(th)) a a^T``
+    (its largest column), its sign from ``sin(th) a``.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    sin_a = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    cos_th = 0.5 * (np.trace(R) - 1.0)
+    sin_th = np.linalg.norm(sin_a)
+    th = np.arctan2(sin_th, cos_th)
+    if th == 0.0:
+        return np.zeros(3)
+    if cos_th >= 0.0:
+        return th * sin_a / sin_th
+    S = 0.5 * (R + R.T) - cos_th * np.eye(3)  # (1 - cos th) a a^T
+    k = int(np.argmax(np.diag(S)))
+    axis = S[:, k] / np.linalg.norm(S[:, k])
+    if axis @ sin_a < 0:
+        axis = -axis
+    return th * axis
 
 
 def _as_int(value: float, where: str) -> int:
@@ -240,7 +266,7 @@ def write_opencv_camera(path: str | Path, camera: Camera, unit: float = 1.0, rot
         fs.write("camera_matrix", np.asarray(camera.K, np.float64))
         fs.write("distortion_coefficients", np.asarray(camera.dist, np.float64).reshape(-1, 1))
         if rotation == "rvec":
-            fs.write("rvec", cv2.Rodrigues(np.asarray(camera.R, np.float64))[0])
+            fs.write("rvec", rotation_to_rvec(camera.R).reshape(3, 1))
         else:
             fs.write("rotation_matrix", np.asarray(camera.R, np.float64))
         fs.write("tvec", (np.asarray(camera.t, np.float64) / unit).reshape(3, 1))
