@@ -1,0 +1,149 @@
+"""``silpose train`` / ``silpose infer`` end to end on a tiny dataset written with the dataset writer.
+
+The records come from ``silpose.datagen.testing.synthetic_record`` (stick-figure masks, real contour
+extraction): fast, and written and read through ``silpose.shared.dataset`` like a generated dataset.
+"""
+
+import json
+
+import cv2
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from silpose.datagen.testing import synthetic_record
+from silpose.model.persistence import load_model, read_header
+from silpose.shared.camera import default_rig
+from silpose.shared.cli import build_app
+from silpose.shared.dataset import load_split, write_shard
+from silpose.shared.dataset_schema import build_metadata
+from silpose.shared.skeleton import JOINT_NAMES
+
+N_POINTS = 24
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data") / "tiny"
+    root.mkdir()
+    rig = default_rig()
+    config = {"name": "tiny", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS}
+    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
+    for split, n in (("train", 80), ("test", 6)):
+        records = [synthetic_record(config, split, i) for i in range(n)]
+        write_shard(root / f"{split}-00000-of-00001.parquet", records, meta)
+    (root / "manifest.json").write_text(json.dumps({"name": "tiny"}))
+    return root
+
+
+@pytest.fixture(scope="module")
+def trained(dataset, tmp_path_factory):
+    out = tmp_path_factory.mktemp("models") / "tiny.npz"
+    res = CliRunner().invoke(build_app(), ["train", str(dataset), "--out", str(out), "-M", "2", "-q", "4",
+                                           "--n-init", "1", "--max-iter", "40", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    return out, res.output
+
+
+def _invoke(*args):
+    return CliRunner().invoke(build_app(), [str(a) for a in args])
+
+
+def test_train_writes_model_and_report(trained, dataset):
+    out, output = trained
+    assert "held-out log-likelihood" in output
+    report = json.loads(out.with_suffix(".report.json").read_text())
+    assert report["n_fit"] == 72 and report["n_heldout"] == 8
+    assert report["em"]["n_iter"] == len(report["em"]["loglik_curve"]) >= 1
+    assert np.isfinite(report["heldout"]["mean_loglik"]) and report["heldout"]["joint_error_cm"] > 0
+    md = out.with_suffix(".report.md").read_text()
+    assert "held-out mean log-likelihood" in md and "| iteration |" in md
+    header = read_header(out)
+    import hashlib
+    assert header["dataset"]["manifest_sha256"] == hashlib.sha256((dataset / "manifest.json").read_bytes()).hexdigest()
+    assert header["hyperparameters"]["n_components"] == 2 and header["rig"]["cameras"][0]["name"]
+
+
+def test_infer_dataset_parquet_and_json_match_the_api(trained, dataset, tmp_path):
+    model_path, _ = trained
+    out = tmp_path / "j.parquet"
+    res = _invoke("infer", model_path, dataset, "--out", out, "--contours")
+    assert res.exit_code == 0, res.output
+    table = pq.read_table(out).to_pandas()
+    model = load_model(model_path)
+    test = load_split(dataset, "test")
+    ref = model.infer(test.contours)
+    got = np.stack([table[[f"{j}_x", f"{j}_y", f"{j}_z"]].to_numpy() for j in JOINT_NAMES], axis=1)
+    np.testing.assert_array_equal(got, ref.joints.astype(np.float32))
+    assert list(table["sample_id"]) == list(test.sample_id)
+    with np.load(tmp_path / "j.contours.npz", allow_pickle=False) as z:
+        np.testing.assert_array_equal(z["contours_norm"], ref.contours_norm)
+        assert z["frames"].shape == (6,)
+    res = _invoke("infer", model_path, dataset, "--out", tmp_path / "j.json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "j.json").read_text())
+    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), ref.joints, atol=1e-6)
+
+
+def test_infer_png_folders_with_missing_views(trained, dataset, tmp_path):
+    model_path, _ = trained
+    model = load_model(model_path)
+    test = load_split(dataset, "test", with_masks=True)
+    names = model.rig_.names
+    folder = tmp_path / "pngs"
+    for k, name in enumerate(names):
+        if k == 3:
+            continue  # a whole camera missing
+        (folder / name).mkdir(parents=True)
+        for i in range(len(test)):
+            if k == 1 and i == 2:
+                continue  # one frame missing in one camera
+            cv2.imwrite(str(folder / name / f"frame{i:03d}.png"), test.masks[i, k] * 255)
+    out = tmp_path / "png.parquet"
+    res = _invoke("infer", model_path, folder, "--out", out)
+    assert res.exit_code == 0, res.output
+    table = pq.read_table(out).to_pandas()
+    present = np.ones((6, 4), bool)
+    present[:, 3] = False
+    present[2, 1] = False
+    ref = model.infer(test.contours, present)  # the dataset's contours come from the same masks
+    got = np.stack([table[[f"{j}_x", f"{j}_y", f"{j}_z"]].to_numpy() for j in JOINT_NAMES], axis=1)
+    np.testing.assert_allclose(got, ref.joints, atol=1e-5)
+    assert list(table["n_views_present"]) == [3, 3, 2, 3, 3, 3]
+
+
+def test_infer_errors(trained, dataset, tmp_path):
+    model_path, _ = trained
+    res = _invoke("infer", tmp_path / "nope.npz", dataset)
+    assert res.exit_code == 2 and "no such model file" in res.output
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = _invoke("infer", model_path, empty, "--out", tmp_path / "x.parquet")
+    assert res.exit_code == 2 and "neither a dataset" in res.output and "cam" in res.output
+    res = _invoke("infer", model_path, dataset, "--out", tmp_path / "x.csv")
+    assert res.exit_code == 2 and ".parquet or .json" in res.output
+    res = _invoke("infer", model_path, dataset, "--split", "valid", "--out", tmp_path / "x.json")
+    assert res.exit_code == 2 and "no shards of split 'valid'" in res.output
+    bad = tmp_path / "bad" / load_model(model_path).rig_.names[0]
+    bad.mkdir(parents=True)
+    cv2.imwrite(str(bad / "f.png"), np.zeros((10, 12), np.uint8))
+    res = _invoke("infer", model_path, bad.parent, "--out", tmp_path / "x.json")
+    assert res.exit_code == 2 and "f.png: image is 12x10" in res.output
+
+
+def test_train_errors_and_select(dataset, tmp_path):
+    res = _invoke("train", "no-such-preset", "--data-root", tmp_path)
+    assert res.exit_code == 2 and "no dataset folder for preset 'no-such-preset'" in res.output
+    res = _invoke("train", dataset, "--views", "a,b", "--out", tmp_path / "m.npz")
+    assert res.exit_code == 2 and "--views" in res.output
+    # --select with M, q and w fixed searches the noise variance only: one fit, a table of 4 rows
+    out = tmp_path / "sel.npz"
+    res = _invoke("train", dataset, "--select", "-M", "1", "-q", "3", "--structure-weight", "2", "--n-init", "1",
+                  "--max-iter", "20", "--no-progress", "--out", out)
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.with_suffix(".report.json").read_text())
+    rows = report["selection"]["rows"]
+    assert len(rows) == 4 and {r["n_latent"] for r in rows} == {3}
+    assert report["hyperparameters"]["noise_variance"] == report["selection"]["best"]["noise_variance"]
+    assert "Model selection" in out.with_suffix(".report.md").read_text()
