@@ -80,3 +80,18 @@ def synthetic_record(config: dict, split: str, index: int) -> dict:
 def synthetic_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     """Stand-in for ``render_samples``: one synthetic record per index."""
     return [synthetic_record(config, split, i) for i in indices]
+
+
+def failing_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
+    """Stand-in that renders ``train`` and fails on every other split (tests worker failures)."""
+    if split != "train":
+        raise RuntimeError(f"synthetic failure on split {split}")
+    return synthetic_render_samples(config, split, indices)
+
+
+def wrong_ids_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
+    """Stand-in returning the right records under shifted sample ids (tests the driver's check)."""
+    records = synthetic_render_samples(config, split, indices)
+    for r in records:
+        r["sample_id"] += 1
+    return records

@@ -1,0 +1,204 @@
+"""The sharded pipeline: resume, lock, failures, worker-count independence, third-party readers.
+
+Fast tests use ``silpose.datagen.testing.synthetic_render_samples`` (a stick figure drawn with
+OpenCV, clearly not a person) to exercise IO and orchestration; the ``blender`` tests use the
+real renderer on a 12-sample config.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from silpose.datagen.config import load_config
+from silpose.datagen.executor import ExecutorError
+from silpose.datagen.manifest import LOCK, FolderLock, LockError, sha256_file
+from silpose.datagen.pipeline import GenerationError, generate
+from silpose.datagen.validate import validate_dataset
+from silpose.shared.dataset import load_split
+
+SYNTH = "silpose.datagen.testing:synthetic_render_samples"
+TINY = """name = "tiny"
+seed = 7
+renderer = "raster"
+shard_size = 4
+n_points = 200
+max_redraws = 50
+[splits]
+train = 8
+test = 4
+"""
+
+
+def tiny_config(tmp_path, text=TINY):
+    p = tmp_path / "tiny.toml"
+    p.write_text(text)
+    return load_config(p)
+
+
+def leftovers(folder):
+    """Temporary or partial files left in a dataset folder."""
+    return sorted(p.name for p in folder.iterdir() if p.name.endswith(".tmp") or p.name == LOCK)
+
+
+def test_resume_rewrites_only_missing_or_broken_shards(tmp_path):
+    cfg = tiny_config(tmp_path)
+    out = tmp_path / "ds"
+    first = generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    hashes = {s["file"]: s["sha256"] for s in first["shards"]}
+    keep = out / "train-00000-of-00002.parquet"
+    mtime = keep.stat().st_mtime_ns
+    (out / "train-00001-of-00002.parquet").unlink()
+    broken = out / "test-00000-of-00001.parquet"
+    broken.write_bytes(broken.read_bytes()[:100])
+    stale = out / ".train-00001-of-00002.parquet.99999.tmp"
+    stale.write_bytes(b"partial")
+    second = generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    assert second["timing"]["shards_rendered"] == 2 and second["timing"]["shards_skipped"] == 1
+    assert keep.stat().st_mtime_ns == mtime
+    assert {s["file"]: s["sha256"] for s in second["shards"]} == hashes
+    assert leftovers(out) == []
+    ids = load_split(out, "train").sample_id
+    np.testing.assert_array_equal(ids, np.arange(8))
+
+
+def test_second_run_refuses_while_the_folder_is_locked(tmp_path):
+    cfg = tiny_config(tmp_path)
+    out = tmp_path / "ds"
+    out.mkdir()
+    with FolderLock(out):
+        with pytest.raises(LockError, match=rf"{LOCK}: another 'silpose gen' \(pid {os.getpid()}"):
+            generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    assert not list(out.glob("*.parquet"))
+
+
+def test_stale_lock_of_a_dead_process_is_taken_over(tmp_path):
+    cfg = tiny_config(tmp_path)
+    out = tmp_path / "ds"
+    out.mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (out / LOCK).write_text(json.dumps({"pid": dead.pid, "host": socket.gethostname(), "started": "then"}))
+    generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    assert leftovers(out) == [] and len(list(out.glob("*.parquet"))) == 3
+
+
+def test_a_folder_of_another_config_is_refused(tmp_path):
+    out = tmp_path / "ds"
+    generate(tiny_config(tmp_path), out, workers=1, render=SYNTH, progress=False)
+    other_seed = tiny_config(tmp_path, TINY.replace("seed = 7", "seed = 8"))
+    with pytest.raises(GenerationError, match="field 'config' differs from this run's"):
+        generate(other_seed, out, workers=1, render=SYNTH, progress=False)
+    other_shards = tiny_config(tmp_path, TINY.replace("shard_size = 4", "shard_size = 3"))
+    with pytest.raises(GenerationError, match="shard of another configuration"):
+        generate(other_shards, out, workers=1, render=SYNTH, progress=False)
+    assert leftovers(out) == []
+
+
+def test_worker_failure_names_the_shard_and_leaves_no_partial_file(tmp_path):
+    out = tmp_path / "ds"
+    with pytest.raises(ExecutorError, match=r"shard test-00000-of-00001.parquet: worker failed: RuntimeError: synthetic"):
+        generate(tiny_config(tmp_path), out, workers=1, render="silpose.datagen.testing:failing_render_samples",
+                 progress=False)
+    assert leftovers(out) == []
+    assert not (out / "test-00000-of-00001.parquet").exists()
+    for p in out.glob("train-*.parquet"):  # completed shards are whole and will be kept by a rerun
+        assert pq.ParquetFile(p).metadata.num_rows == 4
+
+
+def test_renderer_returning_wrong_ids_is_caught(tmp_path):
+    with pytest.raises(GenerationError, match="field 'sample_id'"):
+        generate(tiny_config(tmp_path), tmp_path / "ds", workers=1,
+                 render="silpose.datagen.testing:wrong_ids_render_samples", progress=False)
+    assert not list((tmp_path / "ds").glob("*.parquet"))
+
+
+def test_unusable_output_folder(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(GenerationError, match="cannot create the output folder") as err:
+        generate(tiny_config(tmp_path), blocker / "ds", workers=1, render=SYNTH, progress=False)
+    assert str(blocker / "ds") in str(err.value)
+
+
+def test_synthetic_data_do_not_depend_on_worker_count(tmp_path):
+    cfg = tiny_config(tmp_path)
+    a = generate(cfg, tmp_path / "a", workers=1, render=SYNTH, progress=False)
+    b = generate(cfg, tmp_path / "b", workers=2, render=SYNTH, progress=False)
+    assert [s["sha256"] for s in a["shards"]] == [s["sha256"] for s in b["shards"]]
+
+
+# ----------------------------------------------------------------------------- real renderer
+
+
+@pytest.fixture(scope="module")
+def real_one_worker(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("real1")
+    cfg = tiny_config(tmp)
+    manifest = generate(cfg, tmp / "ds", workers=1, progress=False)
+    return tmp / "ds", manifest
+
+
+@pytest.mark.blender
+def test_real_renderer_identical_with_one_and_two_workers(real_one_worker, tmp_path):
+    out1, m1 = real_one_worker
+    m2 = generate(tiny_config(tmp_path), tmp_path / "ds2", workers=2, progress=False)
+    assert "bpy" not in sys.modules  # the driver never imports Blender
+    for split in ("train", "test"):
+        a = load_split(out1, split, with_masks=True)
+        b = load_split(tmp_path / "ds2", split, with_masks=True)
+        for name in ("sample_id", "joints", "contours", "centroid", "scale", "masks", "touches_border"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        for key in a.gait:
+            np.testing.assert_array_equal(a.gait[key], b.gait[key])
+    assert [s["sha256"] for s in m1["shards"]] == [s["sha256"] for s in m2["shards"]]
+    assert m2["timing"]["workers"] == 2 and len(m2["timing"]["worker_rss_mb"]) == 2
+
+
+@pytest.mark.blender
+def test_real_dataset_validates(real_one_worker):
+    out, manifest = real_one_worker
+    report = validate_dataset(out)
+    assert report.ok, report.format()
+    assert report.splits["train"]["joints_inside"] >= 0.99
+    assert manifest["counts"] == {"train": 8, "test": 4}
+    for s in manifest["shards"]:
+        assert sha256_file(out / s["file"]) == s["sha256"]
+
+
+@pytest.mark.blender
+def test_third_party_readers(real_one_worker):
+    """pyarrow, DuckDB and Polars read the shards back without silpose code."""
+    import duckdb
+    import polars as pl
+    import pyarrow.dataset as ds
+
+    out, _ = real_one_worker
+    ref = load_split(out, "train")
+    table = ds.dataset(sorted(out.glob("*.parquet")), format="parquet").to_table()
+    assert table.num_rows == 12
+    train = table.filter(ds.field("split") == "train")
+    np.testing.assert_array_equal(train.column("joints").combine_chunks().to_numpy_ndarray(), ref.joints)
+
+    con = duckdb.connect()
+    glob = str(out / "*.parquet")
+    counts = dict(con.sql(f"SELECT split, count(*) FROM read_parquet('{glob}') GROUP BY split").fetchall())
+    assert counts == {"train": 8, "test": 4}
+    rows = con.sql(
+        f"SELECT contour_scale, joints, gait.phase FROM read_parquet('{out}/train-*.parquet') ORDER BY sample_id"
+    ).fetchall()
+    np.testing.assert_array_equal(np.array([r[0] for r in rows], np.float32), ref.scale)
+    np.testing.assert_array_equal(np.array([r[1] for r in rows], np.float32).reshape(8, 19, 3), ref.joints)
+    np.testing.assert_array_equal(np.array([r[2] for r in rows], np.float32), ref.gait["phase"])
+
+    df = pl.read_parquet(str(out / "train-*.parquet"), columns=["sample_id", "contours"]).sort("sample_id")
+    assert df.height == 8
+    contours = np.array(df["contours"].to_list(), dtype=np.float32).reshape(8, 4, 200, 2)
+    np.testing.assert_array_equal(contours, ref.contours)
