@@ -16,7 +16,7 @@ from silpose.shared.camera import default_rig
 from silpose.shared.contours import extract_contours, normalise
 from silpose.shared.dataset import build_metadata, shard_name, write_shard
 
-N_POINTS = 64
+N_POINTS = 40
 
 
 def _pose(rng: np.random.Generator, tall: float) -> np.ndarray:
@@ -87,5 +87,5 @@ def write_stick_dataset(root, n_train: int, n_test: int, seed: int = 0) -> None:
 def stick_dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("stick") / "stick"
     root.mkdir()
-    write_stick_dataset(root, n_train=240, n_test=24)
+    write_stick_dataset(root, n_train=120, n_test=8)
     return root

@@ -70,7 +70,8 @@ def evaluate(
         try:
             ev, written = run_evaluation(data_dir, model, out, config, progress=on_step, title=f"silpose evaluation — {name}")
         except EvalInputError as exc:
-            console.print(f"[red]error:[/red] {exc}")
+            progress.stop()
+            typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(code=2) from None
     console.print(f"wrote {len(written)} artefacts to {out}/ in {sum(ev.timings.values()):.0f} s:")
     for key, path in written.items():

@@ -107,6 +107,8 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     from silpose.model.persistence import load_model
 
     model_path = Path(model_path)
+    if not Path(data_dir).is_dir():
+        raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {Path(data_dir).name}`)")
     if not model_path.is_file():
         raise EvalInputError(f"model file {model_path} not found: train it first (`just train {Path(data_dir).name}`)")
     t0 = time.perf_counter()

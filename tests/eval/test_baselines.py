@@ -1,0 +1,74 @@
+"""Chance computed as defined; kNN / ridge against direct references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.distance import cdist
+
+from silpose.eval import metrics
+from silpose.eval.baselines import ChanceBaseline, ViewSubsetRegressor
+from silpose.eval.experiments import view_subsets
+from silpose.shared.skeleton import root_relative
+
+
+def test_chance_draws_training_poses_uniformly_and_deterministically():
+    rng = np.random.default_rng(0)
+    train = rng.normal(0, 0.3, (7, 19, 3)) + rng.normal(0, 2, (7, 1, 3))  # world offsets
+    ch = ChanceBaseline(random_state=3).fit(train)
+    pred = ch.predict(7000)
+    rr = root_relative(train)
+    # every prediction is exactly one root-relative training pose
+    match = np.array([np.flatnonzero(np.all(np.isclose(rr, p), axis=(1, 2))) for p in pred[:200]], dtype=object)
+    assert all(len(m) == 1 for m in match)
+    counts = np.bincount(ch.draw_indices(7000), minlength=7)
+    assert counts.min() > 850 and counts.max() < 1150  # uniform (expected 1000 each)
+    np.testing.assert_array_equal(pred, ChanceBaseline(random_state=3).fit(train).predict(7000))
+    assert not np.array_equal(pred, ChanceBaseline(random_state=4).fit(train).predict(7000))
+
+
+def test_chance_error_converges_to_mean_over_training_poses():
+    rng = np.random.default_rng(1)
+    train = rng.normal(0, 0.3, (5, 19, 3))
+    test = rng.normal(0, 0.3, (1, 19, 3))
+    ch = ChanceBaseline(random_state=0).fit(train)
+    err = metrics.pose_error_cm(ch.predict(20000), np.repeat(test, 20000, axis=0)).mean()
+    exact = np.mean([metrics.pose_error_cm(t[None], test)[0] for t in train])  # expectation under uniform draws
+    assert err == pytest.approx(exact, rel=0.02)
+
+
+def test_knn_with_one_neighbour_returns_the_nearest_training_pose():
+    rng = np.random.default_rng(2)
+    x_train = rng.normal(size=(50, 4, 10, 2))
+    y_train = rng.normal(size=(50, 19, 3))
+    x_test = rng.normal(size=(6, 4, 10, 2))
+    reg = ViewSubsetRegressor("knn", (2, 0), n_neighbors=1).fit(x_train, y_train)
+    nearest = cdist(x_test[:, [0, 2]].reshape(6, -1), x_train[:, [0, 2]].reshape(50, -1)).argmin(axis=1)
+    np.testing.assert_allclose(reg.predict(x_test), root_relative(y_train)[nearest], atol=1e-12)
+    # only the subset's views are read
+    x_test2 = x_test.copy()
+    x_test2[:, [1, 3]] = 99.0
+    np.testing.assert_array_equal(reg.predict(x_test2), reg.predict(x_test))
+
+
+def test_ridge_equals_closed_form_with_the_chosen_penalty():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(80, 2, 6, 2))
+    y = rng.normal(size=(80, 19, 3))
+    reg = ViewSubsetRegressor("ridge", (1,)).fit(x, y)
+    alpha = reg.estimator_.alpha_
+    X = x[:, 1].reshape(80, -1)
+    Y = root_relative(y).reshape(80, -1)
+    xm, ym = X.mean(0), Y.mean(0)
+    B = np.linalg.solve((X - xm).T @ (X - xm) + alpha * np.eye(X.shape[1]), (X - xm).T @ (Y - ym))
+    xt = rng.normal(size=(3, 2, 6, 2))
+    ref = (xt[:, 1].reshape(3, -1) - xm) @ B + ym
+    np.testing.assert_allclose(reg.predict(xt).reshape(3, -1), ref, atol=1e-8)
+    with pytest.raises(ValueError, match="kind"):
+        ViewSubsetRegressor("forest", (0,)).fit(x, y)
+
+
+def test_view_subsets_cover_every_combination():
+    s = view_subsets(4)
+    assert len(s) == 15 and len(set(s)) == 15
+    assert [len(v) for v in s].count(3) == 4 and [len(v) for v in s].count(2) == 6 and [len(v) for v in s].count(1) == 4
