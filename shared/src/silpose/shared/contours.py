@@ -173,13 +173,14 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
     left, top = stats[best, cv2.CC_STAT_LEFT], stats[best, cv2.CC_STAT_TOP]
     bw, bh = stats[best, cv2.CC_STAT_WIDTH], stats[best, cv2.CC_STAT_HEIGHT]
     touches = bool(left == 0 or top == 0 or left + bw == w or top + bh == h)
-    blob = (labels == best).astype(np.uint8)
-    # Pad so the border rows are traced like any other pixels, then undo the offset.
-    padded = cv2.copyMakeBorder(blob, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
-    found, _ = cv2.findContours(padded, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    # The blob inside its bounding box, padded by one pixel so pixels on the image border are
+    # traced like any other; the offset is undone below.
+    blob = np.zeros((bh + 2, bw + 2), np.uint8)
+    blob[1:-1, 1:-1] = labels[top : top + bh, left : left + bw] == best
+    found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     raw = max(found, key=len)  # one outer contour for an 8-connected blob
     length = float(cv2.arcLength(raw, closed=True))
-    poly = raw.reshape(-1, 2).astype(np.float64) - 1.0
+    poly = raw.reshape(-1, 2).astype(np.float64) + (left - 1.0, top - 1.0)
     if signed_area(poly) < 0:  # make it clockwise on screen
         poly = poly[::-1].copy()
     cx = float(centroids[best, 0])
