@@ -9,8 +9,9 @@ M = W^T W + s2 I (T&B eq. 6):
     log|C|         = (d - q) log s2 + log|M|                      (matrix determinant lemma)
     e^T C^-1 e     = (||e||^2 - z^T M^-1 z) / s2,  z = W^T e      (Woodbury identity)
 
-Rows are processed in chunks of ``_CHUNK`` so that no (N, d) temporary is allocated per
-component; all accumulations are float64.
+EM touches the data through two matrix products per iteration, each shared by all components:
+X [W_1 .. W_M mu_1 .. mu_M] (E-step) and X^T [R_1 X W_1 .. R_M X W_M R] (M-step), so no (N, d)
+temporary is allocated per component; all accumulations are float64.
 """
 
 from __future__ import annotations
@@ -33,18 +34,49 @@ def component_log_density(X: np.ndarray, mean: np.ndarray, W: np.ndarray, s2: fl
     X (N, d) float64, mean (d,), W (d, q), s2 > 0 scalar. Returns (N,) float64.
     Uses log|C| = (d-q) log s2 + log|M| and e^T C^-1 e = (||e||^2 - z^T M^-1 z)/s2 (module doc).
     """
-    n, d = X.shape
-    q = W.shape[1]
-    M = W.T @ W + s2 * np.eye(q)
-    L = np.linalg.cholesky(M)
-    logdet = (d - q) * np.log(s2) + 2.0 * np.sum(np.log(np.diag(L)))
-    out = np.empty(n)
-    for sl in _chunks(n):
+    out = np.empty(X.shape[0])
+    for sl in _chunks(X.shape[0]):
         E = X[sl] - mean
-        z = E @ W  # (b, q)
-        y = solve_triangular(L, z.T, lower=True, check_finite=False)  # L^-1 z: z^T M^-1 z = ||y||^2
-        maha = (np.einsum("ij,ij->i", E, E) - np.einsum("ij,ij->j", y, y)) / s2
-        out[sl] = -0.5 * (d * _LOG_2PI + logdet + maha)
+        out[sl] = _log_density_terms(np.einsum("ij,ij->i", E, E), E @ W, W, s2)
+    return out
+
+
+def _log_density_terms(sqn, z, W, s2):
+    """log N(e; 0, W W^T + s2 I) from ||e||^2 (N,) and z = W^T e (N, q); W (d, q)."""
+    d, q = W.shape
+    L = np.linalg.cholesky(W.T @ W + s2 * np.eye(q))  # M = L L^T
+    logdet = (d - q) * np.log(s2) + 2.0 * np.sum(np.log(np.diag(L)))
+    y = solve_triangular(L, z.T, lower=True, check_finite=False)  # z^T M^-1 z = ||L^-1 z||^2
+    maha = (sqn - np.einsum("ij,ij->j", y, y)) / s2
+    return -0.5 * (d * _LOG_2PI + logdet + np.maximum(maha, 0.0))
+
+
+def e_step_products(X: np.ndarray, means: np.ndarray, components: np.ndarray):
+    """The data products every E-step and M-step needs, from ONE matrix product X [W_1..W_M mu_1..mu_M].
+
+    X (N, d), means (M, d), components (M, d, q). Returns sqn (N,) = ||x_n||^2,
+    XW (N, M, q) = x_n^T W_i, Xmu (N, M) = x_n^T mu_i. Cost O(N d (M q + M)).
+    """
+    m, d, q = components.shape
+    B = np.concatenate([components.transpose(1, 0, 2).reshape(d, m * q), means.T], axis=1)  # (d, Mq+M)
+    P = X @ B
+    return np.einsum("ij,ij->i", X, X), P[:, : m * q].reshape(-1, m, q), P[:, m * q:]
+
+
+def log_prob_from_products(sqn, XW, Xmu, weights, means, components, noise_variance) -> np.ndarray:
+    """log pi_i + log N(x_n | mu_i, C_i) (N, M) from ``e_step_products`` (shapes there).
+
+    With e = x - mu_i: ||e||^2 = ||x||^2 - 2 x^T mu_i + ||mu_i||^2 and W_i^T e = W_i^T x - W_i^T mu_i.
+    """
+    m = weights.shape[0]
+    out = np.empty((sqn.shape[0], m))
+    with np.errstate(divide="ignore"):
+        log_w = np.log(weights)
+    for i in range(m):
+        mu, W = means[i], components[i]
+        sq_e = sqn - 2.0 * Xmu[:, i] + mu @ mu
+        z = XW[:, i, :] - mu @ W
+        out[:, i] = log_w[i] + _log_density_terms(sq_e, z, W, float(noise_variance[i]))
     return out
 
 
@@ -52,15 +84,50 @@ def weighted_log_prob(X, weights, means, components, noise_variance) -> np.ndarr
     """log pi_i + log N(x_n | mu_i, C_i) for all rows and components.
 
     X (N, d), weights (M,), means (M, d), components (M, d, q), noise_variance (M,). Returns (N, M).
+    Rows are shifted by the mixture mean first (chunks of ``_CHUNK`` rows) so that the expanded
+    ||x - mu||^2 does not lose precision to a large common offset.
     """
-    n = X.shape[0]
-    m = weights.shape[0]
-    out = np.empty((n, m))
-    with np.errstate(divide="ignore"):
-        log_w = np.log(weights)
-    for i in range(m):
-        out[:, i] = log_w[i] + component_log_density(X, means[i], components[i], float(noise_variance[i]))
+    ref = weights @ means
+    out = np.empty((X.shape[0], weights.shape[0]))
+    m_c = means - ref
+    for sl in _chunks(X.shape[0]):
+        out[sl] = log_prob_from_products(*e_step_products(X[sl] - ref, m_c, components), weights, m_c,
+                                         components, noise_variance)
     return out
+
+
+def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
+    """One EM update of every component (T&B 1999 Appendix C, eqs. C.20-C.23).
+
+    X (N, d) (best centred on the data mean), sqn (N,) = ||x_n||^2, resp (N, M) responsibilities
+    R_ni, XW (N, M, q) = x_n^T W_i for the CURRENT W_i (from the E-step), components (M, d, q) and
+    noise_variance (M,) the current parameters. Returns n (M,), means (M, d), W_new (M, d, q),
+    s2_new (M,). For each i, with n_i = sum_n R_ni and mu_i = sum_n R_ni x_n / n_i:
+        S W  = (1/n_i) sum_n R_ni (x_n - mu_i)(x_n - mu_i)^T W = (1/n_i) X^T (R_i * X W) - mu_i (mu_i^T W)
+        tr S = (1/n_i) sum_n R_ni ||x_n||^2 - ||mu_i||^2
+        W_new = S W (s2 I + M^-1 W^T S W)^-1,            M = W^T W + s2 I
+        s2_new = (tr S - tr(S W M^-1 W_new^T)) / d
+    S itself (d x d) is never formed; all components share ONE product X^T [R_1 XW_1 .. R_M XW_M R].
+    """
+    n, d = X.shape
+    m, _, q = components.shape
+    counts = np.maximum(resp.sum(axis=0), 10.0 * np.finfo(float).eps)
+    rhs = np.concatenate([(XW * resp[:, :, None]).reshape(n, m * q), resp], axis=1)  # (N, Mq+M)
+    G = X.T @ rhs  # (d, Mq+M)
+    means = (G[:, m * q:] / counts).T
+    W_new = np.empty_like(components)
+    s2_new = np.empty(m)
+    eye = np.eye(q)
+    for i in range(m):
+        W, s2, mu = components[i], float(noise_variance[i]), means[i]
+        SW = G[:, i * q:(i + 1) * q] / counts[i] - np.outer(mu, mu @ W)
+        trS = float(resp[:, i] @ sqn) / counts[i] - float(mu @ mu)
+        cM = cho_factor(W.T @ W + s2 * eye, check_finite=False)
+        A = s2 * eye + cho_solve(cM, W.T @ SW, check_finite=False)  # s2 I + M^-1 W^T S W
+        W_new[i] = np.linalg.solve(A.T, SW.T).T  # S W A^-1
+        SWMinv = cho_solve(cM, SW.T, check_finite=False).T  # S W M^-1
+        s2_new[i] = max((trS - float(np.einsum("ij,ij->", SWMinv, W_new[i]))) / d, var_floor)
+    return counts, means, W_new, s2_new
 
 
 def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Generator):
@@ -101,37 +168,3 @@ def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Gen
     W = np.zeros((d, q))
     W[:, :k] = U * np.sqrt(np.clip(lam_q - s2, 0.0, None))
     return mean, W, s2
-
-
-def m_step_component(X, resp_i, W, s2, var_floor):
-    """One EM update of a single component (T&B 1999 Appendix C, eqs. C.20-C.23 / 80-84).
-
-    X (N, d), resp_i (N,) responsibilities R_ni, W (d, q) and s2 the current parameters.
-    Returns (n_i, mu_new (d,), W_new (d, q), s2_new):
-        n_i  = sum_n R_ni,   mu_new = sum_n R_ni x_n / n_i
-        S W  = (1/n_i) sum_n R_ni (x_n - mu_new) ((x_n - mu_new)^T W)          (never S itself)
-        W_new = S W (s2 I + M^-1 W^T S W)^-1,                 M = W^T W + s2 I
-        s2_new = (tr S - tr(S W M^-1 W_new^T)) / d
-    """
-    n, d = X.shape
-    q = W.shape[1]
-    n_i = max(float(resp_i.sum()), 10.0 * np.finfo(float).eps)
-    mu = (resp_i @ X) / n_i
-    SW = np.zeros((d, q))
-    trS = 0.0
-    for sl in _chunks(n):
-        E = X[sl] - mu
-        r = resp_i[sl]
-        Z = E @ W  # (b, q)
-        SW += E.T @ (Z * r[:, None])
-        trS += float(r @ np.einsum("ij,ij->i", E, E))
-    SW /= n_i
-    trS /= n_i
-    M = W.T @ W + s2 * np.eye(q)
-    cM = cho_factor(M, check_finite=False)
-    MinvWtSW = cho_solve(cM, W.T @ SW, check_finite=False)  # M^-1 W^T S W  (q, q)
-    A = s2 * np.eye(q) + MinvWtSW
-    W_new = np.linalg.solve(A.T, SW.T).T  # S W A^-1
-    SWMinv = cho_solve(cM, SW.T, check_finite=False).T  # S W M^-1  (d, q)
-    s2_new = (trS - float(np.einsum("ij,ij->", SWMinv, W_new))) / d
-    return n_i, mu, W_new, max(s2_new, var_floor)

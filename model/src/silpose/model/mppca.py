@@ -99,17 +99,17 @@ class MPPCA(DensityMixin, BaseEstimator):
         n, d = X.shape
         self._check_params(n, d)
         rng = np.random.default_rng(self.random_state)
-        data_var = float(np.mean(X.var(axis=0)))
-        var_floor = self.reg_variance * data_var if data_var > 0 else max(self.reg_variance, 1e-300)
-        var_floor = max(var_floor, 1e-300)
-
+        offset = X.mean(axis=0)
+        Xc = X - offset  # centred copy: keeps the expanded ||x - mu||^2 of the E/M-steps precise
+        data_var = float(np.einsum("ij,ij->", Xc, Xc)) / (n * d)  # mean per-feature variance
+        var_floor = max(self.reg_variance * data_var if data_var > 0 else self.reg_variance, 1e-300)
         best = None
         for init_idx in range(self.n_init):
-            run = self._fit_one(X, rng, var_floor, init_idx)
+            run = self._fit_one(Xc, rng, var_floor, init_idx)
             if best is None or run["lower_bound"] > best["lower_bound"]:
                 best = run
         self.weights_ = best["weights"]
-        self.means_ = best["means"]
+        self.means_ = best["means"] + offset
         self.components_ = best["components"]
         self.noise_variance_ = best["noise_variance"]
         self.converged_ = best["converged"]
@@ -152,7 +152,9 @@ class MPPCA(DensityMixin, BaseEstimator):
             s2[i] = max(s2[i], var_floor)
         weights /= weights.sum()
 
-        ll = _ppca.weighted_log_prob(X, weights, means, comps, s2)
+        # X is centred on the data mean by fit(); one product per E-step feeds the next M-step
+        sqn, XW, Xmu = _ppca.e_step_products(X, means, comps)
+        ll = _ppca.log_prob_from_products(sqn, XW, Xmu, weights, means, comps, s2)
         log_norm = logsumexp(ll, axis=1)
         prev = float(np.mean(log_norm))
         bounds: list[float] = []
@@ -160,12 +162,11 @@ class MPPCA(DensityMixin, BaseEstimator):
         it = 0
         for it in range(1, self.max_iter + 1):
             resp = np.exp(ll - log_norm[:, None])  # E-step posteriors R_ni (T&B eq. 21)
-            for i in range(m):  # M-step per component (T&B Appendix C)
-                n_i, means[i], comps[i], s2[i] = _ppca.m_step_component(X, resp[:, i], comps[i], s2[i], var_floor)
-                weights[i] = n_i / n
-            weights /= weights.sum()
+            counts, means, comps, s2 = _ppca.m_step(X, sqn, resp, XW, comps, s2, var_floor)  # Appendix C
+            weights = counts / counts.sum()
             del resp
-            ll = _ppca.weighted_log_prob(X, weights, means, comps, s2)
+            _, XW, Xmu = _ppca.e_step_products(X, means, comps)
+            ll = _ppca.log_prob_from_products(sqn, XW, Xmu, weights, means, comps, s2)
             log_norm = logsumexp(ll, axis=1)
             cur = float(np.mean(log_norm))
             bounds.append(cur)

@@ -1,0 +1,183 @@
+"""Conditional inference: equals dense Gaussian conditioning; marginalises missing dims."""
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+from scipy.stats import multivariate_normal
+
+from silpose.model.conditional import ConditionalResult, Conditioner, condition, condition_rows
+from silpose.model.mppca import MPPCA
+
+
+class Params:
+    def __init__(self, rng, m=3, d=10, q=3):
+        self.weights_ = rng.dirichlet(np.full(m, 3.0))
+        self.means_ = 2.0 * rng.standard_normal((m, d))
+        self.components_ = rng.standard_normal((m, d, q))
+        self.noise_variance_ = rng.uniform(0.1, 0.5, m)
+
+
+def _dense_reference(p, X_obs, obs, noise):
+    """Brute force: dense joint covariance per component, conditioned with np.linalg.solve."""
+    d = p.means_.shape[1]
+    miss = np.setdiff1d(np.arange(d), obs)
+    noise = np.broadcast_to(np.asarray(noise, float), (obs.size,))
+    logp, cmeans, ccovs = [], [], []
+    for w, mu, W, s2 in zip(p.weights_, p.means_, p.components_, p.noise_variance_):
+        C = W @ W.T + s2 * np.eye(d)
+        Caa = C[np.ix_(obs, obs)] + np.diag(noise)
+        Cba = C[np.ix_(miss, obs)]
+        logp.append(np.log(w) + multivariate_normal(mu[obs], Caa).logpdf(X_obs).reshape(-1))
+        cmeans.append(mu[miss] + np.linalg.solve(Caa, (X_obs - mu[obs]).T).T @ Cba.T)
+        ccovs.append(C[np.ix_(miss, miss)] - Cba @ np.linalg.solve(Caa, Cba.T))
+    logp = np.array(logp).T
+    log_marg = logsumexp(logp, axis=1)
+    resp = np.exp(logp - log_marg[:, None])
+    cmeans = np.stack(cmeans, axis=1)  # (N, M, dm)
+    mean = np.einsum("nm,nmk->nk", resp, cmeans)
+    dev = cmeans - mean[:, None]
+    cov = np.einsum("nm,mij->nij", resp, np.array(ccovs)) + np.einsum("nm,nmi,nmj->nij", resp, dev, dev)
+    return dict(mean=mean, component_means=cmeans, responsibilities=resp, log_marginal=log_marg, cov=cov,
+                component_cov=np.array(ccovs), variance=np.einsum("nii->ni", cov),
+                best_mean=cmeans[np.arange(len(mean)), resp.argmax(1)])
+
+
+@pytest.mark.parametrize("noise_kind", ["zero", "scalar", "per_dim"])
+@pytest.mark.parametrize("observed_kind", ["mask", "index"])
+def test_condition_equals_dense_gaussian_conditioning(noise_kind, observed_kind):
+    rng = np.random.default_rng(5)
+    p = Params(rng)
+    d = p.means_.shape[1]
+    obs = np.sort(rng.choice(d, size=6, replace=False))
+    noise = {"zero": 0.0, "scalar": 0.3, "per_dim": rng.uniform(0.0, 1.0, obs.size)}[noise_kind]
+    X_obs = p.means_[rng.integers(3, size=25)][:, obs] + rng.standard_normal((25, obs.size))
+    observed = np.isin(np.arange(d), obs) if observed_kind == "mask" else obs
+    res = condition(p, X_obs, observed, noise, return_cov=True)
+    ref = _dense_reference(p, X_obs, obs, noise)
+    assert isinstance(res, ConditionalResult)
+    np.testing.assert_array_equal(res.missing, np.setdiff1d(np.arange(d), obs))
+    for key in ("mean", "best_mean", "component_means", "responsibilities", "variance", "cov", "component_cov"):
+        np.testing.assert_allclose(getattr(res, key), ref[key], rtol=1e-9, atol=1e-11, err_msg=key)
+    np.testing.assert_allclose(res.log_marginal, ref["log_marginal"], rtol=1e-10)
+
+
+def test_index_order_of_observed_is_respected():
+    rng = np.random.default_rng(2)
+    p = Params(rng)
+    obs = np.array([7, 1, 4, 0])
+    X_obs = rng.standard_normal((5, 4))
+    a = condition(p, X_obs, obs, 0.1)
+    order = np.argsort(obs)
+    b = condition(p, X_obs[:, order], obs[order], 0.1)
+    np.testing.assert_allclose(a.mean, b.mean, rtol=1e-12)
+    np.testing.assert_allclose(a.log_marginal, b.log_marginal, rtol=1e-12)
+
+
+def test_full_and_empty_observation_limits():
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((400, 8)) @ rng.standard_normal((8, 8))
+    X[:200] += 4.0
+    est = MPPCA(2, 2, random_state=0, n_init=1).fit(X)
+    full = condition(est, X[:20], np.ones(8, bool))
+    np.testing.assert_allclose(full.log_marginal, est.score_samples(X[:20]), rtol=1e-10)
+    np.testing.assert_allclose(full.responsibilities, est.predict_proba(X[:20]), rtol=1e-8, atol=1e-12)
+    assert full.mean.shape == (20, 0)
+    empty = condition(est, np.zeros((3, 0)), np.zeros(8, bool))
+    np.testing.assert_allclose(empty.responsibilities, np.tile(est.weights_, (3, 1)))
+    np.testing.assert_allclose(empty.mean, np.tile(est.weights_ @ est.means_, (3, 1)), rtol=1e-12)
+    np.testing.assert_allclose(empty.log_marginal, 0.0, atol=1e-12)
+
+
+def test_marginalising_beats_zero_filling_a_missing_view():
+    """A 'view' block is missing: dropping it (marginalising) predicts the 'joint' block better than
+    filling the view with zeros and conditioning on them as if observed."""
+    rng = np.random.default_rng(11)
+    d_view, n_views, d_joint, q = 6, 3, 4, 3
+    d = n_views * d_view + d_joint
+    p = Params(rng, m=2, d=d, q=q)
+    p.means_ += 3.0  # so that zero is far from a plausible view
+    lab = rng.choice(2, size=500, p=p.weights_)
+    X = p.means_[lab] + np.einsum("ndq,nq->nd", p.components_[lab], rng.standard_normal((500, q)))
+    X += np.sqrt(p.noise_variance_[lab])[:, None] * rng.standard_normal(X.shape)
+    joints = np.arange(n_views * d_view, d)
+    view_missing = np.arange(d_view, 2 * d_view)
+    obs = np.setdiff1d(np.arange(n_views * d_view), view_missing)
+    marg = condition(p, X[:, obs], obs, 0.0)
+    joint_cols = np.searchsorted(marg.missing, joints)
+    err_marg = np.mean((marg.mean[:, joint_cols] - X[:, joints]) ** 2)
+    filled = X[:, : n_views * d_view].copy()
+    filled[:, view_missing] = 0.0
+    zf = condition(p, filled, np.arange(n_views * d_view), 0.0)
+    err_zero = np.mean((zf.mean - X[:, joints]) ** 2)
+    assert not np.allclose(marg.mean[:, joint_cols], zf.mean)
+    assert err_marg < 0.5 * err_zero
+    # the code marginalises: the values at missing dims never enter condition_rows
+    Xn = X.copy()
+    Xn[:, view_missing] = np.nan
+    Xn[:, joints] = np.nan
+    rows = condition_rows(p, Xn, 0.0)
+    np.testing.assert_allclose(rows.mean[:, joints], marg.mean[:, joint_cols], rtol=1e-12)
+
+
+def test_condition_rows_groups_patterns_and_matches_condition():
+    rng = np.random.default_rng(4)
+    p = Params(rng, d=9)
+    X = rng.standard_normal((30, 9)) + p.means_[0]
+    miss = np.zeros_like(X, bool)
+    miss[:10, :3] = True  # pattern A
+    miss[10:20, 5:] = True  # pattern B, rows 20.. fully observed
+    miss[25, :] = True  # one row with nothing observed
+    Xn = np.where(miss, np.nan, X)
+    noise = rng.uniform(0.0, 0.2, 9)
+    res = condition_rows(p, Xn, noise)
+    np.testing.assert_array_equal(res.missing, miss)
+    for rows in (np.arange(10), np.arange(10, 20), np.array([25])):
+        obs = np.flatnonzero(~miss[rows[0]])
+        ref = condition(p, X[np.ix_(rows, obs)], obs, noise[obs])
+        np.testing.assert_allclose(res.mean[np.ix_(rows, ref.missing)], ref.mean, rtol=1e-12)
+        np.testing.assert_allclose(res.variance[np.ix_(rows, ref.missing)], ref.variance, rtol=1e-12)
+        np.testing.assert_allclose(res.responsibilities[rows], ref.responsibilities, rtol=1e-12)
+        np.testing.assert_allclose(res.log_marginal[rows], ref.log_marginal, rtol=1e-12)
+        np.testing.assert_array_equal(res.mean[rows][:, obs], X[rows][:, obs])  # observed values kept
+        np.testing.assert_array_equal(res.variance[rows][:, obs], 0.0)
+    assert res.component_means.shape == (30, 3, 9)
+
+
+def test_prepared_conditioner_is_reusable_and_single_row_works():
+    rng = np.random.default_rng(6)
+    p = Params(rng)
+    obs = np.arange(5)
+    cond = Conditioner(p, obs, 0.2)
+    X = rng.standard_normal((8, 5))
+    batch = cond(X)
+    one = cond(X[3])
+    np.testing.assert_allclose(one.mean[0], batch.mean[3], rtol=1e-12)
+    np.testing.assert_allclose(cond.component_cov(), condition(p, X, obs, 0.2, return_cov=True).component_cov)
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda p: condition(p, np.zeros((4, 3)), np.arange(4)), r"shape \(N, 4\)"),
+        (lambda p: condition(p, np.full((2, 4), np.nan), np.arange(4)), "NaN"),
+        (lambda p: condition(p, np.zeros((2, 4)), np.ones(4, bool)), r"mask must have shape \(10,\)"),
+        (lambda p: condition(p, np.zeros((2, 2)), np.array([0, 10])), r"in \[0, 10\)"),
+        (lambda p: condition(p, np.zeros((2, 2)), np.array([3, 3])), "repeated"),
+        (lambda p: condition(p, np.zeros((2, 2)), np.array([0, 1]), -1.0), ">= 0"),
+        (lambda p: condition(p, np.zeros((2, 2)), np.array([0, 1]), np.ones(3)), r"shape \(2,\)"),
+        (lambda p: condition_rows(p, np.zeros((2, 9))), r"shape \(N, 10\)"),
+        (lambda p: condition_rows(p, np.full((2, 10), np.inf)), "inf"),
+    ],
+)
+def test_malformed_conditioning_input_raises(call, match):
+    with pytest.raises(ValueError, match=match):
+        call(Params(np.random.default_rng(0)))
+
+
+def test_unfitted_or_foreign_model_raises():
+    with pytest.raises(TypeError, match="weights_"):
+        condition(MPPCA(), np.zeros((1, 2)), np.arange(2))
+    p = Params(np.random.default_rng(0))
+    p.means_ = p.means_[:, :5]
+    with pytest.raises(ValueError, match="inconsistent parameter shapes"):
+        condition(p, np.zeros((1, 2)), np.arange(2))
