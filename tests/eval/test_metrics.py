@@ -122,3 +122,15 @@ def test_place_contours_uses_given_factors():
     px = rng.uniform(0, 300, (2, 3, 50, 2))
     q, c, s = normalise(px)
     np.testing.assert_allclose(metrics.place_contours(q, c, s), px, atol=1e-9)
+
+
+def test_window_rasterisation_equals_whole_canvas():
+    rng = np.random.default_rng(6)
+    h, w = 240, 320
+    m = metrics.CANVAS_MARGIN_PX
+    for cx in (10.0, 160.0, 330.0):  # crossing the left edge, inside, crossing the right edge of the canvas
+        pts = _blob_contour(rng, cx, 120, 40, 110)
+        lo, hi = metrics._window(pts, h, w)
+        got = metrics._pixels_in(pts, lo, hi)
+        ref = _pixels(pts, h, w)[:, ::-1] - m  # (row, col) on the canvas -> (x, y) image coordinates
+        assert sorted(map(tuple, got)) == sorted(map(tuple, ref.astype(int)))

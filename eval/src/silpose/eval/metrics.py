@@ -100,16 +100,39 @@ def pose_error_procrustes_cm(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     return 100.0 * np.linalg.norm(procrustes_align(p, t) - t, axis=-1).mean(axis=-1)
 
 
-def _canvas(height: int, width: int) -> tuple[int, int, np.ndarray]:
+def _canvas(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Inclusive integer pixel bounds (x, y) of the enlarged canvas: lo = -margin, hi = size - 1 + margin."""
     m = CANVAS_MARGIN_PX
-    return height + 2 * m, width + 2 * m, np.array([m, m], dtype=np.float64)
+    return np.array([-m, -m]), np.array([width - 1 + m, height - 1 + m])
 
 
-def _raster(points: np.ndarray, height: int, width: int) -> np.ndarray:
+def _pixels_in(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(m, 2) integer (x, y) pixels of the closed contour ``points`` drawn on the window [lo, hi].
+
+    Drawing on a window and shifting back is exact (cv2 fixed-point coordinates shift by whole
+    pixels); a window that contains the contour's bounding box draws the same pixels as the
+    whole canvas, so windows only save time.
+    """
     from silpose.shared.contours import draw_contour
 
-    h, w, off = _canvas(height, width)
-    return draw_contour(np.asarray(points, dtype=np.float64) + off, h, w)
+    size = hi - lo + 1
+    img = draw_contour(np.asarray(points, dtype=np.float64) - lo, int(size[1]), int(size[0]))
+    ys, xs = np.nonzero(img)
+    return np.stack([xs + lo[0], ys + lo[1]], axis=1)
+
+
+def _window(points: np.ndarray, height: int, width: int, extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Window around ``points`` (and the integer pixels ``extra``), 2 px of slack, within the canvas."""
+    c_lo, c_hi = _canvas(height, width)
+    p = np.asarray(points, dtype=np.float64)
+    lo = np.floor(p.min(axis=0)) - 2
+    hi = np.ceil(p.max(axis=0)) + 2
+    if extra is not None and len(extra):
+        lo = np.minimum(lo, extra.min(axis=0))
+        hi = np.maximum(hi, extra.max(axis=0))
+    lo = np.clip(lo, c_lo, c_hi).astype(int)
+    hi = np.clip(hi, c_lo, c_hi).astype(int)
+    return lo, hi
 
 
 def _distance_to(img: np.ndarray) -> np.ndarray:
@@ -118,6 +141,26 @@ def _distance_to(img: np.ndarray) -> np.ndarray:
 
     inv = np.where(img, 0, 255).astype(np.uint8)
     return cv2.distanceTransform(inv, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+
+
+def _true_pixels(true_px: np.ndarray, height: int, width: int) -> np.ndarray:
+    lo, hi = _window(true_px, height, width)
+    return _pixels_in(true_px, lo, hi)
+
+
+def _one_sided(t_pix: np.ndarray, recon_px: np.ndarray, height: int, width: int) -> tuple[float, np.ndarray]:
+    """D(T, I) from the true pixels ``t_pix`` (m, 2) to the contour ``recon_px``; also I's pixels."""
+    from silpose.shared.contours import draw_contour
+
+    lo, hi = _window(recon_px, height, width, extra=t_pix)
+    size = hi - lo + 1
+    r_img = draw_contour(np.asarray(recon_px, dtype=np.float64) - lo, int(size[1]), int(size[0]))
+    if not r_img.any() or len(t_pix) == 0:
+        return float("nan"), np.zeros((0, 2), int)
+    dist = _distance_to(r_img)  # exact: every pixel of I lies inside the window
+    d = float(dist[t_pix[:, 1] - lo[1], t_pix[:, 0] - lo[0]].mean())
+    ys, xs = np.nonzero(r_img)
+    return d, np.stack([xs + lo[0], ys + lo[1]], axis=1)
 
 
 def chamfer_one_sided(true_px: np.ndarray, recon_px: np.ndarray, height: int, width: int) -> float:
@@ -131,9 +174,7 @@ def chamfer_one_sided(true_px: np.ndarray, recon_px: np.ndarray, height: int, wi
     Returns:
         Chamfer distance in px.
     """
-    t_img = _raster(true_px, height, width)
-    r_img = _raster(recon_px, height, width)
-    return float(_distance_to(r_img)[t_img].mean())
+    return _one_sided(_true_pixels(true_px, height, width), recon_px, height, width)[0]
 
 
 def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[int, int] | np.ndarray,
@@ -145,8 +186,8 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
         recon_px: (N, K, m, 2) reconstructions, px (NaN rows give NaN errors).
         image_size: (height, width) for all views, or (K, 2) per view.
         cache: optional dict reused across calls holding the true contours' pixel coordinates and
-            a ``scipy.spatial.cKDTree`` of their pixels (for the reverse direction D(I, T),
-            equally exact), keyed by ``(keys[i], k)``.
+            a ``scipy.spatial.cKDTree`` of them (for the reverse direction D(I, T), equally
+            exact), keyed by ``(keys[i], k)``.
         keys: (N,) sample identifiers for the cache (required with ``cache``).
     Returns:
         one_sided (N, K), symmetric (N, K), px.
@@ -171,17 +212,17 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
             if key is not None and key in cache:
                 t_pix, t_tree = cache[key]
             else:
-                t_pix = np.argwhere(_raster(t[i, k], h, w))  # (m, 2) row, col
+                t_pix = _true_pixels(t[i, k], h, w)
                 t_tree = cKDTree(t_pix) if len(t_pix) else None
                 if key is not None:
                     cache[key] = (t_pix, t_tree)
-            r_img = _raster(r[i, k], h, w)
-            if not r_img.any() or t_tree is None:
+            if t_tree is None:
                 continue
-            d_tr = float(_distance_to(r_img)[t_pix[:, 0], t_pix[:, 1]].mean())
-            d_rt = float(t_tree.query(np.argwhere(r_img))[0].mean())
+            d_tr, r_pix = _one_sided(t_pix, r[i, k], h, w)
+            if not len(r_pix):
+                continue
             one[i, k] = d_tr
-            sym[i, k] = 0.5 * (d_tr + d_rt)
+            sym[i, k] = 0.5 * (d_tr + float(t_tree.query(r_pix)[0].mean()))
     return one, sym
 
 
