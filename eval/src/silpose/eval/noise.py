@@ -209,9 +209,12 @@ def normal_patches(points: np.ndarray, n_patches: int, patch_length: int, depth:
     return p + offset[:, None] * normals
 
 
-def _disc(shape: tuple[int, int], cx: float, cy: float, r: float) -> np.ndarray:
-    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
-    return (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
+def _disc(img: np.ndarray, cx: float, cy: float, r: float, value: int) -> None:
+    """Fill a disc of radius ``r`` px centred on (cx, cy) in place (cv2.circle, 1/16 px precision)."""
+    import cv2
+
+    cv2.circle(img, (int(round(cx * 16)), int(round(cy * 16))), max(int(round(r * 16)), 1), int(value), -1,
+               lineType=cv2.LINE_8, shift=4)
 
 
 def corrupt_mask(mask: np.ndarray, rng: np.random.Generator, *, n_holes: int = 0, hole_radius: float = 5.0,
@@ -246,23 +249,23 @@ def corrupt_mask(mask: np.ndarray, rng: np.random.Generator, *, n_holes: int = 0
         cand = np.argwhere((m > 0) & (inside <= max(hole_radius, 1.0)))
         for _ in range(int(n_holes)):
             y, x = cand[rng.integers(len(cand))]
-            out[_disc(m.shape, x, y, hole_radius)] = 0
+            _disc(out, x, y, hole_radius, 0)
     if n_blobs > 0:
         outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         cand = np.argwhere((m == 0) & (outside <= max(blob_radius, 1.0)))
         if len(cand):
             for _ in range(int(n_blobs)):
                 y, x = cand[rng.integers(len(cand))]
-                out[_disc(m.shape, x, y, blob_radius)] = 1
+                _disc(out, x, y, blob_radius, 1)
     if shadow_px > 0:
         ys, xs = np.nonzero(m)
         bottom = ys.max()
         foot_x = xs[ys == bottom].mean()
         side = 1.0 if rng.random() < 0.5 else -1.0
         cx = foot_x + side * shadow_px
-        yy, xx = np.mgrid[0 : m.shape[0], 0 : m.shape[1]]
-        ell = ((xx - cx) / shadow_px) ** 2 + ((yy - bottom) / max(shadow_height_px, 0.5)) ** 2 <= 1.0
-        out[ell] = 1
+        axes = (max(int(round(shadow_px * 16)), 1), max(int(round(shadow_height_px * 16)), 8))
+        cv2.ellipse(out, (int(round(cx * 16)), int(round(bottom * 16))), axes, 0, 0, 360, 1, -1,
+                    lineType=cv2.LINE_8, shift=4)
     return out
 
 
