@@ -125,6 +125,39 @@ def test_alternative_keys_plain_sequences_and_missing_distortion(tmp_path):
     np.testing.assert_allclose(b4.project(X), ref.reshape(-1, 2), rtol=1e-9)
 
 
+def test_hand_written_yaml_and_xml_with_nested_lists(tmp_path):
+    """Files typed by a user: nested-list matrices, plain sequences, no opencv-matrix tags."""
+    cam = default_rig()[3]
+    K, t, R = cam.K, cam.t * 1000.0, cam.R
+    rvec = rotation_to_rvec(R)
+    fmt = lambda v: ", ".join(repr(float(x)) for x in np.ravel(v))  # noqa: E731
+    yml = tmp_path / "hand.yml"
+    yml.write_text(
+        "%YAML:1.0\n---\n"
+        f"name: side\nK: [[{fmt(K[0])}], [{fmt(K[1])}], [{fmt(K[2])}]]\n"
+        f"dist: [{fmt(DIST)}]\nrotation_vector: [{fmt(rvec)}]\ntranslation: [{fmt(t)}]\n"
+        f"image_size: [{cam.width}, {cam.height}]\n"
+    )
+    xml = tmp_path / "hand.xml"
+    xml.write_text(
+        '<?xml version="1.0"?>\n<opencv_storage>\n'
+        f"<M>{fmt(K).replace(',', '')}</M>\n<rotation>{fmt(R).replace(',', '')}</rotation>\n"
+        f"<t>{fmt(t).replace(',', '')}</t>\n<image_width>{cam.width}</image_width>\n"
+        f"<image_height>{cam.height}</image_height>\n</opencv_storage>\n"
+    )
+    X = workspace_points(50)
+    (a,) = read_opencv_cameras(yml, unit=0.001)
+    (b,) = read_opencv_cameras(xml, unit=0.001, default_name="xmlcam")
+    assert (a.name, b.name) == ("side", "xmlcam")
+    ref, _ = cv2.projectPoints(X, rvec, cam.t, K, DIST)
+    np.testing.assert_allclose(a.project(X), ref.reshape(-1, 2), rtol=1e-9)
+    np.testing.assert_allclose(b.project(X), cam.project(X), rtol=1e-9)
+    # A ragged nested list is a malformed field.
+    yml.write_text(yml.read_text().replace(f"[{fmt(K[2])}]", "[0, 1]"))
+    with pytest.raises(RigError, match=r"field K\b"):
+        read_opencv_cameras(yml)
+
+
 def test_default_name_and_several_cameras_in_one_file(tmp_path):
     rig = distorted_rig()
     p = tmp_path / "one.yml"

@@ -33,6 +33,8 @@ __all__ = [
     "denormalise",
     "draw_contour",
     "signed_area",
+    "resample_closed",
+    "N_POINTS",
 ]
 
 N_POINTS = 200  #: default number of resampled contour points (the paper's n)
@@ -152,8 +154,9 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
         n_points: number of resampled points (>= 1).
     Returns:
         A :class:`Contour` whose ``points`` are (n_points, 2) float32 pixel coordinates,
-        clockwise on screen (positive shoelace area in y-down coordinates), starting where the
-        upward vertical ray from the blob's centroid leaves the outline for the last time.
+        clockwise on screen (positive shoelace area in y-down coordinates), starting at the
+        farthest-up crossing of the vertical line through the blob's area centroid with the
+        outline (the top of the head).
         Degenerate blobs (one pixel, one-pixel-thin lines) give coinciding or back-and-forth
         points, never NaN.
     Raises:
