@@ -1,0 +1,1 @@
+"""silpose.segment: background subtraction for real camera frames (paper section 6)."""
