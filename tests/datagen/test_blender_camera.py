@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from silpose.datagen.blender_camera import BlenderCameraParams, from_blender, to_blender
-from silpose.datagen.raster import fill_triangles_cv2, fill_triangles_exact, project_triangles
+from silpose.datagen.raster import (
+    fill_triangles_cv2,
+    fill_triangles_exact,
+    fill_triangles_scanline,
+    project_triangles,
+)
 from silpose.shared.camera import Camera, RigError, default_rig, look_at
 
 
@@ -99,7 +104,19 @@ def test_exact_filler_matches_brute_force():
     tris = rng.uniform([-5, -5], [W + 5, H + 5], size=(30, 3, 2))
     small = rng.uniform(0, 1, size=(20, 1, 2)) * [W, H] + rng.normal(scale=2.0, size=(20, 3, 2))
     tris = np.concatenate([tris, small])
-    np.testing.assert_array_equal(fill_triangles_exact(tris, H, W), _brute_force_fill(tris, H, W))
+    ref = _brute_force_fill(tris, H, W)
+    np.testing.assert_array_equal(fill_triangles_exact(tris, H, W), ref)
+    np.testing.assert_array_equal(fill_triangles_scanline(tris, H, W), ref)
+
+
+def test_fillers_agree_on_vertices_at_pixel_centres_and_degenerate_triangles():
+    """Integer (tie) coordinates, horizontal edges, zero-area triangles, off-image triangles."""
+    rng = np.random.default_rng(5)
+    H, W = 30, 40
+    tris = rng.integers(-3, 43, size=(200, 3, 2)).astype(float)
+    tris[:20, 1, 1] = tris[:20, 0, 1]  # horizontal edges
+    tris[20:30, 2] = tris[20:30, 1]  # zero area
+    np.testing.assert_array_equal(fill_triangles_scanline(tris, H, W), fill_triangles_exact(tris, H, W))
 
 
 def test_cv2_filler_is_a_slightly_grown_version():

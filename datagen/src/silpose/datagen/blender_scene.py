@@ -179,6 +179,9 @@ def build_body(subject: dict, subdivision_levels: int = 1) -> tuple:
     if subdivision_levels > 0:
         sub = body.modifiers.new("subdivision", "SUBSURF")
         sub.levels = sub.render_levels = subdivision_levels
+        # Catmull-Clark without the limit-surface projection: ~7x faster to evaluate and the
+        # same kind of smooth body; both renderers use this evaluated mesh.
+        sub.use_limit_surface = False
     return arm_obj, body
 
 

@@ -6,9 +6,11 @@ its CENTRE lies inside (or on the edge of) a projected triangle; pixel centres a
 coordinates (OpenCV's convention). The silhouette is the union over all triangles, front or
 back facing.
 
-Two fillers are provided:
+Three fillers are provided:
 
-- :func:`fill_triangles_exact` (default): vectorised numpy edge functions over each triangle's
+- :func:`fill_triangles_scanline` (default): the same rule per (triangle, pixel row) span,
+  accumulated in a difference image; several times faster than per-pixel tests.
+- :func:`fill_triangles_exact`: vectorised numpy edge functions over each triangle's
   bounding box of pixel centres. Exact pixel-centre sampling.
 - :func:`fill_triangles_cv2`: ``cv2.fillPoly`` with 8 bits of sub-pixel precision, one call
   for all triangles. OpenCV also fills pixels its outline *touches*, so it grows silhouettes by
@@ -92,6 +94,54 @@ def fill_triangles_exact(tri_px: np.ndarray, height: int, width: int) -> np.ndar
     return mask
 
 
+def fill_triangles_scanline(tri_px: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Pixel-centre coverage of the union of triangles, by scanline spans (the fast default).
+
+    Same rule as :func:`fill_triangles_exact` (pixel centres inside or on a triangle), computed
+    per (triangle, pixel row) instead of per pixel: the row ``y`` (integer) cuts the triangle's
+    edges at ``x = x_a + (y - y_a) (x_b - x_a) / (y_b - y_a)``; the span ``[min x, max x]``
+    covers the centres ``ceil(min x) .. floor(max x)``. Spans are accumulated as +1/-1 in a
+    difference image (one ``np.bincount``) and integrated with a cumulative sum along rows.
+
+    Args:
+        tri_px: (T, 3, 2) pixel coordinates (x right, y down).
+        height, width: image size.
+    Returns:
+        (height, width) uint8 mask in {0, 1}.
+    """
+    tri = np.asarray(tri_px, dtype=np.float64)
+    if tri.size == 0:
+        return np.zeros((height, width), np.uint8)
+    ys = tri[:, :, 1]
+    y0 = np.maximum(np.ceil(ys.min(axis=1)), 0).astype(np.int64)
+    y1 = np.minimum(np.floor(ys.max(axis=1)), height - 1).astype(np.int64)
+    nrows = np.maximum(y1 - y0 + 1, 0)
+    idx = np.repeat(np.arange(len(tri)), nrows)
+    if idx.size == 0:
+        return np.zeros((height, width), np.uint8)
+    row = y0[idx] + (np.arange(idx.size) - np.repeat(np.cumsum(nrows) - nrows, nrows))
+    y = row.astype(np.float64)
+    t = tri[idx]  # (P, 3, 2)
+    xl = np.full(idx.size, np.inf)
+    xr = np.full(idx.size, -np.inf)
+    for i in range(3):
+        a, b = t[:, i], t[:, (i + 1) % 3]
+        dy = b[:, 1] - a[:, 1]
+        lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+        ok = (dy != 0) & (y >= lo) & (y <= hi)
+        x = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / np.where(ok, dy, 1.0)
+        xl = np.where(ok, np.minimum(xl, x), xl)
+        xr = np.where(ok, np.maximum(xr, x), xr)
+    xs = np.maximum(np.ceil(xl), 0)
+    xe = np.minimum(np.floor(xr), width - 1)
+    ok = xs <= xe
+    row, xs, xe = row[ok], xs[ok].astype(np.int64), xe[ok].astype(np.int64)
+    w1 = width + 1
+    diff = np.bincount(row * w1 + xs, minlength=height * w1) - np.bincount(row * w1 + xe + 1, minlength=height * w1)
+    cover = np.cumsum(diff.reshape(height, w1), axis=1)[:, :width]
+    return (cover > 0).astype(np.uint8)
+
+
 def fill_triangles_cv2(tri_px: np.ndarray, height: int, width: int) -> np.ndarray:
     """``cv2.fillPoly`` of every triangle with sub-pixel precision (see the module docstring).
 
@@ -107,24 +157,30 @@ def fill_triangles_cv2(tri_px: np.ndarray, height: int, width: int) -> np.ndarra
     return mask
 
 
-def rasterize(vertices: np.ndarray, triangles: np.ndarray, camera: Camera, method: str = "exact") -> np.ndarray:
+_FILLERS = ("scanline", "exact", "cv2")
+
+
+def rasterize(vertices: np.ndarray, triangles: np.ndarray, camera: Camera, method: str = "scanline") -> np.ndarray:
     """Silhouette of a mesh in one camera.
 
     Args:
         vertices: (V, 3) world metres; triangles: (T, 3) vertex indices.
         camera: calibrated camera.
-        method: ``"exact"`` (pixel-centre rule, default) or ``"cv2"``.
+        method: ``"scanline"`` (pixel-centre rule, default), ``"exact"`` (same rule, per-pixel
+            edge functions; the reference) or ``"cv2"``.
     Returns:
         (H, W) uint8 mask in {0, 1}.
     """
     tri_px = project_triangles(vertices, triangles, camera)
+    if method == "scanline":
+        return fill_triangles_scanline(tri_px, camera.height, camera.width)
     if method == "exact":
         return fill_triangles_exact(tri_px, camera.height, camera.width)
     if method == "cv2":
         return fill_triangles_cv2(tri_px, camera.height, camera.width)
-    raise ValueError(f"method must be 'exact' or 'cv2', got {method!r}")
+    raise ValueError(f"method must be one of {_FILLERS}, got {method!r}")
 
 
-def rasterize_rig(vertices: np.ndarray, triangles: np.ndarray, cameras, method: str = "exact") -> np.ndarray:
+def rasterize_rig(vertices: np.ndarray, triangles: np.ndarray, cameras, method: str = "scanline") -> np.ndarray:
     """(K, H, W) uint8 silhouettes of one mesh in every camera of ``cameras`` (a Rig or list)."""
     return np.stack([rasterize(vertices, triangles, c, method) for c in cameras])
