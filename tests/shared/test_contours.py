@@ -349,6 +349,9 @@ def test_random_masks_never_nan(mask, n):
     n_lab, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
     counts = np.bincount(labels.ravel())[1:]
     assert c.n_blobs == n_lab - 1 and c.area == counts.max()
+    biggest = labels == 1 + int(np.argmax(counts))
+    on_border = biggest[0].any() or biggest[-1].any() or biggest[:, 0].any() or biggest[:, -1].any()
+    assert c.touches_border == on_border
     # Every resampled point lies on the blob's pixel hull: within sqrt(2)/2 of a blob pixel centre.
     ys, xs = np.nonzero(mask)
     d = np.min(np.hypot(c.points[:, None, 0] - xs, c.points[:, None, 1] - ys), axis=1)

@@ -101,22 +101,20 @@ def _start_on_polyline(poly: np.ndarray, cx: float) -> tuple[int, np.ndarray]:
         among ties, is returned with its outgoing edge.
     """
     a = poly
-    b = np.roll(poly, -1, axis=0)
-    x0, y0, x1, y1 = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
-    lo, hi = np.minimum(x0, x1), np.maximum(x0, x1)
-    spans = (lo <= cx) & (cx <= hi)
-    dx = x1 - x0
-    safe = np.where(dx == 0, 1.0, dx)
-    t = np.where(dx == 0, 0.0, (cx - x0) / safe)
-    y = y0 + t * (y1 - y0)
-    # An edge lying on the line: both of its ends are crossings; the upper one counts.
-    y = np.where(dx == 0, np.minimum(y0, y1), y)
-    t = np.where((dx == 0) & (y1 < y0), 1.0, t)
-    if np.any(spans):
-        cand = np.flatnonzero(spans)
-        i = int(cand[np.argmin(y[cand])])  # first of ties: deterministic
-        p = a[i] + t[i] * (b[i] - a[i])
-        return i, p
+    b = np.concatenate([poly[1:], poly[:1]])
+    x0, x1 = a[:, 0], b[:, 0]
+    cand = np.flatnonzero((np.minimum(x0, x1) <= cx) & (cx <= np.maximum(x0, x1)))
+    if cand.size:
+        ac, bc = a[cand], b[cand]
+        dx = bc[:, 0] - ac[:, 0]
+        vertical = dx == 0
+        t = np.empty(cand.size)
+        # An edge lying on the line: both of its ends are crossings; the upper one counts.
+        t[vertical] = bc[vertical, 1] < ac[vertical, 1]
+        t[~vertical] = (cx - ac[~vertical, 0]) / dx[~vertical]
+        p = ac + t[:, None] * (bc - ac)
+        j = int(np.argmin(p[:, 1]))  # farthest up; first of ties: deterministic
+        return int(cand[j]), p[j]
     key = np.lexsort((a[:, 1], np.abs(a[:, 0] - cx)))  # nearest in x, then topmost
     i = int(key[0])
     return i, a[i].copy()
@@ -168,24 +166,31 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
     m = _as_mask(mask)
     h, w = m.shape
-    n_labels, labels, stats, centroids = cv2.connectedComponentsWithStats(m, connectivity=8)
-    if n_labels <= 1:
+    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    if rows.size == 0:
         raise EmptyMaskError(f"mask of shape {m.shape} has no foreground pixel")
+    # Work inside the foreground's bounding box padded by one empty pixel (cropping does not
+    # change connectivity, and the pad lets pixels on the image border be traced like any other).
+    # sub-image (xs, ys) <-> image (xs + ox, ys + oy).
+    r0, c0 = int(rows[0]), int(cols[0])
+    ox, oy = c0 - 1, r0 - 1
+    sub = np.zeros((int(rows[-1]) - r0 + 3, int(cols[-1]) - c0 + 3), np.uint8)
+    sub[1:-1, 1:-1] = m[r0 : rows[-1] + 1, c0 : cols[-1] + 1]
+    n_labels, labels, stats, centroids = cv2.connectedComponentsWithStats(sub, connectivity=8)
     areas = stats[1:, cv2.CC_STAT_AREA]
     best = 1 + int(np.argmax(areas))  # first of equal areas: deterministic
-    left, top = stats[best, cv2.CC_STAT_LEFT], stats[best, cv2.CC_STAT_TOP]
-    bw, bh = stats[best, cv2.CC_STAT_WIDTH], stats[best, cv2.CC_STAT_HEIGHT]
-    touches = bool(left == 0 or top == 0 or left + bw == w or top + bh == h)
-    # The blob inside its bounding box, padded by one pixel so pixels on the image border are
-    # traced like any other; the offset is undone below.
-    blob = np.zeros((bh + 2, bw + 2), np.uint8)
-    blob[1:-1, 1:-1] = labels[top : top + bh, left : left + bw] == best
+    left, top = int(stats[best, cv2.CC_STAT_LEFT]), int(stats[best, cv2.CC_STAT_TOP])
+    bw, bh = int(stats[best, cv2.CC_STAT_WIDTH]), int(stats[best, cv2.CC_STAT_HEIGHT])
+    touches = bool(left + ox == 0 or top + oy == 0 or left + ox + bw == w or top + oy + bh == h)
+    blob = (labels[top - 1 : top + bh + 1, left - 1 : left + bw + 1] == best).astype(np.uint8)
     found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     raw = max(found, key=len)  # one outer contour for an 8-connected blob
     length = float(cv2.arcLength(raw, closed=True))
-    poly = raw.reshape(-1, 2).astype(np.float64) + (left - 1.0, top - 1.0)
-    if signed_area(poly) < 0:  # make it clockwise on screen
-        poly = poly[::-1].copy()
+    # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down).
+    if cv2.contourArea(raw, oriented=True) < 0:  # make it clockwise on screen
+        raw = raw[::-1]
+    poly = raw.reshape(-1, 2).astype(np.float64) + (left - 1 + ox, top - 1 + oy)
+    centroids = centroids + (ox, oy)
     cx = float(centroids[best, 0])
     i, start = _start_on_polyline(poly, cx)
     pts = resample_closed(poly, i, start, int(n_points))
