@@ -42,6 +42,33 @@ def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool) -> Eva
     return EvalData.from_splits(train, test, n_test)
 
 
+def _match_training_subset(data: EvalData, model) -> str:
+    """Restrict ``data``'s training arrays to the samples the 4-view model was fitted on.
+
+    ``silpose train`` holds out a seeded part of the train split (``validation_split(n, fraction,
+    seed)``); the single-view models, the baselines and chance must see the same samples, so E1 and
+    E4 compare like with like. Reproduced from the model's ``dataset_info_`` (n_samples, n_heldout)
+    and ``random_state``; if that is impossible every training sample is used. Returns a note.
+    """
+    info = getattr(model, "dataset_info_", None) or {}
+    n = len(data.train_joints)
+    n_held, n_fit = int(info.get("n_heldout", 0) or 0), int(info.get("n_fit", n) or n)
+    if n_held <= 0:
+        return f"single-view models and baselines are trained on all {n} training samples, like the 4-view model"
+    if int(info.get("n_samples", -1)) != n:
+        return (f"the model's training record ({info.get('n_samples')} samples) does not match this train split ({n}); "
+                f"single-view models and baselines use all {n} samples")
+    from silpose.model.selection import validation_split
+
+    fit_idx, _ = validation_split(n, n_held / n, int(model.random_state or 0))
+    if len(fit_idx) != n_fit:
+        return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
+    data.train_contours = data.train_contours[fit_idx]
+    data.train_joints = data.train_joints[fit_idx]
+    return (f"single-view models, baselines and chance use the same {n_fit} training samples as the 4-view model "
+            f"(the trainer's {n_held} held-out samples reproduced and excluded)")
+
+
 def _atomic_write(path: Path, data: bytes) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_bytes(data)
@@ -121,14 +148,18 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
         raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
                              f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")
+    train_note = _match_training_subset(data, model)
     load_s = time.perf_counter() - t0
-    ev = Evaluation(data=data, model=model, config=config, progress=progress).run()
+    ev = Evaluation(data=data, model=model, config=config, progress=progress)
+    ev.notes.append(train_note)
+    ev.run()
     ev.timings["load"] = load_s
     settings = {
         "data": str(data_dir),
         "model": str(model_path),
         "model_hyperparameters": model.get_params(),
         "n_train": int(len(data.train_joints)),
+        "training_subset": train_note,
         "n_test": int(len(data.test_ids)),
         "n_views": data.n_views,
         "config": config.to_dict(),
