@@ -3,21 +3,22 @@ probabilistic principal component analysers", Neural Computation 11(2)).
 
 Notation (one component i): data dimension d, latent dimension q, loading matrix W (d, q),
 mean mu (d,), isotropic noise variance s2 = sigma_i^2, model covariance C = W W^T + s2 I (d, d).
-Nothing here ever forms a d x d matrix: every quantity goes through the q x q matrix
-M = W^T W + s2 I (T&B eq. 6):
+EM and the densities never form a d x d matrix (only the PPCA initialisation does, and only when
+d <= 512): every quantity goes through the q x q matrix M = W^T W + s2 I (T&B eq. 6):
 
     log|C|         = (d - q) log s2 + log|M|                      (matrix determinant lemma)
     e^T C^-1 e     = (||e||^2 - z^T M^-1 z) / s2,  z = W^T e      (Woodbury identity)
 
 EM touches the data through two matrix products per iteration, each shared by all components:
 X [W_1 .. W_M mu_1 .. mu_M] (E-step) and X^T [R_1 X W_1 .. R_M X W_M R] (M-step), so no (N, d)
-temporary is allocated per component; all accumulations are float64.
+temporary is allocated per component; all accumulations are float64. The q x q algebra uses
+numpy.linalg only: alternating numpy's and scipy's separate OpenBLAS thread pools inside the
+EM loop stalls badly when other processes load the cores.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block: 2048 x 1657 float64 = 27 MB
@@ -46,8 +47,8 @@ def _log_density_terms(sqn, z, W, s2):
     d, q = W.shape
     L = np.linalg.cholesky(W.T @ W + s2 * np.eye(q))  # M = L L^T
     logdet = (d - q) * np.log(s2) + 2.0 * np.sum(np.log(np.diag(L)))
-    y = solve_triangular(L, z.T, lower=True, check_finite=False)  # z^T M^-1 z = ||L^-1 z||^2
-    maha = (sqn - np.einsum("ij,ij->j", y, y)) / s2
+    y = z @ np.linalg.inv(L).T  # rows L^-1 z_n, so z^T M^-1 z = ||y||^2
+    maha = (sqn - np.einsum("ij,ij->i", y, y)) / s2
     return -0.5 * (d * _LOG_2PI + logdet + np.maximum(maha, 0.0))
 
 
@@ -96,6 +97,12 @@ def weighted_log_prob(X, weights, means, components, noise_variance) -> np.ndarr
     return out
 
 
+def _spd_inverse(M: np.ndarray) -> np.ndarray:
+    """Inverse of a small symmetric positive-definite matrix (q, q) through its Cholesky factor."""
+    Linv = np.linalg.inv(np.linalg.cholesky(M))
+    return Linv.T @ Linv
+
+
 def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
     """One EM update of every component (T&B 1999 Appendix C, eqs. C.20-C.23).
 
@@ -122,11 +129,10 @@ def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
         W, s2, mu = components[i], float(noise_variance[i]), means[i]
         SW = G[:, i * q:(i + 1) * q] / counts[i] - np.outer(mu, mu @ W)
         trS = float(resp[:, i] @ sqn) / counts[i] - float(mu @ mu)
-        cM = cho_factor(W.T @ W + s2 * eye, check_finite=False)
-        A = s2 * eye + cho_solve(cM, W.T @ SW, check_finite=False)  # s2 I + M^-1 W^T S W
-        W_new[i] = np.linalg.solve(A.T, SW.T).T  # S W A^-1
-        SWMinv = cho_solve(cM, SW.T, check_finite=False).T  # S W M^-1
-        s2_new[i] = max((trS - float(np.einsum("ij,ij->", SWMinv, W_new[i]))) / d, var_floor)
+        Minv = _spd_inverse(W.T @ W + s2 * eye)
+        A = s2 * eye + Minv @ (W.T @ SW)  # s2 I + M^-1 W^T S W
+        W_new[i] = SW @ np.linalg.inv(A)  # S W A^-1
+        s2_new[i] = max((trS - float(np.einsum("ij,ij->", SW @ Minv, W_new[i]))) / d, var_floor)
     return counts, means, W_new, s2_new
 
 
@@ -161,7 +167,7 @@ def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Gen
         from sklearn.utils.extmath import randomized_svd
 
         k = q
-        _, sv, Vt = randomized_svd(E, q, n_oversamples=20, n_iter=6,
+        _, sv, Vt = randomized_svd(E, q, n_oversamples=10, n_iter=2,
                                    random_state=int(rng.integers(2**31 - 1)))
         lam_q, U = sv**2 / n, Vt.T
     s2 = max((total - float(lam_q.sum())) / (d - q), var_floor)

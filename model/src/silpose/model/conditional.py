@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
 from scipy.special import logsumexp
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
@@ -117,19 +116,24 @@ class Conditioner:
         self.mu_a = mu[:, self.obs]
         self.mu_b = mu[:, self.miss]
         self.W_b = W[:, self.miss, :]
-        # Per component: G = D^-1 W_a (d_obs, q), K = I + W_a^T D^-1 W_a = L L^T (Woodbury, module doc)
-        self.G, self.L, self.logdet, self.invD = [], [], np.empty(m), []
+        # Per component: G = D^-1 W_a (d_obs, q), K = I + W_a^T D^-1 W_a (Woodbury, module doc),
+        # H = K^-1 W_b^T (q, d_miss) so that E[b | a, i] = mu_b + (e^T G) H.
+        self.G, self.Kinv, self.H, self.invD = [], [], [], []
+        self.logdet = np.empty(m)
+        self.V = []  # V = W_b L^-T, so that W_b K^-1 W_b^T = V V^T
         for i in range(m):
             Wa = W[i][self.obs]
             invD = 1.0 / (s2[i] + noise)
             G = Wa * invD[:, None]
             L = np.linalg.cholesky(np.eye(q) + Wa.T @ G)
+            Linv = np.linalg.inv(L)
+            Kinv = Linv.T @ Linv
             self.G.append(G)
-            self.L.append(L)
             self.invD.append(invD)
+            self.Kinv.append(Kinv)
+            self.H.append(Kinv @ self.W_b[i].T)
+            self.V.append(self.W_b[i] @ Linv.T)
             self.logdet[i] = -np.sum(np.log(invD)) + 2.0 * np.sum(np.log(np.diag(L)))
-        # Posterior covariance factors V_i = W_b L^-T so that W_b K^-1 W_b^T = V V^T
-        self.V = [solve_triangular(self.L[i], self.W_b[i].T, lower=True).T for i in range(m)]
 
     def component_cov(self) -> np.ndarray:
         """Per-component posterior covariance of the missing block (M, d_miss, d_miss):
@@ -155,11 +159,10 @@ class Conditioner:
             for i in range(m):
                 E = X[sl] - self.mu_a[i]  # (b, d_obs)
                 u = E @ self.G[i]  # W_a^T D^-1 e  (b, q)
-                y = solve_triangular(self.L[i], u.T, lower=True, check_finite=False)  # L^-1 u  (q, b)
-                maha = np.einsum("ij,ij->i", E * self.invD[i], E) - np.einsum("ij,ij->j", y, y)
+                t = u @ self.Kinv[i]  # x_hat = K^-1 W_a^T D^-1 e  (b, q)
+                maha = np.einsum("ij,ij->i", E * self.invD[i], E) - np.einsum("ij,ij->i", t, u)
                 logp[sl, i] = self.log_w[i] - 0.5 * (d_obs * _LOG_2PI + self.logdet[i] + maha)
-                xhat = solve_triangular(self.L[i], y, lower=True, trans="T", check_finite=False)  # K^-1 u
-                cmeans[sl, i] = self.mu_b[i] + xhat.T @ self.W_b[i].T
+                cmeans[sl, i] = self.mu_b[i] + u @ self.H[i]
         log_marg = logsumexp(logp, axis=1)
         resp = np.exp(logp - log_marg[:, None])
         mean = np.einsum("nm,nmk->nk", resp, cmeans)
