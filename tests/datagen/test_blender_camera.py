@@ -119,6 +119,17 @@ def test_fillers_agree_on_vertices_at_pixel_centres_and_degenerate_triangles():
     np.testing.assert_array_equal(fill_triangles_scanline(tris, H, W), fill_triangles_exact(tris, H, W))
 
 
+def test_scanline_fills_several_images_at_once():
+    rng = np.random.default_rng(6)
+    H, W = 30, 40
+    tris = rng.uniform(-5, 45, size=(3, 25, 3, 2))
+    tris[1] += 100  # entirely off image 1
+    stacked = fill_triangles_scanline(tris, H, W)
+    assert stacked.shape == (3, H, W) and stacked[1].sum() == 0
+    for k in range(3):
+        np.testing.assert_array_equal(stacked[k], fill_triangles_exact(tris[k], H, W))
+
+
 def test_cv2_filler_is_a_slightly_grown_version():
     rng = np.random.default_rng(3)
     H, W = 60, 60

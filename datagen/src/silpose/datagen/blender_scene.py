@@ -185,21 +185,24 @@ def build_body(subject: dict, subdivision_levels: int = 1) -> tuple:
     return arm_obj, body
 
 
-def pose_body(arm_obj, subject: dict, gait: dict) -> None:
-    """Pose the armature for ``gait`` and place it in the world (see the module docstring)."""
+def pose_body(arm_obj, subject: dict, gait: dict, root: np.ndarray | None = None) -> None:
+    """Pose the armature for ``gait`` and place it in the world (see the module docstring).
+
+    ``root`` is :func:`walk.root_transform`'s (4, 4) matrix if already computed.
+    """
     import bpy
     from mathutils import Matrix
 
-    angles = joint_angles(gait)
     from .walk import euler_matrix
 
+    angles = joint_angles(gait)
+    bones = arm_obj.data.bones
     for name in BONES:
-        pb = arm_obj.pose.bones[name]
-        Lr = np.array(arm_obj.data.bones[name].matrix_local)[:3, :3]
-        B = np.eye(4)
-        B[:3, :3] = Lr.T @ euler_matrix(angles[name]) @ Lr
-        pb.matrix_basis = Matrix(B.tolist())
-    arm_obj.matrix_world = Matrix(root_transform(subject, gait).tolist())
+        Lr = bones[name].matrix_local.to_3x3()
+        B = Lr.transposed() @ Matrix(euler_matrix(angles[name]).tolist()) @ Lr
+        arm_obj.pose.bones[name].matrix_basis = B.to_4x4()
+    T = root_transform(subject, gait) if root is None else root
+    arm_obj.matrix_world = Matrix(T.tolist())
     bpy.context.view_layer.update()
 
 

@@ -101,24 +101,32 @@ def fill_triangles_scanline(tri_px: np.ndarray, height: int, width: int) -> np.n
     per (triangle, pixel row) instead of per pixel: the row ``y`` (integer) cuts the triangle's
     edges at ``x = x_a + (y - y_a) (x_b - x_a) / (y_b - y_a)``; the span ``[min x, max x]``
     covers the centres ``ceil(min x) .. floor(max x)``. Spans are accumulated as +1/-1 in a
-    difference image (one ``np.bincount``) and integrated with a cumulative sum along rows.
+    difference image (``np.bincount``) and integrated with a cumulative sum along rows.
 
     Args:
-        tri_px: (T, 3, 2) pixel coordinates (x right, y down).
+        tri_px: (T, 3, 2) pixel coordinates (x right, y down), or (K, T, 3, 2) for K images
+            of the same size at once (one image per leading index).
         height, width: image size.
     Returns:
-        (height, width) uint8 mask in {0, 1}.
+        (height, width) uint8 mask in {0, 1}, or (K, height, width) for a (K, T, 3, 2) input.
     """
     tri = np.asarray(tri_px, dtype=np.float64)
+    single = tri.ndim == 3
+    if single:
+        tri = tri[None]
+    k_img, n_tri = tri.shape[:2]
+    out = np.zeros((k_img, height, width), np.uint8)
     if tri.size == 0:
-        return np.zeros((height, width), np.uint8)
+        return out[0] if single else out
+    tri = tri.reshape(-1, 3, 2)
+    view = np.repeat(np.arange(k_img), n_tri)
     ys = tri[:, :, 1]
     y0 = np.maximum(np.ceil(ys.min(axis=1)), 0).astype(np.int64)
     y1 = np.minimum(np.floor(ys.max(axis=1)), height - 1).astype(np.int64)
     nrows = np.maximum(y1 - y0 + 1, 0)
     idx = np.repeat(np.arange(len(tri)), nrows)
     if idx.size == 0:
-        return np.zeros((height, width), np.uint8)
+        return out[0] if single else out
     row = y0[idx] + (np.arange(idx.size) - np.repeat(np.cumsum(nrows) - nrows, nrows))
     y = row.astype(np.float64)
     t = tri[idx]  # (P, 3, 2)
@@ -127,19 +135,39 @@ def fill_triangles_scanline(tri_px: np.ndarray, height: int, width: int) -> np.n
     for i in range(3):
         a, b = t[:, i], t[:, (i + 1) % 3]
         dy = b[:, 1] - a[:, 1]
-        lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
-        ok = (dy != 0) & (y >= lo) & (y <= hi)
+        ok = (dy != 0) & (y >= np.minimum(a[:, 1], b[:, 1])) & (y <= np.maximum(a[:, 1], b[:, 1]))
         x = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / np.where(ok, dy, 1.0)
         xl = np.where(ok, np.minimum(xl, x), xl)
         xr = np.where(ok, np.maximum(xr, x), xr)
     xs = np.maximum(np.ceil(xl), 0)
     xe = np.minimum(np.floor(xr), width - 1)
     ok = xs <= xe
-    row, xs, xe = row[ok], xs[ok].astype(np.int64), xe[ok].astype(np.int64)
-    w1 = width + 1
-    diff = np.bincount(row * w1 + xs, minlength=height * w1) - np.bincount(row * w1 + xe + 1, minlength=height * w1)
-    cover = np.cumsum(diff.reshape(height, w1), axis=1)[:, :width]
-    return (cover > 0).astype(np.uint8)
+    if not np.any(ok):
+        return out[0] if single else out
+    row, vk = row[ok], view[idx[ok]]
+    xs, xe = xs[ok].astype(np.int64), xe[ok].astype(np.int64)
+    # one difference buffer holding, per image, only its touched rows x columns (+1 column for
+    # the closing -1). Every span adds +1 and -1 within its own row, so a single cumulative sum
+    # over the flat buffer restarts at 0 at every row.
+    r0 = np.full(k_img, height, np.int64)
+    r1 = np.zeros(k_img, np.int64)
+    c0 = np.full(k_img, width, np.int64)
+    c1 = np.zeros(k_img, np.int64)
+    np.minimum.at(r0, vk, row)
+    np.maximum.at(r1, vk, row + 1)
+    np.minimum.at(c0, vk, xs)
+    np.maximum.at(c1, vk, xe + 2)
+    nr, w = np.maximum(r1 - r0, 0), np.maximum(c1 - c0, 0)
+    size = nr * w
+    base = np.cumsum(size) - size
+    start = base[vk] + (row - r0[vk]) * w[vk] - c0[vk]
+    total = int(size.sum())
+    cover = np.cumsum(np.bincount(start + xs, minlength=total) - np.bincount(start + xe + 1, minlength=total)) > 0
+    for k in range(k_img):
+        if size[k]:
+            block = cover[base[k] : base[k] + size[k]].reshape(nr[k], w[k])
+            out[k, r0[k] : r1[k], c0[k] : c1[k] - 1] = block[:, :-1]
+    return out[0] if single else out
 
 
 def fill_triangles_cv2(tri_px: np.ndarray, height: int, width: int) -> np.ndarray:
@@ -182,5 +210,15 @@ def rasterize(vertices: np.ndarray, triangles: np.ndarray, camera: Camera, metho
 
 
 def rasterize_rig(vertices: np.ndarray, triangles: np.ndarray, cameras, method: str = "scanline") -> np.ndarray:
-    """(K, H, W) uint8 silhouettes of one mesh in every camera of ``cameras`` (a Rig or list)."""
+    """(K, H, W) uint8 silhouettes of one mesh in every camera of ``cameras`` (a Rig or list).
+
+    With the scanline filler and cameras of one image size, all views are filled in one
+    vectorised call.
+    """
+    cameras = list(cameras)
+    sizes = {(c.height, c.width) for c in cameras}
+    if method == "scanline" and len(sizes) == 1:
+        H, W = sizes.pop()
+        tri_px = np.stack([project_triangles(vertices, triangles, c) for c in cameras])
+        return fill_triangles_scanline(tri_px, H, W)
     return np.stack([rasterize(vertices, triangles, c, method) for c in cameras])

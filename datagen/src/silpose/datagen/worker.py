@@ -21,7 +21,7 @@ from silpose.shared.contours import extract_contours, normalise
 from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
 
 from .subjects import SUBJECT_FIELDS, joint_radii, sample_subject
-from .walk import GAIT_FIELDS, sample_gait, skeleton_positions
+from .walk import GAIT_FIELDS, posed_body, root_transform, sample_gait, skeleton_positions
 
 SPLIT_CODE = {"train": 0, "test": 1}
 RENDERERS = ("raster", "blender")
@@ -155,11 +155,14 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
         for index in indices:
             for redraw in range(max_redraws + 1):
                 subject, gait = draw_sample_parameters(seed, split, index, redraw)
-                if not joints_visible(subject, gait, rig):
+                posed = posed_body(subject, gait)
+                root = root_transform(subject, gait, posed)
+                fk_joints = posed[0] @ root[:3, :3].T + root[:3, 3]
+                if not joints_visible(subject, gait, rig, joints=fk_joints):
                     continue
                 arm, body = bs.build_body(subject)
                 try:
-                    bs.pose_body(arm, subject, gait)
+                    bs.pose_body(arm, subject, gait, root)
                     vertices, triangles = bs.evaluated_mesh(body)
                     if not mesh_visible(vertices, rig):
                         continue
