@@ -1,1 +1,16 @@
-"""silpose.segment: background subtraction for real camera frames (paper section 6)."""
+"""silpose.segment: background subtraction for real camera frames (paper section 6).
+
+>>> model = BackgroundModel().fit(background_frames)      # (N, H, W[, 3]) uint8, N >= 2
+>>> mask = model.segment(frame)                           # (H, W) bool, one frame at a time
+>>> masks = model.segment_batch(frames)                   # (M, H, W) bool
+
+Modules: :mod:`.background` (the model), :mod:`.ncc` (local normalised correlation with box
+filters), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.io` (image folders and
+videos), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput).
+"""
+
+from ._validate import SegmentError
+from .background import STAGES, BackgroundModel
+from .io import load_frames, load_video
+
+__all__ = ["STAGES", "BackgroundModel", "SegmentError", "load_frames", "load_video"]

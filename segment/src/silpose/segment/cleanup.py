@@ -1,0 +1,54 @@
+"""Mask clean-up after shadow rejection (paper section 6): median filter, morphological open and
+close with small neighbourhoods, and the largest connected blob.
+
+All functions take and return one mask (H, W) uint8 with values 0/255 (OpenCV's convention), so
+the steps chain without conversions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def median(mask: np.ndarray, size: int) -> np.ndarray:
+    """Median filter over a ``size`` x ``size`` square (majority vote on a binary mask).
+
+    ``size`` <= 1 returns the mask unchanged. mask: (H, W) uint8 0/255.
+    """
+    if size <= 1:
+        return mask
+    import cv2
+
+    return cv2.medianBlur(mask, size)
+
+
+def _kernel(size: int) -> np.ndarray:
+    import cv2
+
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+
+
+def open_close(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
+    """Morphological opening (removes specks narrower than ``open_size``), then closing (fills gaps
+    and holes narrower than ``close_size``), with elliptical structuring elements of those sides in
+    pixels; a size <= 1 skips that step. mask: (H, W) uint8 0/255.
+    """
+    import cv2
+
+    if open_size > 1:
+        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, _kernel(open_size))
+    if close_size > 1:
+        mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, _kernel(close_size))
+    return mask
+
+
+def largest_blob(mask: np.ndarray) -> np.ndarray:
+    """Keep only the largest 8-connected component (ties: the lowest label, i.e. first in raster
+    order). An empty mask stays empty. mask: (H, W) uint8 0/255."""
+    import cv2
+
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n <= 2:  # background only, or a single blob
+        return mask
+    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return np.where(labels == best, np.uint8(255), np.uint8(0))

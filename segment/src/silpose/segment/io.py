@@ -1,0 +1,99 @@
+"""Frame loaders: a folder of images, or a video file (OpenCV).
+
+Both return BGR uint8 stacks, ready for :meth:`BackgroundModel.fit` / ``segment_batch``.
+Errors are :class:`SegmentError` naming the folder or file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._validate import SegmentError, frame_size_text
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+"""Image file suffixes :func:`load_frames` reads (case-insensitive)."""
+
+
+def load_frames(folder, gray: bool = False) -> tuple[np.ndarray, list[str]]:
+    """Read every PNG/JPG image of a folder, sorted by file name (plain string order: zero-pad
+    frame numbers, ``frame_0002.png`` before ``frame_0010.png``).
+
+    Parameters
+    ----------
+    folder : str or Path
+    gray : bool
+        Read as graylevel (``cv2.IMREAD_GRAYSCALE``) instead of colour.
+
+    Returns
+    -------
+    frames : array (N, H, W, 3) uint8 BGR, or (N, H, W) uint8 with ``gray``
+    names : list of N file names (without the folder)
+    """
+    import cv2
+
+    folder = Path(folder)
+    if not folder.exists():
+        raise SegmentError(f"folder: {folder} does not exist")
+    if not folder.is_dir():
+        raise SegmentError(f"folder: {folder} is not a directory")
+    paths = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not paths:
+        raise SegmentError(f"folder: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in {folder}")
+    flag = cv2.IMREAD_GRAYSCALE if gray else cv2.IMREAD_COLOR
+    frames = []
+    for p in paths:
+        img = cv2.imread(str(p), flag)
+        if img is None:
+            raise SegmentError(f"{p}: cannot read this image (corrupt or not an image)")
+        if img.dtype != np.uint8:  # IMREAD_COLOR/GRAYSCALE give 8 bits; keep the guard explicit
+            raise SegmentError(f"{p}: expected 8-bit pixels, got {img.dtype}")
+        if frames and img.shape != frames[0].shape:
+            raise SegmentError(
+                f"{p}: frame size {frame_size_text(img.shape)} differs from {paths[0].name} "
+                f"({frame_size_text(frames[0].shape)})"
+            )
+        frames.append(img)
+    return np.stack(frames), [p.name for p in paths]
+
+
+def load_video(path, max_frames: int | None = None, gray: bool = False) -> np.ndarray:
+    """Decode a video file with ``cv2.VideoCapture``.
+
+    Parameters
+    ----------
+    path : str or Path
+    max_frames : int or None
+        Stop after this many frames.
+    gray : bool
+        Convert each frame to graylevel (``cv2.cvtColor``).
+
+    Returns
+    -------
+    array (N, H, W, 3) uint8 BGR, or (N, H, W) uint8 with ``gray``; N >= 1.
+    """
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise SegmentError(f"path: video file {path} does not exist")
+    if max_frames is not None and max_frames < 1:
+        raise SegmentError(f"max_frames: must be >= 1 or None, got {max_frames!r}")
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            raise SegmentError(f"{path}: OpenCV cannot open this video")
+        frames = []
+        while max_frames is None or len(frames) < max_frames:
+            ok, img = cap.read()
+            if not ok:
+                break
+            if gray:
+                img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+            frames.append(img)
+    finally:
+        cap.release()
+    if not frames:
+        raise SegmentError(f"{path}: the video has no decodable frames")
+    return np.stack(frames)
