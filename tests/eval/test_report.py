@@ -1,0 +1,74 @@
+"""Report aggregation against direct numpy computations on hand-built rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from silpose.eval.report import e1_comparison, headline, markdown_summary, stats
+
+
+def _rows(rng, n=30):
+    parts = []
+    for k in range(4):
+        d = {"experiment": "E1", "method": "mppca", "training": "single-view", "trained_views": str(k),
+             "input_views": str(k), "n_input_views": 1, "noise": "standard", "sample_id": np.arange(n),
+             "pose_cm": rng.gamma(4, 5, n), "pose_pa_cm": rng.gamma(4, 3, n)}
+        for v in range(4):
+            d[f"chamfer_v{v}"] = rng.gamma(3, 1, n) if v == k else np.full(n, np.nan)
+        parts.append(pd.DataFrame(d))
+    d = {"experiment": "E1", "method": "mppca", "training": "multi-view", "trained_views": "0123", "input_views": "0123",
+         "n_input_views": 4, "noise": "standard", "sample_id": np.arange(n), "pose_cm": rng.gamma(4, 3, n),
+         "pose_pa_cm": rng.gamma(4, 2, n)}
+    for v in range(4):
+        d[f"chamfer_v{v}"] = rng.gamma(3, 0.8, n)
+    parts.append(pd.DataFrame(d))
+    for views in ("0123", "0", "1"):
+        parts.append(pd.DataFrame({"experiment": "E2", "method": "mppca", "training": "multi-view",
+                                   "trained_views": "0123", "input_views": views, "n_input_views": len(views),
+                                   "noise": "standard", "sample_id": np.arange(n), "pose_cm": rng.gamma(4, 2, n),
+                                   "pose_pa_cm": rng.gamma(4, 1, n), "chamfer_px": rng.gamma(3, 1, n),
+                                   "chamfer_sym_px": rng.gamma(3, 1, n), "chamfer_observed_px": rng.gamma(3, 1, n),
+                                   "chamfer_missing_px": rng.gamma(3, 1, n)}))
+        for kind in ("knn", "ridge"):
+            parts.append(pd.DataFrame({"experiment": "E4", "method": kind, "training": "multi-view",
+                                       "trained_views": views, "input_views": views, "n_input_views": len(views),
+                                       "noise": "standard", "sample_id": np.arange(n), "pose_cm": rng.gamma(4, 2.2, n),
+                                       "pose_pa_cm": rng.gamma(4, 1, n)}))
+    parts.append(pd.DataFrame({"experiment": "E4", "method": "chance", "training": "-", "trained_views": "-",
+                               "input_views": "-", "n_input_views": 0, "noise": "-", "sample_id": np.arange(n),
+                               "pose_cm": rng.gamma(6, 5, n), "pose_pa_cm": rng.gamma(6, 3, n)}))
+    return pd.concat(parts, ignore_index=True)
+
+
+def test_stats_matches_numpy():
+    v = np.random.default_rng(0).normal(size=101)
+    s = stats(np.r_[v, np.nan])
+    assert s["n"] == 101 and s["mean"] == pytest.approx(v.mean())
+    assert [s["q1"], s["median"], s["q3"]] == pytest.approx(np.percentile(v, [25, 50, 75]).tolist())
+
+
+def test_e1_improvements_are_computed_from_matching_rows():
+    df = _rows(np.random.default_rng(1))
+    c = e1_comparison(df)
+    e1 = df[df.experiment == "E1"]
+    sv, mv = e1[e1.training == "single-view"], e1[e1.training == "multi-view"]
+    assert c["pose_improvement_pct"] == pytest.approx(100 * (1 - mv.pose_cm.mean() / sv.pose_cm.mean()))
+    sv_c = np.mean(np.concatenate([sv[sv.trained_views == str(k)][f"chamfer_v{k}"] for k in range(4)]))
+    mv_c = np.mean(np.concatenate([mv[f"chamfer_v{k}"] for k in range(4)]))
+    assert c["contour_improvement_pct"] == pytest.approx(100 * (1 - mv_c / sv_c))
+
+
+def test_headline_and_markdown():
+    df = _rows(np.random.default_rng(2))
+    h = headline(df)
+    e2 = df[df.experiment == "E2"]
+    assert h["pose_cm_by_n_views"][1]["mean"] == pytest.approx(e2[e2.n_input_views == 1].pose_cm.mean())
+    for r in h["mppca_vs_baselines_by_subset"]:
+        m = e2[e2.input_views == r["views"]].pose_cm.mean()
+        knn = df[(df.experiment == "E4") & (df.method == "knn") & (df.input_views == r["views"])].pose_cm.mean()
+        assert r["mppca"] == pytest.approx(m) and r["knn"] == pytest.approx(knn)
+        assert r["mppca_best"] == (m < min(r["knn"], r["ridge"]))
+    md = markdown_summary(df, {"seed": 0}, "t")
+    assert "## E1" in md and "## E2" in md and "## E4" in md and "chance" in md and '"seed": 0' in md
