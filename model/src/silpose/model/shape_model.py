@@ -6,23 +6,22 @@ of PPCA (:class:`silpose.model.mppca.MPPCA`, paper eq. 3) is the prior density.
 
 Inference (paper section 4): the observed dimensions are the *present views'* contour
 coordinates; the missing dimensions are the absent views' contours and the whole structure block.
-Missing dimensions are marginalised by dropping their rows (``silpose.model.conditional``), never
-zero-filled; rows with different missing-view patterns are grouped and conditioned separately.
-Every modelled view gets a reconstruction: missing views from the conditional mean, present views
-from their Bayesian (MAP-style) reconstruction ``mu_a + W_a E[x | a]`` (the shape model of [8]),
-obtained by conditioning on a copy of the observed rows (see :func:`_augment`).
+Missing dimensions are marginalised by dropping their rows, never zero-filled; rows with different
+missing-view patterns are grouped and conditioned separately. Every modelled view gets a
+reconstruction: missing views from the conditional mean, present views from their Bayesian
+reconstruction ``mu_a + W_a E[x | a]`` (the shape model of [8]). The numerics are the exact Gaussian
+conditioning of ``silpose.model.conditional`` arranged for throughput in
+``silpose.model.posterior`` (tests check both against dense conditioning).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 from typing import Callable, Sequence
 
 import numpy as np
 
-from silpose.shared.contours import denormalise, normalise
 from silpose.shared.skeleton import N_JOINTS
 
 from .features import FeatureLayout
@@ -64,31 +63,6 @@ class InferenceResult:
     responsibilities: np.ndarray
     log_marginal: np.ndarray
     views: tuple[int, ...] = field(default=())
-
-
-def _augment(params, observed: np.ndarray):
-    """Parameters with a noiseless-observation copy of the observed rows appended.
-
-    Conditioning on rows ``a`` gives, per component, ``x_hat = M_a^-1 W_a^T (a - mu_a)`` and the
-    missing-row mean ``mu_b + W_b x_hat`` (DESIGN §4). Appending copies of rows ``a`` as extra
-    *missing* rows therefore returns ``mu_a + W_a x_hat``, the Bayesian reconstruction of the
-    observed contours, from the same exact conditioning code.
-
-    Args:
-        params: object with ``weights_ (M,)``, ``means_ (M, d)``, ``components_ (M, d, q)``, ``noise_variance_ (M,)``.
-        observed: (d,) bool.
-    Returns:
-        (params with d + d_obs rows, observed mask (d + d_obs,)).
-    """
-    idx = np.flatnonzero(observed)
-    aug = SimpleNamespace(
-        weights_=params.weights_,
-        means_=np.concatenate([params.means_, params.means_[:, idx]], axis=1),
-        components_=np.concatenate([params.components_, params.components_[:, idx, :]], axis=1),
-        noise_variance_=params.noise_variance_,
-    )
-    mask = np.concatenate([observed, np.zeros(idx.size, dtype=bool)])
-    return aug, mask
 
 
 class ShapeStructureModel:
@@ -176,7 +150,7 @@ class ShapeStructureModel:
         c = _check_contours(contours_px, "contours_px")
         if c.shape[1] != self.n_rig_views_:
             raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {self.n_rig_views_}")
-        norm, _, _ = normalise(c[:, list(layout.views)].astype(np.float64))
+        norm, _, _ = normalise_contours(c[:, list(layout.views)])
         return layout.build(norm, joints)
 
     def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None) -> "ShapeStructureModel":
@@ -283,24 +257,29 @@ class ShapeStructureModel:
         present_in = _check_present(views_present, n, k_in)
 
         kmod = layout.n_views
-        present = np.zeros((n, kmod), dtype=bool)
-        c_mod = np.full((n, kmod, layout.n_points, 2), np.nan)
-        cen_true = np.full((n, kmod, 2), np.nan)
-        sc_true = np.full((n, kmod), np.nan)
         cen_in, sc_in = _check_factors(centroid, scale, n, k_in)
-        for p, col in enumerate(cols):
-            if col < 0:
-                continue
-            present[:, p] = present_in[:, col]
-            c_mod[:, p] = c_in[:, col]
-            if cen_in is not None:
-                cen_true[:, p] = cen_in[:, col]
-                sc_true[:, p] = sc_in[:, col]
-        obs_c = c_mod[present]  # (n_obs_views, n, 2)
-        bad = ~np.isfinite(obs_c).all(axis=(1, 2))
-        if bad.any():
-            rows, pos = np.nonzero(present)
-            r, p = rows[bad][0], pos[bad][0]
+        if np.array_equal(cols, np.arange(k_in)):  # input columns are the modelled views, in order: no copies
+            present, c_mod = present_in, c_in
+            cen_true = cen_in if cen_in is not None else np.full((n, kmod, 2), np.nan)
+            sc_true = sc_in if sc_in is not None else np.full((n, kmod), np.nan)
+        else:
+            present = np.zeros((n, kmod), dtype=bool)
+            c_mod = np.full((n, kmod, layout.n_points, 2), np.nan)
+            cen_true = np.full((n, kmod, 2), np.nan)
+            sc_true = np.full((n, kmod), np.nan)
+            for p, col in enumerate(cols):
+                if col < 0:
+                    continue
+                present[:, p] = present_in[:, col]
+                c_mod[:, p] = c_in[:, col]
+                if cen_in is not None:
+                    cen_true[:, p] = cen_in[:, col]
+                    sc_true[:, p] = sc_in[:, col]
+        all_present = bool(present.all())
+        obs_c = c_mod if all_present else c_mod[present]  # (N, K, n, 2) or (n_observed_views, n, 2)
+        if not np.isfinite(obs_c).all():
+            bad = ~np.isfinite(c_mod).all(axis=(2, 3)) & present
+            r, p = np.argwhere(bad)[0]
             raise ValueError(
                 f"contours_px has NaN/inf in an observed view: frame {r}, view {layout.views[p]} "
                 f"({int(bad.sum())} observed views affected); mark such views absent in views_present"
@@ -311,47 +290,43 @@ class ShapeStructureModel:
                 f"every modelled view is missing in {int(none.sum())} frame(s) (first: frame "
                 f"{int(np.flatnonzero(none)[0])}); at least one of views {layout.views} must be observed"
             )
-
-        norm = np.zeros_like(c_mod)
-        cen = cen_true.copy()
-        sc = sc_true.copy()
-        q, c_obs, s_obs = normalise(obs_c)
-        norm[present] = q
-        cen[present] = c_obs
-        sc[present] = s_obs
+        if all_present:
+            norm, cen, sc = normalise_contours(c_mod)
+        else:
+            norm = np.zeros((n, kmod, layout.n_points, 2))
+            cen = np.array(cen_true, dtype=np.float64)
+            sc = np.array(sc_true, dtype=np.float64)
+            norm[present], cen[present], sc[present] = normalise_contours(obs_c)
 
         d = layout.dim
         M = int(self.mixture_.weights_.shape[0])
-        mean = np.empty((n, d))
-        best = np.empty((n, d))
-        var = np.zeros((n, d))
-        resp = np.empty((n, M))
-        logm = np.empty(n)
         flat = norm.reshape(n, -1)
-        patterns, inverse = np.unique(present, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        for g, pattern in enumerate(patterns):
-            rows = np.flatnonzero(inverse == g)
-            observed = layout.observed_mask(pattern)
-            x_obs = flat[rows][:, observed[: layout.contour_dim]]
-            res = self._conditioner(pattern, float(s2))(x_obs)
-            miss = ~observed
-            n_miss = int(miss.sum())
-            mean[np.ix_(rows, np.flatnonzero(miss))] = res.mean[:, :n_miss]
-            mean[np.ix_(rows, np.flatnonzero(observed))] = res.mean[:, n_miss:]
-            best[np.ix_(rows, np.flatnonzero(miss))] = res.best_mean[:, :n_miss]
-            best[np.ix_(rows, np.flatnonzero(observed))] = res.best_mean[:, n_miss:]
-            var[np.ix_(rows, np.flatnonzero(miss))] = res.variance[:, :n_miss]
-            var[np.ix_(rows, np.flatnonzero(observed))] = res.variance[:, n_miss:]
-            resp[rows] = res.responsibilities
-            logm[rows] = res.log_marginal
+        if all_present or n == 1:
+            patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
+        else:
+            patterns, inverse = np.unique(present, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+        if len(patterns) == 1:  # the common case: no fancy-index copies
+            post = self._posterior(patterns[0], float(s2))
+            x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
+            mean, best, var, resp, logm = post(x_obs)
+        else:
+            mean = np.empty((n, d))
+            best = np.empty((n, layout.structure_dim))
+            var = np.empty((n, layout.structure_dim))
+            resp = np.empty((n, M))
+            logm = np.empty(n)
+            for g, pattern in enumerate(patterns):
+                rows = np.flatnonzero(inverse == g)
+                x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
+                mean[rows], best[rows], var[rows], resp[rows], logm[rows] = self._posterior(pattern, float(s2))(x_obs)
 
         rec, joints = layout.split(mean)
-        _, joints_best = layout.split(best)
+        w = layout.structure_weight
+        joints_best = best.reshape(n, layout.n_joints, 3) / w
         # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
-        joint_std = np.sqrt(np.maximum(var[:, layout.structure_slice], 0.0)).reshape(n, layout.n_joints, 3)
-        joint_std /= layout.structure_weight
-        px = denormalise(rec, cen, sc)
+        joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
+        px = denormalise_contours(rec, cen, sc)
         return InferenceResult(
             joints=joints,
             joints_best=joints_best,
@@ -366,26 +341,30 @@ class ShapeStructureModel:
             views=layout.views,
         )
 
-    def _conditioner(self, pattern: np.ndarray, s2: float):
-        """Cached :class:`~silpose.model.conditional.Conditioner` for one present-view pattern and s^2.
+    def _posterior(self, pattern: np.ndarray, s2: float):
+        """Cached :class:`~silpose.model.posterior.PatternPosterior` for one present-view pattern and s^2.
 
-        The q x q factorisations depend only on the pattern and s^2, so they are computed once per
-        (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O(d_obs q M).
+        Its q x q factorisations depend only on the pattern and s^2, so they are computed once per
+        (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O((d_obs + d) q M).
         """
-        from .conditional import Conditioner
+        from .posterior import PatternPosterior
 
-        cache = getattr(self, "_cond_cache", None)
+        cache = getattr(self, "_post_cache", None)
         if cache is None or cache[0] is not self.mixture_:
             cache = (self.mixture_, {})
-            self._cond_cache = cache
+            self._post_cache = cache
         key = (np.asarray(pattern, dtype=bool).tobytes(), s2)
-        cond = cache[1].get(key)
-        if cond is None:
+        post = cache[1].get(key)
+        if post is None:
             if len(cache[1]) >= 64:  # bounded: K views give at most 2^K - 1 patterns per s^2
                 cache[1].clear()
-            aug, aug_mask = _augment(self.mixture_, self._layout().observed_mask(pattern))
-            cond = cache[1][key] = Conditioner(aug, aug_mask, noise_variance=s2)
-        return cond
+            layout = self._layout()
+            mix = self.mixture_
+            post = cache[1][key] = PatternPosterior(
+                mix.weights_, mix.means_, mix.components_, mix.noise_variance_, layout.observed_mask(pattern), s2,
+                detail=np.arange(layout.structure_slice.start, layout.structure_slice.stop),
+            )
+        return post
 
     def _input_columns(self, k_in: int, input_views: Sequence[int] | None) -> np.ndarray:
         """(K_mod,) input column of each modelled view, -1 when the input does not contain it."""
@@ -409,6 +388,30 @@ class ShapeStructureModel:
         if len(set(input_views)) != len(input_views):
             raise ValueError(f"input_views has duplicates: {input_views}")
         return np.array([input_views.index(v) if v in input_views else -1 for v in layout.views])
+
+
+def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``silpose.shared.contours.normalise`` in float64, arranged for speed (same definition).
+
+    centroid c = mean of the points, scale s = RMS distance from c, q = (p - c) / s, and q = 0 with
+    s = 0 for a degenerate contour. points (..., n, 2) px -> (q (..., n, 2), c (..., 2), s (...,)).
+    """
+    p = np.asarray(points, dtype=np.float64)
+    lead, n = p.shape[:-2], p.shape[-2]
+    f = p.reshape(-1, n, 2)
+    c = np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1) / n  # strided sums: fast
+    q = f - c[:, None, :]
+    flat = q.reshape(q.shape[0], -1)
+    s = np.sqrt(np.einsum("ij,ij->i", flat, flat) / n)
+    q /= np.where(s > 0, s, 1.0)[:, None, None]
+    return q.reshape(p.shape), c.reshape(*lead, 2), s.reshape(lead)
+
+
+def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64."""
+    out = q * np.asarray(scale, dtype=np.float64)[..., None, None]
+    out += np.asarray(centroid, dtype=np.float64)[..., None, :]
+    return out
 
 
 def _check_contours(contours: np.ndarray, name: str, n_points: int | None = None) -> np.ndarray:
