@@ -204,7 +204,8 @@ def test_fresh_venv_with_shared_and_model_has_no_bpy(tmp_path):
     py = venv / "bin" / "python"
     # --no-sources: ignore the workspace table, which would install ./shared editable (pointing back
     # into the repository) instead of as a built copy.
-    install = [uv, "pip", "install", "-q", "--no-sources", "--python", str(py), str(REPO / "shared"), str(REPO / "model")]
+    install = [uv, "pip", "install", "-q", "--no-sources", "--python", str(py)]
+    install += [str(REPO / "shared"), str(REPO / "model")]
     r = _run(install[:3] + ["--offline"] + install[3:], env)  # works once uv's cache holds everything
     if r.returncode != 0:
         r = _run(install, env)

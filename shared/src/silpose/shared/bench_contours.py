@@ -45,7 +45,8 @@ def stick_masks(n_samples: int, seed: int = 0) -> np.ndarray:
         for v in range(len(rig)):
             for a, b in BONES:
                 width = 14 if b <= 4 else 9
-                cv2.line(out[s, v], tuple(np.round(px[v, a]).astype(int)), tuple(np.round(px[v, b]).astype(int)), 1, width)
+                pa, pb = np.round(px[v, [a, b]]).astype(int)
+                cv2.line(out[s, v], tuple(pa), tuple(pb), 1, width)
             cv2.circle(out[s, v], tuple(np.round(px[v, JOINT_INDEX["head"]]).astype(int)), 8, 1, -1)
     return out
 

@@ -3,7 +3,8 @@
 Conventions (binding for every package):
 
 - Pixel coordinates: x right, y down, pixel centres at integer coordinates (OpenCV's).
-- A contour is the OUTER boundary of the largest 8-connected foreground blob (holes ignored),
+- A contour is the OUTER boundary of the largest 8-connected foreground blob (holes ignored;
+  equally large blobs: the one whose bounding box is topmost, then leftmost),
   traced through the centres of the blob's boundary pixels (``cv2.findContours``), so it lies
   about half a pixel inside the silhouette's geometric edge.
 - Orientation: clockwise as seen on screen, i.e. a positive shoelace area
@@ -178,7 +179,12 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
     sub[1:-1, 1:-1] = m[r0 : rows[-1] + 1, c0 : cols[-1] + 1]
     n_labels, labels, stats, centroids = cv2.connectedComponentsWithStats(sub, connectivity=8)
     areas = stats[1:, cv2.CC_STAT_AREA]
-    best = 1 + int(np.argmax(areas))  # first of equal areas: deterministic
+    # Largest blob; ties (rare) go to the topmost, then leftmost bounding box, then centroid, so
+    # the choice does not depend on OpenCV's label order (which changes with the crop).
+    order = np.lexsort(
+        (centroids[1:, 0], centroids[1:, 1], stats[1:, cv2.CC_STAT_LEFT], stats[1:, cv2.CC_STAT_TOP], -areas)
+    )
+    best = 1 + int(order[0])
     left, top = int(stats[best, cv2.CC_STAT_LEFT]), int(stats[best, cv2.CC_STAT_TOP])
     bw, bh = int(stats[best, cv2.CC_STAT_WIDTH]), int(stats[best, cv2.CC_STAT_HEIGHT])
     touches = bool(left + ox == 0 or top + oy == 0 or left + ox + bw == w or top + oy + bh == h)
