@@ -3,7 +3,7 @@
 Two proofs:
 
 (a) In this environment (where bpy IS installed) a meta-path finder makes any ``import bpy``
-    fail and logs who tried. Every module of silpose.shared, silpose.model and silpose.eval is
+    fail and logs who tried. Every module of silpose.shared, .model, .eval and .segment is
     imported in a subprocess, and ``silpose --help`` / ``silpose <cmd> --help`` run for every
     registered command with the blocker installed through a ``sitecustomize`` module. A command
     whose module does not exist yet makes its test fail, on purpose.
@@ -26,7 +26,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 ENTRY_POINT_GROUP = "silpose.commands"
-CHECKED_PACKAGES = ("silpose.shared", "silpose.model", "silpose.eval")
+#: Everything on the inference side of the data flow (DESIGN §1); segment = background subtraction.
+CHECKED_PACKAGES = ("silpose.shared", "silpose.model", "silpose.eval", "silpose.segment")
 
 BLOCKER = textwrap.dedent(
     '''
