@@ -5,12 +5,12 @@
 >>> masks = model.segment_batch(frames)                   # (M, H, W) bool
 
 Modules: :mod:`.background` (the model), :mod:`.ncc` (local normalised correlation with box
-filters), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.io` (image folders and
+filters), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.loaders` (image folders and
 videos), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput).
 """
 
 from ._validate import SegmentError
 from .background import STAGES, BackgroundModel
-from .io import load_frames, load_video
+from .loaders import load_frames, load_video
 
 __all__ = ["STAGES", "BackgroundModel", "SegmentError", "load_frames", "load_video"]

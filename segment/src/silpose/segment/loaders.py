@@ -24,7 +24,9 @@ def load_frames(folder, gray: bool = False) -> tuple[np.ndarray, list[str]]:
     ----------
     folder : str or Path
     gray : bool
-        Read as graylevel (``cv2.IMREAD_GRAYSCALE``) instead of colour.
+        Return graylevels: read in colour, then ``cv2.cvtColor(BGR2GRAY)`` - the conversion
+        :class:`BackgroundModel` applies (``cv2.IMREAD_GRAYSCALE`` uses the codec's own and can
+        differ by one level).
 
     Returns
     -------
@@ -41,14 +43,13 @@ def load_frames(folder, gray: bool = False) -> tuple[np.ndarray, list[str]]:
     paths = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
     if not paths:
         raise SegmentError(f"folder: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in {folder}")
-    flag = cv2.IMREAD_GRAYSCALE if gray else cv2.IMREAD_COLOR
     frames = []
     for p in paths:
-        img = cv2.imread(str(p), flag)
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if img is None:
             raise SegmentError(f"{p}: cannot read this image (corrupt or not an image)")
-        if img.dtype != np.uint8:  # IMREAD_COLOR/GRAYSCALE give 8 bits; keep the guard explicit
-            raise SegmentError(f"{p}: expected 8-bit pixels, got {img.dtype}")
+        if gray:
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if frames and img.shape != frames[0].shape:
             raise SegmentError(
                 f"{p}: frame size {frame_size_text(img.shape)} differs from {paths[0].name} "

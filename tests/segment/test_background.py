@@ -1,0 +1,157 @@
+"""BackgroundModel on synthetic scenes with known masks and shadows (silpose.segment.synthetic)."""
+
+import cv2
+import numpy as np
+import pytest
+
+from silpose.segment import STAGES, BackgroundModel
+from silpose.segment.synthetic import render_scene
+
+
+@pytest.fixture(scope="module")
+def scene():
+    # Seeds differ from the ones the defaults were looked at with (seed 1).
+    return render_scene(n_background=30, n_frames=6, seed=7)
+
+
+@pytest.fixture(scope="module")
+def fitted(scene):
+    return BackgroundModel().fit(scene.background)
+
+
+def _iou(a, b):
+    return (a & b).sum() / (a | b).sum()
+
+
+def test_shadow_rejection_removes_most_of_the_shadow_plain_differencing_keeps(scene, fitted):
+    plain = BackgroundModel(ncc_threshold=None).fit(scene.background).segment_batch(scene.frames)
+    stages = fitted.segment_batch(scene.frames, return_stages=True)
+    shadow = scene.shadows
+    fp_plain = int((plain & ~scene.masks).sum())
+    fp_ours = int((stages["final"] & ~scene.masks).sum())
+    in_shadow_cand = (stages["candidates"] & shadow).sum() / shadow.sum()
+    in_shadow_plain = (plain & shadow).sum() / shadow.sum()
+    in_shadow_rejected = (stages["shadow_rejected"] & shadow).sum() / shadow.sum()
+    in_shadow_ours = (stages["final"] & shadow).sum() / shadow.sum()
+    print(
+        f"false-positive pixels: plain 3 sigma {fp_plain}, with shadow rejection {fp_ours}; shadow pixels kept: "
+        f"candidates {in_shadow_cand:.3f}, plain final {in_shadow_plain:.3f}, after rejection "
+        f"{in_shadow_rejected:.3f}, final {in_shadow_ours:.3f}"
+    )
+    assert shadow.sum() > 1000 * len(shadow)  # a real shadow in every frame
+    assert in_shadow_cand > 0.95 and in_shadow_plain > 0.9  # plain differencing keeps the shadow
+    assert in_shadow_ours < 0.15  # shadow rejection removes most of it
+    assert fp_ours < 0.4 * fp_plain
+
+
+def test_full_window_ncc_leaves_a_rim_that_candidate_support_removes(scene):
+    """The paper correlates over candidate pixels; full windows straddling the shadow edge keep a rim."""
+    kept = {}
+    for support in ("window", "candidates"):
+        model = BackgroundModel(ncc_support=support).fit(scene.background)
+        kept[support] = (model.segment_batch(scene.frames, return_stages=True)["shadow_rejected"] & scene.shadows).sum()
+    assert kept["candidates"] < 0.5 * kept["window"]
+
+
+def test_iou_against_true_masks(scene, fitted):
+    masks = fitted.segment_batch(scene.frames)
+    ious = [_iou(m, t) for m, t in zip(masks, scene.masks)]
+    print("IoU per frame:", np.round(ious, 3))
+    assert min(ious) >= 0.9
+
+
+def test_graylevel_input_gives_the_same_masks_as_colour(scene, fitted):
+    gray = lambda s: np.stack([cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in s])
+    model = BackgroundModel().fit(gray(scene.background))
+    np.testing.assert_array_equal(model.segment_batch(gray(scene.frames)), fitted.segment_batch(scene.frames))
+
+
+def test_batch_and_streaming_agree_exactly(scene, fitted):
+    batch = fitted.segment_batch(scene.frames, return_stages=True)
+    assert tuple(batch) == STAGES
+    for i, frame in enumerate(scene.frames):
+        one = fitted.segment(frame, return_stages=True)
+        for name in STAGES:
+            assert one[name].dtype == bool and one[name].shape == frame.shape[:2]
+            np.testing.assert_array_equal(one[name], batch[name][i], err_msg=f"stage {name}, frame {i}")
+        np.testing.assert_array_equal(fitted.segment(frame), batch["final"][i])
+    np.testing.assert_array_equal(fitted.segment_batch(scene.frames), batch["final"])
+
+
+def test_batch_larger_than_one_chunk_agrees_with_streaming(fitted, scene):
+    frames = np.concatenate([scene.frames] * 12)  # 72 frames > the 64-frame chunk
+    batch = fitted.segment_batch(frames)
+    for i in (0, 63, 64, 71):
+        np.testing.assert_array_equal(batch[i], fitted.segment(frames[i]))
+
+
+def test_stages_follow_their_definitions(scene, fitted):
+    st = fitted.segment(scene.frames[2], return_stages=True)
+    assert not (st["shadow_rejected"] & ~st["candidates"]).any()  # rejection only removes candidates
+    m = st["shadow_rejected"].astype(np.uint8) * 255
+    np.testing.assert_array_equal(st["median"], cv2.medianBlur(m, 5) > 0)
+    n, labels = cv2.connectedComponents(st["final"].astype(np.uint8), connectivity=8)
+    assert n == 2  # exactly one blob
+    assert not (st["final"] & ~st["morphology"]).any()
+
+
+def test_statistics_equal_numpy_and_partial_fit_in_chunks():
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 256, (9, 13, 11, 3), dtype=np.uint8)
+    gray = np.stack([cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in frames]).astype(np.float64)
+    model = BackgroundModel().fit(frames)
+    assert model.n_frames_seen_ == 9 and model.frame_shape_ == (13, 11)
+    np.testing.assert_allclose(model.mean_, gray.mean(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(model.std_, gray.std(axis=0), rtol=1e-10)
+    chunked = BackgroundModel()
+    for a, b in [(0, 1), (1, 5), (5, 6), (6, 9)]:
+        chunked.partial_fit(frames[a:b])
+    np.testing.assert_array_equal(chunked.mean_, model.mean_)
+    np.testing.assert_array_equal(chunked.std_, model.std_)
+    # fit() starts over: refitting on other frames forgets the first ones.
+    model.fit(frames[:3])
+    np.testing.assert_allclose(model.mean_, gray[:3].mean(axis=0), rtol=1e-12)
+
+
+def test_statistics_stay_exact_for_long_backgrounds():
+    """400 nearly constant frames: sum-of-squares formulas in floating point would cancel badly."""
+    rng = np.random.default_rng(1)
+    frames = (200 + rng.integers(0, 2, (400, 4, 5))).astype(np.uint8)
+    model = BackgroundModel()
+    for chunk in np.array_split(frames, 7):
+        model.partial_fit(chunk)
+    ref = frames.astype(np.float64)
+    np.testing.assert_allclose(model.mean_, ref.mean(axis=0), rtol=1e-14)
+    np.testing.assert_allclose(model.std_, ref.std(axis=0), rtol=1e-12)
+
+
+def test_min_std_floor_and_k_sigma():
+    background = np.full((5, 20, 20), 100, np.uint8)  # std 0 everywhere
+    frame = np.full((20, 20), 100, np.uint8)
+    frame[:, :10] = 105  # +5: inside 3 * min_std = 6
+    frame[:, 10:] = 107  # +7: beyond it
+    cand = BackgroundModel(ncc_threshold=None).fit(background).segment(frame, return_stages=True)["candidates"]
+    assert not cand[:, :10].any() and cand[:, 10:].all()
+    cand = BackgroundModel(k_sigma=2.0, ncc_threshold=None).fit(background).segment(frame, return_stages=True)
+    assert cand["candidates"].all()  # 2 * 2 = 4 < 5
+
+
+def test_brightening_is_not_a_shadow():
+    """Extra rule: only darkening (ratio <= shadow_ratio[1]) is a shadow, though NCC ignores gain."""
+    rng = np.random.default_rng(5)
+    clean = cv2.GaussianBlur(rng.uniform(40, 140, (60, 80)).astype(np.float32), (0, 0), 1.0) * 1.0
+    clean = (clean - clean.mean()) * 3 + 90
+    background = np.clip(np.rint(clean + rng.normal(0, 2, (10, 60, 80))), 0, 255).astype(np.uint8)
+    patch = (slice(20, 40), slice(20, 50))
+    bright = clean.copy()
+    bright[patch] *= 1.6
+    dark = clean.copy()
+    dark[patch] *= 0.6
+    to8 = lambda a: np.clip(np.rint(a + rng.normal(0, 2, a.shape)), 0, 255).astype(np.uint8)
+    model = BackgroundModel(largest_blob=False).fit(background)
+    truth = np.zeros((60, 80), bool)
+    truth[patch] = True
+    assert model.segment(to8(dark))[truth].mean() < 0.1  # darkened and correlated: shadow
+    assert model.segment(to8(bright))[truth].mean() > 0.9  # brightened: kept as foreground
+    lenient = BackgroundModel(largest_blob=False, shadow_ratio=(0.25, 2.0)).fit(background)
+    assert lenient.segment(to8(bright))[truth].mean() < 0.1

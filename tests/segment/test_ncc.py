@@ -1,0 +1,71 @@
+"""The box-filter local NCC (silpose.segment.ncc) against a brute-force per-pixel loop."""
+
+import numpy as np
+import pytest
+
+from silpose.segment.ncc import background_window_stats, local_ncc
+
+
+def _bruteforce(frame, background, window, support, min_support, min_texture):
+    """Per-pixel NCC and brightness ratio in float64 with reflect-101 borders, by explicit loops.
+
+    Returns ncc (H, W) with 0 where undefined, and ratio (H, W) (nan where the support is too small).
+    """
+    r = window // 2
+    pad = lambda a: np.pad(np.asarray(a, np.float64), r, mode="reflect")  # numpy reflect == REFLECT_101
+    fp, bp = pad(frame), pad(background)
+    cp = pad(np.ones(frame.shape) if support is None else support).astype(bool)
+    h, w = frame.shape
+    ncc = np.zeros((h, w))
+    ratio = np.full((h, w), np.nan)
+    for y in range(h):
+        for x in range(w):
+            sel = cp[y : y + window, x : x + window]
+            if sel.mean() < min_support or not sel.any():
+                continue
+            a = fp[y : y + window, x : x + window][sel]
+            b = bp[y : y + window, x : x + window][sel]
+            ratio[y, x] = a.mean() / b.mean()
+            if b.std() < min_texture or a.var() <= 1e-4:
+                continue
+            ncc[y, x] = ((a - a.mean()) * (b - b.mean())).mean() / (a.std() * b.std())
+    return ncc, ratio
+
+
+@pytest.mark.parametrize("window", [3, 5, 7])
+@pytest.mark.parametrize("use_support", [False, True])
+def test_box_filter_ncc_equals_bruteforce(window, use_support):
+    rng = np.random.default_rng(window + 10 * use_support)
+    h, w = 19, 23
+    background = rng.uniform(20, 230, (h, w))
+    # A shadowed patch (a*b + c, NCC -> 1), an unrelated patch (NCC ~ 0), a flat patch (no texture).
+    frame = background + rng.normal(0, 3, (h, w))
+    frame[2:10, 3:12] = 0.5 * background[2:10, 3:12] + 4 + rng.normal(0, 1, (8, 9))
+    frame[10:17, 12:20] = rng.uniform(0, 255, (7, 8))
+    background[14:19, 0:8] = 77.0
+    frame = np.clip(np.rint(frame), 0, 255).astype(np.uint8)
+    support = rng.random((h, w)) < 0.6 if use_support else None
+    min_support, min_texture = 0.25, 1.5
+
+    bg = background_window_stats(background, window, min_texture)
+    ncc, ratio = local_ncc(frame, bg, support, min_support)
+    ref_ncc, ref_ratio = _bruteforce(frame, background, window, support, min_support if use_support else 0, min_texture)
+
+    assert ncc.shape == (h, w) and ncc.dtype == np.float32
+    np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
+    defined = np.isfinite(ref_ratio)
+    np.testing.assert_allclose(ratio[defined], ref_ratio[defined], rtol=1e-4)
+    # The test is not vacuous: both high correlations (shadow) and zeros (flat/undefined) occur.
+    assert (ref_ncc > 0.9).sum() > 10 and (ref_ncc == 0).sum() > 5
+
+
+def test_shadow_like_change_correlates_and_unrelated_change_does_not():
+    rng = np.random.default_rng(3)
+    background = rng.uniform(40, 220, (40, 40))
+    bg = background_window_stats(background, 7, 2.0)
+    shadow = np.clip(0.5 * background + rng.normal(0, 2, background.shape), 0, 255).astype(np.uint8)
+    other = rng.integers(0, 256, background.shape).astype(np.uint8)
+    ncc_shadow, ratio_shadow = local_ncc(shadow, bg)
+    ncc_other, _ = local_ncc(other, bg)
+    assert np.median(ncc_shadow) > 0.95 and abs(np.median(ncc_other)) < 0.3
+    assert abs(np.median(ratio_shadow) - 0.5) < 0.05
