@@ -19,11 +19,11 @@ def evaluate(
     n_test: Optional[int] = typer.Option(None, help="Use the first N test examples (default: all)."),
     seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
     experiments: str = typer.Option("E1,E2,E3,E4,E5", help="Comma-separated subset of E1..E5."),
-    jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1.5)."),
-    patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 6)."),
+    jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1)."),
+    patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 4)."),
     n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 3)."),
     patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 16)."),
-    quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 4px, patches 12px, mask strong)."),
+    quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 2px, patches 8px, mask strong)."),
 ) -> None:
     """Run experiments E1-E5 of the paper (section 6) and write reports/<name>/: summary.md, results.parquet,
     headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first."""
@@ -54,7 +54,7 @@ def evaluate(
         raise typer.BadParameter(str(exc)) from None
     sweep = DEFAULT_SWEEP
     if quick_sweep:
-        sweep = tuple(s for s in DEFAULT_SWEEP if s.label in ("clean", "jitter 4px", "patches 12px", "mask strong"))
+        sweep = tuple(s for s in DEFAULT_SWEEP if s.label in ("clean", "jitter 2px", "patches 8px", "mask strong"))
     config = EvalConfig(n_test=n_test, seed=seed, noise=noise, sweep=sweep, experiments=exps)
 
     with Progress(TextColumn("[bold]{task.description:<42}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),

@@ -40,11 +40,11 @@ __all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "view_subset
 #: E3: the noise settings swept by default (magnitudes in px; see silpose.eval.noise).
 DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
     NoiseSpec(label="clean"),
-    *(NoiseSpec(label=f"jitter {m:g}px", jitter_px=m) for m in (1.0, 2.0, 4.0, 8.0)),
-    *(NoiseSpec(label=f"patches {d:g}px", n_patches=3, patch_length=16, patch_depth_px=d) for d in (3.0, 6.0, 12.0, 24.0)),
+    *(NoiseSpec(label=f"jitter {m:g}px", jitter_px=m) for m in (0.5, 1.0, 2.0, 4.0)),
+    *(NoiseSpec(label=f"patches {d:g}px", n_patches=3, patch_length=16, patch_depth_px=d) for d in (2.0, 4.0, 8.0, 16.0)),
     STANDARD_NOISE,
-    NoiseSpec(label="mask mild", mask_holes=2, mask_hole_radius_px=4, mask_blobs=2, mask_blob_radius_px=4, mask_shadow_px=12),
-    NoiseSpec(label="mask strong", mask_holes=4, mask_hole_radius_px=7, mask_blobs=4, mask_blob_radius_px=7, mask_shadow_px=30),
+    NoiseSpec(label="mask mild", mask_holes=2, mask_hole_radius_px=3, mask_blobs=2, mask_blob_radius_px=3, mask_shadow_px=10),
+    NoiseSpec(label="mask strong", mask_holes=4, mask_hole_radius_px=5, mask_blobs=4, mask_blob_radius_px=5, mask_shadow_px=20),
 )
 
 Progress = Callable[[str, int, int], None]  # (task description, completed, total)
@@ -103,6 +103,7 @@ class EvalData:
         test_ids: (N,) sample ids; test_joints: (N, 19, 3) metres; test_contours: (N, K, n, 2)
             clean px; test_centroid (N, K, 2), test_scale (N, K): their normalisation factors;
             test_masks: (N, K, H, W) uint8 or None.
+        test_length, test_area: (N, K) contour length and silhouette area, px (None if not stored).
         image_size: (K, 2) (height, width) px per view.
     """
 
@@ -116,6 +117,8 @@ class EvalData:
     image_size: np.ndarray
     test_masks: np.ndarray | None = None
     rig: object = None
+    test_length: np.ndarray | None = None
+    test_area: np.ndarray | None = None
 
     @property
     def n_views(self) -> int:
@@ -143,6 +146,8 @@ class EvalData:
             image_size=sizes,
             test_masks=None if test.masks is None else test.masks[:n],
             rig=test.rig,
+            test_length=None if "contour_length" not in test.extra else np.asarray(test.extra["contour_length"][:n]),
+            test_area=None if "area" not in test.extra else np.asarray(test.extra["area"][:n]),
         )
 
 

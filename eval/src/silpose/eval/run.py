@@ -95,7 +95,7 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
     import pyarrow.parquet as pq
 
     from . import figures, plots
-    from .report import headline, markdown_summary
+    from .report import _pct_per_px, headline, markdown_summary
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -118,7 +118,8 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
             if sid is not None:
                 written[stem] = figures.example_figure(ev, sid, views, out / f"{stem}.png",
                                                        caption + " — example nearest the median pose error")
-    head = _jsonable({**headline(df), "settings": settings, "timings_s": ev.timings})
+    head = _jsonable({**headline(df), "chamfer_pct_per_px": _pct_per_px(settings), "settings": settings,
+                      "timings_s": ev.timings})
     _atomic_write(out / "headline.json", json.dumps(head, indent=2).encode())
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
@@ -162,6 +163,8 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "training_subset": train_note,
         "n_test": int(len(data.test_ids)),
         "n_views": data.n_views,
+        "test_contour_length_px_mean": None if data.test_length is None else float(np.mean(data.test_length)),
+        "test_area_px_mean": None if data.test_area is None else float(np.mean(data.test_area)),
         "config": config.to_dict(),
         "chamfer_canvas_margin_px": __import__("silpose.eval.metrics", fromlist=["x"]).CANVAS_MARGIN_PX,
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
