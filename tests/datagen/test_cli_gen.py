@@ -164,3 +164,16 @@ def test_sigkill_then_resume_equals_an_uninterrupted_run(tmp_path):
     assert "height px" in r.stdout and "contour length px" in r.stdout and "area px" in r.stdout
     assert (out / "README.md").is_file() and (out / "preview.png").is_file()
     assert "![" in (out / "README.md").read_text()
+
+
+def test_driver_modules_never_import_blender():
+    code = (
+        "import sys\n"
+        "import silpose.datagen.cli, silpose.datagen.pipeline, silpose.datagen.executor, silpose.datagen.validate\n"
+        "import silpose.datagen.card, silpose.datagen.preview, silpose.datagen.config, silpose.shared.dataset\n"
+        "assert 'bpy' not in sys.modules, 'bpy imported'\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    r = silpose("gen", "--help")
+    assert r.returncode == 0 and "--executor" in r.stdout and "--workers" in r.stdout

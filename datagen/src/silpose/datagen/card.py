@@ -79,6 +79,20 @@ def _distribution_section(split: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _gait_section() -> str:
+    try:
+        from .walk import GAIT_FIELDS, GAIT_RANGES
+    except Exception as exc:  # the card must still be written
+        return f"(documented gait distribution unavailable: {exc})\n"
+    rows = ["| field | distribution | low | high |", "|---|---|---|---|"]
+    for k in GAIT_FIELDS:
+        lo, hi = GAIT_RANGES[k]
+        rows.append(f"| {k} | uniform | {lo:.4g} | {hi:.4g} |")
+    rows.append("\nSame for both splits; angles in radians, x and y in metres. A draw whose person is not fully "
+                "inside every image is redrawn (counted in `redraws`), so the kept positions are not exactly uniform.")
+    return "\n".join(rows) + "\n"
+
+
 def _measured_table(values: dict[str, np.ndarray]) -> str:
     rows = ["| field | mean | std | min | max |", "|---|---|---|---|---|"]
     for k, v in values.items():
@@ -160,6 +174,7 @@ def write_card(root: str | Path) -> Path:
         "World->camera `x ~ K (R X + t)` (OpenCV axes); K, R, t of every camera are in the metadata.\n",
         _rig_table(meta), "",
         "## Subjects and gait\n",
+        "### documented gait distribution (both splits)\n", _gait_section(),
     ]
     for s in splits:
         parts += [f"### {s}: documented subject distribution\n", _distribution_section(s),

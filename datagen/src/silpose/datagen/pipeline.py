@@ -112,7 +112,7 @@ def generate(
     Args:
         config: a validated config (``load_config``).
         out: dataset folder (created).
-        workers: worker processes (default: all cores).
+        workers: worker processes (default: all cores; with Ray, the CPUs of the running cluster).
         executor: ``"local"`` (spawn pool) or ``"ray"``.
         render: ``"module:function"`` with the signature of ``worker.render_samples``.
         progress: show a rich progress bar (samples/s) on stderr.
@@ -122,7 +122,8 @@ def generate(
         raise GenerationError(f"executor: must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     out = Path(out)
     prepare_folder(out)
-    workers = workers or default_workers()
+    if executor == "local":
+        workers = workers or default_workers()
     with FolderLock(out):
         _remove_temporaries(out)
         metadata = dataset_metadata(config)
