@@ -158,3 +158,58 @@ def test_input_validation(fitted):
         ShapeStructureModel(1, 2, views=(5,)).fit(c, test.joints)
     with pytest.raises(ValueError, match="NaN"):
         ShapeStructureModel(1, 2).fit(bad, test.joints)
+
+
+def test_fused_posterior_equals_the_conditional_module(fitted):
+    """posterior.PatternPosterior against silpose.model.conditional (another implementation of the same maths)."""
+    from silpose.model.conditional import condition
+    from silpose.model.posterior import PatternPosterior
+
+    model, _, test = fitted
+    lay, mix = model.layout_, model.mixture_
+    norm, _, _ = normalise(test.contours.astype(np.float64))
+    observed = lay.observed_mask([True, False, True])
+    x_obs = norm.reshape(80, -1)[:, observed[: lay.contour_dim]]
+    det = np.arange(lay.structure_slice.start, lay.structure_slice.stop)
+    post = PatternPosterior(mix.weights_, mix.means_, mix.components_, mix.noise_variance_, observed, 3e-3, det)
+    mean, best, var, resp, logm = post(x_obs)
+    ref = condition(mix, x_obs, observed, noise_variance=3e-3)
+    miss = np.flatnonzero(~observed)
+    np.testing.assert_allclose(mean[:, miss], ref.mean, rtol=1e-8, atol=1e-10)
+    struct = np.searchsorted(miss, det)
+    np.testing.assert_allclose(best, ref.best_mean[:, struct], rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(var, ref.variance[:, struct], rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(resp, ref.responsibilities, atol=1e-9)
+    np.testing.assert_allclose(logm, ref.log_marginal, rtol=1e-10)
+
+
+def test_fast_normalisation_equals_shared_contours():
+    from silpose.model.shape_model import denormalise_contours, normalise_contours
+    from silpose.shared.contours import denormalise
+
+    rng = np.random.default_rng(0)
+    pts = rng.normal(50, 20, size=(3, 2, 9, 2))
+    pts[1, 1] = 7.0  # a degenerate contour: all points equal
+    q, c, s = normalise_contours(pts)
+    q_ref, c_ref, s_ref = normalise(pts)
+    np.testing.assert_allclose(q, q_ref, atol=1e-13)
+    np.testing.assert_allclose(c, c_ref, atol=1e-12)
+    np.testing.assert_allclose(s, s_ref, atol=1e-12)
+    assert s[1, 1] == 0 and np.all(q[1, 1] == 0)
+    np.testing.assert_allclose(denormalise_contours(q, c, s), denormalise(q_ref, c_ref, s_ref), atol=1e-12)
+
+
+@pytest.mark.slow
+def test_paper_size_inference_matches_dense_conditioning():
+    """d = 1657, q = 30, M = 5: the fused posterior agrees with dense conditioning (bench_infer's reference)."""
+    from silpose.model.bench_infer import dense_reference, paper_size_model, sample_frames
+
+    model = paper_size_model()
+    contours = sample_frames(model, 300)
+    res = model.infer(contours)
+    observed = model.layout_.observed_mask(np.ones(4, bool))
+    _, dense = dense_reference(model, observed)
+    norm, _, _ = normalise(contours)
+    full = np.zeros((300, model.layout_.dim))
+    full[:, ~observed] = dense(norm.reshape(300, -1))
+    np.testing.assert_allclose(res.joints, model.layout_.split(full)[1], rtol=1e-7, atol=1e-10)
