@@ -155,3 +155,13 @@ def test_brightening_is_not_a_shadow():
     assert model.segment(to8(bright))[truth].mean() > 0.9  # brightened: kept as foreground
     lenient = BackgroundModel(largest_blob=False, shadow_ratio=(0.25, 2.0)).fit(background)
     assert lenient.segment(to8(bright))[truth].mean() < 0.1
+
+
+@pytest.mark.parametrize("size", [3, 5, 7, 9])
+def test_majority_median_equals_cv2_median_blur(size):
+    from silpose.segment.cleanup import median
+
+    rng = np.random.default_rng(size)
+    for density in (0.2, 0.5, 0.8):
+        mask = np.where(rng.random((31, 45)) < density, 255, 0).astype(np.uint8)
+        np.testing.assert_array_equal(median(mask, size), cv2.medianBlur(mask, size))

@@ -54,6 +54,7 @@ def test_box_filter_ncc_equals_bruteforce(window, use_support):
     assert ncc.shape == (h, w) and ncc.dtype == np.float32
     np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
     defined = np.isfinite(ref_ratio)
+    np.testing.assert_array_equal(np.isnan(ratio), np.isnan(ref_ratio))
     np.testing.assert_allclose(ratio[defined], ref_ratio[defined], rtol=1e-4)
     # The test is not vacuous: both high correlations (shadow) and zeros (flat/undefined) occur.
     assert (ref_ncc > 0.9).sum() > 10 and (ref_ncc == 0).sum() > 5
@@ -69,3 +70,24 @@ def test_shadow_like_change_correlates_and_unrelated_change_does_not():
     ncc_other, _ = local_ncc(other, bg)
     assert np.median(ncc_shadow) > 0.95 and abs(np.median(ncc_other)) < 0.3
     assert abs(np.median(ratio_shadow) - 0.5) < 0.05
+
+
+def test_candidate_support_far_from_the_image_border_and_at_it():
+    """The cropped computation (bounding box of qualifying windows) equals the brute force wherever
+    the support sits: in the interior, touching each border, or absent."""
+    rng = np.random.default_rng(11)
+    h, w, window = 30, 34, 5
+    background = rng.uniform(20, 230, (h, w))
+    frame = np.clip(np.rint(0.6 * background + rng.normal(0, 4, (h, w))), 0, 255).astype(np.uint8)
+    bg = background_window_stats(background, window, 1.0)
+    for region in [(slice(10, 18), slice(12, 20)), (slice(0, 6), slice(0, 9)), (slice(24, 30), slice(27, 34)), None]:
+        support = rng.random((h, w)) < 0.02  # sparse specks: (almost surely) never enough support
+        if region is not None:
+            support[region] = rng.random(support[region].shape) < 0.9
+        ncc, ratio = local_ncc(frame, bg, support, 0.3)
+        ref_ncc, ref_ratio = _bruteforce(frame, background, window, support, 0.3, 1.0)
+        np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
+        np.testing.assert_array_equal(np.isnan(ratio), np.isnan(ref_ratio))
+        ok = np.isfinite(ref_ratio)
+        np.testing.assert_allclose(ratio[ok], ref_ratio[ok], rtol=1e-4)
+        assert (region is None) == (not ok.any())

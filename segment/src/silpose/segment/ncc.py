@@ -13,7 +13,10 @@ candidate pixel": the means are then taken over the candidate pixels of the wind
 edge, where a full window mixes lit and shadowed background (two gains, low NCC) but the
 candidates inside it all lie in the shadow (one gain, high NCC). Both variants are plain
 ``cv2.boxFilter`` calls (normalised, ``BORDER_REFLECT_101``): 3 per frame over full windows
-(the background terms are computed once, :class:`BackgroundWindowStats`), 6 over candidates.
+(the background terms are computed once, :class:`BackgroundWindowStats`); over candidates, one
+integer count of candidates per window, then 5 float filters restricted to the bounding box of
+the pixels whose window holds enough candidates (cropped with the window's reach, so the values
+equal those of full-image filtering).
 
 NCC is set to 0 (never a shadow) where it means nothing: fewer than ``min_support`` of the
 window's pixels are candidates, the background is flatter than ``min_texture`` graylevels
@@ -90,32 +93,66 @@ def local_ncc(
     -------
     ncc : array (H, W) float32 in [-1, 1]; 0 where undefined (see module docstring)
     ratio : array (H, W) float32, ``E[f] / E[b]`` over the same support (local brightness ratio;
-        inf or nan where ``E[b] = 0``)
+        inf or nan where ``E[b] = 0``, nan where the support is too small)
     """
-    f = np.asarray(frame, np.float32) - _CENTER
     w = bg.window
     if support is None:
-        mf = box(f, w)
-        var_f = box(f * f, w) - mf * mf
-        cov = box(f * bg.b, w) - mf * bg.mean
-        mb, var_b = bg.mean, bg.var
-        enough = True
-    else:
-        c = support.astype(np.float32)
-        frac = box(c, w)
-        enough = frac >= max(float(min_support), 0.5 / (w * w))  # at least one pixel
-        inv = np.zeros_like(frac)
-        np.divide(1.0, frac, out=inv, where=enough)
-        cf = c * f
-        mf = box(cf, w) * inv
-        mb = box(c * bg.b, w) * inv
-        var_f = box(cf * f, w) * inv - mf * mf
-        var_b = box(c * bg.bb, w) * inv - mb * mb
-        cov = box(cf * bg.b, w) * inv - mf * mb
+        f = np.asarray(frame, np.float32) - _CENTER
+        return _ncc_full_window(f, bg)
+    import cv2
+
+    h, wd = support.shape
+    # Candidates per window, counted exactly in integers; the NCC is defined where the count
+    # reaches min_support of the window. Only the bounding box of those pixels (plus the
+    # window's reach) is filtered further: isolated noise candidates never qualify.
+    need = max(1, int(np.ceil(float(min_support) * w * w - 1e-9)))
+    count = cv2.boxFilter(np.ascontiguousarray(support, bool).view(np.uint8), cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
+    enough = count >= need
+    ncc = np.zeros((h, wd), np.float32)
+    ratio = np.full((h, wd), np.nan, np.float32)
+    rows, cols = np.flatnonzero(enough.any(axis=1)), np.flatnonzero(enough.any(axis=0))
+    if rows.size == 0:
+        return ncc, ratio
+    r = w // 2
+    y0, y1 = max(rows[0] - r, 0), min(rows[-1] + r + 1, h)  # input crop: the box's reach
+    x0, x1 = max(cols[0] - r, 0), min(cols[-1] + r + 1, wd)
+    oy, ox = slice(rows[0] - y0, rows[-1] + 1 - y0), slice(cols[0] - x0, cols[-1] + 1 - x0)  # output, in crop
+    f = np.asarray(frame[y0:y1, x0:x1], np.float32) - _CENTER
+    c = support[y0:y1, x0:x1].astype(np.float32)
+    b, bb = bg.b[y0:y1, x0:x1], bg.bb[y0:y1, x0:x1]
+    ok_support = enough[y0:y1, x0:x1][oy, ox]
+    inv = np.zeros(ok_support.shape, np.float32)
+    np.divide(np.float32(w * w), count[y0:y1, x0:x1][oy, ox], out=inv, where=ok_support)  # 1 / E_W[c]
+    cf = c * f
+    mf = box(cf, w)[oy, ox] * inv
+    mb = box(c * b, w)[oy, ox] * inv
+    var_f = box(cf * f, w)[oy, ox] * inv - mf * mf
+    var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
+    cov = box(cf * b, w)[oy, ox] * inv - mf * mb
+    sub_ncc, sub_ratio = _finish(mf, mb, var_f, var_b, cov, ok_support, bg.min_texture)
+    ncc[y0:y1, x0:x1][oy, ox] = sub_ncc
+    ratio[y0:y1, x0:x1][oy, ox] = np.where(ok_support, sub_ratio, np.nan)
+    return ncc, ratio
+
+
+def _ncc_full_window(f: np.ndarray, bg: BackgroundWindowStats) -> tuple[np.ndarray, np.ndarray]:
+    """NCC and brightness ratio over full windows; f is the centred frame (H, W) float32."""
+    w = bg.window
+    mf = box(f, w)
+    var_f = box(f * f, w) - mf * mf
+    cov = box(f * bg.b, w) - mf * bg.mean
+    return _finish(mf, bg.mean, var_f, bg.var, cov, True, bg.min_texture)
+
+
+def _finish(mf, mb, var_f, var_b, cov, ok, min_texture: float) -> tuple[np.ndarray, np.ndarray]:
+    """NCC = cov / sqrt(var_f var_b) where defined (else 0), and ratio (E[f] + 128) / (E[b] + 128).
+
+    All arrays (h, w) float32 (means centred by -128); ok: bool array or True.
+    """
     var_b = np.maximum(var_b, 0.0)
     var_f = np.maximum(var_f, 0.0)
-    ok = enough & (var_b >= np.float32(max(bg.min_texture, 1e-3)) ** 2) & (var_f > _FLAT_FRAME_VAR)
-    ncc = np.zeros_like(f)
+    ok = ok & (var_b >= np.float32(max(min_texture, 1e-3)) ** 2) & (var_f > _FLAT_FRAME_VAR)
+    ncc = np.zeros(np.shape(mf), np.float32)
     np.divide(cov, np.sqrt(var_f * var_b), out=ncc, where=ok)
     np.clip(ncc, -1.0, 1.0, out=ncc)
     with np.errstate(divide="ignore", invalid="ignore"):
