@@ -9,7 +9,6 @@ and checks every file it reads, naming the file and the field in its errors.
 from __future__ import annotations
 
 import json
-import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,20 +18,18 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .camera import Rig, RigError
+from .camera import Rig
 from .dataset_schema import (
     ALL_COLUMNS,
-    KNOWN_VERSIONS,
+    DatasetError,
+    check_metadata,
     METADATA_KEY,
-    REQUIRED_METADATA,
     SCALAR_COLUMNS,
-    TENSOR_COLUMNS,
-    TENSOR_DTYPES,
     build_metadata,
-    build_schema,
     per_view_fields,
 )
-from .skeleton import JOINT_NAMES, N_JOINTS
+from .dataset_writer import records_to_table, write_shard
+from .skeleton import N_JOINTS
 
 __all__ = [
     "DatasetError",
@@ -43,6 +40,7 @@ __all__ = [
     "load_split",
     "read_metadata",
     "read_shard",
+    "records_to_table",
     "shard_name",
     "write_shard",
 ]
@@ -54,96 +52,9 @@ DEFAULT_COLUMNS = tuple(c for c in ALL_COLUMNS if c != "masks")
 FINITE_COLUMNS = ("joints", "contours", "contour_centroid", "contour_scale", "contour_length")
 
 
-class DatasetError(ValueError):
-    """A dataset file or record is malformed; the message names the file and the field."""
-
-
 def shard_name(split: str, i: int, n: int) -> str:
     """``{split}-{i:05d}-of-{n:05d}.parquet``."""
     return f"{split}-{i:05d}-of-{n:05d}.parquet"
-
-
-# ----------------------------------------------------------------------------- writing
-
-
-def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
-    """Write ``records`` as one Parquet shard (zstd), atomically: temporary name, then ``os.replace``.
-
-    Args:
-        path: the shard's final path.
-        records: dicts with the keys of the schema (see ``dataset_schema``); per record
-            ``joints`` (19, 3) metres, ``masks`` (K, H, W) uint8 0/1, ``contours`` (K, n, 2) px,
-            ``contour_centroid`` (K, 2) px, ``contour_scale`` (K,) px, ``contour_length`` (K,) px,
-            ``area`` (K,), ``n_blobs`` (K,), ``touches_border`` (K,) bool, ``subject`` / ``gait``
-            dicts of floats with the same keys in every record.
-        metadata: the ``silpose`` document (``build_metadata``); K, H, W and n come from it.
-    """
-    path = Path(path)
-    _check_metadata(metadata, str(path))
-    if not records:
-        raise DatasetError(f"{path}: no records to write")
-    table = records_to_table(records, metadata, source=str(path))
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records))
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def records_to_table(records: list[dict], metadata: dict, source: str = "records") -> pa.Table:
-    """Arrow table of ``records`` (see ``write_shard``), shapes checked against ``metadata``."""
-    cams = metadata["cameras"]
-    K, H, W, n = len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"])
-    subject_fields = list(records[0].get("subject", {}))
-    gait_fields = list(records[0].get("gait", {}))
-    schema = build_schema(metadata, subject_fields, gait_fields)
-    types = per_view_fields(K, H, W, n)
-    shapes = {name: tuple(typ.shape) for name, typ in types.items() if name != "touches_border"}
-    shapes["touches_border"] = (K,)
-    arrays = {}
-    for col, typ in SCALAR_COLUMNS.items():
-        values = [_field(r, col, source, i) for i, r in enumerate(records)]
-        arrays[col] = pa.array(values, type=typ)
-    for col, names in (("subject", subject_fields), ("gait", gait_fields)):
-        cols = {}
-        for name in names:
-            vals = np.empty(len(records), np.float32)
-            for i, r in enumerate(records):
-                d = _field(r, col, source, i)
-                if list(d) != names:
-                    raise DatasetError(f"{source}: record {i} field {col}: keys {list(d)} differ from {names}")
-                vals[i] = d[name]
-            cols[name] = pa.array(vals)
-        arrays[col] = pa.StructArray.from_arrays(list(cols.values()), names=names) if names else pa.array(
-            [{}] * len(records), type=pa.struct([])
-        )
-    for col in TENSOR_COLUMNS + ("touches_border",):
-        dtype = bool if col == "touches_border" else TENSOR_DTYPES[col]
-        stacked = np.empty((len(records),) + shapes[col], dtype=dtype)
-        for i, r in enumerate(records):
-            value = np.asarray(_field(r, col, source, i))
-            if value.shape != shapes[col]:
-                raise DatasetError(f"{source}: record {i} field {col}: expected shape {shapes[col]}, got {value.shape}")
-            stacked[i] = value
-        if col in ("joints", "contours", "contour_centroid", "contour_scale") and not np.all(np.isfinite(stacked)):
-            bad = int(np.flatnonzero(~np.isfinite(stacked.reshape(len(records), -1)).all(1))[0])
-            raise DatasetError(f"{source}: record {bad} field {col}: contains NaN or infinity")
-        if col == "touches_border":
-            arrays[col] = pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), K)
-        else:
-            arrays[col] = pa.ExtensionArray.from_storage(
-                types[col], pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), int(np.prod(shapes[col])))
-            )
-    return pa.Table.from_arrays([arrays[f.name] for f in schema], schema=schema)
-
-
-def _field(record: dict, name: str, source: str, i: int):
-    try:
-        return record[name]
-    except KeyError:
-        raise DatasetError(f"{source}: record {i} lacks field {name}") from None
 
 
 # ----------------------------------------------------------------------------- reading
@@ -235,29 +146,8 @@ def _metadata_from_schema(schema: pa.Schema, source: str) -> dict:
         meta = json.loads(raw)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{source}: schema metadata key 'silpose' is not valid JSON ({exc})") from None
-    _check_metadata(meta, source)
+    check_metadata(meta, source)
     return meta
-
-
-def _check_metadata(meta: dict, source: str) -> None:
-    if not isinstance(meta, dict):
-        raise DatasetError(f"{source}: metadata 'silpose' must be a JSON object")
-    for key in REQUIRED_METADATA:
-        if key not in meta:
-            raise DatasetError(f"{source}: metadata field {key!r} missing")
-    if meta["format_version"] not in KNOWN_VERSIONS:
-        raise DatasetError(
-            f"{source}: metadata field 'format_version': unknown version {meta['format_version']!r} "
-            f"(this reader knows {list(KNOWN_VERSIONS)})"
-        )
-    if list(meta["joint_names"]) != list(JOINT_NAMES):
-        raise DatasetError(f"{source}: metadata field 'joint_names' differs from silpose's 19-joint skeleton")
-    try:
-        Rig.from_dict({"cameras": meta["cameras"]}, source=f"{source}: metadata field 'cameras'")
-    except RigError as exc:
-        raise DatasetError(str(exc)) from None
-    if not isinstance(meta["n_points"], int) or meta["n_points"] < 3:
-        raise DatasetError(f"{source}: metadata field 'n_points': expected an integer >= 3")
 
 
 def read_metadata(path: str | Path) -> dict:

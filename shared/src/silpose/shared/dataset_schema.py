@@ -39,6 +39,10 @@ KNOWN_VERSIONS = (1,)
 METADATA_KEY = b"silpose"
 GENERATOR_NAME = "silpose-datagen"
 
+class DatasetError(ValueError):
+    """A dataset file or record is malformed; the message names the file and the field."""
+
+
 #: Metadata fields a reader requires.
 REQUIRED_METADATA = (
     "format_version",
@@ -172,3 +176,27 @@ def _installed_version(dist: str) -> str:
         return version(dist)
     except PackageNotFoundError:
         return "unknown"
+
+
+def check_metadata(meta: dict, source: str) -> None:
+    """Raise DatasetError (naming ``source`` and the field) unless ``meta`` is a valid document."""
+    from .camera import Rig, RigError
+
+    if not isinstance(meta, dict):
+        raise DatasetError(f"{source}: metadata 'silpose' must be a JSON object")
+    for key in REQUIRED_METADATA:
+        if key not in meta:
+            raise DatasetError(f"{source}: metadata field {key!r} missing")
+    if meta["format_version"] not in KNOWN_VERSIONS:
+        raise DatasetError(
+            f"{source}: metadata field 'format_version': unknown version {meta['format_version']!r} "
+            f"(this reader knows {list(KNOWN_VERSIONS)})"
+        )
+    if list(meta["joint_names"]) != list(JOINT_NAMES):
+        raise DatasetError(f"{source}: metadata field 'joint_names' differs from silpose's 19-joint skeleton")
+    try:
+        Rig.from_dict({"cameras": meta["cameras"]}, source=f"{source}: metadata field 'cameras'")
+    except RigError as exc:
+        raise DatasetError(str(exc)) from None
+    if not isinstance(meta["n_points"], int) or meta["n_points"] < 3:
+        raise DatasetError(f"{source}: metadata field 'n_points': expected an integer >= 3")

@@ -1,0 +1,99 @@
+"""Write silpose dataset shards: records -> Arrow table -> Parquet (zstd), atomically."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .dataset_schema import (
+    SCALAR_COLUMNS,
+    TENSOR_COLUMNS,
+    TENSOR_DTYPES,
+    DatasetError,
+    build_schema,
+    check_metadata,
+    per_view_fields,
+)
+
+def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
+    """Write ``records`` as one Parquet shard (zstd), atomically: temporary name, then ``os.replace``.
+
+    Args:
+        path: the shard's final path.
+        records: dicts with the keys of the schema (see ``dataset_schema``); per record
+            ``joints`` (19, 3) metres, ``masks`` (K, H, W) uint8 0/1, ``contours`` (K, n, 2) px,
+            ``contour_centroid`` (K, 2) px, ``contour_scale`` (K,) px, ``contour_length`` (K,) px,
+            ``area`` (K,), ``n_blobs`` (K,), ``touches_border`` (K,) bool, ``subject`` / ``gait``
+            dicts of floats with the same keys in every record.
+        metadata: the ``silpose`` document (``build_metadata``); K, H, W and n come from it.
+    """
+    path = Path(path)
+    check_metadata(metadata, str(path))
+    if not records:
+        raise DatasetError(f"{path}: no records to write")
+    table = records_to_table(records, metadata, source=str(path))
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records))
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def records_to_table(records: list[dict], metadata: dict, source: str = "records") -> pa.Table:
+    """Arrow table of ``records`` (see ``write_shard``), shapes checked against ``metadata``."""
+    cams = metadata["cameras"]
+    K, H, W, n = len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"])
+    subject_fields = list(records[0].get("subject", {}))
+    gait_fields = list(records[0].get("gait", {}))
+    schema = build_schema(metadata, subject_fields, gait_fields)
+    types = per_view_fields(K, H, W, n)
+    shapes = {name: tuple(typ.shape) for name, typ in types.items() if name != "touches_border"}
+    shapes["touches_border"] = (K,)
+    arrays = {}
+    for col, typ in SCALAR_COLUMNS.items():
+        values = [_field(r, col, source, i) for i, r in enumerate(records)]
+        arrays[col] = pa.array(values, type=typ)
+    for col, names in (("subject", subject_fields), ("gait", gait_fields)):
+        cols = {}
+        for name in names:
+            vals = np.empty(len(records), np.float32)
+            for i, r in enumerate(records):
+                d = _field(r, col, source, i)
+                if list(d) != names:
+                    raise DatasetError(f"{source}: record {i} field {col}: keys {list(d)} differ from {names}")
+                vals[i] = d[name]
+            cols[name] = pa.array(vals)
+        arrays[col] = pa.StructArray.from_arrays(list(cols.values()), names=names) if names else pa.array(
+            [{}] * len(records), type=pa.struct([])
+        )
+    for col in TENSOR_COLUMNS + ("touches_border",):
+        dtype = bool if col == "touches_border" else TENSOR_DTYPES[col]
+        stacked = np.empty((len(records),) + shapes[col], dtype=dtype)
+        for i, r in enumerate(records):
+            value = np.asarray(_field(r, col, source, i))
+            if value.shape != shapes[col]:
+                raise DatasetError(f"{source}: record {i} field {col}: expected shape {shapes[col]}, got {value.shape}")
+            stacked[i] = value
+        if col in ("joints", "contours", "contour_centroid", "contour_scale") and not np.all(np.isfinite(stacked)):
+            bad = int(np.flatnonzero(~np.isfinite(stacked.reshape(len(records), -1)).all(1))[0])
+            raise DatasetError(f"{source}: record {bad} field {col}: contains NaN or infinity")
+        if col == "touches_border":
+            arrays[col] = pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), K)
+        else:
+            arrays[col] = pa.ExtensionArray.from_storage(
+                types[col], pa.FixedSizeListArray.from_arrays(pa.array(stacked.ravel()), int(np.prod(shapes[col])))
+            )
+    return pa.Table.from_arrays([arrays[f.name] for f in schema], schema=schema)
+
+
+def _field(record: dict, name: str, source: str, i: int):
+    try:
+        return record[name]
+    except KeyError:
+        raise DatasetError(f"{source}: record {i} lacks field {name}") from None
