@@ -71,6 +71,9 @@ class BackgroundModel:
     largest_blob : bool, default True
         Keep only the largest 8-connected blob.
 
+    Parameters are read by :meth:`fit` / :meth:`partial_fit` (sklearn convention): changing one
+    afterwards takes effect at the next fit.
+
     Attributes
     ----------
     n_frames_seen_ : int
