@@ -165,3 +165,14 @@ def test_majority_median_equals_cv2_median_blur(size):
     for density in (0.2, 0.5, 0.8):
         mask = np.where(rng.random((31, 45)) < density, 255, 0).astype(np.uint8)
         np.testing.assert_array_equal(median(mask, size), cv2.medianBlur(mask, size))
+
+
+def test_noise_correction_removes_deep_shadows_on_a_noisy_camera():
+    scene = render_scene(n_background=20, n_frames=3, size=(160, 120), seed=12, noise_std=7.0, shadow_factor=0.35)
+    kept, missed = {}, {}
+    for nc in (False, True):
+        masks = BackgroundModel(noise_correction=nc).fit(scene.background).segment_batch(scene.frames)
+        kept[nc] = (masks & scene.shadows).sum() / scene.shadows.sum()
+        missed[nc] = (~masks & scene.masks).sum()
+    assert kept[False] > 0.5 and kept[True] < 0.15
+    assert missed[True] <= 1.05 * missed[False]  # the correction does not eat the figure

@@ -6,14 +6,16 @@ import pytest
 from silpose.segment.ncc import background_window_stats, local_ncc
 
 
-def _bruteforce(frame, background, window, support, min_support, min_texture):
+def _bruteforce(frame, background, window, support, min_support, min_texture, noise_var=None):
     """Per-pixel NCC and brightness ratio in float64 with reflect-101 borders, by explicit loops.
 
-    Returns ncc (H, W) with 0 where undefined, and ratio (H, W) (nan where the support is too small).
+    Returns ncc (H, W) with 0 where undefined (noise-corrected when noise_var is given), and
+    ratio (H, W) (nan where the support is too small).
     """
     r = window // 2
     pad = lambda a: np.pad(np.asarray(a, np.float64), r, mode="reflect")  # numpy reflect == REFLECT_101
     fp, bp = pad(frame), pad(background)
+    np_ = pad(np.zeros(frame.shape) if noise_var is None else noise_var)
     cp = pad(np.ones(frame.shape) if support is None else support).astype(bool)
     h, w = frame.shape
     ncc = np.zeros((h, w))
@@ -29,12 +31,16 @@ def _bruteforce(frame, background, window, support, min_support, min_texture):
             if b.std() < min_texture or a.var() <= 1e-4:
                 continue
             ncc[y, x] = ((a - a.mean()) * (b - b.mean())).mean() / (a.std() * b.std())
+            if noise_var is not None:
+                reliability = max(1 - np_[y : y + window, x : x + window][sel].mean() / a.var(), 0.5)
+                ncc[y, x] = min(ncc[y, x] / np.sqrt(reliability), 1.0)
     return ncc, ratio
 
 
 @pytest.mark.parametrize("window", [3, 5, 7])
 @pytest.mark.parametrize("use_support", [False, True])
-def test_box_filter_ncc_equals_bruteforce(window, use_support):
+@pytest.mark.parametrize("noise", [False, True])
+def test_box_filter_ncc_equals_bruteforce(window, use_support, noise):
     rng = np.random.default_rng(window + 10 * use_support)
     h, w = 19, 23
     background = rng.uniform(20, 230, (h, w))
@@ -47,9 +53,12 @@ def test_box_filter_ncc_equals_bruteforce(window, use_support):
     support = rng.random((h, w)) < 0.6 if use_support else None
     min_support, min_texture = 0.25, 1.5
 
-    bg = background_window_stats(background, window, min_texture)
+    noise_var = rng.uniform(4, 40, (h, w)) if noise else None
+    bg = background_window_stats(background, window, min_texture, noise_var)
     ncc, ratio = local_ncc(frame, bg, support, min_support)
-    ref_ncc, ref_ratio = _bruteforce(frame, background, window, support, min_support if use_support else 0, min_texture)
+    ref_ncc, ref_ratio = _bruteforce(
+        frame, background, window, support, min_support if use_support else 0, min_texture, noise_var
+    )
 
     assert ncc.shape == (h, w) and ncc.dtype == np.float32
     np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
@@ -79,15 +88,29 @@ def test_candidate_support_far_from_the_image_border_and_at_it():
     h, w, window = 30, 34, 5
     background = rng.uniform(20, 230, (h, w))
     frame = np.clip(np.rint(0.6 * background + rng.normal(0, 4, (h, w))), 0, 255).astype(np.uint8)
-    bg = background_window_stats(background, window, 1.0)
+    bg = background_window_stats(background, window, 1.0, np.full((h, w), 9.0))
     for region in [(slice(10, 18), slice(12, 20)), (slice(0, 6), slice(0, 9)), (slice(24, 30), slice(27, 34)), None]:
         support = rng.random((h, w)) < 0.02  # sparse specks: (almost surely) never enough support
         if region is not None:
             support[region] = rng.random(support[region].shape) < 0.9
         ncc, ratio = local_ncc(frame, bg, support, 0.3)
-        ref_ncc, ref_ratio = _bruteforce(frame, background, window, support, 0.3, 1.0)
+        ref_ncc, ref_ratio = _bruteforce(frame, background, window, support, 0.3, 1.0, np.full((h, w), 9.0))
         np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
         np.testing.assert_array_equal(np.isnan(ratio), np.isnan(ref_ratio))
         ok = np.isfinite(ref_ratio)
         np.testing.assert_allclose(ratio[ok], ref_ratio[ok], rtol=1e-4)
         assert (region is None) == (not ok.any())
+
+
+def test_noise_correction_lifts_a_noisy_shadow_to_high_correlation_but_not_noise():
+    """Deep shadow (x0.3) on a noisy camera: raw NCC falls below 0.9, the corrected one does not;
+    an unrelated textured patch stays uncorrelated."""
+    rng = np.random.default_rng(4)
+    h, w, s = 60, 60, 5.0
+    background = rng.uniform(60, 200, (h, w))  # texture std ~40
+    shadow = np.clip(np.rint(0.2 * background + rng.normal(0, s, (h, w))), 0, 255).astype(np.uint8)
+    other = np.clip(np.rint(rng.uniform(30, 90, (h, w)) + rng.normal(0, s, (h, w))), 0, 255).astype(np.uint8)
+    plain = background_window_stats(background, 7, 2.0)
+    corrected = background_window_stats(background, 7, 2.0, np.full((h, w), s * s))
+    assert np.median(local_ncc(shadow, plain)[0]) < 0.9 < np.median(local_ncc(shadow, corrected)[0])
+    assert np.percentile(np.abs(local_ncc(other, corrected)[0]), 99) < 0.7

@@ -8,12 +8,15 @@
    background mean, ``|f - mean| > k_sigma * max(std, min_std)``.
 3. Shadow rejection: a candidate is a shadow when the frame correlates with the background mean
    over the candidate pixels of the ``ncc_window`` around it (local NCC > ``ncc_threshold``, see
-   :mod:`.ncc`) *and* the
-   window got darker, ``shadow_ratio[0] <= E_W[f] / E_W[b] <= shadow_ratio[1]``.
-   Extra rule (not in the paper), and why: NCC is blind to gain and offset, so it alone would
-   also call a brightened or nearly black correlated patch a "shadow"; a cast shadow only
-   attenuates the light, by a bounded factor, so the default ``(0.25, 1.0)`` admits darkening
-   to no less than a quarter of the background brightness.
+   :mod:`.ncc`) *and* the window got darker, ``shadow_ratio[0] <= E_W[f] / E_W[b] <=
+   shadow_ratio[1]``. Two additions to the paper, and why:
+   - the darkening rule: NCC is blind to gain and offset, so it alone would also call a
+     brightened or nearly black correlated patch a "shadow"; a cast shadow only attenuates the
+     light, by a bounded factor, so the default ``(0.25, 1.0)`` admits darkening to no less
+     than a quarter of the background brightness;
+   - the noise correction (``noise_correction``): camera noise caps the NCC of a deep shadow
+     below the threshold; the NCC is divided by that noise ceiling, estimated from the
+     per-pixel background variance.
 4. Median filter (``median_size``), morphological open (``open_size``) then close
    (``close_size``), and the largest 8-connected blob (``largest_blob``), see :mod:`.cleanup`.
 
@@ -64,6 +67,10 @@ class BackgroundModel:
     min_support : float, default 0.25
         With ``ncc_support="candidates"``: minimum fraction of the window that must be candidates
         for the correlation to count (fewer samples give meaningless correlations).
+    noise_correction : bool, default True
+        Divide the NCC by the ceiling that camera noise puts on it (noise variance = the
+        per-pixel background variance ``std_**2``; gain capped at sqrt(2)), see :mod:`.ncc`.
+        Without it, deep shadows on a noisy camera correlate below ``ncc_threshold`` and survive.
     median_size : int, default 5
         Odd side of the median filter in pixels; <= 1 disables it.
     open_size, close_size : int, default 3 and 7
@@ -96,6 +103,7 @@ class BackgroundModel:
         min_texture: float = 2.0,
         ncc_support: str = "candidates",
         min_support: float = 0.25,
+        noise_correction: bool = True,
         median_size: int = 5,
         open_size: int = 3,
         close_size: int = 7,
@@ -109,6 +117,7 @@ class BackgroundModel:
         self.min_texture = min_texture
         self.ncc_support = ncc_support
         self.min_support = min_support
+        self.noise_correction = noise_correction
         self.median_size = median_size
         self.open_size = open_size
         self.close_size = close_size
@@ -161,7 +170,8 @@ class BackgroundModel:
         self._thr32 = (self.k_sigma * np.maximum(self.std_, self.min_std)).astype(np.float32)
         self._bg = None
         if self.ncc_threshold is not None:
-            self._bg = background_window_stats(self.mean_, self.ncc_window, self.min_texture)
+            noise = self.std_**2 if self.noise_correction else None
+            self._bg = background_window_stats(self.mean_, self.ncc_window, self.min_texture, noise)
 
     def _check_params(self) -> None:
         def fail(name, value, rule):

@@ -18,6 +18,17 @@ integer count of candidates per window, then 5 float filters restricted to the b
 the pixels whose window holds enough candidates (cropped with the window's reach, so the values
 equal those of full-image filtering).
 
+Noise correction (optional; an addition to the paper): camera noise of variance ``s^2`` in the
+frame caps the NCC of even a perfect shadow at ``sqrt(1 - s^2 / Var f)``, which falls below a
+0.9 threshold in deep shadows on a noisy camera (little texture left, same noise). Given the
+per-pixel noise variance learnt from the background frames, the NCC is divided by that
+expected ceiling (Spearman's correction for attenuation),
+
+    NCC_c = NCC / sqrt(max(1 - E[s^2] / Var f, 1/2)),
+
+with the gain capped at sqrt(2) so windows with little signal (flat foreground) are not blown
+up. The background mean's own noise (``s^2 / N``) is neglected.
+
 NCC is set to 0 (never a shadow) where it means nothing: fewer than ``min_support`` of the
 window's pixels are candidates, the background is flatter than ``min_texture`` graylevels
 (standard deviation over the support), or the frame is flat.
@@ -32,6 +43,7 @@ import numpy as np
 # Graylevels are centred before squaring so E[x^2] - E[x]^2 in float32 loses less precision.
 _CENTER = np.float32(128.0)
 _FLAT_FRAME_VAR = np.float32(1e-4)
+_MIN_RELIABILITY = np.float32(0.5)  # caps the noise correction's gain at sqrt(2)
 
 
 @dataclass(frozen=True)
@@ -42,6 +54,8 @@ class BackgroundWindowStats:
     min_texture : graylevels; background standard deviations below it give NCC 0
     b : centred background ``b - 128``; bb : ``b * b`` (centred)
     mean : ``E_W[b - 128]``; var : ``Var_W b`` in graylevels^2 (full windows)
+    noise_var : per-pixel noise variance ``s^2`` (graylevels^2) or None (no noise correction)
+    noise_mean : ``E_W[s^2]`` (full windows) or None
     """
 
     window: int
@@ -50,6 +64,8 @@ class BackgroundWindowStats:
     bb: np.ndarray
     mean: np.ndarray
     var: np.ndarray
+    noise_var: np.ndarray | None = None
+    noise_mean: np.ndarray | None = None
 
 
 def box(img: np.ndarray, window: int) -> np.ndarray:
@@ -59,7 +75,9 @@ def box(img: np.ndarray, window: int) -> np.ndarray:
     return cv2.boxFilter(img, -1, (window, window), normalize=True, borderType=cv2.BORDER_REFLECT_101)
 
 
-def background_window_stats(background: np.ndarray, window: int, min_texture: float = 2.0) -> BackgroundWindowStats:
+def background_window_stats(
+    background: np.ndarray, window: int, min_texture: float = 2.0, noise_var: np.ndarray | None = None
+) -> BackgroundWindowStats:
     """Precompute the background terms of the local NCC.
 
     Parameters
@@ -67,12 +85,19 @@ def background_window_stats(background: np.ndarray, window: int, min_texture: fl
     background : array (H, W) float, graylevels (the per-pixel background mean)
     window : odd int >= 3, window side in pixels
     min_texture : float >= 0, graylevels
+    noise_var : array (H, W) float or None
+        Per-pixel noise variance of a frame, graylevels^2 (the background variance); enables
+        the noise correction.
     """
     b = np.asarray(background, np.float32) - _CENTER
     bb = b * b
     mean = box(b, window)
     var = box(bb, window) - mean * mean
-    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var)
+    nv = nm = None
+    if noise_var is not None:
+        nv = np.asarray(noise_var, np.float32)
+        nm = box(nv, window)
+    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var, nv, nm)
 
 
 def local_ncc(
@@ -129,7 +154,8 @@ def local_ncc(
     var_f = box(cf * f, w)[oy, ox] * inv - mf * mf
     var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
     cov = box(cf * b, w)[oy, ox] * inv - mf * mb
-    sub_ncc, sub_ratio = _finish(mf, mb, var_f, var_b, cov, ok_support, bg.min_texture)
+    noise = None if bg.noise_var is None else box(c * bg.noise_var[y0:y1, x0:x1], w)[oy, ox] * inv
+    sub_ncc, sub_ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
     ncc[y0:y1, x0:x1][oy, ox] = sub_ncc
     ratio[y0:y1, x0:x1][oy, ox] = np.where(ok_support, sub_ratio, np.nan)
     return ncc, ratio
@@ -141,19 +167,26 @@ def _ncc_full_window(f: np.ndarray, bg: BackgroundWindowStats) -> tuple[np.ndarr
     mf = box(f, w)
     var_f = box(f * f, w) - mf * mf
     cov = box(f * bg.b, w) - mf * bg.mean
-    return _finish(mf, bg.mean, var_f, bg.var, cov, True, bg.min_texture)
+    return _finish(mf, bg.mean, var_f, bg.var, cov, bg.noise_mean, True, bg.min_texture)
 
 
-def _finish(mf, mb, var_f, var_b, cov, ok, min_texture: float) -> tuple[np.ndarray, np.ndarray]:
-    """NCC = cov / sqrt(var_f var_b) where defined (else 0), and ratio (E[f] + 128) / (E[b] + 128).
+def _finish(mf, mb, var_f, var_b, cov, noise, ok, min_texture: float) -> tuple[np.ndarray, np.ndarray]:
+    """NCC = cov / sqrt(var_f var_b) where defined (else 0), noise-corrected when ``noise`` (the
+    window mean of the noise variance) is given, and ratio (E[f] + 128) / (E[b] + 128).
 
     All arrays (h, w) float32 (means centred by -128); ok: bool array or True.
     """
     var_b = np.maximum(var_b, 0.0)
     var_f = np.maximum(var_f, 0.0)
     ok = ok & (var_b >= np.float32(max(min_texture, 1e-3)) ** 2) & (var_f > _FLAT_FRAME_VAR)
+    denom = var_f * var_b
+    if noise is not None:
+        # Correction for attenuation: divide by sqrt(reliability), reliability = 1 - E[s^2] / Var f >= 1/2.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            reliability = np.maximum(1.0 - noise / var_f, _MIN_RELIABILITY)
+        denom = denom * reliability
     ncc = np.zeros(np.shape(mf), np.float32)
-    np.divide(cov, np.sqrt(var_f * var_b), out=ncc, where=ok)
+    np.divide(cov, np.sqrt(denom), out=ncc, where=ok)
     np.clip(ncc, -1.0, 1.0, out=ncc)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = (mf + _CENTER) / (mb + _CENTER)
