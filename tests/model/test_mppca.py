@@ -187,3 +187,18 @@ def test_predict_with_wrong_feature_count_raises(mixture_data):
         est.score_samples(X[:5, :-1])
     with pytest.raises(ValueError, match="NaN"):
         est.predict(np.full((2, X.shape[1]), np.nan))
+
+
+def test_fit_on_bench_data_reaches_generating_parameters_likelihood():
+    """The benchmark's synthetic data (small version): the held-out log-likelihood of the fit is
+    within the expected optimism of a k-parameter ML fit (about k / N nats per sample, the AIC
+    argument) of that of the generating parameters; the paper-scale run is
+    ``python -m silpose.model.bench_em``."""
+    from silpose.model.bench_em import synthetic_mixture
+
+    n_train = 4000
+    X, _, truth = synthetic_mixture(n_train + 1000, 60, 4, 3, seed=3, mean_scale=1.0)
+    est = MPPCA(3, 4, random_state=0).fit(X[:n_train])
+    ll_true = np.mean(np.logaddexp.reduce(_ppca.weighted_log_prob(
+        X[n_train:], truth.weights_, truth.means_, truth.components_, truth.noise_variance_), axis=1))
+    assert abs(est.score(X[n_train:]) - ll_true) < est.n_parameters() / n_train

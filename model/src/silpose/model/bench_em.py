@@ -232,6 +232,10 @@ def main(argv=None) -> None:
     else:
         rows = run_em_bench(gmm_iters=args.gmm_iters, n_init=args.n_init)
         rows += run_infer_bench()
+    import os
+
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    print(f"machine: {os.cpu_count()} cores, load average (1/5/15 min) at the end: {load}")
     print(format_table(rows))
 
 
