@@ -176,3 +176,30 @@ def test_noise_correction_removes_deep_shadows_on_a_noisy_camera():
         missed[nc] = (~masks & scene.masks).sum()
     assert kept[False] > 0.5 and kept[True] < 0.15
     assert missed[True] <= 1.05 * missed[False]  # the correction does not eat the figure
+
+
+@pytest.mark.parametrize("k_sigma, min_std", [(3.0, 2.0), (2.5, 0.0), (1.0, 7.5)])
+def test_candidates_equal_the_float_definition(k_sigma, min_std):
+    """The integer bounds used for speed give exactly |f - mean| > k_sigma * max(std, min_std)."""
+    rng = np.random.default_rng(int(k_sigma * 10))
+    background = rng.integers(0, 256, (7, 20, 30), dtype=np.uint8)
+    background[:, :5] = 255  # saturated (std 0): bounds beyond the uint8 range
+    background[:, 5:10] = 0
+    frames = rng.integers(0, 256, (4, 20, 30), dtype=np.uint8)
+    model = BackgroundModel(k_sigma=k_sigma, min_std=min_std, ncc_threshold=None).fit(background)
+    got = model.segment_batch(frames, return_stages=True)["candidates"]
+    g = background.astype(np.float64)
+    want = np.abs(frames - g.mean(axis=0)) > k_sigma * np.maximum(g.std(axis=0), min_std)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_shadow_mask_equals_thresholded_ncc_maps(scene, fitted):
+    from silpose.segment.ncc import local_ncc, shadow_mask
+
+    gray = cv2.cvtColor(scene.frames[1], cv2.COLOR_BGR2GRAY)
+    cand = fitted.segment(scene.frames[1], return_stages=True)["candidates"]
+    for support in (cand, None):
+        ncc, ratio = local_ncc(gray, fitted._bg, support, 0.25)
+        want = (ncc > 0.9) & (ratio >= 0.25) & (ratio <= 1.0)
+        np.testing.assert_array_equal(shadow_mask(gray, fitted._bg, support, 0.25, 0.9, (0.25, 1.0)), want)
+        assert want.sum() > 500

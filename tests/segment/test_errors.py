@@ -46,6 +46,8 @@ def _one_frame_then_segment():
         (lambda: _fitted(median_size=4), r"^median_size: must be an odd integer"),
         (lambda: _fitted(open_size=2.5), r"^open_size: must be an integer"),
         (lambda: _fitted(ncc_support="everything"), r"^ncc_support: must be"),
+        (lambda: _fitted(noise_correction="yes"), r"^noise_correction: must be True or False"),
+        (lambda: _fitted(largest_blob=None), r"^largest_blob: must be True or False"),
         (lambda: _fitted(min_support=2), r"^min_support: must be a number in \[0, 1\]"),
     ],
 )

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import cleanup
 from ._validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
-from .ncc import background_window_stats, local_ncc
+from .ncc import background_window_stats, shadow_mask
 
 STAGES = ("candidates", "shadow_rejected", "median", "morphology", "final")
 """Names of the masks returned with ``return_stages=True``, in pipeline order."""
@@ -166,8 +166,10 @@ class BackgroundModel:
         # Exact integer numerator: var = (N S2 - S1^2) / N^2 (no cancellation, no float drift).
         self.mean_ = self._s1 / n
         self.std_ = np.sqrt((n * self._s2 - self._s1 * self._s1) / float(n * n))
-        self._mean32 = self.mean_.astype(np.float32)
-        self._thr32 = (self.k_sigma * np.maximum(self.std_, self.min_std)).astype(np.float32)
+        thr = self.k_sigma * np.maximum(self.std_, self.min_std)
+        # Integer bounds, clipped to int16: |f - mean| > thr  <=>  f > floor(mean + thr) or f < ceil(mean - thr).
+        self._upper = np.clip(np.floor(self.mean_ + thr), -1, 256).astype(np.int16)
+        self._lower = np.clip(np.ceil(self.mean_ - thr), -1, 256).astype(np.int16)
         self._bg = None
         if self.ncc_threshold is not None:
             noise = self.std_**2 if self.noise_correction else None
@@ -196,6 +198,10 @@ class BackgroundModel:
             fail("ncc_support", self.ncc_support, 'must be "candidates" or "window"')
         if not (np.isscalar(self.min_support) and 0 <= self.min_support <= 1):
             fail("min_support", self.min_support, "must be a number in [0, 1]")
+        if not isinstance(self.noise_correction, (bool, np.bool_)):
+            fail("noise_correction", self.noise_correction, "must be True or False")
+        if not isinstance(self.largest_blob, (bool, np.bool_)):
+            fail("largest_blob", self.largest_blob, "must be True or False")
         m = self.median_size
         if not (isinstance(m, (int, np.integer)) and (m <= 1 or m % 2 == 1)):
             fail("median_size", m, "must be an odd integer (or <= 1 to disable)")
@@ -266,17 +272,16 @@ class BackgroundModel:
 
     def _segment_gray(self, gray: np.ndarray) -> dict[str, np.ndarray]:
         """Pipeline on graylevel frames (N, H, W) uint8 -> {stage: (N, H, W) bool}."""
-        # Stage 1, vectorised over the stack: |f - mean| > k sigma.
-        cand = np.abs(gray.astype(np.float32) - self._mean32) > self._thr32
+        # Stage 1, vectorised over the stack: |f - mean| > k sigma, for integer f exactly
+        # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
+        cand = (gray > self._upper) | (gray < self._lower)
         out = {k: np.empty(gray.shape, bool) for k in STAGES}
         out["candidates"][:] = cand
-        lo, hi = self.shadow_ratio
         for i in range(gray.shape[0]):
             kept = cand[i]
             if self._bg is not None and kept.any():
                 support = kept if self.ncc_support == "candidates" else None
-                ncc, ratio = local_ncc(gray[i], self._bg, support, self.min_support)
-                shadow = (ncc > self.ncc_threshold) & (ratio >= lo) & (ratio <= hi)
+                shadow = shadow_mask(gray[i], self._bg, support, self.min_support, self.ncc_threshold, self.shadow_ratio)
                 kept = kept & ~shadow
             out["shadow_rejected"][i] = kept
             m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)

@@ -120,10 +120,47 @@ def local_ncc(
     ratio : array (H, W) float32, ``E[f] / E[b]`` over the same support (local brightness ratio;
         inf or nan where ``E[b] = 0``, nan where the support is too small)
     """
+    h, w = np.shape(frame)
+    ncc = np.zeros((h, w), np.float32)
+    ratio = np.full((h, w), np.nan, np.float32)
+    region, sub_ncc, sub_ratio = _ncc_region(frame, bg, support, min_support)
+    if region is not None:
+        ncc[region], ratio[region] = sub_ncc, sub_ratio
+    return ncc, ratio
+
+
+def shadow_mask(
+    frame: np.ndarray,
+    bg: BackgroundWindowStats,
+    support: np.ndarray | None,
+    min_support: float,
+    threshold: float,
+    ratio_bounds: tuple[float, float],
+) -> np.ndarray:
+    """Pixels whose window looks like a shadow: ``NCC > threshold`` and
+    ``ratio_bounds[0] <= E[f] / E[b] <= ratio_bounds[1]`` (arguments as in :func:`local_ncc`).
+
+    Returns (H, W) bool. Same values as thresholding :func:`local_ncc`'s maps, but only the
+    region where the NCC can be defined is touched.
+    """
+    out = np.zeros(np.shape(frame), bool)
+    region, ncc, ratio = _ncc_region(frame, bg, support, min_support)
+    if region is not None:
+        out[region] = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+    return out
+
+
+def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
+    """NCC and ratio on the smallest rectangle holding every pixel with a defined NCC.
+
+    Returns (region, ncc, ratio): region a (slice, slice) of the image or None (nothing defined),
+    ncc and ratio float32 arrays of the region's shape (0 / nan where undefined inside it).
+    """
     w = bg.window
     if support is None:
         f = np.asarray(frame, np.float32) - _CENTER
-        return _ncc_full_window(f, bg)
+        ncc, ratio = _ncc_full_window(f, bg)
+        return (slice(None), slice(None)), ncc, ratio
     import cv2
 
     h, wd = support.shape
@@ -131,23 +168,23 @@ def local_ncc(
     # reaches min_support of the window. Only the bounding box of those pixels (plus the
     # window's reach) is filtered further: isolated noise candidates never qualify.
     need = max(1, int(np.ceil(float(min_support) * w * w - 1e-9)))
-    count = cv2.boxFilter(np.ascontiguousarray(support, bool).view(np.uint8), cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
+    support8 = np.ascontiguousarray(support, bool).view(np.uint8)
+    count = cv2.boxFilter(support8, cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
     enough = count >= need
-    ncc = np.zeros((h, wd), np.float32)
-    ratio = np.full((h, wd), np.nan, np.float32)
     rows, cols = np.flatnonzero(enough.any(axis=1)), np.flatnonzero(enough.any(axis=0))
     if rows.size == 0:
-        return ncc, ratio
+        return None, None, None
     r = w // 2
     y0, y1 = max(rows[0] - r, 0), min(rows[-1] + r + 1, h)  # input crop: the box's reach
     x0, x1 = max(cols[0] - r, 0), min(cols[-1] + r + 1, wd)
     oy, ox = slice(rows[0] - y0, rows[-1] + 1 - y0), slice(cols[0] - x0, cols[-1] + 1 - x0)  # output, in crop
+    region = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
     f = np.asarray(frame[y0:y1, x0:x1], np.float32) - _CENTER
     c = support[y0:y1, x0:x1].astype(np.float32)
     b, bb = bg.b[y0:y1, x0:x1], bg.bb[y0:y1, x0:x1]
-    ok_support = enough[y0:y1, x0:x1][oy, ox]
+    ok_support = enough[region]
     inv = np.zeros(ok_support.shape, np.float32)
-    np.divide(np.float32(w * w), count[y0:y1, x0:x1][oy, ox], out=inv, where=ok_support)  # 1 / E_W[c]
+    np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
     cf = c * f
     mf = box(cf, w)[oy, ox] * inv
     mb = box(c * b, w)[oy, ox] * inv
@@ -155,10 +192,9 @@ def local_ncc(
     var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
     cov = box(cf * b, w)[oy, ox] * inv - mf * mb
     noise = None if bg.noise_var is None else box(c * bg.noise_var[y0:y1, x0:x1], w)[oy, ox] * inv
-    sub_ncc, sub_ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
-    ncc[y0:y1, x0:x1][oy, ox] = sub_ncc
-    ratio[y0:y1, x0:x1][oy, ox] = np.where(ok_support, sub_ratio, np.nan)
-    return ncc, ratio
+    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
+    ratio[~ok_support] = np.nan
+    return region, ncc, ratio
 
 
 def _ncc_full_window(f: np.ndarray, bg: BackgroundWindowStats) -> tuple[np.ndarray, np.ndarray]:
