@@ -184,7 +184,7 @@ def test_fused_posterior_equals_the_conditional_module(fitted):
 
 
 def test_fast_normalisation_equals_shared_contours():
-    from silpose.model.shape_model import denormalise_contours, normalise_contours
+    from silpose.model._inputs import denormalise_contours, normalise_contours
     from silpose.shared.contours import denormalise
 
     rng = np.random.default_rng(0)
