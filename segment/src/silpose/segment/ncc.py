@@ -14,7 +14,7 @@ edge, where a full window mixes lit and shadowed background (two gains, low NCC)
 candidates inside it all lie in the shadow (one gain, high NCC). Both variants are plain
 ``cv2.boxFilter`` calls (normalised, ``BORDER_REFLECT_101``): 3 per frame over full windows
 (the background terms are computed once, :class:`BackgroundWindowStats`); over candidates, one
-integer count of candidates per window, then 5 float filters restricted to the bounding box of
+integer count of candidates per window, then 5 float filters (6 with the noise correction) restricted to the bounding box of
 the pixels whose window holds enough candidates (cropped with the window's reach, so the values
 equal those of full-image filtering).
 
@@ -27,7 +27,9 @@ expected ceiling (Spearman's correction for attenuation),
     NCC_c = NCC / sqrt(max(1 - E[s^2] / Var f, 1/2)),
 
 with the gain capped at sqrt(2) so windows with little signal (flat foreground) are not blown
-up. The background mean's own noise (``s^2 / N``) is neglected.
+up. The background mean's own noise (``s^2 / N``) is neglected; the per-pixel variance also holds
+the illumination flicker, a gain that does not lower the NCC, so ``s^2`` is a slight overestimate
+(the correction errs towards calling shadows).
 
 NCC is set to 0 (never a shadow) where it means nothing: fewer than ``min_support`` of the
 window's pixels are candidates, the background is flatter than ``min_texture`` graylevels
