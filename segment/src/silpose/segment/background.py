@@ -34,7 +34,7 @@ from .ncc import background_window_stats, shadow_mask
 STAGES = ("candidates", "shadow_rejected", "median", "morphology", "final")
 """Names of the masks returned with ``return_stages=True``, in pipeline order."""
 
-_BATCH_CHUNK = 64  # frames per vectorised chunk in segment_batch (bounds the float32 temporaries)
+_BATCH_CHUNK = 64  # frames per vectorised chunk in partial_fit / segment_batch (bounds the temporaries)
 
 
 class BackgroundModel:
@@ -153,9 +153,10 @@ class BackgroundModel:
                 f"frames: frame size {frame_size_text(gray.shape[1:])} differs from the background's "
                 f"{frame_size_text(self.frame_shape_)}"
             )
-        g = gray.astype(np.int64)
-        self._s1 += g.sum(axis=0)
-        self._s2 += np.einsum("nhw,nhw->hw", g, g)
+        for start in range(0, gray.shape[0], _BATCH_CHUNK):  # bounded int64 temporaries
+            g = gray[start : start + _BATCH_CHUNK].astype(np.int64)
+            self._s1 += g.sum(axis=0)
+            self._s2 += np.einsum("nhw,nhw->hw", g, g)
         self.n_frames_seen_ += gray.shape[0]
         if self.n_frames_seen_ >= 2:
             self._finalise()
