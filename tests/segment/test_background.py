@@ -123,6 +123,9 @@ def test_statistics_stay_exact_for_long_backgrounds():
     ref = frames.astype(np.float64)
     np.testing.assert_allclose(model.mean_, ref.mean(axis=0), rtol=1e-14)
     np.testing.assert_allclose(model.std_, ref.std(axis=0), rtol=1e-12)
+    whole = BackgroundModel().fit(frames)  # one call: accumulated internally in 64-frame sub-chunks
+    np.testing.assert_array_equal(whole.mean_, model.mean_)
+    np.testing.assert_array_equal(whole.std_, model.std_)
 
 
 def test_min_std_floor_and_k_sigma():
