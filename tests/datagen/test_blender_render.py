@@ -16,6 +16,11 @@ from silpose.shared.camera import default_rig
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
 RIG = default_rig()
+TIMEOUT_S = 300  # a worker that dies (e.g. bpy fails to import) must fail the test, not hang it
+
+
+def _call(pool, fn, *args):
+    return pool.apply_async(fn, args).get(timeout=TIMEOUT_S)
 SAMPLES = {"train": [0, 1, 2, 3], "test": [0, 1]}
 
 
@@ -62,7 +67,7 @@ def renders(pool):
     out = {}
     for renderer in ("raster", "blender"):
         cfg = _config(renderer)
-        out[renderer] = {split: pool.apply(_render, (cfg, split, idx)) for split, idx in SAMPLES.items()}
+        out[renderer] = {split: _call(pool, _render, cfg, split, idx) for split, idx in SAMPLES.items()}
     return out
 
 
@@ -141,7 +146,7 @@ def test_non_terminal_joints_project_inside_silhouettes(renders):
 @pytest.mark.blender
 def test_shard_split_does_not_change_samples(pool, renders):
     """Samples 2 and 3 rendered alone (another 'shard') equal those of the bigger shard."""
-    again = pool.apply(_render, (_config("raster"), "train", [3, 2]))
+    again = _call(pool, _render, _config("raster"), "train", [3, 2])
     ref = {r["sample_id"]: r for r in renders["raster"]["train"]}
     for r in again:
         for key in ("masks", "joints", "contours", "area"):
@@ -169,7 +174,7 @@ def test_calibration_projects_onto_blender_render(pool):
         if len(chosen) == 6:
             break
     centres = np.array(chosen)
-    alpha = pool.apply(render_sphere_targets, (RIG.to_dict(), centres, 0.05, "cycles"))
+    alpha = _call(pool, render_sphere_targets, RIG.to_dict(), centres, 0.05, "cycles")
     errs = []
     h = 7
     for k, cam in enumerate(RIG):
