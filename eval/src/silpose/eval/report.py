@@ -68,6 +68,13 @@ def e1_comparison(df) -> dict:
         "single_view_chamfer_px": stats(sv_c)["mean"],
         "multi_view_chamfer_px": stats(mv_c)["mean"],
     }
+    e2 = _sel(df, experiment="E2")
+    if not e2.empty:  # the 4-view model given the single-view models' input (view k alone): same inputs
+        one = [_sel(e2, input_views=str(k)) for k in views]
+        if all(len(g) for g in one):
+            out["multi_view_model_one_view_input_pose_cm"] = stats(np.concatenate([g["pose_cm"] for g in one]))["mean"]
+            out["multi_view_model_one_view_input_chamfer_px"] = stats(
+                np.concatenate([g[f"chamfer_v{k}"] for k, g in zip(views, one)]))["mean"]
     out["pose_improvement_pct"] = _pct_better(out["multi_view_pose_cm"], out["single_view_pose_cm"])
     out["contour_improvement_pct"] = _pct_better(out["multi_view_chamfer_px"], out["single_view_chamfer_px"])
     out["_sv_chamfer"], out["_mv_chamfer"] = sv_c, mv_c
@@ -126,10 +133,18 @@ def _e1_md(df) -> list[str]:
         rows.append([training, tv, tv, str(len(g)), _q(stats(g["pose_cm"])), _q(stats(ch)), _f(stats(g["pose_pa_cm"])["mean"])])
     rows.append(["single-view (all views pooled)", "k", "k", str(len(_sel(e1, training="single-view"))),
                  _q(stats(_sel(e1, training="single-view")["pose_cm"])), _q(stats(c["_sv_chamfer"])), ""])
+    e2 = _sel(df, experiment="E2")
+    one = [(int(k), _sel(e2, input_views=k)) for k in sorted(_sel(e1, training="single-view")["trained_views"].unique())]
+    if not e2.empty and all(len(g) for _, g in one):
+        pose = np.concatenate([g["pose_cm"] for _, g in one])
+        ch = np.concatenate([g[f"chamfer_v{k}"] for k, g in one])
+        rows.append(["multi-view, given view k only (from E2; extra)", "0123", "k", str(len(pose)), _q(stats(pose)),
+                     _q(stats(ch)), _f(np.concatenate([g["pose_pa_cm"] for _, g in one]).mean())])
     out = ["## E1 — single-view vs multi-view training (paper Fig. 5)", "",
            "Same noisy test examples for both. A single-view model k (trained on view k alone) gets the noisy contour "
            "of view k; the 4-view model gets the noisy contours of all 4 views. Contour error per view: single-view "
-           "model k in view k vs the 4-view model in view k.", "",
+           "model k in view k vs the 4-view model in view k. The extra last row gives the 4-view model exactly the "
+           "single-view models' input (view k alone), separating the effect of training from that of the input.", "",
            _table(["training", "trained views", "input views", "n", *[f"pose {h} (cm)" for h in _QH],
                    *[f"Chamfer {h} (px)" for h in _QH], "PA pose mean (cm, extra)"], rows), "",
            _table(["multi-view improvement", "ours", "paper"], [
