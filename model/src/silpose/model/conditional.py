@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 4096
@@ -49,6 +48,14 @@ class ConditionalResult:
     missing: np.ndarray
     cov: np.ndarray | None = None
     component_cov: np.ndarray | None = None
+
+
+def _logsumexp_rows(a: np.ndarray) -> np.ndarray:
+    """log sum_j exp(a_ij) per row of a (N, M) (rows of -inf give -inf)."""
+    mx = np.max(a, axis=1, keepdims=True)
+    mx = np.where(np.isfinite(mx), mx, 0.0)
+    with np.errstate(divide="ignore"):
+        return np.log(np.sum(np.exp(a - mx), axis=1)) + mx[:, 0]
 
 
 def _params(model):
@@ -113,36 +120,40 @@ class Conditioner:
         with np.errstate(divide="ignore"):
             self.log_w = np.log(w)
         self.s2 = s2
-        self.mu_a = mu[:, self.obs]
-        self.mu_b = mu[:, self.miss]
-        self.W_b = W[:, self.miss, :]
-        # Per component: G = D^-1 W_a (d_obs, q), K = I + W_a^T D^-1 W_a (Woodbury, module doc),
-        # H = K^-1 W_b^T (q, d_miss) so that E[b | a, i] = mu_b + (e^T G) H.
-        self.G, self.Kinv, self.H, self.invD = [], [], [], []
-        self.logdet = np.empty(m)
-        self.V = []  # V = W_b L^-T, so that W_b K^-1 W_b^T = V V^T
-        for i in range(m):
-            Wa = W[i][self.obs]
-            invD = 1.0 / (s2[i] + noise)
-            G = Wa * invD[:, None]
-            L = np.linalg.cholesky(np.eye(q) + Wa.T @ G)
-            Linv = np.linalg.inv(L)
-            Kinv = Linv.T @ Linv
-            self.G.append(G)
-            self.invD.append(invD)
-            self.Kinv.append(Kinv)
-            self.H.append(Kinv @ self.W_b[i].T)
-            self.V.append(self.W_b[i] @ Linv.T)
-            self.logdet[i] = -np.sum(np.log(invD)) + 2.0 * np.sum(np.log(np.diag(L)))
+        self.scalar_noise = bool(np.all(noise == noise[:1])) if noise.size else True
+        # Observations are centred on the mixture mean of the observed dims, so that the expanded
+        # quadratic forms below keep their precision.
+        mu_a = mu[:, self.obs]
+        self.ref = w @ mu_a
+        mu_c = mu_a - self.ref  # (M, d_obs)
+        self.mu_b = mu[:, self.miss]  # (M, d_miss)
+        Wa, Wb = W[:, self.obs, :], W[:, self.miss, :]
+        self.invD = 1.0 / (s2[:, None] + noise[None, :])  # (M, d_obs) D_i^-1 diagonal
+        G = Wa * self.invD[:, :, None]  # D^-1 W_a  (M, d_obs, q)
+        L = np.linalg.cholesky(np.eye(q) + np.matmul(Wa.transpose(0, 2, 1), G))  # K = I + W_a^T D^-1 W_a
+        Linv = np.linalg.inv(L)
+        self.Kinv = np.matmul(Linv.transpose(0, 2, 1), Linv)  # (M, q, q)
+        self.H = np.matmul(self.Kinv, Wb.transpose(0, 2, 1))  # K^-1 W_b^T  (M, q, d_miss)
+        self.V = np.matmul(Wb, Linv.transpose(0, 2, 1))  # W_b L^-T: W_b K^-1 W_b^T = V V^T
+        self.logdet = -np.log(self.invD).sum(axis=1) + 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+        # One product per batch: x_c [G_1 .. G_M  (mu_c,i * D_i^-1)_i]  (d_obs, M q + M)
+        self.B = np.concatenate([G.transpose(1, 0, 2).reshape(self.obs.size, m * q), (mu_c * self.invD).T], axis=1)
+        self.c_u = np.einsum("md,mdq->mq", mu_c, G)  # W_a^T D^-1 mu_c  (M, q)
+        self.c_quad = np.einsum("md,md->m", mu_c * self.invD, mu_c)  # mu_c^T D^-1 mu_c  (M,)
+        self.invD_scalar = self.invD[:, 0] if self.obs.size else np.zeros(m)  # used when noise is scalar
 
     def component_cov(self) -> np.ndarray:
         """Per-component posterior covariance of the missing block (M, d_miss, d_miss):
         W_b K^-1 W_b^T + sigma^2 I (independent of the observed values)."""
-        eye = np.eye(self.miss.size)
-        return np.stack([V @ V.T + s2 * eye for V, s2 in zip(self.V, self.s2)])
+        return np.matmul(self.V, self.V.transpose(0, 2, 1)) + self.s2[:, None, None] * np.eye(self.miss.size)
 
     def __call__(self, X_obs, return_cov: bool = False) -> ConditionalResult:
-        """Condition on observations X_obs (N, d_obs) (or (d_obs,) for one row)."""
+        """Condition on observations X_obs (N, d_obs) (or (d_obs,) for one row).
+
+        With e = a - mu_a = x_c - mu_c (x_c = a - ref): u = W_a^T D^-1 e = x_c^T G - c_u,
+        e^T D^-1 e = x_c^T D^-1 x_c - 2 x_c^T D^-1 mu_c + c_quad, Mahalanobis = e^T D^-1 e - u^T K^-1 u,
+        E[b | a, i] = mu_b + H^T u.
+        """
         X = np.asarray(X_obs, dtype=np.float64)
         if X.ndim == 1:
             X = X[None, :]
@@ -151,23 +162,28 @@ class Conditioner:
                              f"dim), got {np.shape(X_obs)}")
         if not np.all(np.isfinite(X)):
             raise ValueError("condition: X_obs contains NaN or inf; use condition_rows for per-row missing dims")
-        n, m, dm = X.shape[0], self.n_components, self.miss.size
+        n, m, q, dm = X.shape[0], self.n_components, self.q, self.miss.size
         logp = np.empty((n, m))
         cmeans = np.empty((n, m, dm))
-        d_obs = self.obs.size
+        const = self.log_w - 0.5 * (self.obs.size * _LOG_2PI + self.logdet)
         for sl in (slice(s, min(s + _CHUNK, n)) for s in range(0, n, _CHUNK)):
-            for i in range(m):
-                E = X[sl] - self.mu_a[i]  # (b, d_obs)
-                u = E @ self.G[i]  # W_a^T D^-1 e  (b, q)
-                t = u @ self.Kinv[i]  # x_hat = K^-1 W_a^T D^-1 e  (b, q)
-                maha = np.einsum("ij,ij->i", E * self.invD[i], E) - np.einsum("ij,ij->i", t, u)
-                logp[sl, i] = self.log_w[i] - 0.5 * (d_obs * _LOG_2PI + self.logdet[i] + maha)
-                cmeans[sl, i] = self.mu_b[i] + u @ self.H[i]
-        log_marg = logsumexp(logp, axis=1)
+            Xc = X[sl] - self.ref
+            P = Xc @ self.B
+            U = P[:, : m * q].reshape(-1, m, q) - self.c_u  # (b, M, q)
+            if self.scalar_noise:
+                quad = np.einsum("ij,ij->i", Xc, Xc)[:, None] * self.invD_scalar
+            else:
+                quad = (Xc * Xc) @ self.invD.T
+            eDe = quad - 2.0 * P[:, m * q:] + self.c_quad  # (b, M)
+            Ut = U.transpose(1, 0, 2)  # (M, b, q)
+            uKu = np.einsum("mbq,mbq->bm", np.matmul(Ut, self.Kinv), Ut)
+            logp[sl] = const - 0.5 * (eDe - uKu)
+            cmeans[sl] = (np.matmul(Ut, self.H) + self.mu_b[:, None, :]).transpose(1, 0, 2)
+        log_marg = _logsumexp_rows(logp)
         resp = np.exp(logp - log_marg[:, None])
         mean = np.einsum("nm,nmk->nk", resp, cmeans)
         best = cmeans[np.arange(n), np.argmax(resp, axis=1)]
-        comp_var = np.stack([np.einsum("ij,ij->i", V, V) + s2 for V, s2 in zip(self.V, self.s2)])  # (M, dm)
+        comp_var = np.einsum("mkq,mkq->mk", self.V, self.V) + self.s2[:, None]  # (M, d_miss)
         dev = cmeans - mean[:, None, :]
         variance = resp @ comp_var + np.einsum("nm,nmk->nk", resp, dev * dev)  # law of total variance
         cov = ccov = None
