@@ -188,3 +188,16 @@ def test_calibration_projects_onto_blender_render(pool):
             errs.append(np.linalg.norm(c - p))
     print(f"projection vs Blender render: max {max(errs):.3f} px, mean {np.mean(errs):.3f} px")
     assert max(errs) < 0.1
+
+
+@pytest.mark.blender
+def test_cycles_masks_agree_with_raster(pool, renders):
+    """The other Blender engine (Cycles, 1 sample, 0.01 px box filter) gives the same masks."""
+    cycles = _call(pool, _render, _config("blender", engine="cycles"), "train", [0, 1])
+    ious = [
+        _iou(c["masks"][k], r["masks"][k])
+        for c, r in zip(cycles, renders["raster"]["train"][:2])
+        for k in range(len(RIG))
+    ]
+    print(f"raster vs cycles IoU: min {min(ious):.4f}")
+    assert min(ious) >= 0.99

@@ -17,7 +17,9 @@ Renders are silhouettes: ``film_transparent`` and the alpha channel > 0.5 is the
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -245,6 +247,21 @@ def evaluated_mesh(body) -> tuple[np.ndarray, np.ndarray]:
     return v @ M[:3, :3].T + M[:3, 3], tris.reshape(-1, 3)
 
 
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Send file descriptor 1 to /dev/null (Blender prints a 'Saved: ...' line per render)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
 def render_masks(cameras: list, tmpdir: str | os.PathLike, threshold: float = 0.5, raw: bool = False) -> np.ndarray:
     """Render every camera with the scene's engine and read the silhouettes back.
 
@@ -264,7 +281,8 @@ def render_masks(cameras: list, tmpdir: str | os.PathLike, threshold: float = 0.
         path = Path(tmpdir) / f"{cam.name}.png"
         scene.camera = cam
         scene.render.filepath = str(path)
-        bpy.ops.render.render(write_still=True)
+        with _quiet_stdout():
+            bpy.ops.render.render(write_still=True)
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None or img.ndim != 3 or img.shape[2] != 4:
             raise RuntimeError(f"{path}: Blender did not write an RGBA render")
