@@ -209,6 +209,31 @@ def rasterize(vertices: np.ndarray, triangles: np.ndarray, camera: Camera, metho
     raise ValueError(f"method must be one of {_FILLERS}, got {method!r}")
 
 
+def project_vertices(vertices: np.ndarray, cameras, min_depth: float = 1e-6) -> np.ndarray | None:
+    """Project mesh vertices into every camera.
+
+    Args:
+        vertices: (V, 3) world metres.
+        cameras: a Rig or a list of cameras.
+        min_depth: vertices closer than this (metres, camera z) count as behind the camera.
+    Returns:
+        (K, V, 2) float64 pixels, or None when some vertex is behind some camera.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    out = []
+    for cam in cameras:
+        if np.any(cam.to_camera(vertices)[:, 2] <= min_depth):
+            return None
+        out.append(cam.project(vertices))
+    return np.stack(out)
+
+
+def rasterize_projected(uv: np.ndarray, triangles: np.ndarray, height: int, width: int) -> np.ndarray:
+    """(K, H, W) uint8 silhouettes from projected vertices ``uv`` (K, V, 2) and (T, 3) triangles."""
+    uv = np.asarray(uv, dtype=np.float64)
+    return fill_triangles_scanline(uv[:, np.asarray(triangles)], height, width)
+
+
 def rasterize_rig(vertices: np.ndarray, triangles: np.ndarray, cameras, method: str = "scanline") -> np.ndarray:
     """(K, H, W) uint8 silhouettes of one mesh in every camera of ``cameras`` (a Rig or list).
 

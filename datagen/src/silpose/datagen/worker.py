@@ -70,14 +70,14 @@ def joints_visible(
     return True
 
 
-def mesh_visible(vertices: np.ndarray, rig: Rig, margin_px: float = BORDER_MARGIN_PX) -> bool:
-    """Every posed mesh vertex (V, 3) projects at least ``margin_px`` inside every image."""
-    for cam in rig:
-        if np.any(cam.to_camera(vertices)[:, 2] <= 0.05):
-            return False
-        if not np.all(cam.in_image(cam.project(vertices), margin=margin_px)):
-            return False
-    return True
+def mesh_visible(uv: np.ndarray | None, rig: Rig, margin_px: float = BORDER_MARGIN_PX) -> bool:
+    """Every projected mesh vertex ``uv`` (K, V, 2) lies ``margin_px`` inside its image.
+
+    ``uv`` is :func:`raster.project_vertices`'s result (None: a vertex is behind a camera).
+    """
+    if uv is None:
+        return False
+    return all(np.all(cam.in_image(uv[k], margin=margin_px)) for k, cam in enumerate(rig))
 
 
 def _check_config(config: dict) -> tuple[int, str, str, Rig, int, int]:
@@ -146,8 +146,9 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
         raise ValueError(f"split must be one of {tuple(SPLIT_CODE)}, got {split!r}")
     seed, renderer, engine, rig, n_points, max_redraws = _check_config(config)
     from . import blender_scene as bs
-    from .raster import rasterize_rig
+    from .raster import project_vertices, rasterize_projected
 
+    width, height = rig.image_size
     bs.reset_factory()
     cameras = bs.setup_scene(rig, engine) if renderer == "blender" else []
     out = []
@@ -164,11 +165,12 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
                 try:
                     bs.pose_body(arm, subject, gait, root)
                     vertices, triangles = bs.evaluated_mesh(body)
-                    if not mesh_visible(vertices, rig):
+                    uv = project_vertices(vertices, rig, min_depth=0.05)
+                    if not mesh_visible(uv, rig):
                         continue
                     joints = bs.evaluated_joints(arm)
                     if renderer == "raster":
-                        masks = rasterize_rig(vertices, triangles, rig)
+                        masks = rasterize_projected(uv, triangles, height, width)
                     else:
                         masks = bs.render_masks(cameras, tmp)
                 finally:
