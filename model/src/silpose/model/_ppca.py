@@ -136,14 +136,30 @@ def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
     return counts, means, W_new, s2_new
 
 
+def _randomized_top_eigen(E: np.ndarray, k: int, rng: np.random.Generator, oversample: int = 10,
+                          n_power: int = 2):
+    """Approximate top-k eigenpairs of E^T E for E (n, d), numpy only (Halko, Martinsson & Tropp
+    2011, algorithms 4.3/4.4 with QR re-orthonormalisation). Returns (eigenvalues (k,), U (d, k))."""
+    Q, _ = np.linalg.qr(E @ rng.standard_normal((E.shape[1], k + oversample)))
+    for _ in range(n_power):
+        Q, _ = np.linalg.qr(E.T @ Q)
+        Q, _ = np.linalg.qr(E @ Q)
+    B = Q.T @ E  # (k + p, d), E ~ Q B
+    lam, V = np.linalg.eigh(B @ B.T)
+    lam, V = lam[::-1][:k], V[:, ::-1][:, :k]
+    U = B.T @ V / np.sqrt(np.clip(lam, 1e-300, None))
+    return np.clip(lam, 0.0, None), U
+
+
 def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Generator):
     """Maximum-likelihood PPCA of the rows of X (T&B 1999 PPCA paper, eqs. 7-8).
 
     X (n, d) float64 with n >= 1. Returns mean (d,), W (d, q), s2 (float) with
     s2 = (sum of the d-q smallest covariance eigenvalues)/(d-q) and W = U_q (L_q - s2 I)^(1/2)
     (the arbitrary rotation R = I). The covariance is the 1/n (maximum-likelihood) one.
-    Eigen-pairs come from the n x n Gram matrix when n < d, from the d x d scatter when d is small
-    (<= 512), else from a randomized thin SVD (approximate; used only to initialise EM).
+    Eigen-pairs come from the n x n Gram matrix when n <= d (and n <= 4096), from the d x d scatter
+    when d is small (<= 512), else from a randomized range finder (approximate; used only to
+    initialise EM).
     """
     n, d = X.shape
     mean = X.mean(axis=0)
@@ -164,12 +180,9 @@ def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Gen
         k = q
         lam_q, U = np.clip(lam[:k], 0.0, None), U[:, :k]
     else:
-        from sklearn.utils.extmath import randomized_svd
-
         k = q
-        _, sv, Vt = randomized_svd(E, q, n_oversamples=10, n_iter=2,
-                                   random_state=int(rng.integers(2**31 - 1)))
-        lam_q, U = sv**2 / n, Vt.T
+        lam_q, U = _randomized_top_eigen(E, q, rng)
+        lam_q = lam_q / n
     s2 = max((total - float(lam_q.sum())) / (d - q), var_floor)
     W = np.zeros((d, q))
     W[:, :k] = U * np.sqrt(np.clip(lam_q - s2, 0.0, None))

@@ -22,6 +22,9 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from silpose.model import _ppca
 
+_SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
+_KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
+
 
 class MPPCA(DensityMixin, BaseEstimator):
     """Mixture of probabilistic PCA, a scikit-learn density estimator.
@@ -32,25 +35,29 @@ class MPPCA(DensityMixin, BaseEstimator):
     n_latent : int, latent dimension q of every component (1 <= q < n_features).
     tol : float, EM stops when the mean log-likelihood per sample rises by less than ``tol``.
     max_iter : int, maximum EM iterations per initialisation.
-    n_init : int, number of full EM runs from different initialisations; the best final
-        log-likelihood wins.
+    n_init : int, number of initialisations. Each gets a short EM run (5 iterations); the run with
+        the best log-likelihood is continued to convergence ("em-EM", Biernacki et al. 2003). With
+        n_init = 1 the single run goes straight to convergence.
     init : {"kmeans", "random"}, hard assignment used to start each run: one k-means run
-        (sklearn ``KMeans``) or random data points as centres (nearest-centre assignment);
-        each cluster then gets its closed-form PPCA (T&B 1999 PPCA, eqs. 7-8).
+        (sklearn ``KMeans`` on at most 5000 random rows, then every row to its nearest centre) or
+        random data points as centres; each cluster then gets its closed-form PPCA (T&B 1999
+        PPCA, eqs. 7-8).
     reg_variance : float, floor on every noise variance sigma_i^2, relative to the mean
         per-feature variance of the training data.
     random_state : None, int or numpy Generator; every random draw comes from
         ``numpy.random.default_rng(random_state)``.
     callback : callable(iteration: int, lower_bound: float) or None, called after each EM
-        iteration (the CLI turns it into a progress display).
+        iteration (the CLI turns it into a progress display). With n_init > 1 the count restarts
+        at 1 for each short run, then the winning run continues from its own count.
     verbose : int, 0 silent, 1 prints one line per initialisation, 2 one per iteration.
 
     Fitted attributes
     -----------------
     weights_ (M,), means_ (M, d), components_ (M, d, q) the W matrices, noise_variance_ (M,),
-    converged_ (bool), n_iter_ (int), lower_bound_ (float, mean log-likelihood per sample of
-    the training data under the final parameters), lower_bounds_ (list of floats, the same after
-    each EM iteration of the best run, non-decreasing), n_features_in_.
+    converged_ (bool), n_iter_ (int, EM iterations of the winning run), lower_bound_ (float, mean
+    log-likelihood per sample of the training data under the final parameters), lower_bounds_
+    (list of n_iter_ floats, the same after each EM iteration of the winning run, non-decreasing),
+    n_features_in_.
     """
 
     def __init__(self, n_components=5, n_latent=10, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
@@ -103,39 +110,48 @@ class MPPCA(DensityMixin, BaseEstimator):
         Xc = X - offset  # centred copy: keeps the expanded ||x - mu||^2 of the E/M-steps precise
         data_var = float(np.einsum("ij,ij->", Xc, Xc)) / (n * d)  # mean per-feature variance
         var_floor = max(self.reg_variance * data_var if data_var > 0 else self.reg_variance, 1e-300)
-        best = None
-        for init_idx in range(self.n_init):
-            run = self._fit_one(Xc, rng, var_floor, init_idx)
-            if best is None or run["lower_bound"] > best["lower_bound"]:
-                best = run
+
+        # "em-EM" (Biernacki, Celeux & Govaert 2003, "Choosing starting values for the EM algorithm",
+        # CSDA 41): n_init short runs from different starts, the best one continued to convergence.
+        runs = [self._start(Xc, rng, var_floor) for _ in range(self.n_init)]
+        if self.n_init > 1:
+            for k, run in enumerate(runs):
+                self._iterate(Xc, run, min(_SHORT_RUN, self.max_iter), var_floor, k)
+        best = max(runs, key=lambda r: r["bounds"][-1] if r["bounds"] else -np.inf)
+        self._iterate(Xc, best, self.max_iter, var_floor, runs.index(best))
+        del runs
         self.weights_ = best["weights"]
         self.means_ = best["means"] + offset
         self.components_ = best["components"]
         self.noise_variance_ = best["noise_variance"]
         self.converged_ = best["converged"]
-        self.n_iter_ = best["n_iter"]
-        self.lower_bound_ = best["lower_bound"]
-        self.lower_bounds_ = best["lower_bounds"]
+        self.n_iter_ = len(best["bounds"])
+        self.lower_bound_ = best["bounds"][-1]
+        self.lower_bounds_ = list(best["bounds"])
         if not self.converged_:
             warnings.warn(f"MPPCA: EM did not converge in max_iter = {self.max_iter} iterations "
                           f"(tol = {self.tol}); try more iterations or a larger tol.", ConvergenceWarning)
         return self
 
     def _initial_labels(self, X, rng) -> np.ndarray:
-        m = self.n_components
+        """Hard initial assignment (N,): k-means fitted on at most _KMEANS_ROWS random rows (then
+        every row goes to its nearest centre), or nearest of M random rows for init="random"."""
+        n, m = X.shape[0], self.n_components
         if m == 1:
-            return np.zeros(X.shape[0], dtype=np.intp)
+            return np.zeros(n, dtype=np.intp)
         if self.init == "kmeans":
             from sklearn.cluster import KMeans
 
-            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1)))
-            return km.fit(X).labels_
-        centres = X[rng.choice(X.shape[0], size=m, replace=False)]
-        d2 = (np.einsum("ij,ij->i", X, X)[:, None] - 2.0 * X @ centres.T
-              + np.einsum("ij,ij->i", centres, centres)[None, :])
+            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else slice(None)
+            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X[rows])
+            centres = km.cluster_centers_
+        else:
+            centres = X[rng.choice(n, size=m, replace=False)]
+        d2 = -2.0 * X @ centres.T + np.einsum("ij,ij->i", centres, centres)[None, :]  # + ||x||^2, row constant
         return np.argmin(d2, axis=1)
 
-    def _fit_one(self, X, rng, var_floor, init_idx) -> dict:
+    def _start(self, X, rng, var_floor) -> dict:
+        """One initialisation: hard labels, closed-form PPCA per cluster, the first E-step."""
         n, d = X.shape
         m, q = self.n_components, self.n_latent
         labels = self._initial_labels(X, rng)
@@ -147,42 +163,43 @@ class MPPCA(DensityMixin, BaseEstimator):
             members = X[labels == i]
             if members.shape[0] == 0:  # empty cluster: restart it on one random sample
                 members = X[rng.integers(n)][None, :]
-            weights[i] = max(members.shape[0], 1) / n
+            weights[i] = members.shape[0] / n
             means[i], comps[i], s2[i] = _ppca.ppca_closed_form(members, q, var_floor, rng)
-            s2[i] = max(s2[i], var_floor)
         weights /= weights.sum()
-
         # X is centred on the data mean by fit(); one product per E-step feeds the next M-step
         sqn, XW, Xmu = _ppca.e_step_products(X, means, comps)
         ll = _ppca.log_prob_from_products(sqn, XW, Xmu, weights, means, comps, s2)
         log_norm = logsumexp(ll, axis=1)
-        prev = float(np.mean(log_norm))
-        bounds: list[float] = []
-        converged = False
-        it = 0
-        for it in range(1, self.max_iter + 1):
-            resp = np.exp(ll - log_norm[:, None])  # E-step posteriors R_ni (T&B eq. 21)
-            counts, means, comps, s2 = _ppca.m_step(X, sqn, resp, XW, comps, s2, var_floor)  # Appendix C
-            weights = counts / counts.sum()
+        return dict(weights=weights, means=means, components=comps, noise_variance=s2, sqn=sqn, XW=XW, ll=ll,
+                    log_norm=log_norm, prev=float(np.mean(log_norm)), bounds=[], converged=False)
+
+    def _iterate(self, X, run: dict, until: int, var_floor: float, run_idx: int) -> None:
+        """Advance one run (dict from ``_start``) in place until ``until`` iterations in total or
+        convergence (rise of the mean log-likelihood below tol)."""
+        n = X.shape[0]
+        while len(run["bounds"]) < until and not run["converged"]:
+            it = len(run["bounds"]) + 1
+            resp = np.exp(run["ll"] - run["log_norm"][:, None])  # E-step posteriors R_ni (T&B eq. 21)
+            counts, means, comps, s2 = _ppca.m_step(X, run["sqn"], resp, run["XW"], run["components"],
+                                                    run["noise_variance"], var_floor)  # T&B Appendix C
             del resp
+            weights = counts / counts.sum()
             _, XW, Xmu = _ppca.e_step_products(X, means, comps)
-            ll = _ppca.log_prob_from_products(sqn, XW, Xmu, weights, means, comps, s2)
+            ll = _ppca.log_prob_from_products(run["sqn"], XW, Xmu, weights, means, comps, s2)
             log_norm = logsumexp(ll, axis=1)
             cur = float(np.mean(log_norm))
-            bounds.append(cur)
+            run.update(weights=weights, means=means, components=comps, noise_variance=s2, XW=XW, ll=ll,
+                       log_norm=log_norm)
+            run["bounds"].append(cur)
             if self.verbose >= 2:
-                print(f"MPPCA init {init_idx} iteration {it}: mean log-likelihood {cur:.6f}")
+                print(f"MPPCA run {run_idx} iteration {it}: mean log-likelihood {cur:.6f}")
             if self.callback is not None:
                 self.callback(it, cur)
-            if abs(cur - prev) < self.tol:
-                converged = True
-                break
-            prev = cur
+            run["converged"] = abs(cur - run["prev"]) < self.tol
+            run["prev"] = cur
         if self.verbose >= 1:
-            print(f"MPPCA init {init_idx}: {'converged' if converged else 'not converged'} after {it} "
-                  f"iterations, mean log-likelihood {bounds[-1]:.6f}")
-        return dict(weights=weights, means=means, components=comps, noise_variance=s2, converged=converged,
-                    n_iter=it, lower_bound=bounds[-1], lower_bounds=bounds)
+            print(f"MPPCA run {run_idx}: {'converged' if run['converged'] else 'not converged'} after "
+                  f"{len(run['bounds'])} iterations, mean log-likelihood {run['prev']:.6f} (N = {n})")
 
     # ------------------------------------------------------------------ inference
     def _validate_predict(self, X) -> np.ndarray:
