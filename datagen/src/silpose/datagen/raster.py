@@ -14,7 +14,9 @@ Three fillers are provided:
   bounding box of pixel centres. Exact pixel-centre sampling.
 - :func:`fill_triangles_cv2`: ``cv2.fillPoly`` with 8 bits of sub-pixel precision, one call
   for all triangles. OpenCV also fills pixels its outline *touches*, so it grows silhouettes by
-  up to half a pixel; kept as a reference and for speed comparisons.
+  up to half a pixel: measured IoU 0.86-0.91 against the pixel-centre rule on the default rig
+  (20 bodies x 4 views), far from the >= 0.99 agreement with Blender's render that the exact
+  rule reaches. Kept as a reference, not used.
 """
 
 from __future__ import annotations
