@@ -117,6 +117,8 @@ def test_recovers_known_mixture_parameters():
                                    comps[perm[k]] @ comps[perm[k]].T, atol=0.6)
     np.testing.assert_allclose(est.noise_variance_, s2[perm], rtol=0.1)
     assert est.converged_
+    lb = np.asarray(est.lower_bounds_)  # the winning em-EM run, short phase + continuation
+    assert len(lb) == est.n_iter_ and np.all(np.diff(lb) >= -1e-10 * np.abs(lb[1:]))
     # the posterior labels agree with the generating ones up to the permutation
     X2, lab2 = _draw(rng, 500, weights, means, comps, s2)
     assert np.mean(perm[est.predict(X2)] == lab2) > 0.99
