@@ -142,3 +142,13 @@ def test_brute_force_fk_with_rotation_matrices():
     T = walk.root_transform(s, g)
     world = pts @ T[:3, :3].T + T[:3, 3]
     np.testing.assert_allclose(world, walk.skeleton_positions(s, g), atol=1e-12)
+
+
+def test_describe_distribution_matches_sampling_and_is_json():
+    import json
+
+    d = walk.describe_distribution()
+    json.dumps(d)
+    assert tuple(d["fields"]) == walk.GAIT_FIELDS
+    for k, spec in d["fields"].items():
+        assert (spec["low"], spec["high"]) == pytest.approx(walk.GAIT_RANGES[k])

@@ -250,3 +250,33 @@ def skeleton_positions(subject: dict[str, float], gait: dict[str, float]) -> np.
     J, G = posed_body(subject, gait)
     T = root_transform(subject, gait, (J, G))
     return J @ T[:3, :3].T + T[:3, 3]
+
+
+def describe_distribution() -> dict:
+    """The gait distribution of :func:`sample_gait` and the walk model, as plain data (dataset card)."""
+    units = {
+        "phase": "cycle fraction (0 = left heel strike)",
+        "stride": "amplitude multiplier (hip, ankle)",
+        "arm_swing": "amplitude multiplier (shoulder, elbow)",
+        "knee_flex": "amplitude multiplier (knee)",
+        "arm_abduction": "radians",
+        "torso_lean": "radians",
+        "pelvis_rotation": "radians",
+        "heading": "radians, counter-clockwise from world +x",
+        "x": "metres",
+        "y": "metres",
+    }
+    return {
+        "fields": {
+            k: {"distribution": "uniform", "low": float(lo), "high": float(hi), "unit": units[k]}
+            for k, (lo, hi) in GAIT_RANGES.items()
+        },
+        "walk_model": {
+            "form": "mean + K Fourier harmonics per sagittal angle, least-squares fit to normative knots",
+            "harmonics": dict(N_HARMONICS),
+            "knots_percent_degrees": {k: v.tolist() for k, v in NORMATIVE_KNOTS.items()},
+            "stance_fraction": STANCE_FRACTION,
+            "pelvic_tilt_deg": float(np.rad2deg(PELVIC_TILT)),
+            "right_leg": "half a cycle after the left; each arm swings with the opposite leg",
+        },
+    }
