@@ -23,12 +23,13 @@ from silpose.shared.skeleton import root_relative
 
 from .shape_model import ShapeStructureModel
 
-#: The default grid: small enough for the smoke/default presets on 2 cores.
+#: The default grid (12 fits): centred on the region the 2026-11-22 selection on the `default` preset
+#: found best (see the defaults in shape_model.py); small enough for that preset on 2 cores (~5 min).
 DEFAULT_GRID: dict[str, tuple] = {
-    "n_latent": (10, 20, 30),
-    "n_components": (3, 5),
-    "structure_weight": (1.0, 3.0, 10.0),
-    "noise_variance": (0.0, 1e-4, 1e-3, 1e-2),
+    "n_latent": (30, 60),
+    "n_components": (5, 8),
+    "structure_weight": (10.0, 30.0, 100.0),
+    "noise_variance": (0.01, 0.03, 0.1),
 }
 COLUMNS = ("n_latent", "n_components", "structure_weight", "noise_variance", "val_error_cm", "val_error_best_cm",
            "val_loglik", "n_iter", "fit_time_s")

@@ -156,9 +156,18 @@ def run_training(
         )
         print(selection.to_markdown())
         hp = {k: selection.best[k] for k in hp}
+    notes = []
+    if n_latent is None and not select:
+        q_data = max(1, len(fit_idx) // (2 * int(hp["n_components"])))
+        if q_data < hp["n_latent"]:  # a small dataset (e.g. smoke) cannot support the default q
+            notes.append(f"n_latent lowered from the default {hp['n_latent']} to {q_data} "
+                         f"(= fitted samples / (2 M)) for this small dataset")
+            hp["n_latent"] = q_data
     max_q = min(len(fit_idx) - 1, contours.shape[2] * 2 * (len(views) if views else contours.shape[1]))
     if hp["n_latent"] >= max_q:
         raise TrainingError(f"n_latent = {hp['n_latent']} is too large for {len(fit_idx)} training samples (< {max_q})")
+    for note in notes:
+        print(f"note: {note}", flush=True)
 
     with _EMProgress(progress, max_iter, n_init) as em:
         model = ShapeStructureModel(
@@ -197,6 +206,7 @@ def run_training(
             "joint_error_median_cm": float(np.median(held_err)),
         },
         "selection": None if selection is None else selection.to_dict(),
+        "notes": notes,
     }
     report_json = out.with_suffix(".report.json")
     report_md = out.with_suffix(".report.md")
@@ -239,6 +249,7 @@ def _report_markdown(r: dict, selection) -> str:
         f"- held-out mean log-likelihood: {held['mean_loglik']:.2f} nats/sample",
         f"- held-out joint error (all views observed): mean {held['joint_error_cm']:.2f} cm, "
         f"median {held['joint_error_median_cm']:.2f} cm",
+        *[f"- note: {n}" for n in r.get("notes", [])],
         "",
         "## Log-likelihood curve (kept run, nats/sample)",
         "",
