@@ -5,36 +5,44 @@ set positional-arguments
 default:
     @just --list
 
-# install everything into .venv (Python 3.11, bpy, Ray extra, dev tools)
+# install everything into .venv (Python 3.11, bpy, Ray extra, dev tools); re-syncs only when uv.lock or a
+# pyproject.toml changed, because bpy 5.0.1's wheel metadata says cp39 and uv reinstalls it on every sync
+# (which would break Blender workers running at that moment)
 setup:
-    uv sync --all-extras --frozen
+    #!/usr/bin/env bash
+    set -euo pipefail
+    stamp=.venv/.silpose-synced
+    if [ ! -f "$stamp" ] || [ -n "$(find uv.lock pyproject.toml */pyproject.toml -newer "$stamp" 2>/dev/null)" ]; then
+        uv sync --all-extras --frozen
+        touch "$stamp"
+    fi
 
 # generate a dataset: just gen [preset|config.toml] [extra silpose gen options]
 gen preset="default" *args: setup
-    uv run --frozen silpose gen "$@"
+    uv run --no-sync silpose gen "$@"
 
 # fit the shape+structure model on data/<preset>/: just train [preset] [options]
 train preset="default" *args: setup
-    uv run --frozen silpose train "$@"
+    uv run --no-sync silpose train "$@"
 
 # run the paper's experiments on data/<preset>/ and models/<preset>.npz
 eval preset="default" *args: setup
-    uv run --frozen silpose eval "$@"
+    uv run --no-sync silpose eval "$@"
 
 # gen -> train -> eval for one preset (the main job)
 all preset="default": setup
-    uv run --frozen silpose gen {{preset}}
-    uv run --frozen silpose train {{preset}}
-    uv run --frozen silpose eval {{preset}}
+    uv run --no-sync silpose gen {{preset}}
+    uv run --no-sync silpose train {{preset}}
+    uv run --no-sync silpose eval {{preset}}
 
 # check a generated dataset folder
 validate dir *args: setup
-    uv run --frozen silpose validate "$@"
+    uv run --no-sync silpose validate "$@"
 
 # run every benchmark (add --quick for a one-minute version)
 bench *args: setup
-    uv run --frozen silpose bench "$@"
+    uv run --no-sync silpose bench "$@"
 
 # the whole test suite (what CI runs)
 test *args: setup
-    uv run --frozen pytest "$@"
+    uv run --no-sync pytest "$@"
