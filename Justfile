@@ -1,5 +1,6 @@
 # silpose tasks. Every recipe first makes sure .venv matches uv.lock (fast when it does).
 set positional-arguments
+set shell := ["bash", "-euo", "pipefail", "-c"]
 
 # list the recipes
 default:
@@ -19,15 +20,15 @@ setup:
 
 # generate a dataset: just gen [preset|config.toml] [extra silpose gen options]
 gen preset="default" *args: setup
-    uv run --no-sync silpose gen "$@"
+    uv run --no-sync silpose gen "{{preset}}" "${@:2}"
 
 # fit the shape+structure model on data/<preset>/: just train [preset] [options]
 train preset="default" *args: setup
-    uv run --no-sync silpose train "$@"
+    uv run --no-sync silpose train "{{preset}}" "${@:2}"
 
 # run the paper's experiments on data/<preset>/ and models/<preset>.npz
 eval preset="default" *args: setup
-    uv run --no-sync silpose eval "$@"
+    uv run --no-sync silpose eval "{{preset}}" "${@:2}"
 
 # gen -> train -> eval for one preset (the main job)
 all preset="default": setup
