@@ -204,3 +204,22 @@ def test_fit_on_bench_data_reaches_generating_parameters_likelihood():
     ll_true = np.mean(np.logaddexp.reduce(_ppca.weighted_log_prob(
         X[n_train:], truth.weights_, truth.means_, truth.components_, truth.noise_variance_), axis=1))
     assert abs(est.score(X[n_train:]) - ll_true) < est.n_parameters() / n_train
+
+
+def test_em_em_continues_the_best_short_run(mixture_data):
+    """n_init short runs (5 iterations), then the best one continues: lower_bounds_ starts with the
+    short run whose last bound was highest."""
+    X, _, _ = mixture_data
+    seen = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        est = MPPCA(5, 2, init="random", n_init=4, tol=1e-6, max_iter=12, random_state=1,
+                    callback=lambda it, lb: seen.append((it, lb))).fit(X)
+    starts = [k for k, (it, _) in enumerate(seen) if it == 1] + [len(seen)]
+    short = [[lb for it, lb in seen[a:b] if it <= 5] for a, b in zip(starts[:-1], starts[1:])]
+    assert len(short) == 4 and all(len(r) <= 5 for r in short)
+    assert len({r[-1] for r in short}) > 1  # the starts really differ
+    winner = int(np.argmax([r[-1] for r in short]))
+    np.testing.assert_array_equal(est.lower_bounds_[: len(short[winner])], short[winner])
+    assert est.lower_bound_ >= max(r[-1] for r in short)
+    assert [it for it, _ in seen[starts[-2]:]][-1] == est.n_iter_  # the continuation counts on

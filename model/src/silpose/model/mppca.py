@@ -117,8 +117,9 @@ class MPPCA(DensityMixin, BaseEstimator):
         if self.n_init > 1:
             for k, run in enumerate(runs):
                 self._iterate(Xc, run, min(_SHORT_RUN, self.max_iter), var_floor, k)
-        best = max(runs, key=lambda r: r["bounds"][-1] if r["bounds"] else -np.inf)
-        self._iterate(Xc, best, self.max_iter, var_floor, runs.index(best))
+        k_best = max(range(self.n_init), key=lambda k: runs[k]["bounds"][-1] if runs[k]["bounds"] else -np.inf)
+        best = runs[k_best]
+        self._iterate(Xc, best, self.max_iter, var_floor, k_best)
         del runs
         self.weights_ = best["weights"]
         self.means_ = best["means"] + offset
