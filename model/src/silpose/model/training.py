@@ -70,6 +70,7 @@ class _EMProgress:
     def __init__(self, enabled: bool, max_iter: int, n_init: int):
         self.enabled, self.max_iter, self.n_init = enabled, max_iter, n_init
         self.run = 0
+        self.last = 0
         self.curves: list[list[float]] = []
         self._progress = None
         self._task = None
@@ -88,15 +89,18 @@ class _EMProgress:
             self._progress.__exit__(*exc)
 
     def __call__(self, iteration: int, loglik: float) -> None:
-        if iteration == 1 or not self.curves:
+        # MPPCA numbers iterations per run; a jump means another run (em-EM: short runs from each
+        # start, then the best one continued), so each contiguous segment gets its own bar.
+        if not self.curves or iteration != self.last + 1:
             self.run += 1
             self.curves.append([])
             if self._progress is not None:
                 self._task = self._progress.add_task("EM", total=self.max_iter)
         self.curves[-1].append(float(loglik))
+        self.last = iteration
         if self._progress is not None:
             self._progress.update(self._task, completed=iteration,
-                                  description=f"EM run {self.run}/{self.n_init} iteration {iteration:3d}  "
+                                  description=f"EM segment {self.run} iteration {iteration:3d}  "
                                               f"log-lik {loglik:,.2f}/sample")
 
 
@@ -197,7 +201,7 @@ def run_training(
             "converged": bool(mix.converged_),
             "mean_loglik": float(mix.lower_bound_),
             "loglik_curve": [float(v) for v in mix.lower_bounds_],
-            "all_runs": em.curves,
+            "all_segments": em.curves,
             "fit_time_s": float(wall),
         },
         "heldout": {
