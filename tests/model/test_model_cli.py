@@ -148,3 +148,15 @@ def test_train_errors_and_select(dataset, tmp_path):
     assert len(rows) == len(DEFAULT_GRID["noise_variance"]) and {r["n_latent"] for r in rows} == {3}
     assert report["hyperparameters"]["noise_variance"] == report["selection"]["best"]["noise_variance"]
     assert "Model selection" in out.with_suffix(".report.md").read_text()
+
+
+def test_default_q_is_lowered_for_a_small_dataset(dataset, tmp_path):
+    from silpose.model.shape_model import DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT
+
+    out = tmp_path / "small.npz"
+    res = _invoke("train", dataset, "--n-init", "1", "--max-iter", "10", "--no-progress", "--out", out)
+    assert res.exit_code == 0, res.output
+    q = 72 // (2 * DEFAULT_N_COMPONENTS)
+    assert q < DEFAULT_N_LATENT and f"lowered from the default {DEFAULT_N_LATENT} to {q}" in res.output
+    assert read_header(out)["hyperparameters"]["n_latent"] == q
+    assert "note: n_latent lowered" in out.with_suffix(".report.md").read_text()
