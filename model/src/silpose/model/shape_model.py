@@ -292,8 +292,8 @@ class ShapeStructureModel:
                     cen_true[:, p] = cen_in[:, col]
                     sc_true[:, p] = sc_in[:, col]
         all_present = bool(present.all())
-        obs_c = c_mod if all_present else c_mod[present]  # (N, K, n, 2) or (n_observed_views, n, 2)
-        if not np.isfinite(obs_c).all():
+        finite = np.isfinite(c_mod).all() if all_present else np.isfinite(c_mod).all(axis=(2, 3))[present].all()
+        if not finite:
             bad = ~np.isfinite(c_mod).all(axis=(2, 3)) & present
             r, p = np.argwhere(bad)[0]
             raise ValueError(
@@ -308,11 +308,11 @@ class ShapeStructureModel:
             )
         if all_present:
             norm, cen, sc = normalise_contours(c_mod)
-        else:
-            norm = np.zeros((n, kmod, layout.n_points, 2))
-            cen = np.array(cen_true, dtype=np.float64)
-            sc = np.array(sc_true, dtype=np.float64)
-            norm[present], cen[present], sc[present] = normalise_contours(obs_c)
+        else:  # normalise every view (absent ones may hold NaN: never read), keep known factors for absent ones
+            with np.errstate(invalid="ignore", over="ignore"):
+                norm, cen, sc = normalise_contours(c_mod)
+            cen = np.where(present[..., None], cen, cen_true)
+            sc = np.where(present, sc, sc_true)
 
         d = layout.dim
         M = int(self.mixture_.weights_.shape[0])
