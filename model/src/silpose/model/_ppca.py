@@ -52,16 +52,17 @@ def _log_density_terms(sqn, z, W, s2):
     return -0.5 * (d * _LOG_2PI + logdet + np.maximum(maha, 0.0))
 
 
-def e_step_products(X: np.ndarray, means: np.ndarray, components: np.ndarray):
+def e_step_products(X: np.ndarray, means: np.ndarray, components: np.ndarray, with_sqn: bool = True):
     """The data products every E-step and M-step needs, from ONE matrix product X [W_1..W_M mu_1..mu_M].
 
-    X (N, d), means (M, d), components (M, d, q). Returns sqn (N,) = ||x_n||^2,
+    X (N, d), means (M, d), components (M, d, q). Returns sqn (N,) = ||x_n||^2 (None unless with_sqn),
     XW (N, M, q) = x_n^T W_i, Xmu (N, M) = x_n^T mu_i. Cost O(N d (M q + M)).
     """
     m, d, q = components.shape
     B = np.concatenate([components.transpose(1, 0, 2).reshape(d, m * q), means.T], axis=1)  # (d, Mq+M)
     P = X @ B
-    return np.einsum("ij,ij->i", X, X), P[:, : m * q].reshape(-1, m, q), P[:, m * q:]
+    sqn = np.einsum("ij,ij->i", X, X) if with_sqn else None
+    return sqn, P[:, : m * q].reshape(-1, m, q), P[:, m * q:]
 
 
 def log_prob_from_products(sqn, XW, Xmu, weights, means, components, noise_variance) -> np.ndarray:

@@ -185,7 +185,7 @@ class MPPCA(DensityMixin, BaseEstimator):
                                                     run["noise_variance"], var_floor)  # T&B Appendix C
             del resp
             weights = counts / counts.sum()
-            _, XW, Xmu = _ppca.e_step_products(X, means, comps)
+            _, XW, Xmu = _ppca.e_step_products(X, means, comps, with_sqn=False)  # ||x||^2 is cached
             ll = _ppca.log_prob_from_products(run["sqn"], XW, Xmu, weights, means, comps, s2)
             log_norm = logsumexp(ll, axis=1)
             cur = float(np.mean(log_norm))
