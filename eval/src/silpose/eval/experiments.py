@@ -239,11 +239,17 @@ class Evaluation:
         if k not in self.single_view_models:
             from silpose.model.shape_model import ShapeStructureModel
 
+            import warnings
+
             params = dict(self.model.get_params())
             params["views"] = (int(k),)
-            self.single_view_models[k] = ShapeStructureModel(**params).fit(
-                self.data.train_contours, self.data.train_joints, rig=self.data.rig
-            )
+            with warnings.catch_warnings(record=True) as caught:  # keep the progress display clean
+                warnings.simplefilter("always")
+                self.single_view_models[k] = ShapeStructureModel(**params).fit(
+                    self.data.train_contours, self.data.train_joints, rig=self.data.rig
+                )
+            for w in caught:
+                self.notes.append(f"E1 single-view model {k}: {w.category.__name__}: {w.message}")
         return self.single_view_models[k]
 
     def regressor(self, kind: str, views: Sequence[int]):
