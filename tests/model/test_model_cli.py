@@ -160,3 +160,10 @@ def test_default_q_is_lowered_for_a_small_dataset(dataset, tmp_path):
     assert q < DEFAULT_N_LATENT and f"lowered from the default {DEFAULT_N_LATENT} to {q}" in res.output
     assert read_header(out)["hyperparameters"]["n_latent"] == q
     assert "note: n_latent lowered" in out.with_suffix(".report.md").read_text()
+
+
+def test_header_records_training_config_and_generator_config(trained):
+    header = read_header(trained[0])
+    assert header["training_config"]["heldout_fraction"] == 0.1 and header["training_config"]["select"] is False
+    assert header["dataset"]["generator_config"]["name"] == "tiny"
+    assert load_model(trained[0]).training_config_["seed"] == 0

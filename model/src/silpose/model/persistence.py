@@ -16,7 +16,8 @@ key                    dtype / shape    meaning
 Header: ``format`` (= "silpose-model"), ``format_version``, ``feature_layout``
 (FeatureLayout.to_dict), ``views``, ``joint_names``, ``n_rig_views``, ``rig`` (Rig.to_dict or
 null), ``hyperparameters`` (ShapeStructureModel.get_params), ``training`` (n_iter, converged,
-lower_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, preset, ...),
+lower_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
+config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
 ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
 dtype, shape and bytes, in sorted key order) which :func:`load_model` verifies.
 """
@@ -94,6 +95,7 @@ def save_model(path: str | Path, model) -> Path:
             "n_train": int(getattr(model, "n_train_", -1)),
         },
         "dataset": dict(getattr(model, "dataset_info_", {}) or {}),
+        "training_config": dict(getattr(model, "training_config_", {}) or {}),
         "arrays": {k: [v.dtype.str, list(v.shape)] for k, v in arrays.items()},
         "arrays_sha256": arrays_sha256(arrays),
     }
@@ -250,5 +252,6 @@ def load_model(path: str | Path):
     model.fit_time_ = float(training.get("fit_time_s", float("nan")))
     model.n_train_ = int(training.get("n_train", -1))
     model.dataset_info_ = dict(header.get("dataset", {}) or {})
+    model.training_config_ = dict(header.get("training_config", {}) or {})
     model.header_ = header
     return model

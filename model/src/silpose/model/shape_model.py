@@ -224,6 +224,7 @@ class ShapeStructureModel:
             info["root"] = str(root)
             info["manifest_sha256"] = file_sha256(manifest) if manifest.is_file() else None
             info["config_name"] = (split.metadata.get("config") or {}).get("name")
+            info["generator_config"] = split.metadata.get("config")
         self.dataset_info_ = info
         return self
 

@@ -184,6 +184,8 @@ def run_training(
         wall = time.perf_counter() - t0
     model.callback = None
     model.dataset_info_ = _dataset_info(root, name, split, len(fit_idx), len(held_idx))
+    model.training_config_ = {"command": "silpose train", "heldout_fraction": heldout, "seed": seed,
+                              "select": bool(select), "selection_best": None if selection is None else selection.best}
     held_ll = model.score_samples(contours[held_idx], joints[held_idx])
     held_err = joint_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
 
@@ -232,6 +234,7 @@ def _dataset_info(root: Path, name: str, split, n_fit: int, n_held: int) -> dict
         "n_heldout": n_held,
         "manifest_sha256": file_sha256(manifest) if manifest.is_file() else None,
         "config_name": (split.metadata.get("config") or {}).get("name"),
+        "generator_config": split.metadata.get("config"),
     }
 
 
