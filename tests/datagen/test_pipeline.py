@@ -202,3 +202,12 @@ def test_third_party_readers(real_one_worker):
     assert df.height == 8
     contours = np.array(df["contours"].to_list(), dtype=np.float32).reshape(8, 4, 200, 2)
     np.testing.assert_array_equal(contours, ref.contours)
+
+
+def test_a_dying_worker_is_reported_not_waited_for(tmp_path):
+    """multiprocessing.Pool loses the task of a dead worker; the driver must notice, not hang."""
+    out = tmp_path / "ds"
+    with pytest.raises(ExecutorError, match=r"worker process \d+ died with exit code 3 .*test-00000-of-00001"):
+        generate(tiny_config(tmp_path), out, workers=1, render="silpose.datagen.testing:crashing_render_samples",
+                 progress=False)
+    assert leftovers(out) == [] and not (out / "test-00000-of-00001.parquet").exists()

@@ -93,14 +93,44 @@ def run_local(
     ctx = multiprocessing.get_context("spawn")
     pool = ctx.Pool(processes=n, maxtasksperchild=max_tasks_per_child)
     try:
-        for task, result, error in pool.imap_unordered(_run_task_star, [(t, target, config) for t in tasks]):
-            if error is not None:
-                raise ExecutorError(f"shard {task.file}: worker failed: {error}")
-            yield task, result
+        pending = [(t, pool.apply_async(_run_task_star, ((t, target, config),))) for t in tasks]
+        seen: dict[int, object] = {}
+        while pending:
+            pending[0][1].wait(WATCHDOG_SECONDS)
+            for item in [p for p in pending if p[1].ready()]:
+                pending.remove(item)
+                task, result, error = item[1].get()
+                if error is not None:
+                    raise ExecutorError(f"shard {task.file}: worker failed: {error}")
+                yield task, result
+            _check_workers_alive(pool, seen, [t for t, _ in pending])
         pool.close()
     finally:
         pool.terminate()
         pool.join()
+
+
+#: How often the driver checks that no pool worker died (seconds).
+WATCHDOG_SECONDS = 0.2
+
+
+def _check_workers_alive(pool, seen: dict, unfinished: list[ShardTask]) -> None:
+    """Raise ExecutorError if a pool worker died abnormally (a crash in Blender, the OOM killer).
+
+    ``multiprocessing.Pool`` silently replaces a dead worker and loses its task, so waiting for
+    that task would hang forever. Workers retired by ``maxtasksperchild`` exit with code 0.
+    Reads the pool's worker list (``Pool._pool``, the only way to see them); the processes are
+    remembered so a worker already reaped and replaced by the pool is still checked.
+    """
+    for proc in list(getattr(pool, "_pool", [])):
+        seen.setdefault(proc.pid, proc)
+    for pid, proc in seen.items():
+        code = proc.exitcode
+        if code not in (None, 0):
+            names = ", ".join(t.file for t in unfinished[:3]) + (" ..." if len(unfinished) > 3 else "")
+            raise ExecutorError(
+                f"worker process {pid} died with exit code {code} while rendering; unfinished shard(s): {names}"
+            )
 
 
 def run_ray(

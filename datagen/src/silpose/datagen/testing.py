@@ -95,3 +95,12 @@ def wrong_ids_render_samples(config: dict, split: str, indices: list[int]) -> li
     for r in records:
         r["sample_id"] += 1
     return records
+
+
+def crashing_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
+    """Stand-in whose worker process dies abruptly on every split but ``train`` (tests the watchdog)."""
+    import os
+
+    if split != "train":
+        os._exit(3)
+    return synthetic_render_samples(config, split, indices)
