@@ -57,14 +57,8 @@ def gen(
     try:
         config = load_config(preset, **overrides)
         target = out if out is not None else Path("data") / config.name
-        manifest = generate(config, target, workers=workers, executor=executor, progress=progress)
-        if preview:
-            from .preview import write_preview
-
-            write_preview(target)
-        from .card import write_card
-
-        card = write_card(target)
+        manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
+                            preview=preview, card=True)
     except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
         _fail("gen", str(exc))
     except KeyboardInterrupt:
@@ -74,7 +68,7 @@ def gen(
     rate = f"{t['samples_per_second']} samples/s" if t["samples_per_second"] else "nothing to render"
     print(
         f"{target}: {counts} samples in {len(manifest['shards'])} shards "
-        f"({t['shards_rendered']} rendered, {t['shards_skipped']} already complete; {rate}); card {card.name}"
+        f"({t['shards_rendered']} rendered, {t['shards_skipped']} already complete; {rate}); card {target / 'README.md'}"
     )
 
 

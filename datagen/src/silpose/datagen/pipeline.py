@@ -43,7 +43,7 @@ def dataset_metadata(config: GenConfig) -> dict:
 
 
 def _remove_temporaries(root: Path) -> list[Path]:
-    stale = [p for p in root.glob(".*.tmp") if ".parquet." in p.name or p.name.startswith(f".{MANIFEST}.")]
+    stale = list(root.glob(".*.tmp"))  # shards, manifest, card, preview of a killed run (we hold the lock)
     for p in stale:
         p.unlink(missing_ok=True)
     return stale
@@ -106,6 +106,8 @@ def generate(
     render: str = DEFAULT_RENDER,
     progress: bool = True,
     max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
+    preview: bool = False,
+    card: bool = False,
 ) -> dict:
     """Generate (or complete) the dataset of ``config`` in ``out``; returns the manifest.
 
@@ -117,6 +119,7 @@ def generate(
         render: ``"module:function"`` with the signature of ``worker.render_samples``.
         progress: show a rich progress bar (samples/s) on stderr.
         max_tasks_per_child: shard tasks per worker process before it is replaced.
+        preview, card: also write ``preview.png`` and the dataset card ``README.md`` (under the lock).
     """
     if executor not in EXECUTORS:
         raise GenerationError(f"executor: must be one of {', '.join(EXECUTORS)}, got {executor!r}")
@@ -141,6 +144,14 @@ def generate(
         stats = _run(todo, config, out, metadata, workers, executor, render, progress, max_tasks_per_child)
         manifest = build_manifest(config, out, tasks, stats, workers, executor, skipped=len(tasks) - len(todo))
         write_json_atomic(out / MANIFEST, manifest)
+        if preview:
+            from .preview import write_preview
+
+            write_preview(out)
+        if card:
+            from .card import write_card
+
+            write_card(out)
     return manifest
 
 
