@@ -130,11 +130,12 @@ class Conditioner:
         Wa, Wb = W[:, self.obs, :], W[:, self.miss, :]
         self.invD = 1.0 / (s2[:, None] + noise[None, :])  # (M, d_obs) D_i^-1 diagonal
         G = Wa * self.invD[:, :, None]  # D^-1 W_a  (M, d_obs, q)
-        L = np.linalg.cholesky(np.eye(q) + np.matmul(Wa.transpose(0, 2, 1), G))  # K = I + W_a^T D^-1 W_a
+        # 2-D products per component (numpy's stacked matmul on transposed views skips BLAS)
+        L = np.linalg.cholesky(np.eye(q) + np.stack([Wa[i].T @ G[i] for i in range(m)]))  # K = I + W_a^T D^-1 W_a
         Linv = np.linalg.inv(L)
-        self.Kinv = np.matmul(Linv.transpose(0, 2, 1), Linv)  # (M, q, q)
-        self.H = np.matmul(self.Kinv, Wb.transpose(0, 2, 1))  # K^-1 W_b^T  (M, q, d_miss)
-        self.V = np.matmul(Wb, Linv.transpose(0, 2, 1))  # W_b L^-T: W_b K^-1 W_b^T = V V^T
+        self.Kinv = np.stack([Linv[i].T @ Linv[i] for i in range(m)])  # (M, q, q)
+        self.H = np.stack([self.Kinv[i] @ Wb[i].T for i in range(m)])  # K^-1 W_b^T  (M, q, d_miss)
+        self.V = np.stack([Wb[i] @ Linv[i].T for i in range(m)])  # W_b L^-T: W_b K^-1 W_b^T = V V^T
         self.logdet = -np.log(self.invD).sum(axis=1) + 2.0 * np.log(np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
         # One product per batch: x_c [G_1 .. G_M  (mu_c,i * D_i^-1)_i]  (d_obs, M q + M)
         self.B = np.concatenate([G.transpose(1, 0, 2).reshape(self.obs.size, m * q), (mu_c * self.invD).T], axis=1)
@@ -169,16 +170,16 @@ class Conditioner:
         for sl in (slice(s, min(s + _CHUNK, n)) for s in range(0, n, _CHUNK)):
             Xc = X[sl] - self.ref
             P = Xc @ self.B
-            U = P[:, : m * q].reshape(-1, m, q) - self.c_u  # (b, M, q)
             if self.scalar_noise:
                 quad = np.einsum("ij,ij->i", Xc, Xc)[:, None] * self.invD_scalar
             else:
                 quad = (Xc * Xc) @ self.invD.T
             eDe = quad - 2.0 * P[:, m * q:] + self.c_quad  # (b, M)
-            Ut = U.transpose(1, 0, 2)  # (M, b, q)
-            uKu = np.einsum("mbq,mbq->bm", np.matmul(Ut, self.Kinv), Ut)
-            logp[sl] = const - 0.5 * (eDe - uKu)
-            cmeans[sl] = (np.matmul(Ut, self.H) + self.mu_b[:, None, :]).transpose(1, 0, 2)
+            for i in range(m):
+                U = P[:, i * q:(i + 1) * q] - self.c_u[i]  # u = W_a^T D^-1 e  (b, q), contiguous
+                uKu = np.einsum("ij,ij->i", U @ self.Kinv[i], U)
+                logp[sl, i] = const[i] - 0.5 * (eDe[:, i] - uKu)
+                cmeans[sl, i] = U @ self.H[i] + self.mu_b[i]
         log_marg = _logsumexp_rows(logp)
         resp = np.exp(logp - log_marg[:, None])
         mean = np.einsum("nm,nmk->nk", resp, cmeans)
