@@ -3,7 +3,8 @@
 Tipping & Bishop (1999), "Mixtures of probabilistic principal component analysers", Neural
 Computation 11(2):443-482. Component i models x ~ N(mu_i, C_i) with C_i = W_i W_i^T + sigma_i^2 I,
 W_i (d, q). The E-step and M-step cost O(N d q) per component through the q x q matrix
-M_i = W_i^T W_i + sigma_i^2 I (see ``_ppca``); no d x d matrix is ever formed.
+M_i = W_i^T W_i + sigma_i^2 I (see ``_ppca``); EM never forms a d x d matrix (only the
+closed-form PPCA initialisation does, when d <= 512).
 
 Used by the shape+structure model (paper eq. 3-4) as the prior over multi-view contour + joint
 vectors; ``silpose.model.conditional`` does the Bayesian reconstruction of missing blocks.
@@ -34,7 +35,7 @@ class MPPCA(DensityMixin, BaseEstimator):
     n_components : int, number of mixture components M (>= 1).
     n_latent : int, latent dimension q of every component (1 <= q < n_features).
     tol : float, EM stops when the mean log-likelihood per sample rises by less than ``tol``.
-    max_iter : int, maximum EM iterations per initialisation.
+    max_iter : int, maximum EM iterations of a run (the winning run's short phase included).
     n_init : int, number of initialisations. Each gets a short EM run (5 iterations); the run with
         the best log-likelihood is continued to convergence ("em-EM", Biernacki et al. 2003). With
         n_init = 1 the single run goes straight to convergence.
