@@ -134,3 +134,32 @@ def test_bad_rig_tables(tmp_path, rig, field):
     with pytest.raises(ConfigError, match=field.replace("(", r"\(").replace(".", r"\.")) as err:
         load_config(path)
     assert str(path) in str(err.value)
+
+
+def test_opencv_rig_in_millimetres(tmp_path):
+    """A real user's rig: OpenCV FileStorage YAML files written with cv2 itself, translations in mm."""
+    import cv2
+
+    ref = default_rig()
+    names = []
+    for cam in ref:
+        name = f"{cam.name}.yml"
+        fs = cv2.FileStorage(str(tmp_path / name), cv2.FILE_STORAGE_WRITE)
+        fs.write("camera_matrix", cam.K)
+        fs.write("distortion_coefficients", np.zeros((5, 1)))
+        fs.write("rvec", cv2.Rodrigues(cam.R)[0])
+        fs.write("tvec", (cam.t * 1000.0).reshape(3, 1))
+        fs.write("image_width", cam.width)
+        fs.write("image_height", cam.height)
+        fs.release()
+        names.append(name)
+    files = ", ".join(f'"{n}"' for n in names)
+    cfg = load_config(write(tmp_path, BASE + f"[rig]\nopencv = [{files}]\nunit = 0.001\n"))
+    assert len(cfg.rig) == len(ref)
+    for got, want in zip(cfg.rig, ref):
+        np.testing.assert_allclose(got.K, want.K)
+        np.testing.assert_allclose(got.R, want.R, atol=1e-9)
+        np.testing.assert_allclose(got.t, want.t, atol=1e-9)
+    # the same files read as metres put the cameras 1000x too far: a person is a fraction of a pixel
+    with pytest.raises(ConfigError, match=r"field 'rig': camera 'cam0' shows a 1.75 m person only 0.\d+ px tall"):
+        load_config(write(tmp_path, BASE + f"[rig]\nopencv = [{files}]\n", name="metres.toml"))

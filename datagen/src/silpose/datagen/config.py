@@ -24,6 +24,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
 
 RENDERERS = ("raster", "blender")
@@ -211,12 +213,26 @@ def build_rig(spec, base: Path, src: str) -> Rig:
     return rig
 
 
+#: Smallest image height (px) of a 1.75 m person at the workspace centre that still gives a contour.
+MIN_PERSON_PX = 20.0
+
+
 def check_rig(rig: Rig, src: str) -> None:
-    """Raise ConfigError unless every camera sees the workspace from the floor to head height."""
+    """Raise ConfigError unless every camera sees the workspace from the floor to head height
+    and shows a 1.75 m person at the centre at least ``MIN_PERSON_PX`` pixels tall (a wrong
+    ``unit`` typically puts the cameras 1000 times too far or too close)."""
     try:
         rig.check_sees_workspace(height=WORKSPACE_CHECK_HEIGHT)
     except RigError as exc:
         raise ConfigError(f"{src}: field 'rig': {exc}") from None
+    for cam in rig:
+        feet, head = cam.project(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.75]]))
+        size = float(np.linalg.norm(head - feet))
+        if size < MIN_PERSON_PX:
+            raise ConfigError(
+                f"{src}: field 'rig': camera {cam.name!r} shows a 1.75 m person only {size:.2f} px tall "
+                f"(need {MIN_PERSON_PX:.0f}); check the distance unit (rig.unit)"
+            )
 
 
 def _path(value, base: Path, src: str, what: str) -> Path:
