@@ -142,6 +142,7 @@ class Conditioner:
         self.c_u = np.einsum("md,mdq->mq", mu_c, G)  # W_a^T D^-1 mu_c  (M, q)
         self.c_quad = np.einsum("md,md->m", mu_c * self.invD, mu_c)  # mu_c^T D^-1 mu_c  (M,)
         self.invD_scalar = self.invD[:, 0] if self.obs.size else np.zeros(m)  # used when noise is scalar
+        self.comp_var = np.einsum("mkq,mkq->mk", self.V, self.V) + s2[:, None]  # diag Cov[b | a, i]  (M, d_miss)
 
     def component_cov(self) -> np.ndarray:
         """Per-component posterior covariance of the missing block (M, d_miss, d_miss):
@@ -184,9 +185,8 @@ class Conditioner:
         resp = np.exp(logp - log_marg[:, None])
         mean = np.einsum("nm,nmk->nk", resp, cmeans)
         best = cmeans[np.arange(n), np.argmax(resp, axis=1)]
-        comp_var = np.einsum("mkq,mkq->mk", self.V, self.V) + self.s2[:, None]  # (M, d_miss)
         dev = cmeans - mean[:, None, :]
-        variance = resp @ comp_var + np.einsum("nm,nmk->nk", resp, dev * dev)  # law of total variance
+        variance = resp @ self.comp_var + np.einsum("nm,nmk->nk", resp, dev * dev)  # law of total variance
         cov = ccov = None
         if return_cov:
             ccov = self.component_cov()
