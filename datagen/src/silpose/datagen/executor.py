@@ -146,6 +146,10 @@ def run_ray(
     starts a local one with ``workers`` CPUs. Each Ray worker process runs at most
     ``max_tasks_per_child`` tasks (``max_calls``) to bound memory.
     """
+    # Ray >= 2.43 re-runs a driver started with `uv run` as `uv run` in every worker (a synced
+    # copy of the working directory); that re-syncs the environment per worker and, on a busy
+    # machine, misses Ray's 60 s registration timeout. Workers use this interpreter instead.
+    os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
     try:
         import ray
     except ImportError:
