@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from silpose.datagen.walk import skeleton_positions
-from silpose.datagen.worker import draw_sample_parameters, joints_visible, sample_rng
+from silpose.datagen.worker import draw_sample_parameters, joints_visible, render_samples, sample_rng
 from silpose.shared.camera import default_rig
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
@@ -20,7 +20,11 @@ TIMEOUT_S = 300  # a worker that dies (e.g. bpy fails to import) must fail the t
 
 
 def _call(pool, fn, *args):
+    """Run fn in the spawned worker. fn must live in an installed package, never in this test
+    module: a spawned worker unpickles it by module name and cannot import ``tests``."""
     return pool.apply_async(fn, args).get(timeout=TIMEOUT_S)
+
+
 SAMPLES = {"train": [0, 1, 2, 3], "test": [0, 1]}
 
 
@@ -67,14 +71,8 @@ def renders(pool):
     out = {}
     for renderer in ("raster", "blender"):
         cfg = _config(renderer)
-        out[renderer] = {split: _call(pool, _render, cfg, split, idx) for split, idx in SAMPLES.items()}
+        out[renderer] = {split: _call(pool, render_samples, cfg, split, idx) for split, idx in SAMPLES.items()}
     return out
-
-
-def _render(cfg, split, idx):
-    from silpose.datagen.worker import render_samples
-
-    return render_samples(cfg, split, idx)
 
 
 def _iou(a, b):
@@ -146,7 +144,7 @@ def test_non_terminal_joints_project_inside_silhouettes(renders):
 @pytest.mark.blender
 def test_shard_split_does_not_change_samples(pool, renders):
     """Samples 2 and 3 rendered alone (another 'shard') equal those of the bigger shard."""
-    again = _call(pool, _render, _config("raster"), "train", [3, 2])
+    again = _call(pool, render_samples, _config("raster"), "train", [3, 2])
     ref = {r["sample_id"]: r for r in renders["raster"]["train"]}
     for r in again:
         for key in ("masks", "joints", "contours", "area"):
@@ -193,7 +191,7 @@ def test_calibration_projects_onto_blender_render(pool):
 @pytest.mark.blender
 def test_cycles_masks_agree_with_raster(pool, renders):
     """The other Blender engine (Cycles, 1 sample, 0.01 px box filter) gives the same masks."""
-    cycles = _call(pool, _render, _config("blender", engine="cycles"), "train", [0, 1])
+    cycles = _call(pool, render_samples, _config("blender", engine="cycles"), "train", [0, 1])
     ious = [
         _iou(c["masks"][k], r["masks"][k])
         for c, r in zip(cycles, renders["raster"]["train"][:2])
