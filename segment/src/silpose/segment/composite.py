@@ -1,0 +1,84 @@
+"""Camera frames composited from known silhouettes (numpy + OpenCV; a Blender-free stand-in).
+
+Given true masks (N samples x K cameras), each camera gets its own static textured room (the wall,
+floor and props of :mod:`.synthetic`), seen in ``n_background`` empty frames and in one frame per
+sample where the person is a differently coloured, striped cloth region given by the mask, with a
+floor shadow beside the feet (an ellipse a quarter of the person's height long, where the background
+is darkened by ``shadow_factor``). Every frame gets independent Gaussian camera noise and a global
+illumination flicker. The truth is the mask itself, so segmentation can be scored exactly.
+Images are BGR uint8 (``cv2.imwrite`` writes them as RGB PNGs).
+
+All draws come from ``numpy.random.default_rng(SeedSequence([seed, camera]))`` for the room and
+``SeedSequence([seed, camera, 1 + frame])`` / ``SeedSequence([seed, camera, 0, b])`` for the noise,
+so a frame does not depend on how many others are made or in which chunks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .synthetic import _background, _texture
+
+#: cloth colour (BGR): light orange, far from the room's greys and browns in graylevel too
+CLOTH_BGR = (70.0, 190.0, 250.0)
+
+
+def _noisy(img: np.ndarray, rng: np.random.Generator, noise_std: float, flicker: float) -> np.ndarray:
+    gain = rng.uniform(1.0 - flicker, 1.0 + flicker)
+    out = img * np.float32(gain) + rng.normal(0.0, noise_std, img.shape).astype(np.float32)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def room(camera: int, size: tuple[int, int], seed: int = 0) -> np.ndarray:
+    """Noise-free background of one camera: (H, W, 3) float32 BGR, ``size`` = (W, H)."""
+    w, h = size
+    return _background(np.random.default_rng(np.random.SeedSequence([seed, camera])), h, w)
+
+
+def background_frames(camera: int, size: tuple[int, int], n: int, seed: int = 0, noise_std: float = 3.0,
+                      flicker: float = 0.02) -> np.ndarray:
+    """``n`` empty-room frames of one camera: (n, H, W, 3) uint8 BGR."""
+    clean = room(camera, size, seed)
+    return np.stack([
+        _noisy(clean, np.random.default_rng(np.random.SeedSequence([seed, camera, 0, b])), noise_std, flicker)
+        for b in range(n)
+    ])
+
+
+def composite_frame(mask: np.ndarray, camera: int, frame: int, seed: int = 0, noise_std: float = 3.0,
+                    flicker: float = 0.02, shadow_factor: float = 0.6, clean: np.ndarray | None = None) -> np.ndarray:
+    """One camera frame with the person given by ``mask``.
+
+    Parameters
+    ----------
+    mask : (H, W) bool or 0/1 uint8, the true silhouette
+    camera, frame : indices that seed the noise (and, with ``clean=None``, select the room)
+    shadow_factor : brightness multiplier of the floor shadow (1 = no shadow)
+    clean : (H, W, 3) float32 room from :func:`room` (recomputed when None)
+
+    Returns
+    -------
+    (H, W, 3) uint8 BGR
+    """
+    import cv2
+
+    fg = np.asarray(mask).astype(bool)
+    h, w = fg.shape
+    if clean is None:
+        clean = room(camera, (w, h), seed)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, camera, 1 + int(frame)]))
+    img = clean.copy()
+    ys, xs = np.nonzero(fg)
+    if len(ys):
+        feet_y, cx = int(ys.max()), float(xs.mean())
+        height = int(ys.max() - ys.min() + 1)
+        sh = np.zeros((h, w), np.uint8)
+        axes = (max(8, int(0.25 * height)), max(4, int(0.06 * height)))
+        cv2.ellipse(sh, (int(cx + 0.8 * axes[0]), feet_y - axes[1] // 2), axes, -6, 0, 360, 1, -1)
+        img[sh.astype(bool)] *= np.float32(shadow_factor)
+        stripes = 25.0 * (np.sin(np.arange(h, dtype=np.float32) * 0.7)[:, None] > 0)
+        cloth = np.empty((h, w, 3), np.float32)
+        cloth[:] = CLOTH_BGR
+        cloth -= (stripes + np.abs(_texture(rng, (h, w), 1.0, 6.0)))[..., None]
+        img[fg] = cloth[fg]
+    return _noisy(img, rng, noise_std, flicker)
