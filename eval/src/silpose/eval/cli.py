@@ -24,9 +24,15 @@ def evaluate(
     n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 3)."),
     patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 16)."),
     quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 2px, patches 8px, mask strong)."),
+    frames: Optional[Path] = typer.Option(None, help="Frames dataset for the camera-frames evaluation (default: <data>/frames if it exists)."),
+    no_frames: bool = typer.Option(False, "--no-frames", help="Skip the camera-frames evaluation."),
 ) -> None:
     """Run experiments E1-E5 of the paper (section 6) and write reports/<name>/: summary.md, results.parquet,
-    headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first."""
+    headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
+
+    When data/<name>/frames holds a frames dataset (camera frames + truth), also segments the frames and
+    writes frames.md (mask IoU; pose and Chamfer errors from segmented vs true silhouettes), frames.parquet,
+    frames_errors.png and frames_example.png."""
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -68,7 +74,8 @@ def evaluate(
             progress.update(tasks[key], completed=done, total=total, description=what[:42])
 
         try:
-            ev, written = run_evaluation(data_dir, model, out, config, progress=on_step, title=f"silpose evaluation — {name}")
+            ev, written = run_evaluation(data_dir, model, out, config, progress=on_step, title=f"silpose evaluation — {name}",
+                                         frames_dir=False if no_frames else frames)
         except EvalInputError as exc:
             progress.stop()
             typer.echo(f"error: {exc}", err=True)

@@ -129,9 +129,38 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
     return written
 
 
+def _frames_section(ev: Evaluation, model, data_dir, out_dir, frames_dir, progress) -> dict[str, Path]:
+    """Run the camera-frames evaluation if a frames dataset is there; add a note to the summary either way."""
+    if frames_dir is False:
+        return {}
+    fdir = Path(data_dir) / "frames" if frames_dir in (None, True) else Path(frames_dir)
+    if not fdir.is_dir():
+        if frames_dir not in (None, True):
+            raise EvalInputError(f"frames dataset {fdir} not found")
+        ev.notes.append(f"camera frames: skipped, no frames dataset at {fdir}")
+        return {}
+    from .frames_eval import frames_note, write_frames_report
+
+    t0 = time.perf_counter()
+    step = None if progress is None else (lambda done, total: progress("frames: segment + infer", done, total))
+    try:
+        fev, written = write_frames_report(fdir, model, out_dir, progress=step)
+    except ValueError as exc:  # FramesInputError / SegmentError / DatasetError name the file
+        raise EvalInputError(f"frames dataset {fdir}: {exc}") from exc
+    ev.timings["frames"] = time.perf_counter() - t0
+    ev.notes.append(frames_note(fev))
+    return written
+
+
 def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | Path, config: EvalConfig,
-                   progress: Progress | None = None, title: str | None = None) -> tuple[Evaluation, dict[str, Path]]:
-    """Everything ``silpose eval`` does, without the terminal UI."""
+                   progress: Progress | None = None, title: str | None = None,
+                   frames_dir: str | Path | None | bool = None) -> tuple[Evaluation, dict[str, Path]]:
+    """Everything ``silpose eval`` does, without the terminal UI.
+
+    ``frames_dir``: the camera-frames evaluation (:mod:`silpose.eval.frames_eval`, ``frames.md``) runs on
+    this frames dataset; None = ``<data_dir>/frames`` when it exists (skipped with a note otherwise);
+    False = never.
+    """
     from silpose.model.persistence import load_model
 
     model_path = Path(model_path)
@@ -155,6 +184,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     ev.notes.append(train_note)
     ev.run()
     ev.timings["load"] = load_s
+    frames_written = _frames_section(ev, model, data_dir, out_dir, frames_dir, progress)
     settings = {
         "data": str(data_dir),
         "model": str(model_path),
@@ -171,5 +201,6 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     }
     t1 = time.perf_counter()
     written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}")
+    written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
