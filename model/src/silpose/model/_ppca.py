@@ -104,24 +104,37 @@ def _spd_inverse(M: np.ndarray) -> np.ndarray:
     return Linv.T @ Linv
 
 
-def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
-    """One EM update of every component (T&B 1999 Appendix C, eqs. C.20-C.23).
+def m_step_sums(X, sqn, resp, XW):
+    """The data sums of one M-step, additive over row blocks (T&B 1999 Appendix C).
 
-    X (N, d) (best centred on the data mean), sqn (N,) = ||x_n||^2, resp (N, M) responsibilities
-    R_ni, XW (N, M, q) = x_n^T W_i for the CURRENT W_i (from the E-step), components (M, d, q) and
-    noise_variance (M,) the current parameters. Returns n (M,), means (M, d), W_new (M, d, q),
-    s2_new (M,). For each i, with n_i = sum_n R_ni and mu_i = sum_n R_ni x_n / n_i:
-        S W  = (1/n_i) sum_n R_ni (x_n - mu_i)(x_n - mu_i)^T W = (1/n_i) X^T (R_i * X W) - mu_i (mu_i^T W)
+    X (N, d), sqn (N,) = ||x_n||^2, resp (N, M) responsibilities R_ni, XW (N, M, q) = x_n^T W_i for
+    the CURRENT W_i (from the E-step). Returns
+        r (M,)           sum_n R_ni
+        G (d, Mq + M)    X^T [R_1 X W_1 .. R_M X W_M  R]: sum_n R_ni x_n (x_n^T W_i) and sum_n R_ni x_n
+        sq (M,)          sum_n R_ni ||x_n||^2
+    from ONE matrix product; never a d x d matrix. Sums over row blocks add up to the sums over all rows.
+    """
+    n = X.shape[0]
+    m, q = XW.shape[1], XW.shape[2]
+    rhs = np.concatenate([(XW * resp[:, :, None]).reshape(n, m * q), resp], axis=1)  # (N, Mq+M)
+    return resp.sum(axis=0), X.T @ rhs, resp.T @ sqn
+
+
+def m_step_from_sums(r, G, sq, components, noise_variance, var_floor):
+    """One EM update of every component from the sums of ``m_step_sums`` (T&B 1999 eqs. C.20-C.23).
+
+    r (M,), G (d, Mq+M), sq (M,) summed over all rows; components (M, d, q) and noise_variance (M,)
+    the current parameters (those the sums were computed with). Returns n (M,) (r floored at
+    10 eps), means (M, d), W_new (M, d, q), s2_new (M,). For each i, with n_i = sum_n R_ni and
+    mu_i = sum_n R_ni x_n / n_i:
+        S W  = (1/n_i) sum_n R_ni (x_n - mu_i)(x_n - mu_i)^T W = (1/n_i) G_i - mu_i (mu_i^T W)
         tr S = (1/n_i) sum_n R_ni ||x_n||^2 - ||mu_i||^2
         W_new = S W (s2 I + M^-1 W^T S W)^-1,            M = W^T W + s2 I
         s2_new = (tr S - tr(S W M^-1 W_new^T)) / d
-    S itself (d x d) is never formed; all components share ONE product X^T [R_1 XW_1 .. R_M XW_M R].
+    S itself (d x d) is never formed: only d x q and q x q matrices.
     """
-    n, d = X.shape
-    m, _, q = components.shape
-    counts = np.maximum(resp.sum(axis=0), 10.0 * np.finfo(float).eps)
-    rhs = np.concatenate([(XW * resp[:, :, None]).reshape(n, m * q), resp], axis=1)  # (N, Mq+M)
-    G = X.T @ rhs  # (d, Mq+M)
+    m, d, q = components.shape
+    counts = np.maximum(np.asarray(r, dtype=np.float64), 10.0 * np.finfo(float).eps)
     means = (G[:, m * q:] / counts).T
     W_new = np.empty_like(components)
     s2_new = np.empty(m)
@@ -129,12 +142,21 @@ def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
     for i in range(m):
         W, s2, mu = components[i], float(noise_variance[i]), means[i]
         SW = G[:, i * q:(i + 1) * q] / counts[i] - np.outer(mu, mu @ W)
-        trS = float(resp[:, i] @ sqn) / counts[i] - float(mu @ mu)
+        trS = float(sq[i]) / counts[i] - float(mu @ mu)
         Minv = _spd_inverse(W.T @ W + s2 * eye)
         A = s2 * eye + Minv @ (W.T @ SW)  # s2 I + M^-1 W^T S W
         W_new[i] = SW @ np.linalg.inv(A)  # S W A^-1
         s2_new[i] = max((trS - float(np.einsum("ij,ij->", SW @ Minv, W_new[i]))) / d, var_floor)
     return counts, means, W_new, s2_new
+
+
+def m_step(X, sqn, resp, XW, components, noise_variance, var_floor):
+    """One EM update on the rows of X: ``m_step_from_sums(*m_step_sums(X, sqn, resp, XW), ...)``.
+
+    X (N, d) (best centred on the data mean), sqn (N,), resp (N, M), XW (N, M, q), components
+    (M, d, q), noise_variance (M,). Returns n (M,), means (M, d), W_new (M, d, q), s2_new (M,).
+    """
+    return m_step_from_sums(*m_step_sums(X, sqn, resp, XW), components, noise_variance, var_floor)
 
 
 def _randomized_top_eigen(E: np.ndarray, k: int, rng: np.random.Generator, oversample: int = 10,

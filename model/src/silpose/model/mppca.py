@@ -21,10 +21,12 @@ from sklearn.base import BaseEstimator, DensityMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from silpose.model import _ppca
+from silpose.model import _em, _ppca
+from silpose.model.shards import ArrayShards, ShardSource, split_global_rows
 
 _SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
 _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
+DEFAULT_INIT_ROWS = 5000  # fit_stream: rows of the initialisation subsample
 
 
 class MPPCA(DensityMixin, BaseEstimator):
@@ -45,6 +47,9 @@ class MPPCA(DensityMixin, BaseEstimator):
         PPCA, eqs. 7-8).
     reg_variance : float, floor on every noise variance sigma_i^2, relative to the mean
         per-feature variance of the training data.
+    init_params : None or dict with ``weights`` (M,), ``means`` (M, d), ``components`` (M, d, q) and
+        ``noise_variance`` (M,): start EM from these parameters (data coordinates) instead of
+        ``init``; needs n_init = 1. Used to compare fits on the same initialisation.
     random_state : None, int or numpy Generator; every random draw comes from
         ``numpy.random.default_rng(random_state)``.
     callback : callable(iteration: int, lower_bound: float) or None, called after each EM
@@ -58,11 +63,14 @@ class MPPCA(DensityMixin, BaseEstimator):
     converged_ (bool), n_iter_ (int, EM iterations of the winning run), lower_bound_ (float, mean
     log-likelihood per sample of the training data under the final parameters), lower_bounds_
     (list of n_iter_ floats, the same after each EM iteration of the winning run, non-decreasing),
-    n_features_in_.
+    n_features_in_, n_fit_samples_.
+
+    ``fit(X)`` holds X in memory; ``fit_stream(shards)`` reads one shard at a time (out of core,
+    optionally on Ray). Both run the same E-step/M-step code (``silpose.model._em``).
     """
 
     def __init__(self, n_components=5, n_latent=10, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
-                 reg_variance=1e-6, random_state=None, callback=None, verbose=0):
+                 reg_variance=1e-6, init_params=None, random_state=None, callback=None, verbose=0):
         self.n_components = n_components
         self.n_latent = n_latent
         self.tol = tol
@@ -70,6 +78,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         self.n_init = n_init
         self.init = init
         self.reg_variance = reg_variance
+        self.init_params = init_params
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
@@ -102,38 +111,108 @@ class MPPCA(DensityMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ fitting
     def fit(self, X, y=None) -> "MPPCA":
-        """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self."""
+        """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self.
+
+        The in-memory fit is the streaming EM (``fit_stream``) on one shard holding every row.
+        """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        n, d = X.shape
+        return self._fit_source(ArrayShards([X]).checked(), init_rows=None)
+
+    def fit_stream(self, shards, init_rows: int = DEFAULT_INIT_ROWS) -> "MPPCA":
+        """Fit by EM, reading the data one shard at a time (out of core). Returns self.
+
+        shards: a ``silpose.model.shards.ShardSource`` (e.g. ``silpose.model.streaming.DatasetShards``
+            over Parquet files, locally or on Ray) or a sequence of (n_s, d) arrays.
+        init_rows: the k-means + per-cluster PPCA initialisation (``init``) is fitted on at most this
+            many rows drawn uniformly without replacement across the shards (all rows if there are
+            fewer: then the initialisation, and so the fit, equals ``fit`` on the concatenated rows
+            up to rounding). Ignored when ``init_params`` is given.
+
+        Every EM iteration is one pass over the shards: each returns its E-step log-likelihood and
+        M-step sums (``silpose.model._em``), which are added up in shard order; memory is bounded by
+        one shard's features plus O(d M q) sums. Same E-step/M-step code as ``fit``.
+        """
+        if not isinstance(init_rows, numbers.Integral) or init_rows < max(2, int(self.n_components)):
+            raise ValueError(f"MPPCA: init_rows must be an integer >= max(2, n_components), got {init_rows!r}")
+        source = shards if isinstance(shards, ShardSource) else ArrayShards(list(shards))
+        self.n_features_in_ = int(source.n_features)
+        return self._fit_source(source, init_rows=int(init_rows))
+
+    def _fit_source(self, source: ShardSource, init_rows: int | None) -> "MPPCA":
+        moments = _em.reduce_sum(source.map(_em.shard_moments))
+        n, d = moments.n, moments.mean.shape[0]
         self._check_params(n, d)
         rng = np.random.default_rng(self.random_state)
-        offset = X.mean(axis=0)
-        Xc = X - offset  # centred copy: keeps the expanded ||x - mu||^2 of the E/M-steps precise
-        data_var = float(np.einsum("ij,ij->", Xc, Xc)) / (n * d)  # mean per-feature variance
+        offset = moments.mean  # EM runs on x - mean: keeps the expanded ||x - mu||^2 precise
+        data_var = moments.m2 / (n * d)  # mean per-feature variance
         var_floor = max(self.reg_variance * data_var if data_var > 0 else self.reg_variance, 1e-300)
+        src = source.centred(offset)
 
         # "em-EM" (Biernacki, Celeux & Govaert 2003, "Choosing starting values for the EM algorithm",
         # CSDA 41): n_init short runs from different starts, the best one continued to convergence.
-        runs = [self._start(Xc, rng, var_floor) for _ in range(self.n_init)]
-        if self.n_init > 1:
+        if self.init_params is not None:
+            starts = [self._explicit_start(d).shifted(offset)]
+        else:
+            X0 = self._init_rows(src, init_rows, rng)
+            starts = [self._initial_params(X0, rng, var_floor) for _ in range(self.n_init)]
+            del X0
+        runs = [self._start(src, p) for p in starts]
+        if len(runs) > 1:
             for k, run in enumerate(runs):
-                self._iterate(Xc, run, min(_SHORT_RUN, self.max_iter), var_floor, k)
-        k_best = max(range(self.n_init), key=lambda k: runs[k]["bounds"][-1] if runs[k]["bounds"] else -np.inf)
+                self._iterate(src, run, min(_SHORT_RUN, self.max_iter), var_floor, k)
+        k_best = max(range(len(runs)), key=lambda k: runs[k]["bounds"][-1] if runs[k]["bounds"] else -np.inf)
         best = runs[k_best]
-        self._iterate(Xc, best, self.max_iter, var_floor, k_best)
+        self._iterate(src, best, self.max_iter, var_floor, k_best)
         del runs
-        self.weights_ = best["weights"]
-        self.means_ = best["means"] + offset
-        self.components_ = best["components"]
-        self.noise_variance_ = best["noise_variance"]
+        p = best["params"]
+        self.weights_ = p.weights
+        self.means_ = p.means + offset
+        self.components_ = p.components
+        self.noise_variance_ = p.noise_variance
         self.converged_ = best["converged"]
         self.n_iter_ = len(best["bounds"])
         self.lower_bound_ = best["bounds"][-1]
         self.lower_bounds_ = list(best["bounds"])
+        self.n_fit_samples_ = int(n)
         if not self.converged_:
             warnings.warn(f"MPPCA: EM did not converge in max_iter = {self.max_iter} iterations "
                           f"(tol = {self.tol}); try more iterations or a larger tol.", ConvergenceWarning)
         return self
+
+    def _explicit_start(self, d: int) -> _em.Params:
+        """``init_params`` validated against (M, d, q), as float64 copies (data coordinates)."""
+        m, q = int(self.n_components), int(self.n_latent)
+        if self.n_init != 1:
+            raise ValueError(f"MPPCA: init_params gives one start; n_init must be 1, got {self.n_init}")
+        p = self.init_params
+        shapes = {"weights": (m,), "means": (m, d), "components": (m, d, q), "noise_variance": (m,)}
+        if not isinstance(p, dict) or set(p) != set(shapes):
+            got = sorted(p) if isinstance(p, dict) else type(p).__name__
+            raise ValueError(f"MPPCA: init_params must be a dict with keys {sorted(shapes)}, got {got}")
+        arrays = {}
+        for key, shape in shapes.items():
+            a = np.array(p[key], dtype=np.float64)
+            if a.shape != shape:
+                raise ValueError(f"MPPCA: init_params[{key!r}] must have shape {shape}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"MPPCA: init_params[{key!r}] contains NaN or infinity")
+            arrays[key] = a
+        if np.any(arrays["weights"] <= 0) or np.any(arrays["noise_variance"] <= 0):
+            raise ValueError("MPPCA: init_params weights and noise_variance must be > 0")
+        arrays["weights"] /= arrays["weights"].sum()
+        return _em.Params(**arrays)
+
+    @staticmethod
+    def _init_rows(src: ShardSource, limit: int | None, rng) -> np.ndarray:
+        """(n0, d) rows for the initialisation: all rows when ``limit`` is None or not exceeded,
+        else ``limit`` rows drawn without replacement across the shards (in shard order)."""
+        counts = src.shard_rows()
+        total = int(sum(counts))
+        if limit is not None and total > limit:
+            idx = np.sort(rng.choice(total, size=limit, replace=False))
+            src = src.select(split_global_rows(idx, counts))
+        parts = list(src.map(_em.take_rows))
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     def _initial_labels(self, X, rng) -> np.ndarray:
         """Hard initial assignment (N,): k-means fitted on at most _KMEANS_ROWS random rows (then
@@ -152,8 +231,8 @@ class MPPCA(DensityMixin, BaseEstimator):
         d2 = -2.0 * X @ centres.T + np.einsum("ij,ij->i", centres, centres)[None, :]  # + ||x||^2, row constant
         return np.argmin(d2, axis=1)
 
-    def _start(self, X, rng, var_floor) -> dict:
-        """One initialisation: hard labels, closed-form PPCA per cluster, the first E-step."""
+    def _initial_params(self, X, rng, var_floor) -> _em.Params:
+        """One initialisation from the rows X (n0, d): hard labels, closed-form PPCA per cluster."""
         n, d = X.shape
         m, q = self.n_components, self.n_latent
         labels = self._initial_labels(X, rng)
@@ -167,31 +246,25 @@ class MPPCA(DensityMixin, BaseEstimator):
                 members = X[rng.integers(n)][None, :]
             weights[i] = members.shape[0] / n
             means[i], comps[i], s2[i] = _ppca.ppca_closed_form(members, q, var_floor, rng)
-        weights /= weights.sum()
-        # X is centred on the data mean by fit(); one product per E-step feeds the next M-step
-        sqn, XW, Xmu = _ppca.e_step_products(X, means, comps)
-        ll = _ppca.log_prob_from_products(sqn, XW, Xmu, weights, means, comps, s2)
-        log_norm = logsumexp(ll, axis=1)
-        return dict(weights=weights, means=means, components=comps, noise_variance=s2, sqn=sqn, XW=XW, ll=ll,
-                    log_norm=log_norm, prev=float(np.mean(log_norm)), bounds=[], converged=False)
+        return _em.Params(weights / weights.sum(), means, comps, s2)
 
-    def _iterate(self, X, run: dict, until: int, var_floor: float, run_idx: int) -> None:
+    @staticmethod
+    def _start(src: ShardSource, params: _em.Params) -> dict:
+        """A run at ``params``: its first pass (E-step log-likelihood and M-step sums)."""
+        stats = _em.reduce_sum(src.map(_em.shard_stats, params))
+        return dict(params=params, stats=stats, prev=stats.loglik / stats.n, bounds=[], converged=False)
+
+    def _iterate(self, src: ShardSource, run: dict, until: int, var_floor: float, run_idx: int) -> None:
         """Advance one run (dict from ``_start``) in place until ``until`` iterations in total or
-        convergence (rise of the mean log-likelihood below tol)."""
-        n = X.shape[0]
+        convergence (rise of the mean log-likelihood below tol). An iteration is the M-step from the
+        pending sums, then one pass over the shards under the new parameters (their log-likelihood,
+        recorded in ``bounds``, and the sums for the next M-step)."""
         while len(run["bounds"]) < until and not run["converged"]:
             it = len(run["bounds"]) + 1
-            resp = np.exp(run["ll"] - run["log_norm"][:, None])  # E-step posteriors R_ni (T&B eq. 21)
-            counts, means, comps, s2 = _ppca.m_step(X, run["sqn"], resp, run["XW"], run["components"],
-                                                    run["noise_variance"], var_floor)  # T&B Appendix C
-            del resp
-            weights = counts / counts.sum()
-            _, XW, Xmu = _ppca.e_step_products(X, means, comps, with_sqn=False)  # ||x||^2 is cached
-            ll = _ppca.log_prob_from_products(run["sqn"], XW, Xmu, weights, means, comps, s2)
-            log_norm = logsumexp(ll, axis=1)
-            cur = float(np.mean(log_norm))
-            run.update(weights=weights, means=means, components=comps, noise_variance=s2, XW=XW, ll=ll,
-                       log_norm=log_norm)
+            params = _em.m_step(run["stats"], run["params"], var_floor)  # T&B Appendix C
+            stats = _em.reduce_sum(src.map(_em.shard_stats, params))
+            cur = stats.loglik / stats.n
+            run.update(params=params, stats=stats)
             run["bounds"].append(cur)
             if self.verbose >= 2:
                 print(f"MPPCA run {run_idx} iteration {it}: mean log-likelihood {cur:.6f}")
@@ -201,7 +274,7 @@ class MPPCA(DensityMixin, BaseEstimator):
             run["prev"] = cur
         if self.verbose >= 1:
             print(f"MPPCA run {run_idx}: {'converged' if run['converged'] else 'not converged'} after "
-                  f"{len(run['bounds'])} iterations, mean log-likelihood {run['prev']:.6f} (N = {n})")
+                  f"{len(run['bounds'])} iterations, mean log-likelihood {run['prev']:.6f} (N = {run['stats'].n})")
 
     # ------------------------------------------------------------------ inference
     def _validate_predict(self, X) -> np.ndarray:
