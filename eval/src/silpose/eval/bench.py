@@ -49,6 +49,14 @@ SECTIONS: dict[str, tuple[str, str, dict, dict, str]] = {
         {"n_frames": 40, "n_background": 20},
         "background subtraction frames/s per core at 320x240 vs OpenCV MOG2",
     ),
+    "frames": (
+        "silpose.eval.bench_frames",
+        "run_frames_bench",
+        {"n_frames": 200, "n_background": 50},
+        {"n_frames": 16, "n_background": 10},
+        "frames -> joints (4 cameras) time steps/s: PNG reading, segmentation, contours, inference "
+        "(composited frames from data/default, models/default.npz)",
+    ),
 }
 
 _SNIPPET = (
@@ -148,10 +156,10 @@ def bench(
     only: str = "",
     out: Path = Path("reports/bench"),
 ) -> None:
-    """Run every benchmark (generation, EM, inference, segmentation) and write reports/bench/bench.md + bench.json.
+    """Run every benchmark (generation, EM, inference, segmentation, frames) and write reports/bench/bench.md + bench.json.
 
     --quick runs small sizes (about a minute). --only takes a comma-separated subset of:
-    generation, em, inference, segmentation.
+    generation, em, inference, segmentation, frames.
     """
     import typer
     from rich.console import Console
