@@ -36,16 +36,28 @@ def train(
     heldout: Annotated[float, typer.Option(help="Fraction of train held out for the held-out log-likelihood.")] = 0.1,
     data_root: Annotated[Path, typer.Option(help="Folder holding the presets' datasets.")] = Path("data"),
     progress: Annotated[bool, typer.Option(help="Show EM progress.")] = True,
+    streaming: Annotated[bool, typer.Option("--streaming", help="Out-of-core fit: EM reads the train shards one at a time "
+                                            "(memory bounded by one shard, not the dataset).")] = False,
+    executor: Annotated[str, typer.Option(help="Where the streaming EM runs its per-shard tasks: 'local' (this process) "
+                                          "or 'ray' (one Ray task per shard; implies --streaming; uses the running Ray "
+                                          "instance or RAY_ADDRESS, else starts a local one).")] = "local",
+    workers: Annotated[Optional[int], typer.Option(min=1, help="CPUs of the local Ray instance if one is started (default: all cores).")] = None,
 ) -> None:
     """Fit the shape+structure model (mixture of PPCA over contours + joints) on a dataset's train split.
 
     Writes the model file and a training report (<model>.report.md and .json: EM iterations,
     log-likelihood curve, time, held-out log-likelihood and joint error on a held-out part of train).
     The model is fitted on the rest of train.
+
+    By default the train split is loaded into memory. --streaming (or --executor ray) fits the
+    same model by streaming EM over the Parquet shards (one shard's features in memory at a time;
+    on Ray, one task per shard); the k-means + PPCA start is then fitted on at most 5,000 rows
+    drawn across the shards (all rows if there are fewer, which gives the in-memory start).
     """
     from silpose.shared.dataset import DatasetError
 
     from .persistence import ModelFileError
+    from .streaming import StreamingError
     from .training import TrainingError, run_training
 
     try:
@@ -57,9 +69,9 @@ def train(
             preset, out=out, select=select, n_components=n_components, n_latent=n_latent,
             structure_weight=structure_weight, noise_variance=noise_variance, views=view_tuple,
             max_iter=max_iter, n_init=n_init, tol=tol, seed=seed, heldout=heldout, data_root=data_root,
-            progress=progress,
+            progress=progress, streaming=streaming, executor=executor, workers=workers,
         )
-    except (TrainingError, DatasetError, ModelFileError, ValueError) as exc:
+    except (TrainingError, DatasetError, ModelFileError, StreamingError, ValueError) as exc:
         _fail("train", str(exc))
     except KeyboardInterrupt:
         _fail("train", "interrupted; nothing was written", 130)

@@ -50,6 +50,17 @@ DEFAULT_STRUCTURE_WEIGHT = 30.0
 DEFAULT_NOISE_VARIANCE = 0.03
 
 
+def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """The training vectors (N, d) of the model (paper eq. 4): the modelled views of rig-indexed pixel
+    contours (N, n_rig_views, n, 2), each normalised, and the weighted root-relative joints (N, 19, 3),
+    metres. ``ShapeStructureModel.features`` and the streaming fit's shard readers both call this."""
+    c = _check_contours(contours_px, "contours_px")
+    if c.shape[1] != n_rig_views:
+        raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {n_rig_views}")
+    norm, _, _ = normalise_contours(c[:, list(layout.views)])
+    return layout.build(norm, joints)
+
+
 @dataclass
 class InferenceResult:
     """Output of :meth:`ShapeStructureModel.infer` for N frames and K modelled views.
@@ -146,7 +157,7 @@ class ShapeStructureModel:
         if not np.isfinite(self.noise_variance) or self.noise_variance < 0:
             raise ValueError(f"noise_variance must be finite and >= 0, got {self.noise_variance}")
 
-    def _make_mixture(self):
+    def _make_mixture(self, init_params: dict | None = None):
         from .mppca import MPPCA
 
         return MPPCA(
@@ -155,6 +166,7 @@ class ShapeStructureModel:
             tol=float(self.tol),
             max_iter=int(self.max_iter),
             n_init=int(self.n_init),
+            init_params=init_params,
             random_state=self.random_state,
             callback=self.callback,
             verbose=self.verbose,
@@ -162,20 +174,17 @@ class ShapeStructureModel:
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
-        layout = self._layout()
-        c = _check_contours(contours_px, "contours_px")
-        if c.shape[1] != self.n_rig_views_:
-            raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {self.n_rig_views_}")
-        norm, _, _ = normalise_contours(c[:, list(layout.views)])
-        return layout.build(norm, joints)
+        return shape_vectors(self._layout(), self.n_rig_views_, contours_px, joints)
 
-    def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None) -> "ShapeStructureModel":
+    def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None, *,
+            init_params: dict | None = None) -> "ShapeStructureModel":
         """Fit the prior.
 
         Args:
             contours_px: (N, K, n, 2) contours in pixels for all K views of the rig (``views`` selects among them).
             joints: (N, 19, 3) joint positions in metres (absolute or root-relative).
             rig: optional ``silpose.shared.camera.Rig`` of the K views (kept for persistence and PNG inference).
+            init_params: optional explicit MPPCA start (see ``MPPCA(init_params=...)``; needs n_init = 1).
         Returns:
             self.
         """
@@ -202,10 +211,32 @@ class ShapeStructureModel:
         self.rig_ = rig
         X = self.features(c, j)
         t0 = time.perf_counter()
-        self.mixture_ = self._make_mixture().fit(X)
+        self.mixture_ = self._make_mixture(init_params).fit(X)
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(X.shape[0])
         return self
+
+    def fit_stream(self, root, split: str = "train", *, rows=None, executor: str = "local",
+                   workers: int | None = None, init_rows: int | None = None,
+                   init_params: dict | None = None) -> "ShapeStructureModel":
+        """Fit the prior out of core: EM streams over the Parquet shards of ``root``/``split``.
+
+        Args:
+            root: dataset folder; split: its split to read.
+            rows: optional global row indices (0 .. rows in the split - 1, shard order) to fit on;
+                None = every row.
+            executor: "local" (one shard at a time in this process) or "ray" (one Ray task per shard).
+            workers: CPUs of the local Ray instance when this process starts one (None = all cores).
+            init_rows: rows of the k-means + PPCA initialisation subsample (None = the MPPCA default).
+            init_params: optional explicit MPPCA start (needs n_init = 1).
+        Every shard's vectors come from :func:`shape_vectors`, as in :meth:`fit`; memory is bounded
+        by one shard (see ``silpose.model.streaming``). Returns self.
+        """
+        from .streaming import fit_model_stream
+
+        self._check_hyperparameters()
+        return fit_model_stream(self, root, split, rows=rows, executor=executor, workers=workers,
+                                init_rows=init_rows, init_params=init_params)
 
     def fit_dataset(self, split) -> "ShapeStructureModel":
         """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig).

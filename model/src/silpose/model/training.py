@@ -128,17 +128,39 @@ def run_training(
     data_root: Path = Path("data"),
     progress: bool = True,
     grid: dict | None = None,
+    streaming: bool = False,
+    executor: str = "local",
+    workers: int | None = None,
 ) -> TrainingResult:
-    """Fit on ``<dataset>/train`` minus a held-out part; write the model and its report. See module doc."""
+    """Fit on ``<dataset>/train`` minus a held-out part; write the model and its report. See module doc.
+
+    ``streaming`` fits out of core (EM streams over the train shards, ``ShapeStructureModel.fit_stream``)
+    and scores the held-out part shard by shard; ``executor="ray"`` (implies streaming) runs each
+    shard's EM task on Ray with ``workers`` CPUs when it starts a local Ray instance.
+    """
     from silpose.shared.dataset import load_split
 
+    if executor not in ("local", "ray"):
+        raise TrainingError(f"executor must be 'local' or 'ray', got {executor!r}")
+    streaming = bool(streaming) or executor == "ray"
+    if streaming and select:
+        raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
+                            "then train the chosen hyperparameters with streaming")
     root, name = resolve_dataset(preset, data_root)
-    split = load_split(root, "train", columns=["joints", "contours", "contour_centroid", "contour_scale"])
-    n = len(split)
+    if streaming:
+        from .streaming import DatasetShards
+
+        plan = DatasetShards.open(root, "train", executor=executor, workers=workers)
+        split, metadata, rig = None, plan.metadata, plan.rig
+        n, n_views, n_points = sum(plan.shard_rows()), plan.n_rig_views, plan.n_points
+    else:
+        split = load_split(root, "train", columns=["joints", "contours", "contour_centroid", "contour_scale"])
+        metadata, rig = split.metadata, split.rig
+        n, n_views, n_points = len(split), split.contours.shape[1], split.contours.shape[2]
     if n < 4:
         raise TrainingError(f"{root}: the train split has {n} samples; at least 4 are needed")
     fit_idx, held_idx = validation_split(n, heldout, seed)
-    contours, joints = split.contours, split.joints
+    contours, joints = (None, None) if split is None else (split.contours, split.joints)
     hp = {
         "n_components": DEFAULT_N_COMPONENTS if n_components is None else n_components,
         "n_latent": DEFAULT_N_LATENT if n_latent is None else n_latent,
@@ -153,7 +175,7 @@ def run_training(
         print(f"model selection on {len(fit_idx)} training samples ...", flush=True)
         selection = run_selection(
             contours[fit_idx], joints[fit_idx], grid={**(grid or {}), **user}, views=views, seed=seed,
-            max_iter=min(max_iter, 100), tol=tol, rig=split.rig,
+            max_iter=min(max_iter, 100), tol=tol, rig=rig,
             progress=(lambda i, k, row: print(f"  fit {i}/{k}: q={row['n_latent']} M={row['n_components']} "
                                               f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm",
                                               flush=True)) if progress else None,
@@ -167,7 +189,7 @@ def run_training(
             notes.append(f"n_latent lowered from the default {hp['n_latent']} to {q_data} "
                          f"(= fitted samples / (2 M)) for this small dataset")
             hp["n_latent"] = q_data
-    max_q = min(len(fit_idx) - 1, contours.shape[2] * 2 * (len(views) if views else contours.shape[1]))
+    max_q = min(len(fit_idx) - 1, n_points * 2 * (len(views) if views else n_views))
     if hp["n_latent"] >= max_q:
         raise TrainingError(f"n_latent = {hp['n_latent']} is too large for {len(fit_idx)} training samples (< {max_q})")
     for note in notes:
@@ -180,14 +202,23 @@ def run_training(
             callback=em,
         )
         t0 = time.perf_counter()
-        model.fit(contours[fit_idx], joints[fit_idx], rig=split.rig)
+        if streaming:
+            model.fit_stream(root, "train", rows=fit_idx, executor=executor, workers=workers)
+        else:
+            model.fit(contours[fit_idx], joints[fit_idx], rig=rig)
         wall = time.perf_counter() - t0
     model.callback = None
-    model.dataset_info_ = _dataset_info(root, name, split, len(fit_idx), len(held_idx))
+    model.dataset_info_ = _dataset_info(root, name, metadata, n, len(fit_idx), len(held_idx))
+    mode = {"streaming": streaming, "executor": executor if streaming else "in-memory",
+            "n_shards": len(plan.paths) if streaming else None}
     model.training_config_ = {"command": "silpose train", "heldout_fraction": heldout, "seed": seed,
-                              "select": bool(select), "selection_best": None if selection is None else selection.best}
-    held_ll = model.score_samples(contours[held_idx], joints[held_idx])
-    held_err = joint_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
+                              "select": bool(select), "selection_best": None if selection is None else selection.best,
+                              "mode": mode}
+    if streaming:
+        held_ll, held_err = _heldout_streaming(model, plan, held_idx)
+    else:
+        held_ll = model.score_samples(contours[held_idx], joints[held_idx])
+        held_err = joint_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
 
     out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     save_model(out, model)
@@ -197,6 +228,7 @@ def run_training(
         "dataset": model.dataset_info_,
         "n_fit": int(len(fit_idx)),
         "n_heldout": int(len(held_idx)),
+        "mode": mode,
         "hyperparameters": model.get_params(),
         "em": {
             "n_iter": int(mix.n_iter_),
@@ -221,7 +253,25 @@ def run_training(
     return TrainingResult(out, report_md, report_json, report)
 
 
-def _dataset_info(root: Path, name: str, split, n_fit: int, n_held: int) -> dict:
+def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(log-likelihood (H,), joint error cm (H,)) of the held-out rows, reading one shard at a time."""
+    from silpose.shared.dataset import read_shard
+
+    from .shards import split_global_rows
+
+    lls, errs = [], []
+    for path, rows in zip(plan.paths, split_global_rows(np.asarray(held_idx), plan.shard_rows())):
+        if rows.size == 0:
+            continue
+        shard = read_shard(path, columns=["joints", "contours"])
+        c, j = shard.contours[rows], shard.joints[rows]
+        del shard
+        lls.append(model.score_samples(c, j))
+        errs.append(joint_error_cm(model.infer(c).joints, j))
+    return np.concatenate(lls), np.concatenate(errs)
+
+
+def _dataset_info(root: Path, name: str, metadata: dict, n_samples: int, n_fit: int, n_held: int) -> dict:
     from .persistence import file_sha256
 
     manifest = Path(root) / "manifest.json"
@@ -229,12 +279,12 @@ def _dataset_info(root: Path, name: str, split, n_fit: int, n_held: int) -> dict
         "name": name,
         "root": str(root),
         "split": "train",
-        "n_samples": int(len(split)),
+        "n_samples": int(n_samples),
         "n_fit": n_fit,
         "n_heldout": n_held,
         "manifest_sha256": file_sha256(manifest) if manifest.is_file() else None,
-        "config_name": (split.metadata.get("config") or {}).get("name"),
-        "generator_config": split.metadata.get("config"),
+        "config_name": (metadata.get("config") or {}).get("name"),
+        "generator_config": metadata.get("config"),
     }
 
 
@@ -251,7 +301,9 @@ def _report_markdown(r: dict, selection) -> str:
         f"{hp['structure_weight']:g}, views {hp['views'] if hp['views'] is not None else 'all'}, "
         f"inference noise s² = {hp['noise_variance']:g}",
         f"- EM: {em['n_iter']} iterations ({'converged' if em['converged'] else 'NOT converged'}, tol {hp['tol']:g}), "
-        f"best of {hp['n_init']} runs, {em['fit_time_s']:.1f} s in total",
+        f"best of {hp['n_init']} runs, {em['fit_time_s']:.1f} s in total"
+        + (f"; streamed over {r['mode']['n_shards']} shards ({r['mode']['executor']})" if r.get("mode", {}).get("streaming")
+           else "; in memory"),
         f"- training mean log-likelihood: {em['mean_loglik']:.2f} nats/sample",
         f"- held-out mean log-likelihood: {held['mean_loglik']:.2f} nats/sample",
         f"- held-out joint error (all views observed): mean {held['joint_error_cm']:.2f} cm, "

@@ -1,0 +1,251 @@
+"""Out-of-core MPPCA training: a dataset's Parquet shards as the row blocks of EM, locally or on Ray.
+
+:class:`DatasetShards` is a :class:`~silpose.model.shards.ShardSource` over one split of a silpose
+dataset. Each EM pass reads every shard (``silpose.shared.dataset.read_shard``: contours and joints
+only), builds its shape vectors with the model's own feature construction
+(``silpose.model.shape_model.shape_vectors``: view selection, contour normalisation, structure
+weight) and hands them to one EM task (``silpose.model._em``); only the task's small result (the
+EM sums, O(d M q)) outlives the shard. With ``executor="local"`` the shards are read one after the
+other in this process, so at most one shard's features exist at a time. With ``executor="ray"``
+each shard is a Ray task (at most ``2 x CPUs`` in flight; results summed in shard order, so the
+fit equals the local one up to BLAS rounding). Ray is imported only then; silpose-model does not
+depend on it (the ``ray`` extra).
+
+Before training, the plan reads only the shards' footers: row counts and metadata, checked to agree
+across shards (the file is named in every error).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+
+from .features import FeatureLayout
+from .shards import ShardSource, _compose
+
+EXECUTORS = ("local", "ray")
+_SAME_METADATA = ("format_version", "cameras", "n_points", "joint_names", "config")
+
+
+class StreamingError(RuntimeError):
+    """A streaming or Ray training task failed; the message names the shard file."""
+
+
+def load_shard_features(path: str, rows, layout: FeatureLayout, n_rig_views: int) -> np.ndarray:
+    """Shape vectors (n, d) float64 of one shard file (its ``rows``, sorted local indices, or all if None)."""
+    from silpose.shared.dataset import read_shard
+
+    from .shape_model import shape_vectors
+
+    shard = read_shard(path, columns=["joints", "contours"])
+    contours, joints = shard.contours, shard.joints
+    del shard
+    if rows is not None:
+        contours, joints = contours[rows], joints[rows]
+    return shape_vectors(layout, n_rig_views, contours, joints)
+
+
+def run_shard_task(path: str, rows, layout: FeatureLayout, n_rig_views: int, offset, fn: Callable, args: tuple):
+    """One EM task: ``fn(features of the shard - offset, *args)``. Runs in this process or in a Ray worker."""
+    X = load_shard_features(path, rows, layout, n_rig_views)
+    if offset is not None:
+        X -= offset
+    return fn(X, *args)
+
+
+@dataclass(frozen=True)
+class DatasetShards(ShardSource):
+    """One split of a dataset as EM row blocks. Build with :meth:`open`, then :meth:`with_layout`.
+
+    Attributes: paths (shard files, in order), n_rows (rows per file), metadata (the first shard's
+    ``silpose`` document), layout (FeatureLayout or None until set), rows (per shard: sorted local
+    row indices or None = all), offset ((d,) subtracted from every row, or None), executor
+    ("local" or "ray"), workers (Ray CPUs when this process starts Ray; None = all cores).
+    """
+
+    paths: tuple[str, ...]
+    n_rows: tuple[int, ...]
+    metadata: dict
+    layout: FeatureLayout | None = None
+    rows: tuple = ()
+    offset: np.ndarray | None = None
+    executor: str = "local"
+    workers: int | None = None
+
+    @classmethod
+    def open(cls, root: str | Path, split: str = "train", *, executor: str = "local",
+             workers: int | None = None) -> "DatasetShards":
+        """Plan over the shards of ``split`` in ``root``: reads footers only (metadata, row counts)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        from silpose.shared.dataset import DatasetError, list_shards, read_metadata, shard_name
+
+        if executor not in EXECUTORS:
+            raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+        files = list_shards(root, split)
+        if not files:
+            raise DatasetError(f"{root}: no shards for split {split!r} ({shard_name(split, 0, 1)} ...)")
+        first = read_metadata(files[0])
+        n_rows = []
+        for path in files:
+            meta = first if path == files[0] else read_metadata(path)
+            for key in _SAME_METADATA:
+                if meta.get(key) != first.get(key):
+                    raise DatasetError(f"{path}: metadata field {key!r} differs from the split's first shard")
+            try:
+                n_rows.append(int(pq.read_metadata(path).num_rows))
+            except (pa.ArrowException, OSError) as exc:
+                raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from None
+        return cls(tuple(str(p) for p in files), tuple(n_rows), first, rows=(None,) * len(files),
+                   executor=executor, workers=workers)
+
+    # ------------------------------------------------------------------ dataset facts
+    @property
+    def rig(self):
+        from silpose.shared.camera import Rig
+
+        return Rig.from_dict({"cameras": self.metadata["cameras"]})
+
+    @property
+    def n_rig_views(self) -> int:
+        return len(self.metadata["cameras"])
+
+    @property
+    def n_points(self) -> int:
+        return int(self.metadata["n_points"])
+
+    def with_layout(self, layout: FeatureLayout) -> "DatasetShards":
+        if not all(0 <= v < self.n_rig_views for v in layout.views):
+            raise ValueError(f"views {layout.views} do not all exist: the data have {self.n_rig_views} views")
+        if layout.n_points != self.n_points:
+            raise ValueError(f"layout has {layout.n_points} contour points, the data {self.n_points}")
+        return replace(self, layout=layout)
+
+    # ------------------------------------------------------------------ ShardSource
+    @property
+    def n_features(self) -> int:
+        if self.layout is None:
+            raise RuntimeError("DatasetShards: call with_layout() before reading features")
+        return self.layout.dim
+
+    def shard_rows(self) -> list[int]:
+        return [n if r is None else len(r) for n, r in zip(self.n_rows, self.rows)]
+
+    def centred(self, offset: np.ndarray) -> "DatasetShards":
+        base = 0.0 if self.offset is None else self.offset
+        return replace(self, offset=base + np.asarray(offset, dtype=np.float64))
+
+    def select(self, rows: Sequence[np.ndarray]) -> "DatasetShards":
+        if len(rows) != len(self.paths):
+            raise ValueError(f"select: {len(rows)} row lists for {len(self.paths)} shards")
+        return replace(self, rows=tuple(_compose(cur, r) for cur, r in zip(self.rows, rows)))
+
+    def map(self, fn: Callable, *args) -> Iterator:
+        todo = [s for s, n in enumerate(self.shard_rows()) if n]
+        if self.executor == "ray":
+            yield from _ray_map(self, todo, fn, args)
+            return
+        for s in todo:
+            yield run_shard_task(self.paths[s], self.rows[s], self.layout, self.n_rig_views, self.offset, fn, args)
+
+
+def fit_model_stream(model, root, split: str = "train", *, rows=None, executor: str = "local",
+                     workers: int | None = None, init_rows: int | None = None, init_params: dict | None = None):
+    """``ShapeStructureModel.fit_stream`` (see there): plan the shards, set the layout, stream EM."""
+    from silpose.shared.skeleton import N_JOINTS
+
+    from .mppca import DEFAULT_INIT_ROWS
+    from .shards import split_global_rows
+
+    source = DatasetShards.open(root, split, executor=executor, workers=workers)
+    n_rig = source.n_rig_views
+    views = tuple(range(n_rig)) if model.views is None else tuple(int(v) for v in model.views)
+    bad = [v for v in views if not 0 <= v < n_rig]
+    if bad:
+        raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
+    layout = FeatureLayout(views, source.n_points, N_JOINTS, float(model.structure_weight))
+    source = source.with_layout(layout)
+    if rows is not None:
+        idx = np.unique(np.asarray(rows, dtype=np.int64))
+        total = sum(source.shard_rows())
+        if idx.size == 0 or idx[0] < 0 or idx[-1] >= total:
+            raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({root} split {split!r})")
+        source = source.select(split_global_rows(idx, source.shard_rows()))
+    model.layout_ = layout
+    model.n_rig_views_ = n_rig
+    model.rig_ = source.rig
+    t0 = time.perf_counter()
+    model.mixture_ = model._make_mixture(init_params).fit_stream(
+        source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
+    model.fit_time_ = time.perf_counter() - t0
+    model.n_train_ = int(model.mixture_.n_fit_samples_)
+    return model
+
+
+# ---------------------------------------------------------------------------- Ray
+
+
+def start_ray(workers: int | None = None):
+    """The ``ray`` module, initialised: the running instance (``ray.init`` called, or ``RAY_ADDRESS``
+    set), else a local one with ``workers`` CPUs (default all cores). StreamingError if ray is missing."""
+    # Ray >= 2.43 would start every worker of a `uv run` driver with `uv run` (a re-synced copy of
+    # the environment per worker); workers use this interpreter instead (as silpose.datagen.executor).
+    os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
+    try:
+        import ray
+    except ImportError:
+        raise StreamingError("executor 'ray': ray is not installed (install silpose-model[ray], "
+                             "or use --executor local)") from None
+    if not ray.is_initialized():
+        if os.environ.get("RAY_ADDRESS"):
+            ray.init()
+        else:
+            ray.init(num_cpus=workers or max(1, len(os.sched_getaffinity(0))), include_dashboard=False,
+                     log_to_driver=False)
+    return ray
+
+
+def _ray_map(src: DatasetShards, todo: list[int], fn: Callable, args: tuple) -> Iterator:
+    """Run ``run_shard_task`` for the shards ``todo`` as Ray tasks; yield results in shard order.
+
+    At most ``limit`` tasks are ahead of the next result to yield, so at most ``limit`` results
+    wait on the driver (out-of-order arrivals are held until their turn).
+    """
+    ray = start_ray(src.workers)
+    remote = ray.remote(num_cpus=1)(run_shard_task)
+    layout_ref, offset_ref, args_ref = ray.put(src.layout), ray.put(src.offset), ray.put(args)
+    limit = 2 * max(1, int(ray.cluster_resources().get("CPU", 1)))
+    pending: dict = {}
+    ready: dict[int, object] = {}
+    nxt = sub = 0
+    try:
+        while nxt < len(todo):
+            while sub < len(todo) and sub < nxt + limit:
+                s = todo[sub]
+                ref = remote.remote(src.paths[s], src.rows[s], layout_ref, src.n_rig_views, offset_ref, fn, args_ref)
+                pending[ref] = sub
+                sub += 1
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                k = pending.pop(ref)
+                try:
+                    ready[k] = ray.get(ref)
+                except Exception as exc:
+                    lines = str(exc).strip().splitlines()
+                    raise StreamingError(f"{src.paths[todo[k]]}: Ray task failed: "
+                                         f"{lines[-1] if lines else type(exc).__name__}") from None
+            while nxt in ready:
+                yield ready.pop(nxt)
+                nxt += 1
+    finally:
+        for ref in pending:
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # already finished or gone
+                pass
