@@ -36,6 +36,10 @@ all preset="default": setup
     uv run --no-sync silpose train {{preset}}
     uv run --no-sync silpose eval {{preset}}
 
+# textured camera frames + empty-room frames + truth: just frames [preset|config.toml] [--samples N] [--background N] [--out DIR]
+frames preset="default" *args: setup
+    uv run --no-sync silpose gen-frames "{{preset}}" "${@:2}"
+
 # check a generated dataset folder
 validate dir *args: setup
     uv run --no-sync silpose validate "$@"

@@ -33,7 +33,9 @@ ENGINES = ("workbench", "cycles")
 SPLITS = ("train", "test")
 #: Height (m) up to which the workspace corners must be seen: a tall person's head top.
 WORKSPACE_CHECK_HEIGHT = 2.0
-_KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig"}
+_KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig", "frames"}
+#: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames_config`).
+_OTHER_SECTIONS = {"frames"}
 
 
 class ConfigError(ValueError):
@@ -151,6 +153,7 @@ def _choice(raw: dict, key: str, src: str, choices: tuple[str, ...], default: st
 def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     """Validate a config dict (as read from TOML) into a :class:`GenConfig`."""
     src = source
+    raw = {k: v for k, v in raw.items() if k not in _OTHER_SECTIONS}
     unknown = sorted(set(raw) - _KEYS)
     if unknown:
         raise ConfigError(f"{src}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(_KEYS))}")
