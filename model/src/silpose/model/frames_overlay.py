@@ -46,7 +46,8 @@ def _crop(mask, recon: np.ndarray, width: int, height: int, pad: float = 15.0) -
         return -0.5, -0.5, width - 0.5, height - 0.5
     lo, hi = p.min(0) - pad, p.max(0) + pad
     c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    half = np.maximum(half, [half[1] * 4 / 3, half[0] * 3 / 4])
+    half = np.minimum(np.maximum(half, [half[1] * 4 / 3, half[0] * 3 / 4]), [width / 2, height / 2])
+    c = np.clip(c, half - 0.5, np.array([width, height]) - 0.5 - half)  # slide the box inside the image
     return float(c[0] - half[0]), float(c[1] - half[1]), float(c[0] + half[0]), float(c[1] + half[1])
 
 
