@@ -42,6 +42,15 @@ SECTIONS: dict[str, tuple[str, str, dict, dict, str]] = {
         {"frames": 2000, "repeats": 1, "latency_calls": 50},
         "batched frames/s (4 views) and single-frame latency vs dense conditioning",
     ),
+    "memory": (
+        "silpose.model.bench_memory",
+        "run_memory_bench",
+        {"data": "data/paper", "repeats": [1, 2, 4], "modes": ["memory", "stream"], "max_iter": 1,
+         "missing_ok": True},
+        {"data": "data/default", "repeats": [1, 2], "modes": ["memory", "stream"], "n_components": 2,
+         "n_latent": 10, "max_iter": 1, "missing_ok": True},
+        "peak RSS of the in-memory vs streaming (out-of-core) MPPCA fit; dataset repeated 1x/2x/4x at fixed shard size",
+    ),
     "segmentation": (
         "silpose.segment.bench",
         "run_segment_bench",

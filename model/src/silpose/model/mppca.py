@@ -116,7 +116,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         The in-memory fit is the streaming EM (``fit_stream``) on one shard holding every row.
         """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        return self._fit_source(ArrayShards([X]).checked(), init_rows=None)
+        return self._fit_source(ArrayShards([X], materialise=True).checked(), init_rows=None)
 
     def fit_stream(self, shards, init_rows: int = DEFAULT_INIT_ROWS) -> "MPPCA":
         """Fit by EM, reading the data one shard at a time (out of core). Returns self.

@@ -158,12 +158,20 @@ class DatasetShards(ShardSource):
 def fit_model_stream(model, root, split: str = "train", *, rows=None, executor: str = "local",
                      workers: int | None = None, init_rows: int | None = None, init_params: dict | None = None):
     """``ShapeStructureModel.fit_stream`` (see there): plan the shards, set the layout, stream EM."""
+    source = DatasetShards.open(root, split, executor=executor, workers=workers)
+    return fit_model_shards(model, source, rows=rows, init_rows=init_rows, init_params=init_params,
+                            where=f"{root} split {split!r}")
+
+
+def fit_model_shards(model, source: DatasetShards, *, rows=None, init_rows: int | None = None,
+                     init_params: dict | None = None, where: str = "dataset"):
+    """Fit ``model`` (a ShapeStructureModel) by streaming EM over the planned ``source`` (from
+    :meth:`DatasetShards.open`); ``rows`` are global row indices over its shards. Returns the model."""
     from silpose.shared.skeleton import N_JOINTS
 
     from .mppca import DEFAULT_INIT_ROWS
     from .shards import split_global_rows
 
-    source = DatasetShards.open(root, split, executor=executor, workers=workers)
     n_rig = source.n_rig_views
     views = tuple(range(n_rig)) if model.views is None else tuple(int(v) for v in model.views)
     bad = [v for v in views if not 0 <= v < n_rig]
@@ -175,7 +183,7 @@ def fit_model_stream(model, root, split: str = "train", *, rows=None, executor: 
         idx = np.unique(np.asarray(rows, dtype=np.int64))
         total = sum(source.shard_rows())
         if idx.size == 0 or idx[0] < 0 or idx[-1] >= total:
-            raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({root} split {split!r})")
+            raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({where})")
         source = source.select(split_global_rows(idx, source.shard_rows()))
     model.layout_ = layout
     model.n_rig_views_ = n_rig
