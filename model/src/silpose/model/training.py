@@ -4,6 +4,10 @@ A held-out part of the train split (``heldout`` fraction, seeded) is kept out of
 scored: mean log-likelihood per sample of the full shape+structure vectors, and the mean joint
 error (cm) inferring joints from all modelled views. The saved model is the one fitted on the
 remaining part of train.
+
+With ``streaming`` (``silpose train --streaming``) or ``executor="ray"`` the split is never loaded
+whole: EM streams over its Parquet shards (``silpose.model.streaming``) and the held-out part is
+scored shard by shard; the held-out rows are the same as in memory.
 """
 
 from __future__ import annotations
