@@ -101,7 +101,7 @@ def test_explicit_start_is_validated():
 
 def test_dataset_stream_equals_in_memory_on_same_start(dataset, start_params):
     split = load_split(dataset, "train")
-    ref = _model().fit(split.contours, split.joints, init_params=start_params)
+    ref = _model().fit(split.contours, split.joints, rig=split.rig, init_params=start_params)
     got = _model().fit_stream(dataset, "train", init_params=start_params)
     _assert_same_fit(ref.mixture_, got.mixture_)
     assert got.layout_ == ref.layout_ and got.n_train_ == sum(SHARD_ROWS)
@@ -112,7 +112,7 @@ def test_dataset_stream_on_a_row_subset_with_default_start(dataset):
     """rows= selects the same samples as indexing in memory; with <= init_rows rows the k-means start is too."""
     split = load_split(dataset, "train")
     rows = np.sort(np.random.default_rng(2).choice(len(split), size=70, replace=False))
-    ref = _model(n_init=2).fit(split.contours[rows], split.joints[rows])
+    ref = _model(n_init=2).fit(split.contours[rows], split.joints[rows], rig=split.rig)
     got = _model(n_init=2).fit_stream(dataset, "train", rows=rows)
     _assert_same_fit(ref.mixture_, got.mixture_, moved=False)  # the k-means + PPCA start is already near the optimum
 

@@ -24,6 +24,9 @@ import numpy as np
 from silpose.shared.skeleton import N_JOINTS, root_relative
 
 LAYOUT_VERSION = 1
+#: how the structure block's joints are scaled (see FeatureLayout.joint_frame); files without the
+#: field predate it and are "metres"
+JOINT_FRAMES = ("metres", "stature")
 
 
 @dataclass(frozen=True)
@@ -35,12 +38,16 @@ class FeatureLayout:
         n_points: contour points per view (n).
         n_joints: number of joints (z), 19 for the silpose skeleton.
         structure_weight: factor ``w`` multiplying the root-relative joints (metres -> feature units).
+        joint_frame: "metres" (joints as given) or "stature" (the caller has divided the root-relative
+            joints by the walker's estimated stature / 1.75 m before ``build``, and multiplies ``split``'s
+            joints back; ``silpose.model.stature``). Recorded here so a saved model says which.
     """
 
     views: tuple[int, ...]
     n_points: int
     n_joints: int = N_JOINTS
     structure_weight: float = 1.0
+    joint_frame: str = "metres"
 
     def __post_init__(self) -> None:
         views = tuple(int(v) for v in self.views)
@@ -56,6 +63,8 @@ class FeatureLayout:
             raise ValueError(f"FeatureLayout.n_joints must be >= 1, got {self.n_joints}")
         if not np.isfinite(self.structure_weight) or self.structure_weight <= 0:
             raise ValueError(f"FeatureLayout.structure_weight must be finite and > 0, got {self.structure_weight}")
+        if self.joint_frame not in JOINT_FRAMES:
+            raise ValueError(f"FeatureLayout.joint_frame must be one of {JOINT_FRAMES}, got {self.joint_frame!r}")
 
     # ------------------------------------------------------------------ sizes and slices
     @property
@@ -182,6 +191,7 @@ class FeatureLayout:
                 n_points=int(d["n_points"]),
                 n_joints=int(d["n_joints"]),
                 structure_weight=float(d["structure_weight"]),
+                joint_frame=str(d.get("joint_frame", "metres")),
             )
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{source}: invalid feature layout: {exc}") from None

@@ -216,6 +216,7 @@ def load_model(path: str | Path):
             structure_weight=float(hp["structure_weight"]),
             views=None if hp.get("views") is None else tuple(hp["views"]),
             noise_variance=float(hp["noise_variance"]),
+            joint_frame=hp.get("joint_frame"),
             tol=float(hp.get("tol", 1e-4)),
             max_iter=int(hp.get("max_iter", 200)),
             n_init=int(hp.get("n_init", 3)),
@@ -233,6 +234,9 @@ def load_model(path: str | Path):
             raise ModelFileError(f"{path}: field 'header.rig' is invalid: {exc}") from None
         if len(rig) != int(header["n_rig_views"]):
             raise ModelFileError(f"{path}: field 'header.rig' has {len(rig)} cameras, n_rig_views is {header['n_rig_views']}")
+    if layout.joint_frame == "stature" and rig is None:
+        raise ModelFileError(f"{path}: field 'header.rig' is missing, but the feature layout's joints are in the "
+                             "'stature' frame, which needs the cameras")
     mix = MPPCA(n_components=model.n_components, n_latent=model.n_latent, tol=model.tol,
                 max_iter=model.max_iter, n_init=model.n_init, random_state=model.random_state)
     mix.weights_ = data["weights"]

@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from silpose.shared.skeleton import N_JOINTS
+from silpose.shared.skeleton import N_JOINTS, root_relative
 
 from ._inputs import (
     check_contours as _check_contours,
@@ -32,6 +32,7 @@ from ._inputs import (
     normalise_contours,
 )
 from .features import FeatureLayout
+from .stature import REFERENCE_STATURE, estimate_stature
 
 # Defaults, from model selection on validation joint error (silpose.model.selection), measured
 # 2026-11-22 on the `default` preset (2,000 train samples, raster renderer, seed 0; generated with
@@ -50,14 +51,23 @@ DEFAULT_STRUCTURE_WEIGHT = 30.0
 DEFAULT_NOISE_VARIANCE = 0.03
 
 
-def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
+def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray,
+                  rig=None) -> np.ndarray:
     """The training vectors (N, d) of the model (paper eq. 4): the modelled views of rig-indexed pixel
     contours (N, n_rig_views, n, 2), each normalised, and the weighted root-relative joints (N, 19, 3),
-    metres. ``ShapeStructureModel.features`` and the streaming fit's shard readers both call this."""
+    metres -- divided by ``stature / REFERENCE_STATURE`` when ``layout.joint_frame == "stature"``
+    (then ``rig``, the cameras of the n_rig_views views, is required). ``ShapeStructureModel.features``
+    and the streaming fit's shard readers both call this."""
     c = _check_contours(contours_px, "contours_px")
     if c.shape[1] != n_rig_views:
         raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {n_rig_views}")
-    norm, _, _ = normalise_contours(c[:, list(layout.views)])
+    views = list(layout.views)
+    norm, _, _ = normalise_contours(c[:, views])
+    if layout.joint_frame == "stature":
+        if rig is None:
+            raise ValueError("joint_frame 'stature' needs the camera rig (to measure each walker's stature)")
+        factor = estimate_stature(c[:, views], [rig[v] for v in views]) / REFERENCE_STATURE
+        joints = root_relative(np.asarray(joints, dtype=np.float64)) / factor[:, None, None]
     return layout.build(norm, joints)
 
 
@@ -101,6 +111,9 @@ class ShapeStructureModel:
         structure_weight: factor on the root-relative joints in the shape vector (DESIGN §4).
         views: rig view indices to model (vector order); None = every view of the training data.
         noise_variance: observation noise s^2 on the contours at inference, normalised contour units^2.
+        joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
+            the calibrated silhouettes, ``silpose.model.stature``; needs the rig), "metres" (the paper's
+            raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
         tol, max_iter, n_init, random_state, callback: passed to :class:`~silpose.model.mppca.MPPCA`.
 
     Fitted attributes: ``layout_`` (FeatureLayout), ``mixture_`` (fitted MPPCA), ``n_rig_views_``,
@@ -115,6 +128,7 @@ class ShapeStructureModel:
         structure_weight: float = DEFAULT_STRUCTURE_WEIGHT,
         views: Sequence[int] | None = None,
         noise_variance: float = DEFAULT_NOISE_VARIANCE,
+        joint_frame: str | None = None,
         tol: float = 1e-4,
         max_iter: int = 200,
         n_init: int = 3,
@@ -127,6 +141,7 @@ class ShapeStructureModel:
         self.structure_weight = structure_weight
         self.views = views
         self.noise_variance = noise_variance
+        self.joint_frame = joint_frame
         self.tol = tol
         self.max_iter = max_iter
         self.n_init = n_init
@@ -143,6 +158,7 @@ class ShapeStructureModel:
             "structure_weight": float(self.structure_weight),
             "views": None if self.views is None else [int(v) for v in self.views],
             "noise_variance": float(self.noise_variance),
+            "joint_frame": self.joint_frame,
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
             "n_init": int(self.n_init),
@@ -156,6 +172,15 @@ class ShapeStructureModel:
             raise ValueError(f"n_latent must be >= 1, got {self.n_latent}")
         if not np.isfinite(self.noise_variance) or self.noise_variance < 0:
             raise ValueError(f"noise_variance must be finite and >= 0, got {self.noise_variance}")
+        if self.joint_frame not in (None, "metres", "stature"):
+            raise ValueError(f"joint_frame must be 'metres', 'stature' or None, got {self.joint_frame!r}")
+
+    def _resolve_joint_frame(self, rig) -> str:
+        """The joint frame a fit with ``rig`` uses (None -> 'stature' with a rig, else 'metres')."""
+        frame = self.joint_frame or ("stature" if rig is not None else "metres")
+        if frame == "stature" and rig is None:
+            raise ValueError("joint_frame 'stature' needs the camera rig: pass rig= to fit (or joint_frame='metres')")
+        return frame
 
     def _make_mixture(self, init_params: dict | None = None):
         from .mppca import MPPCA
@@ -174,7 +199,7 @@ class ShapeStructureModel:
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
-        return shape_vectors(self._layout(), self.n_rig_views_, contours_px, joints)
+        return shape_vectors(self._layout(), self.n_rig_views_, contours_px, joints, self.rig_)
 
     def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None, *,
             init_params: dict | None = None) -> "ShapeStructureModel":
@@ -206,7 +231,8 @@ class ShapeStructureModel:
         bad = [v for v in views if not 0 <= v < n_rig]
         if bad:
             raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
-        self.layout_ = FeatureLayout(views, c.shape[2], N_JOINTS, float(self.structure_weight))
+        self.layout_ = FeatureLayout(views, c.shape[2], N_JOINTS, float(self.structure_weight),
+                                     self._resolve_joint_frame(rig))
         self.n_rig_views_ = n_rig
         self.rig_ = rig
         X = self.features(c, j)
@@ -374,6 +400,9 @@ class ShapeStructureModel:
         joints_best = best.reshape(n, layout.n_joints, 3) / w
         # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
         joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
+        if layout.joint_frame == "stature":  # back from "a 1.75 m walker" to this walker's metres
+            factor = self._stature(c_mod, present) / REFERENCE_STATURE
+            joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
         px = denormalise_contours(rec, cen, sc)
         return InferenceResult(
             joints=joints,
@@ -388,6 +417,13 @@ class ShapeStructureModel:
             log_marginal=logm,
             views=layout.views,
         )
+
+    def _stature(self, contours_mod: np.ndarray, present: np.ndarray) -> np.ndarray:
+        """(N,) metres: stature measured from the present modelled views (``silpose.model.stature``)."""
+        if self.rig_ is None:
+            raise ValueError("this model's joints are in the 'stature' frame but it has no camera rig")
+        cams = [self.rig_[v] for v in self._layout().views]
+        return estimate_stature(contours_mod, cams, present)
 
     def _posterior(self, pattern: np.ndarray, s2: float):
         """Cached :class:`~silpose.model.posterior.PatternPosterior` for one present-view pattern and s^2.

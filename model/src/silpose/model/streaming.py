@@ -43,11 +43,11 @@ def load_shard_features(path: str, rows, layout: FeatureLayout, n_rig_views: int
     from .shape_model import shape_vectors
 
     shard = read_shard(path, columns=["joints", "contours"])
-    contours, joints = shard.contours, shard.joints
+    contours, joints, rig = shard.contours, shard.joints, shard.rig
     del shard
     if rows is not None:
         contours, joints = contours[rows], joints[rows]
-    return shape_vectors(layout, n_rig_views, contours, joints)
+    return shape_vectors(layout, n_rig_views, contours, joints, rig)
 
 
 def run_shard_task(path: str, rows, layout: FeatureLayout, n_rig_views: int, offset, fn: Callable, args: tuple):
@@ -177,7 +177,8 @@ def fit_model_shards(model, source: DatasetShards, *, rows=None, init_rows: int 
     bad = [v for v in views if not 0 <= v < n_rig]
     if bad:
         raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
-    layout = FeatureLayout(views, source.n_points, N_JOINTS, float(model.structure_weight))
+    layout = FeatureLayout(views, source.n_points, N_JOINTS, float(model.structure_weight),
+                           model._resolve_joint_frame(source.rig))
     source = source.with_layout(layout)
     if rows is not None:
         idx = np.unique(np.asarray(rows, dtype=np.int64))
