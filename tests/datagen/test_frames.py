@@ -42,6 +42,7 @@ file = "rig.json"
 samples = {SAMPLES}
 background = {BACKGROUND}
 cycles_samples = 16
+denoise = true
 noise_sigma = {SIGMA}
 flicker = {FLICKER}
 shard_size = 1

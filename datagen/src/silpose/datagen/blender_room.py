@@ -82,7 +82,7 @@ def _material(name: str, colour, roughness: float = 0.8):
 def _mix_by_texture(m, bsdf, colour_a, colour_b, texture: str, scale: float, **params) -> None:
     """Base colour = mix of two colours by a procedural texture of world coordinates."""
     nodes, links = m.node_tree.nodes, m.node_tree.links
-    coord = nodes.new("ShaderNodeTexCoord")
+    coord = nodes.new("ShaderNodeNewGeometry")  # world position (objects are scaled boxes)
     tex = nodes.new(texture)
     tex.inputs["Scale"].default_value = scale
     for k, v in params.items():
@@ -90,7 +90,7 @@ def _mix_by_texture(m, bsdf, colour_a, colour_b, texture: str, scale: float, **p
             tex.inputs[k].default_value = v
         else:
             setattr(tex, k, v)
-    links.new(coord.outputs["Object"], tex.inputs["Vector"])
+    links.new(coord.outputs["Position"], tex.inputs["Vector"])
     mix = nodes.new("ShaderNodeMix")
     mix.data_type = "RGBA"
     mix.inputs["A"].default_value = (*colour_a, 1.0)
@@ -104,6 +104,30 @@ def _mix_by_texture(m, bsdf, colour_a, colour_b, texture: str, scale: float, **p
         fac = stretch.outputs["Result"]
     links.new(fac, mix.inputs["Factor"])
     links.new(mix.outputs["Result"], bsdf.inputs["Base Color"])
+
+
+def _add_grain(m, bsdf, scale: float, amount: float) -> None:
+    """Multiply the base colour by a cellular grain: Voronoi cells of ``scale`` per metre (a few
+    pixels at 7 m), each with a random factor in ``[1 - amount, 1 + amount]`` (terrazzo-like texture
+    at the scale the background subtraction's shadow test correlates on)."""
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    base = bsdf.inputs["Base Color"].links[0].from_socket
+    coord = nodes.new("ShaderNodeNewGeometry")  # world position (objects are scaled boxes)
+    tex = nodes.new("ShaderNodeTexVoronoi")
+    tex.inputs["Scale"].default_value = scale
+    links.new(coord.outputs["Position"], tex.inputs["Vector"])
+    bw = nodes.new("ShaderNodeRGBToBW")
+    links.new(tex.outputs["Color"], bw.inputs["Color"])
+    stretch = nodes.new("ShaderNodeMapRange")
+    stretch.inputs["To Min"].default_value, stretch.inputs["To Max"].default_value = 1.0 - amount, 1.0 + amount
+    links.new(bw.outputs["Val"], stretch.inputs["Value"])
+    mul = nodes.new("ShaderNodeMix")
+    mul.data_type = "RGBA"
+    mul.blend_type = "MULTIPLY"
+    mul.inputs["Factor"].default_value = 1.0
+    links.new(base, mul.inputs["A"])
+    links.new(stretch.outputs["Result"], mul.inputs["B"])
+    links.new(mul.outputs["Result"], bsdf.inputs["Base Color"])
 
 
 def _box_object(name: str, centre, size, material):
@@ -134,6 +158,7 @@ def build_room(rig: Rig) -> list[dict]:
     half, h = fs.room_half_size(rig), fs.ROOM_HEIGHT
     floor_m, bsdf = _material("floor", fs.FLOOR_COLOURS[0], roughness=0.6)
     _mix_by_texture(floor_m, bsdf, *fs.FLOOR_COLOURS, "ShaderNodeTexNoise", 6.0, Detail=6.0, Roughness=0.7)
+    _add_grain(floor_m, bsdf, fs.FLOOR_GRAIN["scale"], fs.FLOOR_GRAIN["amount"])
     wall_m, bsdf = _material("wall", fs.WALL_COLOUR, roughness=0.9)
     _mix_by_texture(wall_m, bsdf, fs.WALL_COLOUR, tuple(0.8 * c for c in fs.WALL_COLOUR), "ShaderNodeTexNoise",
                     1.5, Detail=3.0)

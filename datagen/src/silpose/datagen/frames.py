@@ -75,7 +75,10 @@ def write_png(path: Path, rgb: np.ndarray) -> None:
 
 
 def _identity(config: GenConfig, fcfg: FramesConfig) -> dict:
-    return {"layout_version": LAYOUT_VERSION, "config": config.to_dict(), "frames": fcfg.to_dict()}
+    from .frames_scene import SCENE_VERSION
+
+    return {"layout_version": LAYOUT_VERSION, "scene_version": SCENE_VERSION, "config": config.to_dict(),
+            "frames": fcfg.to_dict()}
 
 
 def _read_identity(root: Path) -> dict | None:

@@ -4,7 +4,7 @@
     samples = 8            # person frames: test samples 0..samples-1 (one frame per camera each)
     background = 20        # empty-room frames per camera (noise + flicker of one clean render)
     cycles_samples = 16    # Cycles path-tracing samples per pixel
-    denoise = false        # OpenImageDenoise on the Cycles render
+    denoise = true         # OpenImageDenoise on the Cycles render
     noise_sigma = 2.0      # camera noise, standard deviation in 8-bit levels
     flicker = 0.02         # illumination flicker: per-frame gain uniform in [1 - flicker, 1 + flicker]
     shard_size = 2         # samples per worker task (and per truth Parquet shard)
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from .config import ConfigError, GenConfig, load_config, resolve
 
-DEFAULTS = {"samples": 8, "background": 20, "cycles_samples": 16, "denoise": False, "noise_sigma": 2.0,
+DEFAULTS = {"samples": 8, "background": 20, "cycles_samples": 16, "denoise": True, "noise_sigma": 2.0,
             "flicker": 0.02, "shard_size": 2}
 
 

@@ -15,6 +15,10 @@ import numpy as np
 from silpose.shared.camera import WORKSPACE_HALF_SIZE, Rig
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
+#: Bumped whenever the rendered scene changes (part of a frames folder's identity: a rerun does not
+#: resume a folder rendered from another scene).
+SCENE_VERSION = 3
+
 #: Stream code of the appearance draws (keeps them out of the sample stream of ``worker.sample_rng``).
 APPEARANCE_STREAM = 0x5EED_C010
 
@@ -28,10 +32,14 @@ PARTS = ("shirt", "trousers", "skin", "hair", "shoes")
 # Room surfaces (linear RGB). Pale warm walls, a mid-grey-brown textured floor.
 WALL_COLOUR = (0.55, 0.52, 0.45)
 FLOOR_COLOURS = ((0.34, 0.25, 0.16), (0.12, 0.09, 0.07))  # two wood-like tones mixed by a noise texture
+#: Fine floor grain: Voronoi cells, ``scale`` per metre (a few pixels at 7 m), each scaling the
+#: colour by a random factor in 1 +- ``amount``. Without it the floor is flat within the shadow test's 7x7 windows and the
+#: NCC test (silpose.segment) cannot tell a shadow from a person.
+FLOOR_GRAIN = {"scale": 12.0, "amount": 0.4}
 PROP_COLOURS = {"box": (0.45, 0.30, 0.12), "table": (0.10, 0.18, 0.30)}
 
 #: Sun (the shadow caster): elevation and azimuth in degrees, strength in W/m^2, angular size.
-SUN = {"elevation_deg": 50.0, "azimuth_deg": 200.0, "strength": 2.6, "angle_deg": 3.0}
+SUN = {"elevation_deg": 50.0, "azimuth_deg": 200.0, "strength": 2.6, "angle_deg": 0.5}
 #: Uniform grey world light (ambient: what lights the shadows), strength.
 AMBIENT = 0.35
 
