@@ -72,3 +72,18 @@ def test_view_subsets_cover_every_combination():
     s = view_subsets(4)
     assert len(s) == 15 and len(set(s)) == 15
     assert [len(v) for v in s].count(3) == 4 and [len(v) for v in s].count(2) == 6 and [len(v) for v in s].count(1) == 4
+
+
+def test_size_factors_scale_targets_and_predictions():
+    """With size= the regressor learns joints / size and returns prediction * size: 1-NN returns the
+    nearest training pose rescaled from its walker's size to the test walker's."""
+    rng = np.random.default_rng(4)
+    x_train = rng.normal(size=(30, 2, 5, 2))
+    y_train = rng.normal(size=(30, 19, 3))
+    s_train = rng.uniform(0.8, 1.2, 30)
+    x_test = rng.normal(size=(4, 2, 5, 2))
+    s_test = rng.uniform(0.8, 1.2, 4)
+    reg = ViewSubsetRegressor("knn", (0, 1), n_neighbors=1).fit(x_train, y_train, size=s_train)
+    nearest = cdist(x_test.reshape(4, -1), x_train.reshape(30, -1)).argmin(axis=1)
+    want = root_relative(y_train)[nearest] / s_train[nearest, None, None] * s_test[:, None, None]
+    np.testing.assert_allclose(reg.predict(x_test, size=s_test), want, atol=1e-12)

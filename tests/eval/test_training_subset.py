@@ -20,5 +20,5 @@ def test_subset_reproduces_the_trainers_fit(stick_dataset, tmp_path):
     n_all = len(data.train_joints)
     note = _match_training_subset(data, model)
     assert len(data.train_joints) == model.dataset_info_["n_fit"] < n_all, note
-    refit = ShapeStructureModel(**model.get_params()).fit(data.train_contours, data.train_joints)
+    refit = ShapeStructureModel(**model.get_params()).fit(data.train_contours, data.train_joints, rig=data.rig)
     np.testing.assert_allclose(refit.mixture_.means_, model.mixture_.means_, rtol=1e-6, atol=1e-9)

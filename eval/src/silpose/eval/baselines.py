@@ -10,6 +10,9 @@
   of that subset. kNN: ``sklearn.neighbors.KNeighborsRegressor`` (k = 5, distance-weighted);
   ridge: ``sklearn.linear_model.RidgeCV`` with the penalty chosen by efficient leave-one-out over
   ``alphas`` on the training data only.
+  When the MPPCA models joints per stature (``silpose.model.stature``), the regressors get the same
+  information: they regress the joints divided by each walker's measured ``stature / 1.75 m`` and
+  multiply their prediction by the stature measured from the observed views (``size=``).
 """
 
 from __future__ import annotations
@@ -85,12 +88,16 @@ class ViewSubsetRegressor:
         self.n_neighbors = n_neighbors
         self.alphas = tuple(alphas)
 
-    def fit(self, contours_norm: np.ndarray, joints: np.ndarray) -> "ViewSubsetRegressor":
-        """contours_norm: (N, K, n, 2) normalised training contours; joints: (N, 19, 3) metres."""
+    def fit(self, contours_norm: np.ndarray, joints: np.ndarray, size: np.ndarray | None = None) -> "ViewSubsetRegressor":
+        """contours_norm: (N, K, n, 2) normalised training contours; joints: (N, 19, 3) metres;
+        size: optional (N,) factors (stature / 1.75 m): the target becomes root-relative joints / size."""
         from silpose.shared.skeleton import root_relative
 
         x = _features(contours_norm, self.views)
-        y = root_relative(np.asarray(joints, dtype=np.float64)).reshape(len(x), -1)
+        y = root_relative(np.asarray(joints, dtype=np.float64))
+        if size is not None:
+            y = y / np.asarray(size, dtype=np.float64)[:, None, None]
+        y = y.reshape(len(x), -1)
         if self.kind == "knn":
             from sklearn.neighbors import KNeighborsRegressor
 
@@ -104,7 +111,9 @@ class ViewSubsetRegressor:
         self.estimator_ = est.fit(x, y)
         return self
 
-    def predict(self, contours_norm: np.ndarray) -> np.ndarray:
-        """contours_norm: (N, K, n, 2) (all rig views; only ``views`` are read) -> (N, 19, 3) metres."""
+    def predict(self, contours_norm: np.ndarray, size: np.ndarray | None = None) -> np.ndarray:
+        """contours_norm: (N, K, n, 2) (all rig views; only ``views`` are read) -> (N, 19, 3) metres;
+        size: (N,) factors to multiply by, required when ``fit`` got them."""
         x = _features(contours_norm, self.views)
-        return self.estimator_.predict(x).reshape(len(x), 19, 3)
+        pred = self.estimator_.predict(x).reshape(len(x), 19, 3)
+        return pred if size is None else pred * np.asarray(size, dtype=np.float64)[:, None, None]

@@ -263,16 +263,27 @@ class Evaluation:
             if not hasattr(self, "_train_norm"):
                 self._train_norm = normalise(self.data.train_contours)[0]
             self._regressors[key] = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
-                self._train_norm, self.data.train_joints
+                self._train_norm, self.data.train_joints, size=self._size(self.data.train_contours, views)
             )
         return self._regressors[key]
+
+    def _size(self, contours_px: np.ndarray, views: Sequence[int]) -> np.ndarray | None:
+        """(N,) stature / 1.75 m from ``views`` of (N, K, n, 2) pixel contours when the MPPCA models joints
+        per stature (the baselines then get the same information), else None."""
+        layout = getattr(self.model, "layout_", None)
+        if getattr(layout, "joint_frame", "metres") != "stature" or self.data.rig is None:
+            return None
+        from silpose.model.stature import REFERENCE_STATURE, estimate_stature
+
+        v = list(views)
+        return estimate_stature(contours_px[:, v], [self.data.rig[k] for k in v]) / REFERENCE_STATURE
 
     def score_regressor(self, kind: str, views: Sequence[int], noisy: np.ndarray) -> dict:
         from silpose.shared.contours import normalise
 
         from .metrics import pose_error_cm, pose_error_procrustes_cm
 
-        pred = self.regressor(kind, views).predict(normalise(noisy)[0])
+        pred = self.regressor(kind, views).predict(normalise(noisy)[0], size=self._size(noisy, views))
         return {"pose_cm": pose_error_cm(pred, self.data.test_joints),
                 "pose_pa_cm": pose_error_procrustes_cm(pred, self.data.test_joints)}
 

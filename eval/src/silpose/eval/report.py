@@ -218,7 +218,9 @@ def _e4_md(df) -> list[str]:
                          _q(stats(_sel(e4, n_input_views=n, method=m)["pose_cm"])), ""])
     out = ["## E4 — chance and baselines", "",
            "kNN (k=5, distance-weighted) and ridge (RidgeCV) regress root-relative joints on the observed views' "
-           "normalised contours; one fitted per view subset on the clean training data; same noisy inputs as E2.", "",
+           "normalised contours; one fitted per view subset on the clean training data; same noisy inputs as E2. "
+           "When the MPPCA models joints per measured stature, so do they (joints / (stature / 1.75 m), "
+           "prediction times the stature measured from the observed views).", "",
            _table(["method", "input views", *[f"pose {h} (cm)" for h in _QH], "paper mean (cm)"], rows), ""]
     h = headline(df).get("mppca_vs_baselines_by_subset", [])
     if h:
