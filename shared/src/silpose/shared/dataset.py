@@ -130,12 +130,24 @@ def list_shards(root: str | Path, split: str) -> list[Path]:
     return [found[i][1] for i in range(n)]
 
 
+#: What pyarrow raises on a damaged file: Arrow errors, IO errors, and ValueError (e.g. a
+#: UnicodeDecodeError on a flipped byte in a column name in the footer).
+_READ_ERRORS = (pa.ArrowException, OSError, ValueError)
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 def _open(path: Path) -> pq.ParquetFile:
+    """Open a shard, verifying page checksums on every later read (shards are written with them)."""
     try:
-        return pq.ParquetFile(path)
-    except (pa.ArrowException, OSError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DatasetError(f"{path}: not a readable Parquet file ({first})") from None
+        pf = pq.ParquetFile(path, page_checksum_verification=True)
+        pf.schema_arrow  # parse the schema now: a damaged footer fails here, naming the file
+        return pf
+    except _READ_ERRORS as exc:
+        raise DatasetError(f"{path}: not a readable Parquet file ({_first_line(exc)})") from None
 
 
 def _metadata_from_schema(schema: pa.Schema, source: str) -> dict:
@@ -189,21 +201,24 @@ def _to_numpy(column: pa.ChunkedArray, name: str) -> np.ndarray:
     return out[0] if len(out) == 1 else np.concatenate(out)
 
 
-def _read_shard(path: Path, columns: Sequence[str], reference: dict | None) -> tuple[dict, dict]:
-    """(metadata, {column: array}) of one shard, validated."""
+def _read_shard(
+    path: Path, columns: Sequence[str], reference: dict | None, reference_path: Path | None = None
+) -> tuple[dict, dict]:
+    """(metadata, {column: array}) of one shard, validated (against ``reference``, the metadata of
+    ``reference_path``, when given)."""
     source = str(path)
     pf = _open(path)
     meta = _metadata_from_schema(pf.schema_arrow, source)
     if reference is not None:
         for key in ("format_version", "cameras", "n_points", "joint_names", "config"):
             if meta.get(key) != reference.get(key):
-                raise DatasetError(f"{source}: metadata field {key!r} differs from the split's first shard")
+                first = f"the split's first shard {reference_path}" if reference_path else "the split's first shard"
+                raise DatasetError(f"{source}: metadata field {key!r} differs from {first} (one of them is damaged or foreign)")
     _check_schema(pf.schema_arrow, meta, source)
     try:
         table = pf.read(columns=list(columns))
-    except (pa.ArrowException, OSError) as exc:
-        first = str(exc).strip().splitlines()[0]
-        raise DatasetError(f"{source}: cannot read data ({first})") from None
+    except _READ_ERRORS as exc:  # a failed page checksum is an OSError
+        raise DatasetError(f"{source}: cannot read data, the file is damaged ({_first_line(exc)})") from None
     arrays: dict = {}
     for name in columns:
         col = table.column(name)
@@ -284,7 +299,7 @@ def iter_shards(
         raise DatasetError(f"{root}: no shards for split {split!r} ({shard_name(split, 0, 1)} ...)")
     reference = None
     for path in files:
-        meta, arrays = _read_shard(path, cols, reference)
+        meta, arrays = _read_shard(path, cols, reference, files[0])
         reference = reference or meta
         yield path, _assemble([arrays], meta, [path], cols)
 
@@ -307,6 +322,12 @@ def load_split(
     parts, files, meta = [], [], None
     for path, shard in iter_shards(root, split, cols, with_masks):
         meta = meta or shard.metadata
+        for name in ("subject", "gait"):
+            if name in cols and parts and list(getattr(shard, name)) != list(parts[0][name]):
+                raise DatasetError(
+                    f"{path}: column {name!r} has fields {list(getattr(shard, name))}, the split's first shard "
+                    f"{files[0]} has {list(parts[0][name])}"
+                )
         files.append(path)
         parts.append(_shard_arrays(shard, cols))
     result = _assemble(parts, meta, files, cols)

@@ -22,6 +22,9 @@ from .dataset_schema import (
 def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
     """Write ``records`` as one Parquet shard (zstd), atomically: temporary name, then ``os.replace``.
 
+    Every data page carries a CRC32 (``write_page_checksum``), which the readers verify, so a
+    flipped byte in the data is an error instead of silently different values.
+
     Args:
         path: the shard's final path.
         records: dicts with the keys of the schema (see ``dataset_schema``); per record
@@ -38,7 +41,7 @@ def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
     table = records_to_table(records, metadata, source=str(path))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records))
+        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records), write_page_checksum=True)
         os.replace(tmp, path)
     finally:
         if tmp.exists():
