@@ -17,7 +17,7 @@ from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 #: Bumped whenever the rendered scene changes (part of a frames folder's identity: a rerun does not
 #: resume a folder rendered from another scene).
-SCENE_VERSION = 3
+SCENE_VERSION = 4
 
 #: Stream code of the appearance draws (keeps them out of the sample stream of ``worker.sample_rng``).
 APPEARANCE_STREAM = 0x5EED_C010
@@ -43,10 +43,12 @@ SUN = {"elevation_deg": 50.0, "azimuth_deg": 200.0, "strength": 2.6, "angle_deg"
 #: Uniform grey world light (ambient: what lights the shadows), strength.
 AMBIENT = 0.35
 
-# Palettes (linear RGB). Shirts avoid the wall colour; trousers are dark or saturated.
+# Palettes (linear RGB). Shirts avoid the wall colour; trousers are dark or saturated. No white or
+# mid-grey garments: the segmentation works on graylevels, and a white/blue striped shirt or grey
+# trousers had the graylevel of the grey walls (smoke sample 2: person IoU 0.47 in one view).
 SHIRTS = ((0.60, 0.05, 0.05), (0.05, 0.25, 0.60), (0.05, 0.40, 0.10), (0.65, 0.45, 0.02), (0.03, 0.03, 0.03),
-          (0.40, 0.05, 0.40), (0.02, 0.35, 0.35), (0.80, 0.80, 0.82))
-TROUSERS = ((0.02, 0.03, 0.08), (0.04, 0.04, 0.04), (0.10, 0.12, 0.25), (0.20, 0.12, 0.05), (0.25, 0.25, 0.27))
+          (0.40, 0.05, 0.40), (0.02, 0.35, 0.35))
+TROUSERS = ((0.02, 0.03, 0.08), (0.04, 0.04, 0.04), (0.10, 0.12, 0.25), (0.20, 0.12, 0.05))
 SKINS = ((0.60, 0.38, 0.28), (0.45, 0.26, 0.16), (0.25, 0.13, 0.07), (0.12, 0.06, 0.03))
 HAIRS = ((0.02, 0.015, 0.01), (0.10, 0.05, 0.02), (0.35, 0.22, 0.08), (0.30, 0.30, 0.30))
 SHOES = ((0.02, 0.02, 0.02), (0.60, 0.60, 0.60), (0.20, 0.08, 0.03))
