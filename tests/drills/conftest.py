@@ -38,3 +38,11 @@ def clean_dataset(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("drill-data")
     manifest = generate(tiny_config(tmp), tmp / "ds", workers=1, render=SYNTH, progress=False)
     return tmp / "ds", manifest
+
+
+@pytest.fixture(scope="session")
+def drill():
+    """The helpers above for test modules (conftest modules are not importable by name here)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(SYNTH=SYNTH, TINY=TINY, tiny_config=tiny_config)

@@ -104,3 +104,49 @@ def crashing_render_samples(config: dict, split: str, indices: list[int]) -> lis
     if split != "train":
         os._exit(3)
     return synthetic_render_samples(config, split, indices)
+
+
+#: ``killing_render_samples`` reads ``"<split>:<index>:<marker file>"`` from this variable.
+KILL_ENV = "SILPOSE_TEST_KILL_AT"
+#: ``slow_render_samples`` sleeps this many seconds per sample (a float).
+DELAY_ENV = "SILPOSE_TEST_RENDER_DELAY"
+
+
+def killing_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
+    """Stand-in whose worker SIGKILLs itself once, mid-shard, on a chosen sample (fault drills).
+
+    ``$SILPOSE_TEST_KILL_AT = "<split>:<index>:<marker>"``: on reaching sample ``index`` of ``split``,
+    after rendering the shard's earlier samples, the worker creates ``marker`` and kills itself with
+    SIGKILL -- unless ``marker`` already exists (so a rerun goes through). Otherwise it is
+    ``synthetic_render_samples``.
+    """
+    import os
+    import signal
+
+    spec = os.environ.get(KILL_ENV, "")
+    records = []
+    for i in indices:
+        if spec:
+            kill_split, kill_index, marker = spec.split(":", 2)
+            if split == kill_split and int(kill_index) == int(i):
+                try:
+                    os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+                except FileExistsError:
+                    pass
+                else:
+                    os.kill(os.getpid(), signal.SIGKILL)
+        records.append(synthetic_record(config, split, i))
+    return records
+
+
+def slow_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
+    """``synthetic_render_samples`` sleeping ``$SILPOSE_TEST_RENDER_DELAY`` s per sample (overlapping runs)."""
+    import os
+    import time
+
+    delay = float(os.environ.get(DELAY_ENV, "0.1"))
+    records = []
+    for i in indices:
+        time.sleep(delay)
+        records.append(synthetic_record(config, split, i))
+    return records
