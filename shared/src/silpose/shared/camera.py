@@ -59,11 +59,16 @@ class Camera:
         object.__setattr__(self, "K", _as_array(self.K, (3, 3), f"{what} field K"))
         object.__setattr__(self, "R", _as_array(self.R, (3, 3), f"{what} field R"))
         object.__setattr__(self, "t", _as_array(self.t, (3,), f"{what} field t"))
-        dist = np.asarray(self.dist, dtype=np.float64).ravel()
+        try:
+            dist = np.asarray(self.dist, dtype=np.float64).ravel()
+        except (TypeError, ValueError) as exc:
+            raise RigError(f"{what} field dist: not numeric ({exc})") from None
         if dist.size not in (4, 5, 8, 12, 14):
             raise RigError(f"{what} field dist: expected 4, 5, 8, 12 or 14 coefficients, got {dist.size}")
+        if not np.all(np.isfinite(dist)):
+            raise RigError(f"{what} field dist: contains NaN or infinity")
         object.__setattr__(self, "dist", dist)
-        if not (isinstance(self.width, (int, np.integer)) and isinstance(self.height, (int, np.integer))):
+        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (self.width, self.height)):
             raise RigError(f"{what} fields width/height: must be integers")
         if self.width <= 0 or self.height <= 0:
             raise RigError(f"{what} fields width/height: must be positive, got {self.width}x{self.height}")
@@ -194,14 +199,23 @@ class Rig:
     def from_dict(cls, d: dict, source: str = "rig") -> "Rig":
         if not isinstance(d, dict) or not isinstance(d.get("cameras"), list):
             raise RigError(f"{source}: expected an object with a 'cameras' list")
-        return cls(tuple(Camera.from_dict(c, source) for c in d["cameras"]))
+        try:
+            cams = []
+            for i, c in enumerate(d["cameras"]):
+                if not isinstance(c, dict):
+                    raise RigError(f"{source}: camera entry {i} is a {type(c).__name__}, expected an object")
+                cams.append(Camera.from_dict(c, source))
+            return cls(tuple(cams))
+        except RigError as exc:  # Camera / Rig checks know the field, not the file
+            msg = str(exc)
+            raise RigError(msg if msg.startswith(f"{source}: ") else f"{source}: {msg}") from None
 
     @classmethod
     def from_json(cls, text: str, source: str = "rig") -> "Rig":
         try:
             d = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise RigError(f"{source}: not valid JSON ({exc})") from None
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise RigError(f"{source}: not valid JSON ({type(exc).__name__}: {exc})") from None
         return cls.from_dict(d, source)
 
     def check_sees_workspace(self, half_size: float = WORKSPACE_HALF_SIZE, height: float = 0.0) -> None:
@@ -311,7 +325,11 @@ def load_rig(path: str | Path | Iterable[str | Path], unit: float = 1.0) -> Rig:
         if not p.is_file():
             raise RigError(f"{p}: rig file not found")
     if len(paths) == 1 and paths[0].suffix.lower() == ".json":
-        return Rig.from_json(paths[0].read_text(), source=str(paths[0]))
+        try:
+            text = paths[0].read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RigError(f"{paths[0]}: cannot read the rig file as UTF-8 text ({exc})") from None
+        return Rig.from_json(text, source=str(paths[0]))
     from .opencv_calibration import read_opencv_cameras
 
     cams: list[Camera] = []
