@@ -26,8 +26,8 @@ from .shape_model import ShapeStructureModel
 #: The default grid (12 fits): centred on the region the 2026-11-22 selection on the `default` preset
 #: found best (see the defaults in shape_model.py); small enough for that preset on 2 cores (~5 min).
 DEFAULT_GRID: dict[str, tuple] = {
-    "n_latent": (30, 60),
-    "n_components": (5, 8),
+    "n_latent": (30, 40),
+    "n_components": (10, 20),
     "structure_weight": (10.0, 30.0, 100.0),
     "noise_variance": (0.01, 0.03, 0.1),
 }
