@@ -30,7 +30,13 @@ def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray)
 
 
 def check_contours(contours: np.ndarray, name: str, n_points: int | None = None) -> np.ndarray:
-    c = np.asarray(contours, dtype=np.float64)
+    raw = np.asarray(contours)
+    if np.iscomplexobj(raw):
+        raise ValueError(f"{name} must be real pixel coordinates, got dtype {raw.dtype}")
+    try:
+        c = raw.astype(np.float64, copy=False)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric pixel coordinates, got dtype {raw.dtype} ({exc})") from None
     if c.ndim != 4 or c.shape[-1] != 2 or c.shape[1] < 1:
         raise ValueError(f"{name} must have shape (N, K, n, 2), got {c.shape}")
     if c.shape[0] == 0:

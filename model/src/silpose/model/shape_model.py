@@ -373,11 +373,17 @@ class ShapeStructureModel:
                 f"every modelled view is missing in {int(none.sum())} frame(s) (first: frame "
                 f"{int(np.flatnonzero(none)[0])}); at least one of views {layout.views} must be observed"
             )
-        if all_present:
+        # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
+        with np.errstate(invalid="ignore", over="ignore"):
             norm, cen, sc = normalise_contours(c_mod)
-        else:  # normalise every view (absent ones may hold NaN: never read), keep known factors for absent ones
-            with np.errstate(invalid="ignore", over="ignore"):
-                norm, cen, sc = normalise_contours(c_mod)
+        overflow = present & ~(np.isfinite(sc) & np.isfinite(cen).all(axis=-1))  # (N, K): O(N K) check
+        if overflow.any():
+            r, p = np.argwhere(overflow)[0]
+            raise ValueError(
+                f"contours_px values too large to normalise (overflow) in an observed view: frame {r}, view "
+                f"{layout.views[p]}; pixel coordinates must be finite and of image size"
+            )
+        if not all_present:  # keep the known factors for absent views
             cen = np.where(present[..., None], cen, cen_true)
             sc = np.where(present, sc, sc_true)
 
