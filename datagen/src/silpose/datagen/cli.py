@@ -6,7 +6,6 @@ inside the commands, and bpy only ever inside spawned worker processes.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import List, Optional
 
@@ -14,9 +13,7 @@ import typer
 from typing_extensions import Annotated
 
 
-def _fail(command: str, message: str, code: int = 2) -> None:
-    print(f"silpose {command}: error: {message}", file=sys.stderr)
-    raise typer.Exit(code)
+from silpose.shared.cli import fail as _fail
 
 
 def gen(

@@ -6,17 +6,17 @@ in spawned workers. ``python -m silpose.datagen.frames_cli ...`` runs the comman
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
 from typing_extensions import Annotated
 
+from silpose.shared.cli import fail
+
 
 def _fail(message: str, code: int = 2) -> None:
-    print(f"silpose gen-frames: error: {message}", file=sys.stderr)
-    raise typer.Exit(code)
+    fail("gen-frames", message, code)
 
 
 def gen_frames(

@@ -7,7 +7,6 @@ The work itself lives in ``silpose.model.training`` and ``silpose.model.inferenc
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Optional
 
@@ -15,9 +14,7 @@ import typer
 from typing_extensions import Annotated
 
 
-def _fail(command: str, message: str, code: int = 2) -> None:
-    print(f"silpose {command}: error: {message}", file=sys.stderr)
-    raise typer.Exit(code)
+from silpose.shared.cli import fail as _fail
 
 
 def train(

@@ -37,6 +37,13 @@ def build_app() -> typer.Typer:
     return app
 
 
+def fail(command: str, message: str, code: int = 2) -> None:
+    """End a subcommand with a one-line error on stderr (``silpose <command>: error: <message>``) and
+    exit status ``code`` (2 = bad input, 130 = interrupted)."""
+    print(f"silpose {command}: error: {message}", file=sys.stderr)
+    raise typer.Exit(code)
+
+
 def main() -> None:
     build_app()()
 
