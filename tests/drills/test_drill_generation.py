@@ -238,3 +238,28 @@ def test_two_runs_started_together_one_wins_and_the_folder_is_the_winners(clean_
         reference = (tmp_path / "ref", generate(load_config(dirs[8] / "tiny.toml"), tmp_path / "ref", workers=1, render=SYNTH,
                                                  progress=False))
     assert_same_as_reference(out, reference)
+
+
+# ------------------------------------------------------------------ resume over a damaged shard
+
+
+@pytest.mark.parametrize("column", ["sample_id", "contours", "masks"])
+def test_rerun_rewrites_a_complete_looking_but_damaged_shard(clean_dataset, drill, tmp_path, column):
+    """A shard with an intact footer and right row count but a damaged data page is not "complete":
+    the rerun renders it again instead of keeping it (and hashing the damage into the manifest)."""
+    import pyarrow.parquet as pq
+
+    cfg, out = drill.tiny_config(tmp_path), tmp_path / "ds"
+    generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    path = out / "train-00001-of-00002.parquet"
+    rg = pq.ParquetFile(path).metadata.row_group(0)
+    chunk = next(rg.column(j) for j in range(rg.num_columns) if rg.column(j).path_in_schema.split(".")[0] == column)
+    start = chunk.dictionary_page_offset if chunk.has_dictionary_page else chunk.data_page_offset
+    data = bytearray(path.read_bytes())
+    for i in range(start + chunk.total_compressed_size - 6, start + chunk.total_compressed_size - 2):
+        data[i] ^= 0xA5  # the end of the chunk: compressed page data, not the page header
+    path.write_bytes(bytes(data))
+    (out / MANIFEST).unlink()
+    manifest = generate(cfg, out, workers=1, render=SYNTH, progress=False)
+    assert manifest["timing"]["shards_rendered"] == 1
+    assert_same_as_reference(out, clean_dataset)

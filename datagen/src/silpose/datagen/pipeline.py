@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.shared.dataset import SHARD_RE, DatasetError, build_metadata, read_metadata, shard_name, write_shard
+from silpose.shared.dataset import SHARD_RE, DatasetError, build_metadata, read_metadata, read_shard, shard_name, write_shard
+from silpose.shared.dataset_schema import ALL_COLUMNS
 
 from .config import GenConfig
 from .executor import DEFAULT_MAX_TASKS_PER_CHILD, DEFAULT_RENDER, EXECUTORS, ShardTask, default_workers
@@ -52,11 +53,10 @@ def _remove_temporaries(root: Path) -> list[Path]:
 def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
     """True if ``path`` is a readable shard of this config holding exactly ``task.indices``.
 
-    Reads the footer (metadata, row count) and the ``sample_id`` column only. Raises
-    GenerationError if the shard belongs to another configuration.
+    Reads the whole shard through ``read_shard``, which verifies the schema, NaNs and every data
+    page's checksum, so a shard with an intact footer but damaged data is rewritten, not kept (and
+    hashed into the manifest). Raises GenerationError if the shard belongs to another configuration.
     """
-    import pyarrow.parquet as pq
-
     try:
         meta = read_metadata(path)
     except DatasetError:
@@ -66,11 +66,11 @@ def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
             f"{path}: field 'config' differs from this run's; the folder holds another dataset "
             "(choose another --out or delete it)"
         )
-    pf = pq.ParquetFile(path)
-    if pf.metadata.num_rows != len(task.indices):
-        return False
-    ids = pf.read(columns=["sample_id"]).column("sample_id").to_numpy()
-    return bool(np.array_equal(ids, np.asarray(task.indices)))
+    try:
+        shard = read_shard(path, columns=ALL_COLUMNS)
+    except DatasetError:
+        return False  # damaged data: it will be rewritten
+    return bool(np.array_equal(shard.sample_id, np.asarray(task.indices)))
 
 
 def _check_records(records: list[dict], task: ShardTask) -> None:
