@@ -263,3 +263,52 @@ def test_rerun_rewrites_a_complete_looking_but_damaged_shard(clean_dataset, dril
     manifest = generate(cfg, out, workers=1, render=SYNTH, progress=False)
     assert manifest["timing"]["shards_rendered"] == 1
     assert_same_as_reference(out, clean_dataset)
+
+
+# ------------------------------------------------------------------ (d) the lock itself
+
+
+def _dead_pid() -> int:
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
+
+
+def test_a_live_holder_keeps_the_lock_whatever_its_file_says(tmp_path):
+    """Two runs that both found a stale lock file must not both get the lock: after the first took
+    it, the second still sees the dead run's record (it read the file before) -- reproduced here by
+    writing that record over the live holder's file."""
+    import json
+    import socket
+
+    from silpose.datagen.manifest import FolderLock, LockError
+
+    first = FolderLock(tmp_path)
+    first.acquire()
+    (tmp_path / LOCK).write_text(json.dumps({"pid": _dead_pid(), "host": socket.gethostname(), "started": "then"}))
+    with pytest.raises(LockError, match="another 'silpose gen'"):
+        FolderLock(tmp_path).acquire()
+    assert first.held
+    first.release()
+    assert not (tmp_path / LOCK).exists()
+    with FolderLock(tmp_path):  # free again
+        pass
+
+
+def test_a_lock_file_naming_a_reused_pid_is_taken_over(tmp_path):
+    """A run killed with SIGKILL leaves its lock file; if its pid now belongs to another live process,
+    the folder must not stay locked forever."""
+    import json
+    import socket
+
+    from silpose.datagen.manifest import FolderLock
+
+    unrelated = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (tmp_path / LOCK).write_text(json.dumps({"pid": unrelated.pid, "host": socket.gethostname(), "started": "then"}))
+        with FolderLock(tmp_path) as lock:
+            assert lock.held and json.loads((tmp_path / LOCK).read_text())["pid"] == os.getpid()
+    finally:
+        unrelated.kill()
+        unrelated.wait()
+    assert not (tmp_path / LOCK).exists()

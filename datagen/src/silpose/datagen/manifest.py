@@ -51,54 +51,63 @@ def read_manifest(root: Path) -> dict:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 class FolderLock:
-    """An exclusive lock file in a dataset folder (``O_CREAT | O_EXCL``).
+    """An exclusive lock on a dataset folder: ``fcntl.flock`` on the lock file ``LOCK``.
 
-    A lock left by a dead process on this host (e.g. a run killed with SIGKILL) is stale and is
-    taken over; a live one makes the second run refuse with a LockError naming the holder.
+    The kernel holds the lock, not the file's content: it is released when the holder exits,
+    however it dies (SIGKILL, OOM), so a lock file left by a dead run is simply taken over, and a
+    live holder can never be displaced (an earlier check-the-pid-then-unlink scheme let two runs
+    that found the same stale file both take the lock, and refused forever when a dead run's pid
+    had been reused). The file records the holder (pid, host, start time) for the error message
+    of a second run, which refuses with a LockError. The file is removed on release; a run that
+    locked a file just unlinked by a releasing holder notices (inode changed) and retries.
     """
 
     def __init__(self, root: Path):
         self.path = Path(root) / LOCK
         self.held = False
+        self._fd: int | None = None
+
+    def _holder(self, fd: int) -> dict:
+        try:
+            holder = json.loads(os.pread(fd, 4096, 0) or b"{}")
+        except (OSError, ValueError):
+            return {}
+        return holder if isinstance(holder, dict) else {}
 
     def acquire(self) -> None:
+        import fcntl
+
         info = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-        for _ in range(2):
+        for _ in range(10):
+            fd = os.open(self.path, os.O_CREAT | os.O_RDWR, 0o644)
             try:
-                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                try:
-                    holder = json.loads(self.path.read_text())
-                except (OSError, json.JSONDecodeError):
-                    holder = {}
-                if holder.get("host") == info["host"] and isinstance(holder.get("pid"), int) and not _pid_alive(holder["pid"]):
-                    self.path.unlink(missing_ok=True)  # stale: its process is gone
-                    continue
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = self._holder(fd)
+                os.close(fd)
                 raise LockError(
                     f"{self.path}: another 'silpose gen' (pid {holder.get('pid', '?')} on {holder.get('host', '?')}, "
                     f"started {holder.get('started', '?')}) is writing this folder; wait for it to finish"
                 ) from None
-            with os.fdopen(fd, "w") as f:
-                json.dump(info, f)
-            self.held = True
+            try:
+                current = os.stat(self.path).st_ino
+            except FileNotFoundError:
+                current = None
+            if current != os.fstat(fd).st_ino:  # we locked a file its holder unlinked on release
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps(info).encode(), 0)
+            self._fd, self.held = fd, True
             return
         raise LockError(f"{self.path}: could not take the lock")
 
     def release(self) -> None:
         if self.held:
-            self.path.unlink(missing_ok=True)
-            self.held = False
+            self.path.unlink(missing_ok=True)  # before unlocking: a waiting run then sees the inode change
+            os.close(self._fd)
+            self._fd, self.held = None, False
 
     def __enter__(self) -> "FolderLock":
         self.acquire()
