@@ -28,6 +28,14 @@ SECTIONS: dict[str, tuple[str, str, dict, dict, str]] = {
         {"n_samples": 16, "memory_samples": 0, "shard_size": 8},
         "samples/s per process and on all cores for the raster and Blender renderers; worker RSS growth",
     ),
+    "pipeline": (
+        "silpose.datagen.bench_pipeline",
+        "run_pipeline_bench",
+        {"n_samples": 1000, "workers": 2},
+        {"n_samples": 40, "workers": 2, "executors": ["local"]},
+        "the whole `silpose gen` pipeline (shards, manifest) on the local spawn pool vs Ray (local instance, "
+        "startup included); arrays compared",
+    ),
     "em": (
         "silpose.model.bench_em",
         "run_em_bench",
@@ -65,6 +73,13 @@ SECTIONS: dict[str, tuple[str, str, dict, dict, str]] = {
         {"n_frames": 16, "n_background": 10},
         "frames -> joints (4 cameras) time steps/s: PNG reading, segmentation, contours, inference "
         "(composited frames from data/default, models/default.npz)",
+    ),
+    "protocol": (
+        "silpose.eval.bench_protocol",
+        "run_protocol_bench",
+        {"n_test": 500, "missing_ok": True},
+        {"n_test": 40, "experiments": ["E2", "E4"], "missing_ok": True},
+        "the evaluation protocol (silpose eval): seconds per experiment on data/default with models/default.npz",
     ),
 }
 
@@ -165,10 +180,11 @@ def bench(
     only: str = "",
     out: Path = Path("reports/bench"),
 ) -> None:
-    """Run every benchmark (generation, EM, inference, segmentation, frames) and write reports/bench/bench.md + bench.json.
+    """Run every benchmark (generation, gen pipeline local vs Ray, EM, inference, memory, segmentation,
+    frames, eval protocol) and write reports/bench/bench.md + bench.json.
 
-    --quick runs small sizes (about a minute). --only takes a comma-separated subset of:
-    generation, em, inference, segmentation, frames.
+    --quick runs small sizes (a few minutes on 2 cores). --only takes a comma-separated subset of:
+    generation, pipeline, em, inference, memory, segmentation, frames, protocol.
     """
     import typer
     from rich.console import Console
