@@ -100,7 +100,7 @@ class DatasetShards(ShardSource):
                     raise DatasetError(f"{path}: metadata field {key!r} differs from the split's first shard")
             try:
                 n_rows.append(int(pq.read_metadata(path).num_rows))
-            except (pa.ArrowException, OSError) as exc:
+            except (pa.ArrowException, OSError, ValueError) as exc:  # ValueError: UnicodeDecodeError too
                 raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from None
         return cls(tuple(str(p) for p in files), tuple(n_rows), first, rows=(None,) * len(files),
                    executor=executor, workers=workers)
