@@ -17,30 +17,15 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from silpose.datagen.config import load_config
 from silpose.datagen.executor import ExecutorError
 from silpose.datagen.manifest import LOCK, FolderLock, LockError, sha256_file
 from silpose.datagen.pipeline import GenerationError, generate
 from silpose.datagen.validate import validate_dataset
+from silpose.datagen.testing import SYNTH_RENDER, tiny_config, tiny_config_toml
 from silpose.shared.dataset import load_split
 
-SYNTH = "silpose.datagen.testing:synthetic_render_samples"
-TINY = """name = "tiny"
-seed = 7
-renderer = "raster"
-shard_size = 4
-n_points = 200
-max_redraws = 50
-[splits]
-train = 8
-test = 4
-"""
-
-
-def tiny_config(tmp_path, text=TINY):
-    p = tmp_path / "tiny.toml"
-    p.write_text(text)
-    return load_config(p)
+SYNTH = SYNTH_RENDER
+TINY = tiny_config_toml()
 
 
 def leftovers(folder):

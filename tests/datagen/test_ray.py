@@ -9,31 +9,10 @@ import pytest
 
 from silpose.datagen.config import load_config
 from silpose.datagen.pipeline import generate
+from silpose.datagen.testing import tiny_config_toml
 from silpose.shared.dataset import load_split
 
-TINY = """name = "tiny"
-seed = 11
-renderer = "raster"
-shard_size = 4
-n_points = 200
-max_redraws = 50
-[splits]
-train = 8
-test = 4
-"""
-
-
-@pytest.fixture
-def local_ray(monkeypatch):
-    # Under `uv run pytest`, Ray would start every worker with `uv run` (see executor.run_ray).
-    monkeypatch.setenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
-    ray = pytest.importorskip("ray")
-    from ray._private import ray_constants
-
-    monkeypatch.setattr(ray_constants, "RAY_ENABLE_UV_RUN_RUNTIME_ENV", False)  # if ray was imported earlier
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
+TINY = tiny_config_toml(seed=11)
 
 
 @pytest.mark.ray

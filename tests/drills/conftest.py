@@ -8,26 +8,10 @@ from __future__ import annotations
 
 import pytest
 
-from silpose.datagen.config import load_config
+from silpose.datagen.testing import SYNTH_RENDER, tiny_config, tiny_config_toml
 
-SYNTH = "silpose.datagen.testing:synthetic_render_samples"
-TINY = """name = "tiny"
-seed = 7
-renderer = "raster"
-shard_size = 4
-n_points = 200
-max_redraws = 50
-[splits]
-train = 8
-test = 4
-"""
-
-
-def tiny_config(folder, text: str = TINY):
-    """A validated GenConfig written to ``folder/tiny.toml``."""
-    path = folder / "tiny.toml"
-    path.write_text(text)
-    return load_config(path)
+SYNTH = SYNTH_RENDER
+TINY = tiny_config_toml()
 
 
 @pytest.fixture(scope="session")

@@ -206,19 +206,7 @@ def test_corrupt_shard_is_named(dataset, tmp_path, start_params):
 
 
 # ----------------------------------------------------------------------------- Ray
-
-
-@pytest.fixture
-def local_ray(monkeypatch):
-    # Under `uv run pytest`, Ray would start every worker with `uv run` (see silpose.model.streaming.start_ray).
-    monkeypatch.setenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
-    ray = pytest.importorskip("ray")
-    from ray._private import ray_constants
-
-    monkeypatch.setattr(ray_constants, "RAY_ENABLE_UV_RUN_RUNTIME_ENV", False)  # if ray was imported earlier
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
+# (the local_ray fixture is in tests/conftest.py)
 
 
 @pytest.mark.ray

@@ -13,6 +13,26 @@ import numpy as np
 from silpose.shared.camera import Rig
 from silpose.shared.skeleton import BONES, N_JOINTS
 
+#: ``render=`` value of ``pipeline.generate`` that uses :func:`synthetic_render_samples`
+SYNTH_RENDER = "silpose.datagen.testing:synthetic_render_samples"
+
+
+def tiny_config_toml(seed: int = 7, shard_size: int = 4, train: int = 8, test: int = 4) -> str:
+    """The TOML text of a tiny raster-renderer config (default rig) for pipeline tests."""
+    return (f'name = "tiny"\nseed = {seed}\nrenderer = "raster"\nblender_engine = "workbench"\n'
+            f"shard_size = {shard_size}\nn_points = 200\nmax_redraws = 50\n[splits]\ntrain = {train}\ntest = {test}\n")
+
+
+def tiny_config(folder, text: str | None = None):
+    """A validated GenConfig written to ``folder/tiny.toml`` (``text`` default: :func:`tiny_config_toml`)."""
+    from pathlib import Path
+
+    from .config import load_config
+
+    path = Path(folder) / "tiny.toml"
+    path.write_text(tiny_config_toml() if text is None else text)
+    return load_config(path)
+
 SUBJECT_FIELDS = ("height", "shoulder_width", "hip_width")
 GAIT_FIELDS = ("phase", "stride", "arm_swing", "knee_flex", "heading", "x", "y")
 _SPLIT_CODE = {"train": 0, "test": 1}
