@@ -19,7 +19,7 @@ import numpy as np
 from silpose.shared.camera import Rig
 
 from . import frames_scene as fs
-from .blender_scene import _quiet_stdout, reset_factory, setup_scene
+from .blender_scene import render_camera_png, reset_factory, setup_scene
 
 
 def setup_cycles(rig: Rig, samples: int, denoise: bool) -> list:
@@ -221,17 +221,11 @@ def add_person(vertices: np.ndarray, triangles: np.ndarray, labels: np.ndarray, 
 def render_rgb(cameras: list, tmpdir: str | os.PathLike) -> np.ndarray:
     """Render every camera; returns (K, H, W, 3) float32 RGB display levels in [0, 255]
     (read from 16-bit PNGs, so quantisation to 8 bits happens only after the noise is added)."""
-    import bpy
     import cv2
 
-    scene = bpy.context.scene
     out = []
     for cam in cameras:
-        path = Path(tmpdir) / f"{cam.name}.png"
-        scene.camera = cam
-        scene.render.filepath = str(path)
-        with _quiet_stdout():
-            bpy.ops.render.render(write_still=True)
+        path = render_camera_png(cam, tmpdir)
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None or img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint16:
             raise RuntimeError(f"{path}: Blender did not write a 16-bit RGB render")

@@ -262,6 +262,20 @@ def _quiet_stdout():
         os.close(devnull)
 
 
+def render_camera_png(cam, tmpdir: str | os.PathLike) -> Path:
+    """Render the scene through Blender camera object ``cam`` to ``tmpdir/<cam.name>.png`` (the scene's
+    file format settings), silencing Blender's per-render output; returns the path."""
+    import bpy
+
+    scene = bpy.context.scene
+    path = Path(tmpdir) / f"{cam.name}.png"
+    scene.camera = cam
+    scene.render.filepath = str(path)
+    with _quiet_stdout():
+        bpy.ops.render.render(write_still=True)
+    return path
+
+
 def render_masks(cameras: list, tmpdir: str | os.PathLike, threshold: float = 0.5, raw: bool = False) -> np.ndarray:
     """Render every camera with the scene's engine and read the silhouettes back.
 
@@ -272,17 +286,11 @@ def render_masks(cameras: list, tmpdir: str | os.PathLike, threshold: float = 0.
     Returns:
         (K, H, W) uint8 in {0, 1} (alpha > threshold), or float32 alpha if ``raw``.
     """
-    import bpy
     import cv2
 
-    scene = bpy.context.scene
     out = []
     for cam in cameras:
-        path = Path(tmpdir) / f"{cam.name}.png"
-        scene.camera = cam
-        scene.render.filepath = str(path)
-        with _quiet_stdout():
-            bpy.ops.render.render(write_still=True)
+        path = render_camera_png(cam, tmpdir)
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None or img.ndim != 3 or img.shape[2] != 4:
             raise RuntimeError(f"{path}: Blender did not write an RGBA render")
