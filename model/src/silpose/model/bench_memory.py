@@ -11,7 +11,7 @@ process's peak RSS (``getrusage`` ``ru_maxrss``, exact, not sampled). ``fit`` = 
 concatenates k copies of the split's arrays, the streaming fit reads the same shard files k times
 per pass (a k-fold longer list of shards, same shard size). The trainer itself has no such option.
 Memory does not depend on the number of EM iterations (each is one pass over the same data), so the
-default ``--max-iter 2`` keeps the runs short; the hyperparameters default to the model's (M 5, q 60).
+default ``--max-iter 2`` keeps the runs short; the hyperparameters default to M 5, q 60 (pass -M/-q for the model defaults, M 20, q 40).
 """
 
 from __future__ import annotations
