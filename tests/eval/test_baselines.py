@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import cdist
 
-from silpose.eval import metrics
+from silpose.shared import metrics
 from silpose.eval.baselines import ChanceBaseline, ViewSubsetRegressor
 from silpose.eval.experiments import view_subsets
 from silpose.shared.skeleton import root_relative

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from silpose.eval import metrics
+from silpose.shared import metrics
 from silpose.eval.baselines import ChanceBaseline
 from silpose.eval.noise import STANDARD_NOISE, apply_noise
 from silpose.model.persistence import load_model, save_model

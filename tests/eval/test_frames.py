@@ -246,7 +246,7 @@ def test_frames_evaluation_iou_and_errors(model_path, frames_dir, tmp_path):
         np.testing.assert_allclose(ev["iou"][:, k], ref, rtol=0, atol=1e-12)
     assert np.mean(ev["iou"]) >= 0.9  # the bar for segmented masks
     # pose errors from true silhouettes: the model's own inference on the truth contours
-    from silpose.eval.metrics import pose_error_cm
+    from silpose.shared.metrics import pose_error_cm
 
     ref_true = pose_error_cm(model.infer(truth.contours).joints, truth.joints)
     np.testing.assert_allclose(ev["pose_cm"]["true"], ref_true)

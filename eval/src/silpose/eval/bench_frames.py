@@ -39,7 +39,7 @@ def run_frames_bench(n_frames: int = 200, n_background: int = 50, data: str = "d
     from silpose.shared.dataset import load_split
 
     from .frames_composite import write_composite_frames
-    from .metrics import pose_error_cm
+    from silpose.shared.metrics import pose_error_cm
 
     data, model = Path(data), Path(model)
     if not data.is_dir():

@@ -209,7 +209,7 @@ class Evaluation:
             the modelled views), chamfer_sym_px, chamfer_observed_px, chamfer_missing_px and
             chamfer_v{k} for each rig view (NaN where view k is not modelled).
         """
-        from .metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
+        from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
 
         d = self.data
         present = self._present(views)
@@ -281,7 +281,7 @@ class Evaluation:
     def score_regressor(self, kind: str, views: Sequence[int], noisy: np.ndarray) -> dict:
         from silpose.shared.contours import normalise
 
-        from .metrics import pose_error_cm, pose_error_procrustes_cm
+        from silpose.shared.metrics import pose_error_cm, pose_error_procrustes_cm
 
         pred = self.regressor(kind, views).predict(normalise(noisy)[0], size=self._size(noisy, views))
         return {"pose_cm": pose_error_cm(pred, self.data.test_joints),
@@ -357,7 +357,7 @@ class Evaluation:
 
     def run_e4(self) -> None:
         from .baselines import ChanceBaseline
-        from .metrics import pose_error_cm, pose_error_procrustes_cm
+        from silpose.shared.metrics import pose_error_cm, pose_error_procrustes_cm
 
         K = self.data.n_views
         noisy = self.noisy(self.config.noise)

@@ -73,7 +73,7 @@ def example_figure(evaluation, sample_id: int, input_views: Sequence[int], path:
     """Draw one example (see the module docstring) for ``evaluation`` (an Evaluation) and save a PNG."""
     from silpose.shared.skeleton import JOINT_NAMES, root_relative
 
-    from .metrics import chamfer_errors, pose_error_cm
+    from silpose.shared.metrics import chamfer_errors, pose_error_cm
 
     d = evaluation.data
     idx = int(np.flatnonzero(d.test_ids == sample_id)[0])

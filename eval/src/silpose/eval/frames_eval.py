@@ -47,7 +47,7 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
     from silpose.model.frames_io import run_frames_pipeline
     from silpose.shared.dataset import DatasetError, load_split
 
-    from .metrics import chamfer_errors, place_contours, pose_error_cm
+    from silpose.shared.metrics import chamfer_errors, place_contours, pose_error_cm
     from .run import EvalInputError
 
     frames_dir = Path(frames_dir)

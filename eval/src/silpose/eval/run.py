@@ -196,7 +196,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "test_contour_length_px_mean": None if data.test_length is None else float(np.mean(data.test_length)),
         "test_area_px_mean": None if data.test_area is None else float(np.mean(data.test_area)),
         "config": config.to_dict(),
-        "chamfer_canvas_margin_px": __import__("silpose.eval.metrics", fromlist=["x"]).CANVAS_MARGIN_PX,
+        "chamfer_canvas_margin_px": __import__("silpose.shared.metrics", fromlist=["x"]).CANVAS_MARGIN_PX,
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
     }
     t1 = time.perf_counter()

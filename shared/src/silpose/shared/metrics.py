@@ -1,10 +1,14 @@
-"""Error measures of paper §6 (DESIGN §5), named after their protocol.
+"""Error measures, named after their protocol: the one home of pose error, Chamfer distance and mask IoU.
+
+Paper §6 and docs/conventions.md, "Evaluation protocol".
 
 - :func:`pose_error_cm` — the paper's pose error: mean Euclidean distance over the 19 joints,
   in cm, both skeletons root-relative (pelvis at the origin), no other alignment.
 - :func:`pose_error_procrustes_cm` — a labelled EXTRA: the same after a similarity Procrustes
   alignment (rotation, uniform scale, translation; least squares, Umeyama 1991) of the
   prediction onto the truth. Not the paper's measure.
+- :func:`mask_iou` — intersection over union of two silhouettes; two empty masks agree
+  perfectly (1.0), one empty and one not give 0.0.
 - :func:`chamfer_one_sided` — paper eq. 5, ``D(T, I) = 1/N sum_{f in T} d_T(f)``: T is the TRUE
   CLEAN contour rasterised 1 px wide, I the reconstructed contour rasterised the same way;
   d is the exact Euclidean distance from each pixel of T to the nearest pixel of I, read from
@@ -29,6 +33,7 @@ __all__ = [
     "chamfer_one_sided",
     "chamfer_errors",
     "place_contours",
+    "mask_iou",
 ]
 
 #: px added on each side of the image canvas before rasterising contours for Chamfer distances.
@@ -240,3 +245,20 @@ def place_contours(contours_norm: np.ndarray, centroid: np.ndarray, scale: np.nd
 
     return denormalise(np.asarray(contours_norm, np.float64), np.asarray(centroid, np.float64),
                        np.asarray(scale, np.float64))
+
+
+def mask_iou(pred: np.ndarray, true: np.ndarray) -> np.ndarray | float:
+    """Intersection over union of boolean masks; 1.0 where both are empty.
+
+    Args:
+        pred, true: (..., H, W) masks (nonzero = foreground), the same shape.
+    Returns:
+        a float for (H, W) inputs, else (...) float64 IoU per mask.
+    """
+    p, t = np.asarray(pred).astype(bool, copy=False), np.asarray(true).astype(bool, copy=False)
+    if p.shape != t.shape or p.ndim < 2:
+        raise ValueError(f"masks must have the same (..., H, W) shape, got {p.shape} and {t.shape}")
+    inter = np.count_nonzero(p & t, axis=(-2, -1))
+    union = np.count_nonzero(p | t, axis=(-2, -1))
+    iou = np.where(union == 0, 1.0, inter / np.maximum(union, 1))
+    return float(iou) if p.ndim == 2 else iou.astype(np.float64)

@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 
-from silpose.eval import metrics
+from silpose.shared import metrics
 from silpose.shared.contours import draw_contour, normalise
 
 
@@ -134,3 +134,21 @@ def test_window_rasterisation_equals_whole_canvas():
         got = metrics._pixels_in(pts, lo, hi)
         ref = _pixels(pts, h, w)[:, ::-1] - m  # (row, col) on the canvas -> (x, y) image coordinates
         assert sorted(map(tuple, got)) == sorted(map(tuple, ref.astype(int)))
+
+
+def test_mask_iou_against_set_counting():
+    rng = np.random.default_rng(0)
+    a, b = rng.random((3, 20, 30)) < 0.4, rng.random((3, 20, 30)) < 0.5
+    ref = [len(set(zip(*np.nonzero(x & y)))) / len(set(zip(*np.nonzero(x | y)))) for x, y in zip(a, b)]
+    np.testing.assert_allclose(metrics.mask_iou(a, b), ref)
+    assert metrics.mask_iou(a[0], b[0]) == pytest.approx(ref[0])
+
+
+def test_mask_iou_empty_cases():
+    z = np.zeros((4, 5), bool)
+    o = z.copy()
+    o[1, 1] = True
+    assert metrics.mask_iou(z, z) == 1.0
+    assert metrics.mask_iou(z, o) == 0.0
+    with pytest.raises(ValueError):
+        metrics.mask_iou(z, np.zeros((5, 4), bool))

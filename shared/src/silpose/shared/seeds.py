@@ -1,0 +1,73 @@
+"""Seed derivation: the one home of every random stream in silpose.
+
+Every random draw in silpose comes from :func:`derive_rng`, a numpy ``Generator`` seeded by a
+``SeedSequence`` of integer keys. A sample's draws are therefore a pure function of
+``(dataset_seed, what, which)`` and never depend on the worker count, the executor, the shard size
+or retries (docs/conventions.md, "Seeds"). The keys of each stream are listed here; the constants
+below are part of the data format (changing one changes every dataset or report that uses it).
+
+| stream | keys passed to :func:`derive_rng` | used by |
+|---|---|---|
+| sample draw | ``seed, SPLIT_CODE[split], index, redraw`` | datagen: subject, gait, placement of a sample; ``redraw`` counts rejected draws |
+| appearance | ``APPEARANCE_STREAM, seed, 1, index`` | datagen frames: clothing colours, room layout of a test sample |
+| camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | camera sensor noise and flicker of rendered frames |
+| eval noise | ``seed, stream_code(name), sample_id`` | eval: contour / mask noise of one test sample, one stream per noise type |
+| chance baseline | ``random_state, CHANCE_STREAM`` | eval: random training poses |
+| validation split | ``seed, VALIDATION_STREAM`` | model selection: train / validation permutation |
+| synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
+| synthetic scene | ``seed, camera`` (room), ``seed, camera, 0, b`` (background frame b), ``seed, camera, 1 + frame`` (frame) | segment.composite test scenes |
+
+Estimators that take a ``random_state`` (``MPPCA``, k-means) follow scikit-learn and call
+``numpy.random.default_rng(random_state)`` themselves.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+__all__ = [
+    "SPLIT_CODE",
+    "APPEARANCE_STREAM",
+    "CAMERA_NOISE_STREAM",
+    "NOISE_KIND",
+    "CHANCE_STREAM",
+    "VALIDATION_STREAM",
+    "derive_rng",
+    "stream_code",
+]
+
+#: dataset split -> key of the sample-draw stream.
+SPLIT_CODE = {"train": 0, "test": 1}
+#: first key of the frames appearance stream (clothing colours, room props).
+APPEARANCE_STREAM = 0x5EED_C010
+#: first key of the camera-noise stream.
+CAMERA_NOISE_STREAM = 0x0015_E0C4
+#: kind of camera-noise frame -> key.
+NOISE_KIND = {"background": 0, "frames": 1}
+#: last key of the chance baseline's draw of random training poses.
+CHANCE_STREAM = 29
+#: last key of the train / validation permutation of model selection.
+VALIDATION_STREAM = 7919
+
+
+def derive_rng(*keys: int) -> np.random.Generator:
+    """A generator seeded by ``SeedSequence([k0, k1, ...])`` of the integer ``keys``.
+
+    Args:
+        keys: non-negative integers (numpy integers and bools are converted with ``int``).
+    Returns:
+        a fresh ``numpy.random.Generator`` (PCG64); the same keys always give the same draws.
+    """
+    if not keys:
+        raise ValueError("derive_rng needs at least one key")
+    ints = [int(k) for k in keys]
+    if any(k < 0 for k in ints):
+        raise ValueError(f"seed keys must be non-negative integers, got {ints}")
+    return np.random.default_rng(np.random.SeedSequence(ints))
+
+
+def stream_code(name: str) -> int:
+    """A stable integer key for a named stream: CRC-32 of its UTF-8 name."""
+    return zlib.crc32(name.encode("utf-8"))
