@@ -261,18 +261,18 @@ def test_frames_evaluation_iou_and_errors(model_path, frames_dir, tmp_path):
 def test_eval_hook_runs_when_frames_exist_and_notes_a_skip(model_path, frames_dir, dataset, tmp_path):
     from types import SimpleNamespace
 
-    from silpose.eval.run import EvalInputError, _frames_section
+    from silpose.eval.run import EvalInputError, frames_section
 
     model = load_model(model_path)
     ev = SimpleNamespace(notes=[], timings={})
-    written = _frames_section(ev, model, dataset, tmp_path / "a", None, None)  # dataset/frames exists
+    written = frames_section(ev, model, dataset, tmp_path / "a", None, None)  # dataset/frames exists
     assert "frames_summary" in written and ev.notes[0].startswith("camera frames (frames.md): mean mask IoU")
     ev = SimpleNamespace(notes=[], timings={})
-    assert _frames_section(ev, model, tmp_path, tmp_path / "b", None, None) == {}
+    assert frames_section(ev, model, tmp_path, tmp_path / "b", None, None) == {}
     assert "skipped" in ev.notes[0] and not (tmp_path / "b").exists()
-    assert _frames_section(ev, model, dataset, tmp_path / "c", False, None) == {}
+    assert frames_section(ev, model, dataset, tmp_path / "c", False, None) == {}
     with pytest.raises(EvalInputError, match="not found"):
-        _frames_section(ev, model, dataset, tmp_path / "d", tmp_path / "nowhere", None)
+        frames_section(ev, model, dataset, tmp_path / "d", tmp_path / "nowhere", None)
 
 
 def test_frames_bench_rows_are_consistent(model_path, dataset):
