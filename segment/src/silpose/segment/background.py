@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 
 from . import cleanup
-from ._validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
+from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
 from .chroma import grow_shadows
 from .ncc import background_window_stats, shadow_mask
 
