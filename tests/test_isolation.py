@@ -26,7 +26,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 ENTRY_POINT_GROUP = "silpose.commands"
-#: Everything on the inference side of the data flow (DESIGN §1); segment = background subtraction.
+#: Everything on the inference side of the data flow (docs/conventions.md, "Layers"); segment = background subtraction.
 CHECKED_PACKAGES = ("silpose.shared", "silpose.model", "silpose.eval", "silpose.segment")
 
 BLOCKER = textwrap.dedent(

@@ -25,6 +25,9 @@ def test_chance_draws_training_poses_uniformly_and_deterministically():
     assert counts.min() > 850 and counts.max() < 1150  # uniform (expected 1000 each)
     np.testing.assert_array_equal(pred, ChanceBaseline(random_state=3).fit(train).predict(7000))
     assert not np.array_equal(pred, ChanceBaseline(random_state=4).fit(train).predict(7000))
+    # the documented stream, with its literal keys: SeedSequence([random_state, 29])
+    want = np.random.default_rng(np.random.SeedSequence([3, 29])).integers(0, 7, size=7000)
+    np.testing.assert_array_equal(ch.draw_indices(7000), want)
 
 
 def test_chance_error_converges_to_mean_over_training_poses():

@@ -132,3 +132,15 @@ def test_noise_spec_validation_names_field():
         noise.NoiseSpec(patch_mode="sideways")
     with pytest.raises(ValueError, match="jitter_px"):
         noise.NoiseSpec(jitter_px=-1)
+
+
+def test_jitter_stream_is_the_documented_seed_recipe():
+    """Sample 17's jitter under seed 5 comes from SeedSequence([5, crc32("jitter"), 17]) (literal keys):
+    the angles are recomputed here from that recipe, independently of silpose.shared.seeds."""
+    clean = np.stack([np.stack([_clean_contour(50)] * 3)] * 2)  # (2, 3, 50, 2)
+    ids = np.array([4, 17])
+    spec = noise.NoiseSpec(label="j", jitter_px=1.5)
+    out = noise.apply_noise(spec, clean, ids, seed=5)
+    theta = np.random.default_rng(np.random.SeedSequence([5, 0x9DABE016, 17])).uniform(0.0, 2.0 * np.pi, size=(3, 50))
+    want = clean[1] + 1.5 * np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    np.testing.assert_array_equal(out[1], want.astype(np.float32))

@@ -71,4 +71,27 @@ def test_headline_and_markdown():
         assert r["mppca"] == pytest.approx(m) and r["knn"] == pytest.approx(knn)
         assert r["mppca_best"] == (m < min(r["knn"], r["ridge"]))
     md = markdown_summary(df, {"seed": 0}, "t")
-    assert "## E1" in md and "## E2" in md and "## E4" in md and "chance" in md and '"seed": 0' in md
+    assert "## E1" in md and "## E2" in md and "## E4" in md and '"seed": 0' in md
+
+
+def _cells(values) -> str:
+    v = np.asarray(values, np.float64)
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return f"{v.mean():.2f} | {med:.2f} | {q1:.2f} | {q3:.2f}"
+
+
+def test_markdown_rows_hold_the_statistics_of_their_rows():
+    """Table rows of summary.md, recomputed from the hand-built rows with numpy (not with report.stats)."""
+    df = _rows(np.random.default_rng(4))
+    lines = markdown_summary(df, {"test_contour_length_px_mean": 400.0, "test_area_px_mean": 2000.0}, "t").splitlines()
+    e2, e4 = df[df.experiment == "E2"], df[df.experiment == "E4"]
+    one = e2[e2.n_input_views == 1]
+    pct = 100.0 * 400.0 / 2000.0 * one.chamfer_px.mean()  # the paper's normalisation: Chamfer x length / area
+    want = (f"| 1 | {len(one)} | {_cells(one.pose_cm)} | 15 | {_cells(one.chamfer_px)} | {pct:.1f} | "
+            f"{one.chamfer_observed_px.mean():.2f} | {one.chamfer_missing_px.mean():.2f} | {one.chamfer_sym_px.mean():.2f} | "
+            f"{one.pose_pa_cm.mean():.2f} |")
+    assert want in lines
+    chance = e4[e4.method == "chance"].pose_cm
+    assert f"| chance (random training pose) | – | {_cells(chance)} | 29 |" in lines
+    ridge = e4[(e4.method == "ridge") & (e4.n_input_views == 1)].pose_cm
+    assert f"| ridge regression | 1 | {_cells(ridge)} |  |" in lines

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from silpose.eval.run import _match_training_subset, load_data
+from silpose.eval.run import match_training_subset, load_data
 from silpose.model.persistence import load_model
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.training import run_training
@@ -18,7 +18,7 @@ def test_subset_reproduces_the_trainers_fit(stick_dataset, tmp_path):
     model = load_model(tmp_path / "m.npz")
     data = load_data(stick_dataset, None, with_masks=False)
     n_all = len(data.train_joints)
-    note = _match_training_subset(data, model)
+    note = match_training_subset(data, model)
     assert len(data.train_joints) == model.dataset_info_["n_fit"] < n_all, note
     refit = ShapeStructureModel(**model.get_params()).fit(data.train_contours, data.train_joints, rig=data.rig)
     np.testing.assert_allclose(refit.mixture_.means_, model.mixture_.means_, rtol=1e-6, atol=1e-9)

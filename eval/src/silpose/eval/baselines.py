@@ -1,4 +1,4 @@
-"""Reference methods for E4 (paper §6; DESIGN §5): chance, kNN regression, ridge regression.
+"""Reference methods for E4 (paper §6; docs/conventions.md, "Evaluation protocol"): chance, kNN regression, ridge regression.
 
 - **Chance** (:class:`ChanceBaseline`): the paper's "random draw of pose parameters from the
   training set" — each test example gets one training pose drawn uniformly at random, root-
@@ -20,6 +20,11 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+from sklearn.linear_model import RidgeCV
+from sklearn.neighbors import KNeighborsRegressor
+
+from silpose.shared.seeds import CHANCE_STREAM, derive_rng
+from silpose.shared.skeleton import root_relative
 
 __all__ = ["ChanceBaseline", "ViewSubsetRegressor", "RIDGE_ALPHAS"]
 
@@ -41,8 +46,6 @@ class ChanceBaseline:
 
     def fit(self, joints: np.ndarray) -> "ChanceBaseline":
         """Store the root-relative training poses. joints: (N_train, 19, 3) metres."""
-        from silpose.shared.skeleton import root_relative
-
         j = np.asarray(joints, dtype=np.float64)
         if j.ndim != 3 or j.shape[1:] != (19, 3) or len(j) == 0:
             raise ValueError(f"joints must have shape (N>0, 19, 3), got {j.shape}")
@@ -50,8 +53,8 @@ class ChanceBaseline:
         return self
 
     def draw_indices(self, n: int) -> np.ndarray:
-        """(n,) training indices, uniform with replacement, from ``default_rng(random_state)``."""
-        rng = np.random.default_rng(np.random.SeedSequence([int(self.random_state), 29]))
+        """(n,) training indices, uniform with replacement, from ``derive_rng(random_state, CHANCE_STREAM)``."""
+        rng = derive_rng(self.random_state, CHANCE_STREAM)
         return rng.integers(0, len(self.poses_), size=int(n))
 
     def predict(self, n: int) -> np.ndarray:
@@ -91,20 +94,14 @@ class ViewSubsetRegressor:
     def fit(self, contours_norm: np.ndarray, joints: np.ndarray, size: np.ndarray | None = None) -> "ViewSubsetRegressor":
         """contours_norm: (N, K, n, 2) normalised training contours; joints: (N, 19, 3) metres;
         size: optional (N,) factors (stature / 1.75 m): the target becomes root-relative joints / size."""
-        from silpose.shared.skeleton import root_relative
-
         x = _features(contours_norm, self.views)
         y = root_relative(np.asarray(joints, dtype=np.float64))
         if size is not None:
             y = y / np.asarray(size, dtype=np.float64)[:, None, None]
         y = y.reshape(len(x), -1)
         if self.kind == "knn":
-            from sklearn.neighbors import KNeighborsRegressor
-
             est = KNeighborsRegressor(n_neighbors=min(self.n_neighbors, len(x)), weights="distance")
         elif self.kind == "ridge":
-            from sklearn.linear_model import RidgeCV
-
             est = RidgeCV(alphas=self.alphas)
         else:
             raise ValueError(f"kind must be 'knn' or 'ridge', got {self.kind!r}")

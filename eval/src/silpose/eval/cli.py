@@ -38,7 +38,8 @@ def evaluate(
 
     from .experiments import DEFAULT_SWEEP, EvalConfig
     from .noise import STANDARD_NOISE
-    from .run import EvalInputError, run_evaluation
+    from .errors import EvalInputError
+    from .run import run_evaluation
 
     console = Console(stderr=True)
     given = Path(preset_or_data_dir)

@@ -1,4 +1,4 @@
-"""The experiments of paper §6 (DESIGN §5) on our data: E1-E4 as per-example result rows.
+"""The experiments of paper §6 (docs/conventions.md, "Evaluation protocol") on our data: E1-E4 as per-example result rows.
 
 Inputs (the same for every method): the test split's CLEAN contours (px) are corrupted with the
 configured noise (:data:`silpose.eval.noise.STANDARD_NOISE` unless told otherwise), deterministically
@@ -6,7 +6,7 @@ per ``(seed, sample_id)``; every method sees exactly these noisy contours of the
 given. Absent views are passed as absent (``views_present``), never as zeros. Contour errors
 compare each reconstruction with the TRUE CLEAN contour of its view: present views' reconstructions
 are mapped to pixels with the noisy input's own normalisation, missing views' with the view's true
-(clean) factors. Pose errors are root-relative cm (:mod:`silpose.eval.metrics`).
+(clean) factors. Pose errors are root-relative cm (:mod:`silpose.shared.metrics`).
 
 - **E1** single-view vs multi-view training (paper Fig. 5). For each view k a model with
   ``views=(k,)`` (the 4-view model's hyperparameters) is fitted on the same training split and given
@@ -28,11 +28,20 @@ from __future__ import annotations
 
 import itertools
 import time
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+import pandas as pd
 
+from silpose.model.shape_model import ShapeStructureModel
+from silpose.model.stature import REFERENCE_STATURE, estimate_stature
+from silpose.shared.contours import normalise
+from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
+
+from .baselines import ChanceBaseline, ViewSubsetRegressor
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
 __all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "view_subsets", "views_label"]
@@ -127,8 +136,6 @@ class EvalData:
     @classmethod
     def from_splits(cls, train, test, n_test: int | None = None) -> "EvalData":
         """Build from two ``silpose.shared.dataset.DatasetSplit`` (test optionally with masks)."""
-        from silpose.shared.contours import normalise
-
         n = len(test) if n_test is None else min(int(n_test), len(test))
         if n <= 0:
             raise ValueError("the test split is empty (or n_test <= 0)")
@@ -209,8 +216,6 @@ class Evaluation:
             the modelled views), chamfer_sym_px, chamfer_observed_px, chamfer_missing_px and
             chamfer_v{k} for each rig view (NaN where view k is not modelled).
         """
-        from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
-
         d = self.data
         present = self._present(views)
         res = model.infer(noisy, views_present=present, centroid=d.test_centroid, scale=d.test_scale)
@@ -237,10 +242,6 @@ class Evaluation:
     def single_view_model(self, k: int):
         """The model trained on view k alone (fitted on first use with the 4-view model's hyperparameters)."""
         if k not in self.single_view_models:
-            from silpose.model.shape_model import ShapeStructureModel
-
-            import warnings
-
             params = dict(self.model.get_params())
             params["views"] = (int(k),)
             with warnings.catch_warnings(record=True) as caught:  # keep the progress display clean
@@ -254,10 +255,6 @@ class Evaluation:
 
     def regressor(self, kind: str, views: Sequence[int]):
         """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached)."""
-        from silpose.shared.contours import normalise
-
-        from .baselines import ViewSubsetRegressor
-
         key = (kind, tuple(views))
         if key not in self._regressors:
             if not hasattr(self, "_train_norm"):
@@ -273,16 +270,11 @@ class Evaluation:
         layout = getattr(self.model, "layout_", None)
         if getattr(layout, "joint_frame", "metres") != "stature" or self.data.rig is None:
             return None
-        from silpose.model.stature import REFERENCE_STATURE, estimate_stature
-
         v = list(views)
         return estimate_stature(contours_px[:, v], [self.data.rig[k] for k in v]) / REFERENCE_STATURE
 
     def score_regressor(self, kind: str, views: Sequence[int], noisy: np.ndarray) -> dict:
-        from silpose.shared.contours import normalise
-
-        from silpose.shared.metrics import pose_error_cm, pose_error_procrustes_cm
-
+        """Root-relative pose errors (cm) of the ``kind`` regressor given ``views`` of ``noisy``."""
         pred = self.regressor(kind, views).predict(normalise(noisy)[0], size=self._size(noisy, views))
         return {"pose_cm": pose_error_cm(pred, self.data.test_joints),
                 "pose_pa_cm": pose_error_procrustes_cm(pred, self.data.test_joints)}
@@ -356,9 +348,6 @@ class Evaluation:
         self._tick("E3", total, total)
 
     def run_e4(self) -> None:
-        from .baselines import ChanceBaseline
-        from silpose.shared.metrics import pose_error_cm, pose_error_procrustes_cm
-
         K = self.data.n_views
         noisy = self.noisy(self.config.noise)
         chance = ChanceBaseline(random_state=self.config.seed).fit(self.data.train_joints)
@@ -379,8 +368,6 @@ class Evaluation:
     # ---------------------------------------------------------------- output
     def frame(self):
         """All rows as a pandas DataFrame (one row per experiment condition and test example)."""
-        import pandas as pd
-
         frames = [pd.DataFrame(r) for r in self.rows]
         df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         for col in ("experiment", "method", "training", "trained_views", "input_views", "noise"):
@@ -389,15 +376,9 @@ class Evaluation:
         return df
 
 
-class _quiet_nanmean:
+@contextmanager
+def _quiet_nanmean():
     """Silence 'Mean of empty slice' (an all-NaN row is a legitimate NaN result here)."""
-
-    def __enter__(self):
-        import warnings
-
-        self._ctx = warnings.catch_warnings()
-        self._ctx.__enter__()
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-
-    def __exit__(self, *exc):
-        return self._ctx.__exit__(*exc)
+        yield

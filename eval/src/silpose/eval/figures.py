@@ -16,7 +16,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .plots import _plt, save_figure
+from silpose.shared.metrics import chamfer_errors, pose_error_cm
+from silpose.shared.skeleton import BONES, JOINT_NAMES, root_relative
+
+from .plots import pyplot, save_figure
 
 __all__ = ["median_example", "example_figure", "default_examples"]
 
@@ -59,8 +62,6 @@ def _crop(true: np.ndarray, noisy: np.ndarray | None, recon: np.ndarray, width: 
 
 
 def _stick(ax, joints: np.ndarray, style: str, color: str, label: str, names: Sequence[str] | None = None) -> None:
-    from silpose.shared.skeleton import BONES
-
     for a, b in BONES:
         ax.plot(*[joints[[a, b], i] for i in range(3)], style, color=color, lw=1.6)
     ax.plot([], [], style, color=color, label=label)
@@ -71,10 +72,6 @@ def _stick(ax, joints: np.ndarray, style: str, color: str, label: str, names: Se
 
 def example_figure(evaluation, sample_id: int, input_views: Sequence[int], path: str | Path, title: str) -> Path:
     """Draw one example (see the module docstring) for ``evaluation`` (an Evaluation) and save a PNG."""
-    from silpose.shared.skeleton import JOINT_NAMES, root_relative
-
-    from silpose.shared.metrics import chamfer_errors, pose_error_cm
-
     d = evaluation.data
     idx = int(np.flatnonzero(d.test_ids == sample_id)[0])
     K = d.n_views
@@ -88,7 +85,7 @@ def example_figure(evaluation, sample_id: int, input_views: Sequence[int], path:
     one, _ = chamfer_errors(d.test_contours[idx : idx + 1], recon, d.image_size)
     pose = float(pose_error_cm(res.joints, d.test_joints[idx : idx + 1])[0])
 
-    plt = _plt()
+    plt = pyplot()
     fig = plt.figure(figsize=(2.2 * K, 10.0))
     gs = fig.add_gridspec(3, K, height_ratios=[1, 1, 1.3])
     true = d.test_contours[idx]

@@ -10,24 +10,29 @@ Writes the "frames dataset" layout (the contract with the Blender frames generat
 
 The images come from :mod:`silpose.segment.composite` (textured room, cloth-coloured person from the
 TRUE mask, a floor shadow, camera noise and flicker). Used by the tests and the frames-to-joints
-benchmark; real camera-like frames come from the Blender generator.
+benchmark; real camera-like frames come from the Blender generator. Every file is written
+atomically (:mod:`silpose.shared.atomic`).
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
+import cv2
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from silpose.segment.composite import background_frames, composite_frame, room
+from silpose.shared.atomic import atomic_path, write_bytes_atomic, write_text_atomic
+from silpose.shared.dataset import list_shards, load_split
 
 
 def _write_png(path: Path, img: np.ndarray) -> None:
-    import cv2
-
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    if not cv2.imwrite(str(tmp), img):
-        raise OSError(f"{path}: OpenCV could not write this PNG")
-    os.replace(tmp, path)
+    ok, buf = cv2.imencode(".png", img)
+    if not ok:
+        raise OSError(f"{path}: OpenCV could not encode this image as PNG")
+    write_bytes_atomic(path, buf.tobytes())
 
 
 def write_composite_frames(dataset_dir, out_dir, n: int | None = None, n_background: int = 20, seed: int = 0,
@@ -43,12 +48,6 @@ def write_composite_frames(dataset_dir, out_dir, n: int | None = None, n_backgro
     Returns:
         ``out_dir``.
     """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from silpose.segment.composite import background_frames, composite_frame, room
-    from silpose.shared.dataset import list_shards, load_split
-
     out = Path(out_dir)
     if out.exists() and any(out.iterdir()):
         raise FileExistsError(f"{out}: exists and is not empty")
@@ -56,7 +55,7 @@ def write_composite_frames(dataset_dir, out_dir, n: int | None = None, n_backgro
     n = len(data) if n is None else min(int(n), len(data))
     out.mkdir(parents=True, exist_ok=True)
     rig = data.rig
-    (out / "rig.json").write_text(rig.to_json())
+    write_text_atomic(out / "rig.json", rig.to_json())
     for k, cam in enumerate(rig):
         size = (cam.width, cam.height)
         bdir, fdir = out / "background" / cam.name, out / "frames" / cam.name
@@ -70,10 +69,10 @@ def write_composite_frames(dataset_dir, out_dir, n: int | None = None, n_backgro
             _write_png(fdir / f"{i:05d}.png", img)
     tables = [pq.read_table(p) for p in list_shards(dataset_dir, "test")]
     table = pa.concat_tables(tables).slice(0, n)
-    tmp = out / ".test-00000-of-00001.parquet.tmp"
-    pq.write_table(table, tmp, compression="zstd")
-    os.replace(tmp, out / "test-00000-of-00001.parquet")
-    (out / "README.md").write_text(
+    with atomic_path(out / "test-00000-of-00001.parquet") as tmp:
+        pq.write_table(table, tmp, compression="zstd")
+    write_text_atomic(
+        out / "README.md",
         f"# Composited frames dataset\n\nCamera frames composited from the true masks of the first {n} test samples "
         f"of `{dataset_dir}` by `silpose.eval.frames_composite` (textured room per camera, cloth-coloured person "
         f"from the true mask, floor shadow factor {shadow_factor}, camera noise {noise_std} graylevels, flicker "

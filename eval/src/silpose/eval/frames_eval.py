@@ -8,10 +8,11 @@ split "test" whose row i is frame i), with the same model and the same frames:
 - **true**: the truth split's clean contours (extracted from the true masks) given to the model.
 
 Measures per frame: mask IoU ``|S & T| / |S | T|`` of the segmented vs the true mask per camera
-(an empty segmentation scores 0; a camera without frames is left out); pose error (cm,
-root-relative, :func:`silpose.eval.metrics.pose_error_cm`); one-sided Chamfer distance D(true clean
-contour -> reconstruction) in px, mean over the modelled views. Views the segmentation lost are
-reconstructed by the model and placed with their true normalisation (DESIGN §5), like E2.
+(:func:`silpose.shared.metrics.mask_iou`; an empty segmentation scores 0; a camera without frames is
+left out); pose error (cm, root-relative, :func:`silpose.shared.metrics.pose_error_cm`); one-sided
+Chamfer distance D(true clean contour -> reconstruction) in px, mean over the modelled views. Views
+the segmentation lost are reconstructed by the model and placed with their true normalisation
+(docs/conventions.md, "Evaluation protocol"), like E2.
 
 Outputs in the report folder: ``frames.md`` (tables of mean / median / quartiles), ``frames.parquet``
 (one row per frame and input), ``frames_errors.png`` (paper-style box plots) and
@@ -20,21 +21,22 @@ Outputs in the report folder: ``frames.md`` (tables of mean / median / quartiles
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
-from .report import _f, _q, _table, stats
+from silpose.shared.atomic import atomic_path, write_text_atomic
+from silpose.shared.dataset import DatasetError, load_split
+from silpose.shared.metrics import chamfer_errors, mask_iou, place_contours, pose_error_cm
+
+from .errors import EvalInputError
+from .plots import paper_boxplot, pyplot, save_figure
+from .tables import QUARTILE_HEADERS, fmt, fmt_stats, markdown_table, stats
 
 FILES = ("frames.md", "frames.parquet", "frames_errors.png", "frames_example.png")
-
-
-def mask_iou(pred: np.ndarray, true: np.ndarray) -> float:
-    """IoU of two (H, W) boolean masks; 1.0 when both are empty."""
-    p, t = np.asarray(pred, bool), np.asarray(true, bool)
-    union = int(np.count_nonzero(p | t))
-    return 1.0 if union == 0 else int(np.count_nonzero(p & t)) / union
 
 
 def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> dict:
@@ -45,10 +47,6 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
     masks_packed (list of per-frame packed masks), pipeline (FramesResult), timings.
     """
     from silpose.model.frames_io import run_frames_pipeline
-    from silpose.shared.dataset import DatasetError, load_split
-
-    from silpose.shared.metrics import chamfer_errors, place_contours, pose_error_cm
-    from .run import EvalInputError
 
     frames_dir = Path(frames_dir)
     try:
@@ -98,8 +96,6 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
 
 def frames_table(ev: dict):
     """One row per frame and input (pandas DataFrame)."""
-    import pandas as pd
-
     rows = []
     for key in ("segmented", "true"):
         for i, sid in enumerate(ev["sample_id"]):
@@ -115,14 +111,14 @@ def frames_table(ev: dict):
 
 def frames_markdown(ev: dict, frames_dir, figures: list[str]) -> str:
     """``frames.md``: IoU per camera; pose and Chamfer from segmented vs true silhouettes."""
-    qh = ["mean", "median", "Q1", "Q3"]
-    iou_rows = [[c, str(int(np.isfinite(ev["iou"][:, k]).sum())), _q(stats(ev["iou"][:, k]))]
+    qh = QUARTILE_HEADERS
+    iou_rows = [[c, str(int(np.isfinite(ev["iou"][:, k]).sum())), fmt_stats(stats(ev["iou"][:, k]))]
                 for k, c in enumerate(ev["cameras"])]
-    iou_rows.append(["all cameras", str(int(np.isfinite(ev["iou"]).sum())), _q(stats(ev["iou"].ravel()))])
+    iou_rows.append(["all cameras", str(int(np.isfinite(ev["iou"]).sum())), fmt_stats(stats(ev["iou"].ravel()))])
     err_rows = []
     for key, label in (("segmented", "segmented silhouettes (camera frames)"), ("true", "true silhouettes")):
-        err_rows.append([label, str(stats(ev["pose_cm"][key])["n"]), _q(stats(ev["pose_cm"][key])),
-                         _q(stats(ev["chamfer_px"][key])), _f(float(np.mean(ev["n_views"][key])))])
+        err_rows.append([label, str(stats(ev["pose_cm"][key])["n"]), fmt_stats(stats(ev["pose_cm"][key])),
+                         fmt_stats(stats(ev["chamfer_px"][key])), fmt(float(np.mean(ev["n_views"][key])))])
     st = ev["status"]
     counts = {s: int((st == s).sum()) for s in np.unique(st.astype(str))}
     t = ev["timings"]
@@ -134,9 +130,9 @@ def frames_markdown(ev: dict, frames_dir, figures: list[str]) -> str:
              "segmentation lost are inferred and placed with their true normalisation; n counts frames with a pose "
              "(a frame whose segmentation failed in every view has none).", "",
              "## Mask IoU", "",
-             _table(["camera", "n", *[f"IoU {h}" for h in qh]], iou_rows), "",
+             markdown_table(["camera", "n", *[f"IoU {h}" for h in qh]], iou_rows), "",
              "## Pose and contour errors", "",
-             _table(["input", "n", *[f"pose {h} (cm)" for h in qh], *[f"Chamfer {h} (px)" for h in qh], "views used (mean)"],
+             markdown_table(["input", "n", *[f"pose {h} (cm)" for h in qh], *[f"Chamfer {h} (px)" for h in qh], "views used (mean)"],
                     err_rows), "",
              "Segmentation status over (frame, camera): " + ", ".join(f"{k} {v}" for k, v in counts.items()) + ".", "",
              "Seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()) + ".", ""]
@@ -146,9 +142,7 @@ def frames_markdown(ev: dict, frames_dir, figures: list[str]) -> str:
 
 def plot_frames(ev: dict, path) -> Path:
     """Box plots: IoU per camera; pose and Chamfer errors from segmented vs true silhouettes."""
-    from .plots import _plt, paper_boxplot, save_figure
-
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 4))
     paper_boxplot(axes[0], [ev["iou"][:, k] for k in range(len(ev["cameras"]))], list(ev["cameras"]), "mask IoU",
                   "Segmentation vs true masks")
@@ -186,25 +180,19 @@ def example_overlay(ev: dict, model, frames_dir, path) -> Path | None:
 
 def write_frames_report(frames_dir, model, out_dir, progress=None) -> tuple[dict, dict[str, Path]]:
     """Run :func:`run_frames_evaluation` and write the four files; returns (evaluation, written paths)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     ev = run_frames_evaluation(frames_dir, model, progress=progress)
     written = {}
-    tmp = out / ".frames.parquet.tmp"
-    pq.write_table(pa.Table.from_pandas(frames_table(ev), preserve_index=False), tmp, compression="zstd")
-    os.replace(tmp, out / "frames.parquet")
+    with atomic_path(out / "frames.parquet") as tmp:
+        pq.write_table(pa.Table.from_pandas(frames_table(ev), preserve_index=False), tmp, compression="zstd")
     written["frames_results"] = out / "frames.parquet"
     written["frames_errors"] = plot_frames(ev, out / "frames_errors.png")
     ex = example_overlay(ev, model, frames_dir, out / "frames_example.png")
     if ex is not None:
         written["frames_example"] = ex
     md = frames_markdown(ev, frames_dir, [p.name for k, p in written.items() if p.suffix == ".png"])
-    tmp = out / ".frames.md.tmp"
-    tmp.write_text(md)
-    os.replace(tmp, out / "frames.md")
+    write_text_atomic(out / "frames.md", md)
     written["frames_summary"] = out / "frames.md"
     return ev, written
 

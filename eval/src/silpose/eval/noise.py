@@ -1,4 +1,4 @@
-"""Segmentation-like noise for test contours (paper §6, Fig. 4; DESIGN §5).
+"""Segmentation-like noise for test contours (paper §6, Fig. 4; docs/conventions.md, "Evaluation protocol").
 
 All noise acts in PIXELS, before normalisation, on the clean resampled contours of the test
 split. Three families, each deterministic per ``(seed, sample_id)``:
@@ -34,10 +34,13 @@ of 4 px nearly cuts through a forearm. The paper gives no magnitudes; E3 sweeps 
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import asdict, dataclass, replace
 
+import cv2
 import numpy as np
+
+from silpose.shared.contours import EmptyMaskError, extract_contour, signed_area
+from silpose.shared.seeds import derive_rng, stream_code
 
 __all__ = [
     "NoiseSpec",
@@ -121,10 +124,11 @@ STANDARD_NOISE = NoiseSpec(label="standard", jitter_px=1.0, n_patches=3, patch_l
 def sample_rng(seed: int, sample_id: int, stream: str) -> np.random.Generator:
     """The Generator for one sample and one noise stream.
 
-    ``SeedSequence([seed, crc32(stream), sample_id])``: the draws of a sample do not depend on
-    which other samples are evaluated, on their order or on batching.
+    ``derive_rng(seed, stream_code(stream), sample_id)``, i.e. ``SeedSequence([seed, crc32(stream),
+    sample_id])`` (:mod:`silpose.shared.seeds`; streams "mask", "patches", "jitter"): the draws of a
+    sample do not depend on which other samples are evaluated, on their order or on batching.
     """
-    return np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(stream.encode()), int(sample_id)]))
+    return derive_rng(seed, stream_code(stream), sample_id)
 
 
 def jitter_points(points: np.ndarray, magnitude: float, rng: np.random.Generator,
@@ -161,8 +165,6 @@ def outward_normals(points: np.ndarray) -> np.ndarray:
     Returns:
         (..., n, 2) unit vectors (zero where the tangent vanishes).
     """
-    from silpose.shared.contours import signed_area
-
     p = np.asarray(points, dtype=np.float64)
     t = np.roll(p, -1, axis=-2) - np.roll(p, 1, axis=-2)
     nrm = np.stack([t[..., 1], -t[..., 0]], axis=-1)
@@ -214,8 +216,6 @@ def normal_patches(points: np.ndarray, n_patches: int, patch_length: int, depth:
 
 def _disc(img: np.ndarray, cx: float, cy: float, r: float, value: int) -> None:
     """Fill a disc of radius ``r`` px centred on (cx, cy) in place (cv2.circle, 1/16 px precision)."""
-    import cv2
-
     cv2.circle(img, (int(round(cx * 16)), int(round(cy * 16))), max(int(round(r * 16)), 1), int(value), -1,
                lineType=cv2.LINE_8, shift=4)
 
@@ -238,8 +238,6 @@ def corrupt_mask(mask: np.ndarray, rng: np.random.Generator, *, n_holes: int = 0
     Returns:
         (H, W) uint8 0/1 corrupted mask (may have several blobs).
     """
-    import cv2
-
     m = (np.asarray(mask) > 0).astype(np.uint8)
     if m.ndim != 2:
         raise ValueError(f"mask must have shape (H, W), got {m.shape}")
@@ -299,8 +297,6 @@ def apply_noise(spec: NoiseSpec, contours: np.ndarray, sample_ids: np.ndarray, s
     n_points = c.shape[2] if n_points is None else int(n_points)
     out = c.copy()
     if spec.needs_masks:
-        from silpose.shared.contours import EmptyMaskError, extract_contour
-
         if masks is None:
             raise ValueError(f"noise {spec.label!r} corrupts masks: pass the test masks (load_split(..., with_masks=True))")
         if masks.shape[:2] != c.shape[:2]:

@@ -1,21 +1,27 @@
 """Box plots in the paper's style (Figs. 5 and 8): median line, quartile box, dashed whiskers to the
 most extreme point within 1.5 IQR of the box, outliers beyond them marked '+'.
 
-Files are written to a temporary name and renamed (crash safety). matplotlib runs headless (Agg).
+Files are written atomically (:func:`silpose.shared.atomic.atomic_path`). matplotlib runs headless
+(Agg) and is imported on first use (:func:`pyplot`), not with this module.
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-__all__ = ["paper_boxplot", "save_figure", "plot_e1", "plot_e2", "plot_e3", "plot_e4"]
+from silpose.shared.atomic import atomic_path
+
+from .report import e1_comparison
+from .tables import select
+
+__all__ = ["pyplot", "paper_boxplot", "save_figure", "plot_e1", "plot_e2", "plot_e3", "plot_e4"]
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot`` with the headless Agg backend (matplotlib is imported here, lazily)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -47,35 +53,26 @@ def paper_boxplot(ax, data: Sequence[np.ndarray], labels: Sequence[str], ylabel:
 
 
 def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Save ``fig`` as PNG through a temporary file + os.replace; closes the figure."""
-    plt = _plt()
+    """Save ``fig`` as PNG atomically (temporary file, then rename); closes the figure."""
+    plt = pyplot()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
+    finally:
+        plt.close(fig)
     return path
-
-
-def _sel(df, **eq):
-    m = np.ones(len(df), bool)
-    for k, v in eq.items():
-        m &= (df[k] == v).to_numpy()
-    return df[m]
 
 
 def plot_e1(df, path) -> Path | None:
     """E1: pose (left) and contour (right) error distributions, single- vs multi-view training."""
-    from .report import e1_comparison
-
-    e1 = _sel(df, experiment="E1")
+    e1 = select(df, experiment="E1")
     if e1.empty:
         return None
     c = e1_comparison(df)
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(8, 4))
-    paper_boxplot(axes[0], [_sel(e1, training="single-view")["pose_cm"], _sel(e1, training="multi-view")["pose_cm"]],
+    paper_boxplot(axes[0], [select(e1, training="single-view")["pose_cm"], select(e1, training="multi-view")["pose_cm"]],
                   ["single-view\ntraining", "multi-view\ntraining"], "pose error (cm)", "Pose")
     paper_boxplot(axes[1], [c["_sv_chamfer"], c["_mv_chamfer"]], ["single-view\ntraining", "multi-view\ntraining"],
                   "Chamfer distance true→recon (px)", "Contours")
@@ -85,15 +82,15 @@ def plot_e1(df, path) -> Path | None:
 
 def plot_e2(df, path) -> Path | None:
     """E2: pose and contour errors for 4, 3, 2, 1 input views with the 4-view model."""
-    e2 = _sel(df, experiment="E2")
+    e2 = select(df, experiment="E2")
     if e2.empty:
         return None
     ns = sorted(e2["n_input_views"].unique(), reverse=True)
     labels = [f"{n} view{'s' if n > 1 else ''}" for n in ns]
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9, 4))
-    paper_boxplot(axes[0], [_sel(e2, n_input_views=n)["pose_cm"] for n in ns], labels, "pose error (cm)", "Pose")
-    paper_boxplot(axes[1], [_sel(e2, n_input_views=n)["chamfer_px"] for n in ns], labels,
+    paper_boxplot(axes[0], [select(e2, n_input_views=n)["pose_cm"] for n in ns], labels, "pose error (cm)", "Pose")
+    paper_boxplot(axes[1], [select(e2, n_input_views=n)["chamfer_px"] for n in ns], labels,
                   "Chamfer distance true→recon (px)", "Contours (all 4 views)")
     fig.suptitle("E2: 4-view model given a subset of views (cf. paper Fig. 8)")
     return save_figure(fig, path)
@@ -101,15 +98,15 @@ def plot_e2(df, path) -> Path | None:
 
 def plot_e3(df, path) -> Path | None:
     """E3: pose error per noise setting (4-view model, all views; and the first other input subset)."""
-    e3 = _sel(df, experiment="E3", method="mppca")
+    e3 = select(df, experiment="E3", method="mppca")
     if e3.empty:
         return None
     subsets = list(dict.fromkeys(e3["input_views"]))
     noises = list(dict.fromkeys(e3["noise"]))
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(len(subsets), 1, figsize=(max(8, 0.8 * len(noises)), 3.2 * len(subsets)), squeeze=False)
     for ax, views in zip(axes[:, 0], subsets):
-        paper_boxplot(ax, [_sel(e3, input_views=views, noise=nz)["pose_cm"] for nz in noises], noises,
+        paper_boxplot(ax, [select(e3, input_views=views, noise=nz)["pose_cm"] for nz in noises], noises,
                       "pose error (cm)", f"E3: noise sweep, input views {views}")
         ax.tick_params(axis="x", labelrotation=30)
     fig.tight_layout()
@@ -118,8 +115,8 @@ def plot_e3(df, path) -> Path | None:
 
 def plot_e4(df, path) -> Path | None:
     """E4: pose error of MPPCA, kNN and ridge per number of input views, plus chance."""
-    e4 = _sel(df, experiment="E4")
-    e2 = _sel(df, experiment="E2")
+    e4 = select(df, experiment="E4")
+    e2 = select(df, experiment="E2")
     if e4.empty:
         return None
     data, labels = [], []
@@ -127,14 +124,14 @@ def plot_e4(df, path) -> Path | None:
         if n == 0:
             continue
         if not e2.empty:
-            data.append(_sel(e2, n_input_views=n)["pose_cm"])
+            data.append(select(e2, n_input_views=n)["pose_cm"])
             labels.append(f"MPPCA\n{n}v")
         for m in ("knn", "ridge"):
-            data.append(_sel(e4, n_input_views=n, method=m)["pose_cm"])
+            data.append(select(e4, n_input_views=n, method=m)["pose_cm"])
             labels.append(f"{m}\n{n}v")
-    data.append(_sel(e4, method="chance")["pose_cm"])
+    data.append(select(e4, method="chance")["pose_cm"])
     labels.append("chance")
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(max(8, 0.7 * len(labels)), 4))
     paper_boxplot(ax, data, labels, "pose error (cm)", "E4: MPPCA vs kNN vs ridge vs chance")
     return save_figure(fig, path)

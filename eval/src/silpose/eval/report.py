@@ -8,9 +8,13 @@ get a reconstruction; "sym" is the mean of both directions.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
-__all__ = ["PAPER", "stats", "headline", "markdown_summary"]
+from .tables import QUARTILE_HEADERS, fmt, fmt_stats, markdown_table, select, stats
+
+__all__ = ["PAPER", "stats", "e1_comparison", "headline", "pct_per_px", "markdown_summary"]
 
 #: The paper's figures (Grauman et al. 2003, §6).
 PAPER = {
@@ -22,31 +26,6 @@ PAPER = {
 }
 
 
-def stats(values) -> dict:
-    """n, mean, median, q1, q3 of the finite values (NaN when none)."""
-    v = np.asarray(values, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    if len(v) == 0:
-        return {"n": 0, "mean": np.nan, "median": np.nan, "q1": np.nan, "q3": np.nan}
-    q1, med, q3 = np.percentile(v, [25, 50, 75])
-    return {"n": int(len(v)), "mean": float(v.mean()), "median": float(med), "q1": float(q1), "q3": float(q3)}
-
-
-def _f(x, digits: int = 2) -> str:
-    return "–" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
-
-
-def _q(s: dict) -> str:
-    return f"{_f(s['mean'])} | {_f(s['median'])} | {_f(s['q1'])} | {_f(s['q3'])}"
-
-
-def _sel(df, **eq):
-    m = np.ones(len(df), bool)
-    for k, v in eq.items():
-        m &= (df[k] == v).to_numpy()
-    return df[m]
-
-
 def _pct_better(multi: float, single: float) -> float:
     """Improvement of multi over single in % of the single-view error: 100 (1 - multi / single)."""
     return float(100.0 * (1.0 - multi / single)) if single and np.isfinite(single) else float("nan")
@@ -54,13 +33,13 @@ def _pct_better(multi: float, single: float) -> float:
 
 def e1_comparison(df) -> dict:
     """E1 means: pose (pooled over views) and per-view contours, single- vs multi-view training."""
-    e1 = _sel(df, experiment="E1")
+    e1 = select(df, experiment="E1")
     if e1.empty:
         return {}
-    sv = _sel(e1, training="single-view")
-    mv = _sel(e1, training="multi-view")
+    sv = select(e1, training="single-view")
+    mv = select(e1, training="multi-view")
     views = sorted(int(v) for v in sv["trained_views"].unique())
-    sv_c = np.concatenate([_sel(sv, trained_views=str(k))[f"chamfer_v{k}"].to_numpy() for k in views])
+    sv_c = np.concatenate([select(sv, trained_views=str(k))[f"chamfer_v{k}"].to_numpy() for k in views])
     mv_c = np.concatenate([mv[f"chamfer_v{k}"].to_numpy() for k in views])
     out = {
         "single_view_pose_cm": stats(sv["pose_cm"])["mean"],
@@ -68,9 +47,9 @@ def e1_comparison(df) -> dict:
         "single_view_chamfer_px": stats(sv_c)["mean"],
         "multi_view_chamfer_px": stats(mv_c)["mean"],
     }
-    e2 = _sel(df, experiment="E2")
+    e2 = select(df, experiment="E2")
     if not e2.empty:  # the 4-view model given the single-view models' input (view k alone): same inputs
-        one = [_sel(e2, input_views=str(k)) for k in views]
+        one = [select(e2, input_views=str(k)) for k in views]
         if all(len(g) for g in one):
             out["multi_view_model_one_view_input_pose_cm"] = stats(np.concatenate([g["pose_cm"] for g in one]))["mean"]
             out["multi_view_model_one_view_input_chamfer_px"] = stats(
@@ -84,7 +63,7 @@ def e1_comparison(df) -> dict:
 def headline(df) -> dict:
     """The numbers the issue asks for, with the paper's beside them (JSON-friendly)."""
     h: dict = {"paper": PAPER}
-    e2 = _sel(df, experiment="E2")
+    e2 = select(df, experiment="E2")
     if not e2.empty:
         h["pose_cm_by_n_views"] = {int(n): stats(g["pose_cm"]) for n, g in e2.groupby("n_input_views")}
         h["chamfer_px_by_n_views"] = {int(n): stats(g["chamfer_px"]) for n, g in e2.groupby("n_input_views")}
@@ -92,37 +71,28 @@ def headline(df) -> dict:
     e1 = e1_comparison(df)
     if e1:
         h["e1"] = {k: v for k, v in e1.items() if not k.startswith("_")}
-    e4 = _sel(df, experiment="E4")
+    e4 = select(df, experiment="E4")
     if not e4.empty:
-        h["chance_cm"] = stats(_sel(e4, method="chance")["pose_cm"])
+        h["chance_cm"] = stats(select(e4, method="chance")["pose_cm"])
         cmp: dict = {}
         for n, g in e4[e4["method"] != "chance"].groupby("n_input_views"):
             cmp[int(n)] = {m: stats(gg["pose_cm"])["mean"] for m, gg in g.groupby("method")}
             if not e2.empty:
-                cmp[int(n)]["mppca"] = stats(_sel(e2, n_input_views=n)["pose_cm"])["mean"]
+                cmp[int(n)]["mppca"] = stats(select(e2, n_input_views=n)["pose_cm"])["mean"]
         h["pose_mean_cm_by_method_and_n_views"] = cmp
         if not e2.empty:
             ahead = []
             for views, g in e2.groupby("input_views"):
                 m = g["pose_cm"].mean()
-                others = [_sel(e4, input_views=views, method=k)["pose_cm"].mean() for k in ("knn", "ridge")]
+                others = [select(e4, input_views=views, method=k)["pose_cm"].mean() for k in ("knn", "ridge")]
                 ahead.append({"views": views, "mppca": float(m), "knn": float(others[0]), "ridge": float(others[1]),
                               "mppca_best": bool(m < min(others))})
             h["mppca_vs_baselines_by_subset"] = ahead
     return h
 
 
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
-
-
-_QH = ["mean", "median", "Q1", "Q3"]
-
-
 def _e1_md(df) -> list[str]:
-    e1 = _sel(df, experiment="E1")
+    e1 = select(df, experiment="E1")
     if e1.empty:
         return []
     c = e1_comparison(df)
@@ -130,111 +100,109 @@ def _e1_md(df) -> list[str]:
     for (training, tv), g in e1.groupby(["training", "trained_views"], sort=False):
         views = [int(v) for v in tv] if training == "multi-view" else [int(tv)]
         ch = np.concatenate([g[f"chamfer_v{k}"].to_numpy() for k in views])
-        rows.append([training, tv, tv, str(len(g)), _q(stats(g["pose_cm"])), _q(stats(ch)), _f(stats(g["pose_pa_cm"])["mean"])])
-    rows.append(["single-view (all views pooled)", "k", "k", str(len(_sel(e1, training="single-view"))),
-                 _q(stats(_sel(e1, training="single-view")["pose_cm"])), _q(stats(c["_sv_chamfer"])), ""])
-    e2 = _sel(df, experiment="E2")
-    one = [(int(k), _sel(e2, input_views=k)) for k in sorted(_sel(e1, training="single-view")["trained_views"].unique())]
+        rows.append([training, tv, tv, str(len(g)), fmt_stats(stats(g["pose_cm"])), fmt_stats(stats(ch)), fmt(stats(g["pose_pa_cm"])["mean"])])
+    rows.append(["single-view (all views pooled)", "k", "k", str(len(select(e1, training="single-view"))),
+                 fmt_stats(stats(select(e1, training="single-view")["pose_cm"])), fmt_stats(stats(c["_sv_chamfer"])), ""])
+    e2 = select(df, experiment="E2")
+    one = [(int(k), select(e2, input_views=k)) for k in sorted(select(e1, training="single-view")["trained_views"].unique())]
     if not e2.empty and all(len(g) for _, g in one):
         pose = np.concatenate([g["pose_cm"] for _, g in one])
         ch = np.concatenate([g[f"chamfer_v{k}"] for k, g in one])
-        rows.append(["multi-view, given view k only (from E2; extra)", "0123", "k", str(len(pose)), _q(stats(pose)),
-                     _q(stats(ch)), _f(np.concatenate([g["pose_pa_cm"] for _, g in one]).mean())])
+        rows.append(["multi-view, given view k only (from E2; extra)", "0123", "k", str(len(pose)), fmt_stats(stats(pose)),
+                     fmt_stats(stats(ch)), fmt(np.concatenate([g["pose_pa_cm"] for _, g in one]).mean())])
     out = ["## E1 — single-view vs multi-view training (paper Fig. 5)", "",
            "Same noisy test examples for both. A single-view model k (trained on view k alone) gets the noisy contour "
            "of view k; the 4-view model gets the noisy contours of all 4 views. Contour error per view: single-view "
            "model k in view k vs the 4-view model in view k. The extra last row gives the 4-view model exactly the "
            "single-view models' input (view k alone), separating the effect of training from that of the input.", "",
-           _table(["training", "trained views", "input views", "n", *[f"pose {h} (cm)" for h in _QH],
-                   *[f"Chamfer {h} (px)" for h in _QH], "PA pose mean (cm, extra)"], rows), "",
-           _table(["multi-view improvement", "ours", "paper"], [
-               ["pose (mean)", f"{_f(c['pose_improvement_pct'], 1)} %", f"{PAPER['multi_view_pose_improvement_pct']:.0f} %"],
-               ["contours (mean Chamfer)", f"{_f(c['contour_improvement_pct'], 1)} %", f"{PAPER['multi_view_contour_improvement_pct']:.0f} %"],
+           markdown_table(["training", "trained views", "input views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS],
+                   *[f"Chamfer {h} (px)" for h in QUARTILE_HEADERS], "PA pose mean (cm, extra)"], rows), "",
+           markdown_table(["multi-view improvement", "ours", "paper"], [
+               ["pose (mean)", f"{fmt(c['pose_improvement_pct'], 1)} %", f"{PAPER['multi_view_pose_improvement_pct']:.0f} %"],
+               ["contours (mean Chamfer)", f"{fmt(c['contour_improvement_pct'], 1)} %", f"{PAPER['multi_view_contour_improvement_pct']:.0f} %"],
            ]), ""]
     return out
 
 
-def _pct_per_px(settings: dict) -> float:
+def pct_per_px(settings: dict) -> float:
     """The paper's normalisation of a Chamfer distance: % error per px = 100 * contour length / area."""
     length, area = settings.get("test_contour_length_px_mean"), settings.get("test_area_px_mean")
     return 100.0 * length / area if length and area else float("nan")
 
 
 def _e2_md(df, settings: dict) -> list[str]:
-    e2 = _sel(df, experiment="E2")
+    e2 = select(df, experiment="E2")
     if e2.empty:
         return []
-    per_px = _pct_per_px(settings)
+    per_px = pct_per_px(settings)
     paper = {4: f"{PAPER['pose_4_views_cm']:.0f}", 1: f"{PAPER['pose_1_view_cm']:.0f}"}
     rows = []
     for n, g in sorted(e2.groupby("n_input_views"), key=lambda t: -t[0]):
-        rows.append([str(n), str(len(g)), _q(stats(g["pose_cm"])), paper.get(int(n), "–"), _q(stats(g["chamfer_px"])),
-                     _f(per_px * g["chamfer_px"].mean(), 1),
-                     _f(g["chamfer_observed_px"].mean()), _f(g["chamfer_missing_px"].mean()), _f(g["chamfer_sym_px"].mean()),
-                     _f(g["pose_pa_cm"].mean())])
-    detail = [[v, str(len(g)), _q(stats(g["pose_cm"])), _f(g["chamfer_px"].mean()), _f(g["chamfer_missing_px"].mean())]
+        rows.append([str(n), str(len(g)), fmt_stats(stats(g["pose_cm"])), paper.get(int(n), "–"), fmt_stats(stats(g["chamfer_px"])),
+                     fmt(per_px * g["chamfer_px"].mean(), 1),
+                     fmt(g["chamfer_observed_px"].mean()), fmt(g["chamfer_missing_px"].mean()), fmt(g["chamfer_sym_px"].mean()),
+                     fmt(g["pose_pa_cm"].mean())])
+    detail = [[v, str(len(g)), fmt_stats(stats(g["pose_cm"])), fmt(g["chamfer_px"].mean()), fmt(g["chamfer_missing_px"].mean())]
               for v, g in sorted(e2.groupby("input_views"), key=lambda t: (-len(t[0]), t[0]))]
     return ["## E2 — the 4-view model given 4, 3, 2, 1 views (paper Fig. 8)", "",
             "Every non-empty subset of views on every example (3 views: each left out in turn; 2 and 1: all combinations). "
             "Chamfer: one-sided true clean -> reconstruction, mean over all 4 views; 'observed'/'missing' split it by "
             "whether the view was an input; 'sym' is the symmetric mean.", "",
-            _table(["input views", "n", *[f"pose {h} (cm)" for h in _QH], "paper pose mean (cm)",
-                    *[f"Chamfer {h} (px)" for h in _QH], "≈ % (paper's normalisation)", "Chamfer observed",
+            markdown_table(["input views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "paper pose mean (cm)",
+                    *[f"Chamfer {h} (px)" for h in QUARTILE_HEADERS], "≈ % (paper's normalisation)", "Chamfer observed",
                     "Chamfer missing", "Chamfer sym", "PA pose mean (cm, extra)"], rows), "",
             f"Paper's normalisation (§6): % ≈ Chamfer × contour length / area. Our test silhouettes average "
-            f"{_f(settings.get('test_contour_length_px_mean') or float('nan'), 0)} px of contour and "
-            f"{_f(settings.get('test_area_px_mean') or float('nan'), 0)} px of area, so 1 px ≈ {_f(per_px, 1)} % "
+            f"{fmt(settings.get('test_contour_length_px_mean') or float('nan'), 0)} px of contour and "
+            f"{fmt(settings.get('test_area_px_mean') or float('nan'), 0)} px of area, so 1 px ≈ {fmt(per_px, 1)} % "
             f"(paper: 850 px, 30,000 px, 1 px ≈ 2.8 %). Our figures are smaller, so equal pixel errors mean more here.", "",
             "Per subset:", "",
-            _table(["views", "n", *[f"pose {h} (cm)" for h in _QH], "Chamfer mean (px)", "Chamfer missing (px)"], detail), ""]
+            markdown_table(["views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "Chamfer mean (px)", "Chamfer missing (px)"], detail), ""]
 
 
 def _e3_md(df) -> list[str]:
-    e3 = _sel(df, experiment="E3")
+    e3 = select(df, experiment="E3")
     if e3.empty:
         return []
-    rows = [[noise, method, views, str(len(g)), _q(stats(g["pose_cm"])),
-             _f(g["chamfer_px"].mean()) if "chamfer_px" in g and g["chamfer_px"].notna().any() else "–"]
+    rows = [[noise, method, views, str(len(g)), fmt_stats(stats(g["pose_cm"])),
+             fmt(g["chamfer_px"].mean()) if "chamfer_px" in g and g["chamfer_px"].notna().any() else "–"]
             for (noise, method, views), g in e3.groupby(["noise", "method", "input_views"], sort=False)]
     return ["## E3 — noise types and magnitudes", "",
             "Noise definitions and magnitudes: see 'Settings' below and `silpose.eval.noise`. kNN/ridge get all views.", "",
-            _table(["noise", "method", "input views", "n", *[f"pose {h} (cm)" for h in _QH], "Chamfer mean (px)"], rows), ""]
+            markdown_table(["noise", "method", "input views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "Chamfer mean (px)"], rows), ""]
 
 
 def _e4_md(df) -> list[str]:
-    e4 = _sel(df, experiment="E4")
+    e4 = select(df, experiment="E4")
     if e4.empty:
         return []
-    e2 = _sel(df, experiment="E2")
-    ch = stats(_sel(e4, method="chance")["pose_cm"])
-    rows = [["chance (random training pose)", "–", _q(ch), f"{PAPER['chance_cm']:.0f}"]]
+    e2 = select(df, experiment="E2")
+    ch = stats(select(e4, method="chance")["pose_cm"])
+    rows = [["chance (random training pose)", "–", fmt_stats(ch), f"{PAPER['chance_cm']:.0f}"]]
     for n in sorted(e4["n_input_views"].unique(), reverse=True):
         if n == 0:
             continue
         if not e2.empty:
-            rows.append(["MPPCA (ours)", str(n), _q(stats(_sel(e2, n_input_views=n)["pose_cm"])), ""])
+            rows.append(["MPPCA (ours)", str(n), fmt_stats(stats(select(e2, n_input_views=n)["pose_cm"])), ""])
         for m in ("knn", "ridge"):
             rows.append([{"knn": "kNN regression", "ridge": "ridge regression"}[m], str(n),
-                         _q(stats(_sel(e4, n_input_views=n, method=m)["pose_cm"])), ""])
+                         fmt_stats(stats(select(e4, n_input_views=n, method=m)["pose_cm"])), ""])
     out = ["## E4 — chance and baselines", "",
            "kNN (k=5, distance-weighted) and ridge (RidgeCV) regress root-relative joints on the observed views' "
            "normalised contours; one fitted per view subset on the clean training data; same noisy inputs as E2. "
            "When the MPPCA models joints per measured stature, so do they (joints / (stature / 1.75 m), "
            "prediction times the stature measured from the observed views).", "",
-           _table(["method", "input views", *[f"pose {h} (cm)" for h in _QH], "paper mean (cm)"], rows), ""]
+           markdown_table(["method", "input views", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "paper mean (cm)"], rows), ""]
     h = headline(df).get("mppca_vs_baselines_by_subset", [])
     if h:
         out += ["Pose mean (cm) per view subset:", "",
-                _table(["views", "MPPCA", "kNN", "ridge", "MPPCA best"],
-                       [[r["views"], _f(r["mppca"]), _f(r["knn"]), _f(r["ridge"]), "yes" if r["mppca_best"] else "no"] for r in h]),
+                markdown_table(["views", "MPPCA", "kNN", "ridge", "MPPCA best"],
+                       [[r["views"], fmt(r["mppca"]), fmt(r["knn"]), fmt(r["ridge"]), "yes" if r["mppca_best"] else "no"] for r in h]),
                 ""]
     return out
 
 
 def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None) -> str:
     """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings."""
-    import json
-
     parts = [f"# {title}", "",
              "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment "
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "

@@ -1,6 +1,6 @@
 """Load data and model, run the experiments, write every artefact into ``reports/<preset>/``.
 
-Artefacts (each written to a temporary name, then renamed):
+Artefacts (each written atomically, :mod:`silpose.shared.atomic`):
 ``results.parquet`` (one row per experiment condition and test example), ``headline.json``,
 ``summary.md``, ``e1_single_vs_multi.png``, ``e2_missing_views.png``, ``e3_noise.png``,
 ``e4_baselines.png``, ``e5_single_view.png``, ``e5_missing_view.png``.
@@ -15,20 +15,26 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
-from .experiments import EvalConfig, EvalData, Evaluation, Progress
+from silpose.model.persistence import load_model
+from silpose.model.selection import validation_split
+from silpose.shared.atomic import atomic_path, write_text_atomic
+from silpose.shared.dataset import DatasetError, load_split
+from silpose.shared.metrics import CANVAS_MARGIN_PX
 
-__all__ = ["load_data", "write_reports", "run_evaluation", "EvalInputError"]
+from . import figures, plots
+from .errors import EvalInputError
+from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
+from .frames_eval import frames_note, write_frames_report
+from .report import headline, markdown_summary, pct_per_px
 
-
-class EvalInputError(FileNotFoundError):
-    """Data or model missing or unreadable; the message tells the user what to run."""
+__all__ = ["load_data", "match_training_subset", "write_reports", "frames_section", "run_evaluation", "EvalInputError"]
 
 
 def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool) -> EvalData:
     """Read ``data_dir``'s train and test splits (test masks only if ``with_masks``)."""
-    from silpose.shared.dataset import DatasetError, load_split
-
     data_dir = Path(data_dir)
     if not data_dir.is_dir():
         raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {data_dir.name}`)")
@@ -42,7 +48,7 @@ def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool) -> Eva
     return EvalData.from_splits(train, test, n_test)
 
 
-def _match_training_subset(data: EvalData, model) -> str:
+def match_training_subset(data: EvalData, model) -> str:
     """Restrict ``data``'s training arrays to the samples the 4-view model was fitted on.
 
     ``silpose train`` holds out a seeded part of the train split (``validation_split(n, fraction,
@@ -58,8 +64,6 @@ def _match_training_subset(data: EvalData, model) -> str:
     if int(info.get("n_samples", -1)) != n:
         return (f"the model's training record ({info.get('n_samples')} samples) does not match this train split ({n}); "
                 f"single-view models and baselines use all {n} samples")
-    from silpose.model.selection import validation_split
-
     fit_idx, _ = validation_split(n, n_held / n, int(model.random_state or 0))
     if len(fit_idx) != n_fit:
         return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
@@ -67,12 +71,6 @@ def _match_training_subset(data: EvalData, model) -> str:
     data.train_joints = data.train_joints[fit_idx]
     return (f"single-view models, baselines and chance use the same {n_fit} training samples as the 4-view model "
             f"(the trainer's {n_held} held-out samples reproduced and excluded)")
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 def _jsonable(x):
@@ -91,19 +89,12 @@ def _jsonable(x):
 
 def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: str) -> dict[str, Path]:
     """Write the per-example rows, the headline JSON, the box plots, the E5 figures and summary.md."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from . import figures, plots
-    from .report import _pct_per_px, headline, markdown_summary
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     df = ev.frame()
     written: dict[str, Path] = {}
-    tmp = out / ".results.parquet.tmp"
-    pq.write_table(pa.Table.from_pandas(df, preserve_index=False), tmp, compression="zstd")
-    os.replace(tmp, out / "results.parquet")
+    with atomic_path(out / "results.parquet") as tmp:
+        pq.write_table(pa.Table.from_pandas(df, preserve_index=False), tmp, compression="zstd")
     written["results"] = out / "results.parquet"
     for name, fn in (("e1_single_vs_multi", plots.plot_e1), ("e2_missing_views", plots.plot_e2),
                      ("e3_noise", plots.plot_e3), ("e4_baselines", plots.plot_e4)):
@@ -112,24 +103,22 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
             written[name] = p
     if "E5" in ev.config.experiments and "E2" in ev.config.experiments:
         for stem, views, caption in figures.default_examples(ev.data.n_views):
-            from .experiments import views_label
-
             sid = figures.median_example(df, "E2", views_label(views))
             if sid is not None:
                 written[stem] = figures.example_figure(ev, sid, views, out / f"{stem}.png",
                                                        caption + " — example nearest the median pose error")
-    head = _jsonable({**headline(df), "chamfer_pct_per_px": _pct_per_px(settings), "settings": settings,
+    head = _jsonable({**headline(df), "chamfer_pct_per_px": pct_per_px(settings), "settings": settings,
                       "timings_s": ev.timings})
-    _atomic_write(out / "headline.json", json.dumps(head, indent=2).encode())
+    write_text_atomic(out / "headline.json", json.dumps(head, indent=2))
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
     md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes)
-    _atomic_write(out / "summary.md", md.encode())
+    write_text_atomic(out / "summary.md", md)
     written["summary"] = out / "summary.md"
     return written
 
 
-def _frames_section(ev: Evaluation, model, data_dir, out_dir, frames_dir, progress) -> dict[str, Path]:
+def frames_section(ev: Evaluation, model, data_dir, out_dir, frames_dir, progress) -> dict[str, Path]:
     """Run the camera-frames evaluation if a frames dataset is there; add a note to the summary either way."""
     if frames_dir is False:
         return {}
@@ -139,8 +128,6 @@ def _frames_section(ev: Evaluation, model, data_dir, out_dir, frames_dir, progre
             raise EvalInputError(f"frames dataset {fdir} not found")
         ev.notes.append(f"camera frames: skipped, no frames dataset at {fdir}")
         return {}
-    from .frames_eval import frames_note, write_frames_report
-
     t0 = time.perf_counter()
     step = None if progress is None else (lambda done, total: progress("frames: segment + infer", done, total))
     try:
@@ -161,8 +148,6 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     this frames dataset; None = ``<data_dir>/frames`` when it exists (skipped with a note otherwise);
     False = never.
     """
-    from silpose.model.persistence import load_model
-
     model_path = Path(model_path)
     if not Path(data_dir).is_dir():
         raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {Path(data_dir).name}`)")
@@ -178,13 +163,13 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
         raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
                              f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")
-    train_note = _match_training_subset(data, model)
+    train_note = match_training_subset(data, model)
     load_s = time.perf_counter() - t0
     ev = Evaluation(data=data, model=model, config=config, progress=progress)
     ev.notes.append(train_note)
     ev.run()
     ev.timings["load"] = load_s
-    frames_written = _frames_section(ev, model, data_dir, out_dir, frames_dir, progress)
+    frames_written = frames_section(ev, model, data_dir, out_dir, frames_dir, progress)
     settings = {
         "data": str(data_dir),
         "model": str(model_path),
@@ -196,7 +181,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "test_contour_length_px_mean": None if data.test_length is None else float(np.mean(data.test_length)),
         "test_area_px_mean": None if data.test_area is None else float(np.mean(data.test_area)),
         "config": config.to_dict(),
-        "chamfer_canvas_margin_px": __import__("silpose.shared.metrics", fromlist=["x"]).CANVAS_MARGIN_PX,
+        "chamfer_canvas_margin_px": CANVAS_MARGIN_PX,
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
     }
     t1 = time.perf_counter()

@@ -4,13 +4,13 @@
 >>> mask = model.segment(frame)                           # (H, W) bool, one frame at a time
 >>> masks = model.segment_batch(frames)                   # (M, H, W) bool
 
-Modules: :mod:`.background` (the model), :mod:`.ncc` (local normalised correlation with box
+Modules: :mod:`.background` (the model), :mod:`.validate` (input checks, :class:`SegmentError`), :mod:`.ncc` (local normalised correlation with box
 filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.loaders` (image folders and
 videos), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput), :mod:`.evaluate_frames` (IoU on a
 rendered frames dataset with truth).
 """
 
-from ._validate import SegmentError
+from .validate import SegmentError
 from .background import STAGES, BackgroundModel
 from .loaders import load_frames, load_video
 

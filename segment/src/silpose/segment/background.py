@@ -39,10 +39,11 @@ the paper's graylevel rules and the former cleanup (median 5, open 3, close 7), 
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from . import cleanup
-from ._validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
+from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
 from .chroma import grow_shadows
 from .ncc import background_window_stats, shadow_mask
 
@@ -350,8 +351,6 @@ class BackgroundModel:
         gray = to_gray(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
         if use_colour:
-            import cv2
-
             cand = np.empty(gray.shape, bool)
             for i in range(stack.shape[0]):  # per frame, float32 in OpenCV (~10x numpy's speed)
                 d = cv2.subtract(stack[i], self._cmean32, dtype=cv2.CV_32F)

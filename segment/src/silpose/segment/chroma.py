@@ -25,6 +25,7 @@ removed only when it touches an accepted shadow through shadow-like pixels.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 
@@ -76,8 +77,6 @@ def grow_shadows(
     -------
     array (H, W) bool, the shadow pixels (includes ``seeds``).
     """
-    import cv2
-
     seeds = np.asarray(seeds, bool)
     if not seeds.any():
         return seeds.copy()

@@ -7,6 +7,7 @@ the steps chain without conversions.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 
@@ -20,15 +21,11 @@ def median(mask: np.ndarray, size: int) -> np.ndarray:
     """
     if size <= 1:
         return mask
-    import cv2
-
     count = cv2.boxFilter(mask >> 7, cv2.CV_16U, (size, size), normalize=False, borderType=cv2.BORDER_REPLICATE)
     return np.where(count >= (size * size + 1) // 2, np.uint8(255), np.uint8(0))
 
 
 def _kernel(size: int) -> np.ndarray:
-    import cv2
-
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
 
 
@@ -37,8 +34,6 @@ def open_close(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
     and holes narrower than ``close_size``), with elliptical structuring elements of those sides in
     pixels; a size <= 1 skips that step. mask: (H, W) uint8 0/255.
     """
-    import cv2
-
     if open_size > 1:
         mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, _kernel(open_size))
     if close_size > 1:
@@ -49,8 +44,6 @@ def open_close(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
 def largest_blob(mask: np.ndarray) -> np.ndarray:
     """Keep only the largest 8-connected component (ties: the lowest label, i.e. first in raster
     order). An empty mask stays empty. mask: (H, W) uint8 0/255."""
-    import cv2
-
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 2:  # background only, or a single blob
         return mask

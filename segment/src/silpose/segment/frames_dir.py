@@ -27,7 +27,7 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from ._validate import SegmentError, frame_size_text
+from .validate import SegmentError, frame_size_text
 from .loaders import IMAGE_SUFFIXES, load_frames, load_video
 
 VIDEO_SUFFIXES = (".mp4", ".avi")

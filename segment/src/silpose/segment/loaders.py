@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validate import SegmentError, frame_size_text
+from .validate import SegmentError, frame_size_text
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 """Image file suffixes :func:`load_frames` reads (case-insensitive)."""

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 # Graylevels are centred before squaring so E[x^2] - E[x]^2 in float32 loses less precision.
@@ -72,8 +73,6 @@ class BackgroundWindowStats:
 
 def box(img: np.ndarray, window: int) -> np.ndarray:
     """Mean of ``img`` (H, W) over the ``window`` x ``window`` square around each pixel (reflect-101)."""
-    import cv2
-
     return cv2.boxFilter(img, -1, (window, window), normalize=True, borderType=cv2.BORDER_REFLECT_101)
 
 
@@ -163,8 +162,6 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
         f = np.asarray(frame, np.float32) - _CENTER
         ncc, ratio = _ncc_full_window(f, bg)
         return (slice(None), slice(None)), ncc, ratio
-    import cv2
-
     h, wd = support.shape
     # Candidates per window, counted exactly in integers; the NCC is defined where the count
     # reaches min_support of the window. Only the bounding box of those pixels (plus the

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 
@@ -35,35 +36,30 @@ class SyntheticScene:
     clean_background: np.ndarray
 
 
-def _texture(rng: np.random.Generator, shape: tuple[int, int], sigma: float, amplitude: float) -> np.ndarray:
+def texture(rng: np.random.Generator, shape: tuple[int, int], sigma: float, amplitude: float) -> np.ndarray:
     """Blurred Gaussian noise (H, W) float32 with standard deviation ``amplitude``."""
-    import cv2
-
     t = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), sigma)
     return t * np.float32(amplitude / max(float(t.std()), 1e-6))
 
 
-def _background(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
-    import cv2
-
+def room_background(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
+    """Noise-free textured room (H, W, 3) float32 BGR: a wall, a floor and three boxes as props."""
     horizon = int(0.45 * h)
     img = np.empty((h, w, 3), np.float32)
     img[:horizon] = (150.0, 140.0, 120.0)  # wall (BGR)
     img[horizon:] = (90.0, 110.0, 120.0)  # floor
-    tex = _texture(rng, (h, w), 1.2, 22.0) + _texture(rng, (h, w), 4.0, 10.0)
+    tex = texture(rng, (h, w), 1.2, 22.0) + texture(rng, (h, w), 4.0, 10.0)
     img += tex[..., None]
     for _ in range(3):  # props
         x0, y0 = int(rng.integers(0, w - 40)), int(rng.integers(0, h - 40))
         colour = rng.uniform(40, 200, 3)
         cv2.rectangle(img, (x0, y0), (x0 + int(rng.integers(15, 40)), y0 + int(rng.integers(15, 40))), colour.tolist(), -1)
-        img[y0 : y0 + 40, x0 : x0 + 40] += _texture(rng, (min(40, h - y0), min(40, w - x0)), 1.0, 12.0)[..., None]
+        img[y0 : y0 + 40, x0 : x0 + 40] += texture(rng, (min(40, h - y0), min(40, w - x0)), 1.0, 12.0)[..., None]
     return np.clip(img, 0, 255)
 
 
 def _figure_mask(h: int, w: int, cx: float, phase: float) -> tuple[np.ndarray, tuple[int, int]]:
     """(H, W) uint8 figure mask at horizontal position cx, walking phase in radians; and its feet point."""
-    import cv2
-
     m = np.zeros((h, w), np.uint8)
     s = h / 240.0
     top, hip, feet = int(0.15 * h), int(0.55 * h), int(0.92 * h)
@@ -99,15 +95,13 @@ def render_scene(
     flicker : global gain of each frame drawn uniformly in [1 - flicker, 1 + flicker]
     shadow_factor : background brightness multiplier inside the shadow (0 < factor < 1)
     """
-    import cv2
-
     w, h = size
     rng = np.random.default_rng(seed)
-    clean = _background(rng, h, w)
+    clean = room_background(rng, h, w)
     cloth = np.empty((h, w, 3), np.float32)
     stripes = 30.0 * (np.sin(np.arange(h, dtype=np.float32) * 0.6)[:, None] > 0)
     cloth[:] = (60.0, 170.0, 230.0)  # orange-ish cloth (BGR), brighter than the floor
-    cloth += (stripes + _texture(rng, (h, w), 1.0, 10.0))[..., None]
+    cloth += (stripes + texture(rng, (h, w), 1.0, 10.0))[..., None]
 
     def noisy(img: np.ndarray) -> np.ndarray:
         gain = rng.uniform(1.0 - flicker, 1.0 + flicker)
@@ -132,3 +126,9 @@ def render_scene(
         masks[i] = fg
         shadows[i] = shadow
     return SyntheticScene(background, frames, masks, shadows, clean)
+
+
+# Former private names, still imported by segment/composite.py on this branch (that module moves
+# on another branch, which should import the public names above); remove once it does.
+_texture = texture
+_background = room_background

@@ -1,152 +1,36 @@
-"""Calibrated pinhole cameras and rigs in the OpenCV convention (DESIGN §2).
+"""Camera rigs in the OpenCV convention: JSON I/O, the default rig, rig files (docs/conventions.md,
+"Cameras" and "Default rig").
 
 World frame: metres, z up, floor at z = 0. Camera frame: x right, y down, z forward.
 Projection: ``x ~ K (R X + t)`` followed by OpenCV lens distortion (zeros for synthetic data).
+One camera is a :class:`Camera` (defined in :mod:`silpose.shared.pinhole`, re-exported here).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
 
+from .opencv_calibration import read_opencv_cameras
+from .pinhole import Camera, RigError
+
+__all__ = [
+    "WORKSPACE_HALF_SIZE",
+    "Camera",
+    "RigError",
+    "Rig",
+    "look_at",
+    "DEFAULT_RIG_PARAMS",
+    "ring_rig",
+    "default_rig",
+    "load_rig",
+]
+
 WORKSPACE_HALF_SIZE = 1.5  # metres: the workspace is [-1.5, 1.5]^2 on the floor
-
-
-class RigError(ValueError):
-    """A camera rig is malformed or does not see the workspace."""
-
-
-def _as_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise RigError(f"{what}: not numeric ({exc})") from None
-    if arr.size != int(np.prod(shape)):
-        raise RigError(f"{what}: expected {shape}, got shape {arr.shape}")
-    arr = arr.reshape(shape)
-    if not np.all(np.isfinite(arr)):
-        raise RigError(f"{what}: contains NaN or infinity")
-    return arr
-
-
-@dataclass(frozen=True, eq=False)
-class Camera:
-    """One calibrated camera.
-
-    Attributes:
-        name: unique name within a rig.
-        K: (3, 3) intrinsic matrix in pixels.
-        R: (3, 3) world->camera rotation.
-        t: (3,) world->camera translation in metres.
-        width, height: image size in pixels.
-        dist: (5,) OpenCV distortion coefficients (k1, k2, p1, p2, k3).
-    """
-
-    name: str
-    K: np.ndarray
-    R: np.ndarray
-    t: np.ndarray
-    width: int
-    height: int
-    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
-
-    def __post_init__(self) -> None:
-        what = f"camera {self.name!r}"
-        object.__setattr__(self, "K", _as_array(self.K, (3, 3), f"{what} field K"))
-        object.__setattr__(self, "R", _as_array(self.R, (3, 3), f"{what} field R"))
-        object.__setattr__(self, "t", _as_array(self.t, (3,), f"{what} field t"))
-        try:
-            dist = np.asarray(self.dist, dtype=np.float64).ravel()
-        except (TypeError, ValueError) as exc:
-            raise RigError(f"{what} field dist: not numeric ({exc})") from None
-        if dist.size not in (4, 5, 8, 12, 14):
-            raise RigError(f"{what} field dist: expected 4, 5, 8, 12 or 14 coefficients, got {dist.size}")
-        if not np.all(np.isfinite(dist)):
-            raise RigError(f"{what} field dist: contains NaN or infinity")
-        object.__setattr__(self, "dist", dist)
-        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (self.width, self.height)):
-            raise RigError(f"{what} fields width/height: must be integers")
-        if self.width <= 0 or self.height <= 0:
-            raise RigError(f"{what} fields width/height: must be positive, got {self.width}x{self.height}")
-        object.__setattr__(self, "width", int(self.width))
-        object.__setattr__(self, "height", int(self.height))
-        if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-6) or np.linalg.det(self.R) < 0:
-            raise RigError(f"{what} field R: not a rotation matrix")
-        if self.K[0, 0] <= 0 or self.K[1, 1] <= 0:
-            raise RigError(f"{what} field K: focal lengths must be positive")
-
-    @property
-    def center(self) -> np.ndarray:
-        """(3,) camera centre in world coordinates, metres."""
-        return -self.R.T @ self.t
-
-    def to_camera(self, points: np.ndarray) -> np.ndarray:
-        """World (..., 3) -> camera-frame (..., 3) coordinates, metres."""
-        points = np.asarray(points, dtype=np.float64)
-        return points @ self.R.T + self.t
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """Project world points to pixels.
-
-        Args:
-            points: (..., 3) world coordinates in metres.
-        Returns:
-            (..., 2) pixel coordinates (x right, y down; pixel centres at integers).
-        """
-        points = np.asarray(points, dtype=np.float64)
-        xc = self.to_camera(points)
-        if np.any(self.dist):
-            import cv2
-
-            # Project the camera-frame points with a zero pose: going through cv2.Rodrigues(R)
-            # would lose ~1e-8 near a rotation angle of pi (the default rig's cam2 has exactly pi).
-            flat = np.ascontiguousarray(xc.reshape(-1, 3))
-            uv, _ = cv2.projectPoints(flat, np.zeros(3), np.zeros(3), self.K, self.dist)
-            return uv.reshape(points.shape[:-1] + (2,))
-        z = xc[..., 2:3]
-        xy = xc[..., :2] / z
-        return xy @ self.K[:2, :2].T + self.K[:2, 2]
-
-    def in_image(self, pixels: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        """(...,) bool: pixel (..., 2) lies inside the image, ``margin`` pixels from the border."""
-        pixels = np.asarray(pixels)
-        x, y = pixels[..., 0], pixels[..., 1]
-        return (
-            (x >= -0.5 + margin)
-            & (x <= self.width - 0.5 - margin)
-            & (y >= -0.5 + margin)
-            & (y <= self.height - 0.5 - margin)
-        )
-
-    def to_dict(self) -> dict:
-        return {
-            "name": self.name,
-            "K": self.K.tolist(),
-            "R": self.R.tolist(),
-            "t": self.t.tolist(),
-            "width": self.width,
-            "height": self.height,
-            "dist": self.dist.tolist(),
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict, source: str = "rig") -> "Camera":
-        missing = [k for k in ("name", "K", "R", "t", "width", "height") if k not in d]
-        if missing:
-            raise RigError(f"{source}: camera entry lacks field(s) {', '.join(missing)}")
-        return cls(
-            name=str(d["name"]),
-            K=d["K"],
-            R=d["R"],
-            t=d["t"],
-            width=d["width"],
-            height=d["height"],
-            dist=d.get("dist", np.zeros(5)),
-        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -330,8 +214,6 @@ def load_rig(path: str | Path | Iterable[str | Path], unit: float = 1.0) -> Rig:
         except (OSError, UnicodeDecodeError) as exc:
             raise RigError(f"{paths[0]}: cannot read the rig file as UTF-8 text ({exc})") from None
         return Rig.from_json(text, source=str(paths[0]))
-    from .opencv_calibration import read_opencv_cameras
-
     cams: list[Camera] = []
     for p in paths:
         cams.extend(read_opencv_cameras(p, unit=unit, default_name=f"cam{len(cams)}"))

@@ -1,4 +1,5 @@
-"""Silhouette contours: extraction, arc-length resampling, normalisation, rasterisation (DESIGN §2).
+"""Silhouette contours: extraction, arc-length resampling, normalisation, rasterisation (docs/conventions.md,
+"Contours").
 
 Conventions (binding for every package):
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 __all__ = [
@@ -161,8 +163,6 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
     Raises:
         EmptyMaskError: the mask has no foreground pixel.
     """
-    import cv2
-
     if int(n_points) < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
     m = _as_mask(mask)
@@ -301,8 +301,6 @@ def draw_contour(points: np.ndarray, height: int, width: int) -> np.ndarray:
     Returns:
         (height, width) bool image, True on the contour.
     """
-    import cv2
-
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError(f"points must have shape (n, 2), got {p.shape}")

@@ -29,9 +29,11 @@ The schema metadata holds one JSON document under the key ``silpose`` (see ``bui
 from __future__ import annotations
 
 import json
+from importlib.metadata import PackageNotFoundError, version
 
 import pyarrow as pa
 
+from .camera import Rig, RigError
 from .skeleton import JOINT_NAMES, N_JOINTS, PARENTS, TERMINAL_JOINTS
 
 FORMAT_VERSION = 1
@@ -147,12 +149,6 @@ def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_v
     if generator_version is None:
         generator_version = _installed_version(GENERATOR_NAME)
     conventions = dict(DEFAULT_CONVENTIONS)
-    try:  # the contour module may document its orientation and start point more precisely
-        from . import contours as _contours  # type: ignore[attr-defined]
-
-        conventions.update(getattr(_contours, "CONVENTIONS", {}))
-    except ImportError:
-        pass
     return {
         "format_version": FORMAT_VERSION,
         "generator": {"name": GENERATOR_NAME, "version": generator_version},
@@ -170,8 +166,6 @@ def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_v
 
 
 def _installed_version(dist: str) -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version(dist)
     except PackageNotFoundError:
@@ -180,8 +174,6 @@ def _installed_version(dist: str) -> str:
 
 def check_metadata(meta: dict, source: str) -> None:
     """Raise DatasetError (naming ``source`` and the field) unless ``meta`` is a valid document."""
-    from .camera import Rig, RigError
-
     if not isinstance(meta, dict):
         raise DatasetError(f"{source}: metadata 'silpose' must be a JSON object")
     for key in REQUIRED_METADATA:

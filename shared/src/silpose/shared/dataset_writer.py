@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .atomic import atomic_path
 from .dataset_schema import (
     SCALAR_COLUMNS,
     TENSOR_COLUMNS,
@@ -20,7 +20,7 @@ from .dataset_schema import (
 )
 
 def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
-    """Write ``records`` as one Parquet shard (zstd), atomically: temporary name, then ``os.replace``.
+    """Write ``records`` as one Parquet shard (zstd), atomically (:func:`silpose.shared.atomic.atomic_path`).
 
     Every data page carries a CRC32 (``write_page_checksum``), which the readers verify, so a
     flipped byte in the data is an error instead of silently different values.
@@ -39,13 +39,8 @@ def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
     if not records:
         raise DatasetError(f"{path}: no records to write")
     table = records_to_table(records, metadata, source=str(path))
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+    with atomic_path(path, mkdir=False) as tmp:
         pq.write_table(table, tmp, compression="zstd", row_group_size=len(records), write_page_checksum=True)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def records_to_table(records: list[dict], metadata: dict, source: str = "records") -> pa.Table:

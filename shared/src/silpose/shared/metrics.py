@@ -23,7 +23,12 @@ not clipped at the image border.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from scipy.spatial import cKDTree
+
+from .contours import denormalise, draw_contour
+from .skeleton import root_relative
 
 __all__ = [
     "CANVAS_MARGIN_PX",
@@ -56,8 +61,6 @@ def pose_error_cm(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     Returns:
         (N,) centimetres.
     """
-    from silpose.shared.skeleton import root_relative
-
     p = root_relative(_check_joints(pred, "pred"))
     t = root_relative(_check_joints(true, "true"))
     if p.shape != t.shape:
@@ -118,8 +121,6 @@ def _pixels_in(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray
     pixels); a window that contains the contour's bounding box draws the same pixels as the
     whole canvas, so windows only save time.
     """
-    from silpose.shared.contours import draw_contour
-
     size = hi - lo + 1
     img = draw_contour(np.asarray(points, dtype=np.float64) - lo, int(size[1]), int(size[0]))
     ys, xs = np.nonzero(img)
@@ -142,8 +143,6 @@ def _window(points: np.ndarray, height: int, width: int, extra: np.ndarray | Non
 
 def _distance_to(img: np.ndarray) -> np.ndarray:
     """Exact Euclidean distance of every pixel to the nearest True pixel of ``img`` (H, W)."""
-    import cv2
-
     inv = np.where(img, 0, 255).astype(np.uint8)
     return cv2.distanceTransform(inv, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
 
@@ -155,8 +154,6 @@ def _true_pixels(true_px: np.ndarray, height: int, width: int) -> np.ndarray:
 
 def _one_sided(t_pix: np.ndarray, recon_px: np.ndarray, height: int, width: int) -> tuple[float, np.ndarray]:
     """D(T, I) from the true pixels ``t_pix`` (m, 2) to the contour ``recon_px``; also I's pixels."""
-    from silpose.shared.contours import draw_contour
-
     lo, hi = _window(recon_px, height, width, extra=t_pix)
     size = hi - lo + 1
     r_img = draw_contour(np.asarray(recon_px, dtype=np.float64) - lo, int(size[1]), int(size[0]))
@@ -197,8 +194,6 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
     Returns:
         one_sided (N, K), symmetric (N, K), px.
     """
-    from scipy.spatial import cKDTree
-
     t = np.asarray(true_px, dtype=np.float64)
     r = np.asarray(recon_px, dtype=np.float64)
     if t.ndim != 4 or r.ndim != 4 or t.shape[:2] != r.shape[:2]:
@@ -234,15 +229,14 @@ def chamfer_errors(true_px: np.ndarray, recon_px: np.ndarray, image_size: tuple[
 def place_contours(contours_norm: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Map normalised reconstructions to pixels with given normalisation factors.
 
-    For a missing view these must be that view's TRUE (clean) factors (DESIGN §5).
+    For a missing view these must be that view's TRUE (clean) factors (docs/conventions.md,
+    "Evaluation protocol").
 
     Args:
         contours_norm: (N, K, n, 2); centroid: (N, K, 2) px; scale: (N, K) px.
     Returns:
         (N, K, n, 2) px.
     """
-    from silpose.shared.contours import denormalise
-
     return denormalise(np.asarray(contours_norm, np.float64), np.asarray(centroid, np.float64),
                        np.asarray(scale, np.float64))
 

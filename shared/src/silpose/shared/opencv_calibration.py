@@ -26,17 +26,18 @@ name            ``name``, ``camera_name`` (string)                           no
 
 Values may be ``!!opencv-matrix`` nodes or plain sequences. If both a rotation vector and a
 rotation matrix are present they must agree (1e-6). Every problem raises
-:class:`silpose.shared.camera.RigError` with a one-line message naming the file and the field.
+:class:`silpose.shared.pinhole.RigError` (re-exported by :mod:`silpose.shared.camera`) with a one-line message naming the file and the field.
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
+import cv2
 import numpy as np
 
-from .camera import Camera, RigError
+from .atomic import atomic_path
+from .pinhole import Camera, RigError
 
 __all__ = ["read_opencv_cameras", "write_opencv_camera", "rotation_to_rvec"]
 
@@ -53,8 +54,6 @@ _DIST_SIZES = (4, 5, 8, 12, 14)
 
 def _node_value(node, where: str):
     """A FileNode as a numpy array (numbers, sequences, matrices), a str, or None (other maps)."""
-    import cv2
-
     try:
         if node.isMap():
             if {"rows", "cols", "data"} <= set(node.keys()):
@@ -154,8 +153,6 @@ def _as_int(value: float, where: str) -> int:
 
 
 def _read_camera(fields: _Fields, name: str, unit: float) -> Camera:
-    import cv2
-
     K, _ = fields.array(K_KEYS, (3, 3), "camera matrix")
     dist, dkey = fields.array(DIST_KEYS, None, "distortion", required=False)
     if dist is None:
@@ -206,8 +203,6 @@ def read_opencv_cameras(path: str | Path, unit: float = 1.0, default_name: str =
     Raises:
         RigError: unreadable file, missing field, wrong shape, not a rotation, etc.
     """
-    import cv2
-
     source = str(path)
     if not (np.isfinite(unit) and unit > 0):
         raise RigError(f"{source}: unit must be a positive number, got {unit}")
@@ -245,31 +240,31 @@ def write_opencv_camera(path: str | Path, camera: Camera, unit: float = 1.0, rot
     The format follows the suffix (``.xml``, ``.yml``, ``.yaml``). Fields written: ``name``,
     ``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
     ``rvec`` (``rotation="rvec"``) or ``rotation_matrix`` (``rotation="matrix"``), ``tvec``
-    (metres divided by ``unit``, e.g. unit=0.001 writes millimetres). Written to a temporary
-    name, then renamed.
+    (metres divided by ``unit``, e.g. unit=0.001 writes millimetres). Written atomically
+    (:func:`silpose.shared.atomic.atomic_path`; the format is passed explicitly because the
+    temporary name does not end in the final suffix).
     """
-    import cv2
-
     path = Path(path)
-    if path.suffix.lower() not in (".xml", ".yml", ".yaml"):
+    suffix = path.suffix.lower()
+    if suffix not in (".xml", ".yml", ".yaml"):
         raise RigError(f"{path}: OpenCV calibration files must end in .xml, .yml or .yaml")
     if rotation not in ("rvec", "matrix"):
         raise ValueError(f"rotation must be 'rvec' or 'matrix', got {rotation!r}")
     if not (np.isfinite(unit) and unit > 0):
         raise ValueError(f"unit must be a positive number, got {unit}")
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
-    fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
-    try:
-        fs.write("name", camera.name)
-        fs.write("image_width", int(camera.width))
-        fs.write("image_height", int(camera.height))
-        fs.write("camera_matrix", np.asarray(camera.K, np.float64))
-        fs.write("distortion_coefficients", np.asarray(camera.dist, np.float64).reshape(-1, 1))
-        if rotation == "rvec":
-            fs.write("rvec", rotation_to_rvec(camera.R).reshape(3, 1))
-        else:
-            fs.write("rotation_matrix", np.asarray(camera.R, np.float64))
-        fs.write("tvec", (np.asarray(camera.t, np.float64) / unit).reshape(3, 1))
-    finally:
-        fs.release()
-    os.replace(tmp, path)
+    fmt = cv2.FILE_STORAGE_FORMAT_XML if suffix == ".xml" else cv2.FILE_STORAGE_FORMAT_YAML
+    with atomic_path(path) as tmp:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | fmt)
+        try:
+            fs.write("name", camera.name)
+            fs.write("image_width", int(camera.width))
+            fs.write("image_height", int(camera.height))
+            fs.write("camera_matrix", np.asarray(camera.K, np.float64))
+            fs.write("distortion_coefficients", np.asarray(camera.dist, np.float64).reshape(-1, 1))
+            if rotation == "rvec":
+                fs.write("rvec", rotation_to_rvec(camera.R).reshape(3, 1))
+            else:
+                fs.write("rotation_matrix", np.asarray(camera.R, np.float64))
+            fs.write("tvec", (np.asarray(camera.t, np.float64) / unit).reshape(3, 1))
+        finally:
+            fs.release()

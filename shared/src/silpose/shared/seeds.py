@@ -11,8 +11,8 @@ below are part of the data format (changing one changes every dataset or report 
 | sample draw | ``seed, SPLIT_CODE[split], index, redraw`` | datagen: subject, gait, placement of a sample; ``redraw`` counts rejected draws |
 | appearance | ``APPEARANCE_STREAM, seed, 1, index`` | datagen frames: clothing colours, room layout of a test sample |
 | camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | camera sensor noise and flicker of rendered frames |
-| eval noise | ``seed, stream_code(name), sample_id`` | eval: contour / mask noise of one test sample, one stream per noise type |
-| chance baseline | ``random_state, CHANCE_STREAM`` | eval: random training poses |
+| eval noise | ``seed, stream_code(name), sample_id`` | eval (``noise.sample_rng``): contour / mask noise of one test sample, one stream per family, ``name`` in ``"mask"``, ``"patches"``, ``"jitter"`` |
+| chance baseline | ``random_state, CHANCE_STREAM`` | eval (``baselines.ChanceBaseline``): random training poses |
 | validation split | ``seed, VALIDATION_STREAM`` | model selection: train / validation permutation |
 | synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
 | synthetic scene | ``seed, camera`` (room), ``seed, camera, 0, b`` (background frame b), ``seed, camera, 1 + frame`` (frame) | segment.composite test scenes |

@@ -1,7 +1,7 @@
 """The 19-joint skeleton shared by every package, as plain data.
 
 Joint positions are in metres. The *structure target* of the model is the joints
-relative to the pelvis (root) in world orientation (DESIGN §2): ``joints - joints[PELVIS]``.
+relative to the pelvis (root) in world orientation (docs/conventions.md, "Skeleton"): ``joints - joints[PELVIS]``.
 """
 
 from __future__ import annotations

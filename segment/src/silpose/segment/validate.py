@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 
 
@@ -94,8 +95,6 @@ def to_gray(frames: np.ndarray) -> np.ndarray:
     """
     if frames.ndim == 3:
         return np.ascontiguousarray(frames)
-    import cv2
-
     n, h, w, _ = frames.shape
     flat = np.ascontiguousarray(frames).reshape(n * h, w, 3)
     return cv2.cvtColor(flat, cv2.COLOR_BGR2GRAY).reshape(n, h, w)
