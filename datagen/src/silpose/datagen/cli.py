@@ -42,7 +42,8 @@ def gen(
     from .config import ConfigError, load_config
     from .executor import ExecutorError
     from .manifest import LockError
-    from .pipeline import GenerationError, generate
+    from .pipeline import generate
+    from .shards import GenerationError
 
     overrides: dict = {"renderer": renderer, "blender_engine": blender_engine, "seed": seed}
     if rig:
