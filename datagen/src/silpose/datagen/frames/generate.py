@@ -43,8 +43,6 @@ from .scene import SCENE_VERSION
 TARGET = "silpose.datagen.frames.worker:render_frames_task"
 IDENTITY = ".silpose-frames.json"
 LAYOUT_VERSION = 1
-#: Tasks a worker process runs before it is replaced.
-MAX_TASKS_PER_CHILD = 20
 
 
 class FramesError(RuntimeError):
@@ -176,6 +174,6 @@ def _run(todo, config, fcfg, work, cams, metadata, workers, progress, target) ->
     sizes = {t.file: (fcfg.background if t.split == "background" else len(t.indices)) * len(cams) for t in todo}
     stats["seconds"] = run_tasks(
         todo, worker_config, target, write, sizes=sizes, description=f"gen-frames {config.name}", unit="images",
-        workers=workers, max_tasks_per_child=MAX_TASKS_PER_CHILD, progress=progress,
+        workers=workers, progress=progress,
     )
     return stats
