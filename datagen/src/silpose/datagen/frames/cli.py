@@ -7,10 +7,9 @@ in spawned workers. ``python -m silpose.datagen.frames.cli ...`` runs the comman
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
-from typing_extensions import Annotated
 
 from silpose.shared.cli import fail
 
