@@ -4,14 +4,17 @@ Blender runs in a SPAWNED worker process (multiprocessing spawn pool); this pyte
 never imports bpy.
 """
 
+import dataclasses
 import multiprocessing as mp
 import sys
 
 import numpy as np
 import pytest
 
+from silpose.datagen.motion import WALK
+from silpose.datagen.scene import draw_sample_parameters, draw_scene, joints_visible, sample_rng
 from silpose.datagen.walk import skeleton_positions
-from silpose.datagen.worker import draw_sample_parameters, joints_visible, render_samples, sample_rng
+from silpose.datagen.worker import render_samples
 from silpose.shared.camera import default_rig
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
@@ -54,9 +57,14 @@ def test_seed_stream_is_a_function_of_seed_split_index_redraw():
 
 
 def test_joint_precheck_rejects_people_outside_the_images():
-    s, g = draw_sample_parameters(0, "train", 0, 0)
-    assert joints_visible(s, dict(g, x=0.0, y=0.0), RIG)
-    assert not joints_visible(s, dict(g, x=6.0, y=0.0), RIG)
+    scene = draw_scene(0, "train", 0, 0, RIG)
+
+    def moved(x):
+        g = dict(scene.motion, x=x, y=0.0)
+        return dataclasses.replace(scene, motion=g, pose=WALK.pose(scene.subject, g))
+
+    assert joints_visible(moved(0.0))
+    assert not joints_visible(moved(6.0))
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """OpenCV camera <-> Blender camera parameters (horizontal sensor fit). Pure maths, no bpy.
 
-Blender with ``sensor_fit = 'HORIZONTAL'``, image ``W x H``, square pixels (DESIGN §2):
+Blender with ``sensor_fit = 'HORIZONTAL'``, image ``W x H``, square pixels (docs/conventions.md, "Cameras"):
 
     fx = fy = lens / sensor_width * W
     cx = (W - 1) / 2 - shift_x * W

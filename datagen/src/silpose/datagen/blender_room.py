@@ -1,8 +1,9 @@
-"""Textured camera frames in Cycles: the room, its props and lights, the clothed person (bpy).
+"""The Blender adapter for textured camera frames in Cycles: the room, its props and lights, the
+clothed person (bpy).
 
 Like :mod:`.blender_scene`, bpy is imported lazily inside the functions: call them only in a
 spawned worker whose parent never imported bpy. The layout and colours come from
-:mod:`.frames_scene` (pure numpy).
+:mod:`.frames.scene` (pure numpy).
 
 The person is the same evaluated (posed, skinned, subdivided) body mesh the raster renderer
 fills for the truth masks (``blender_scene.evaluated_mesh``), copied into a static mesh with one
@@ -12,14 +13,14 @@ material per garment, so the rendered person and the true silhouette are the sam
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
+import cv2
 import numpy as np
 
 from silpose.shared.camera import Rig
 
-from . import frames_scene as fs
 from .blender_scene import render_camera_png, reset_factory, setup_scene
+from .frames import scene as fs
 
 
 def setup_cycles(rig: Rig, samples: int, denoise: bool) -> list:
@@ -148,12 +149,13 @@ def _box_object(name: str, centre, size, material):
 
 
 def build_room(rig: Rig) -> list[dict]:
-    """Floor, four walls, the props of :func:`frames_scene.place_props`, a sun and ambient light.
+    """Floor, four walls, the props of :func:`frames.scene.place_props`, a sun and ambient light.
 
     Returns:
         the placed props (for the card).
     """
     import bpy
+    from mathutils import Vector
 
     half, h = fs.room_half_size(rig), fs.ROOM_HEIGHT
     floor_m, bsdf = _material("floor", fs.FLOOR_COLOURS[0], roughness=0.6)
@@ -182,8 +184,6 @@ def build_room(rig: Rig) -> list[dict]:
     sun.angle = np.deg2rad(fs.SUN["angle_deg"])
     obj = bpy.data.objects.new("sun", sun)
     d = fs.sun_direction()  # the light shines along -d; Blender's sun shines along its local -z
-    from mathutils import Vector
-
     obj.rotation_euler = Vector(tuple(d)).to_track_quat("Z", "Y").to_euler()
     bpy.context.scene.collection.objects.link(obj)
     world = bpy.data.worlds.new("world")
@@ -197,7 +197,7 @@ def build_room(rig: Rig) -> list[dict]:
 
 def add_person(vertices: np.ndarray, triangles: np.ndarray, labels: np.ndarray, appearance: dict):
     """A static mesh of the posed body (world metres) with one material per garment (``labels``
-    index :data:`frames_scene.PARTS`); the shirt gets horizontal stripes if ``stripe_period`` > 0."""
+    index :data:`frames.scene.PARTS`); the shirt gets horizontal stripes if ``stripe_period`` > 0."""
     import bpy
 
     mesh = bpy.data.meshes.new("person")
@@ -221,8 +221,6 @@ def add_person(vertices: np.ndarray, triangles: np.ndarray, labels: np.ndarray, 
 def render_rgb(cameras: list, tmpdir: str | os.PathLike) -> np.ndarray:
     """Render every camera; returns (K, H, W, 3) float32 RGB display levels in [0, 255]
     (read from 16-bit PNGs, so quantisation to 8 bits happens only after the noise is added)."""
-    import cv2
-
     out = []
     for cam in cameras:
         path = render_camera_png(cam, tmpdir)

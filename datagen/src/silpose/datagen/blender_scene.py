@@ -1,16 +1,19 @@
-"""The only module that touches Blender (bpy), always lazily inside functions (DESIGN §3).
+"""The Blender adapter for bodies and silhouettes: the only place bpy is touched, with
+:mod:`.blender_room` (textured rooms). bpy is always imported lazily inside the functions
+(docs/conventions.md, "Blender").
 
 Call these functions only in a spawned worker process whose parent never imported bpy.
 
-Body (DESIGN §3): an armature with one bone per non-root joint (named after its child joint,
-head at the parent joint), and a skeleton edge mesh with one vertex per joint (plus the
-subject's clothing and hair vertices) carrying the modifiers Armature -> Skin (per-vertex radii
-from :func:`silpose.datagen.subjects.joint_radii`) -> Subdivision, parented to the armature.
-Vertex ``c`` is weighted 1 to bone ``c`` (the bone whose tail it is), so the deformed skeleton
-passes exactly through the posed joints. The pose comes from :func:`walk.joint_angles`: a
-rotation ``R_c`` about the body rest axes is written as the pose bone's ``matrix_basis``
+Body (docs/conventions.md, "Blender"): an armature with one bone per non-root joint (named after
+its child joint, head at the parent joint), and a skeleton edge mesh with one vertex per joint
+(plus the subject's clothing and hair vertices) carrying the modifiers Armature -> Skin
+(per-vertex radii from :func:`silpose.datagen.subjects.joint_radii`) -> Subdivision, parented to
+the armature. Vertex ``c`` is weighted 1 to bone ``c`` (the bone whose tail it is), so the
+deformed skeleton passes exactly through the posed joints. The pose is a :class:`motion.Pose`:
+a bone rotation ``R_c`` about the body rest axes is written as the pose bone's ``matrix_basis``
 ``B_c = L_c^T R_c L_c`` (``L_c`` = the bone's rest rotation, ``matrix_local``), which makes the
-posed armature equal to the forward kinematics of :func:`walk.posed_body`.
+posed armature equal to the pose's forward kinematics. :func:`posed_body` is the one place a
+sample's body is built, posed and read back.
 
 Renders are silhouettes: ``film_transparent`` and the alpha channel > 0.5 is the mask.
 """
@@ -20,23 +23,23 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from silpose.shared.camera import Rig
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, N_JOINTS, PARENTS
 
 from .blender_camera import to_blender
-from .subjects import joint_radii, segment_lengths
-from .walk import joint_angles, rest_skeleton, root_transform
+from .motion import BONES, Pose
+from .subjects import joint_radii, joint_type, segment_lengths
+from .walk import rest_skeleton
 
-BONES = JOINT_NAMES[1:]
 ENGINES = ("workbench", "cycles")
-
-
-def _joint_type(name: str) -> str:
-    return name[2:] if name[:2] in ("l_", "r_") else name
 
 
 def reset_factory() -> None:
@@ -173,7 +176,7 @@ def build_body(subject: dict, subdivision_levels: int = 1) -> tuple:
     body.modifiers.new("skin", "SKIN")
     skin = mesh.skin_vertices[0].data
     for j, name in enumerate(JOINT_NAMES):
-        r = radii[_joint_type(name)]
+        r = radii[joint_type(name)]
         skin[j].radius = (r, r)
     for i, e in enumerate(extra):
         skin[N_JOINTS + i].radius = (e[1], e[1])
@@ -187,24 +190,17 @@ def build_body(subject: dict, subdivision_levels: int = 1) -> tuple:
     return arm_obj, body
 
 
-def pose_body(arm_obj, subject: dict, gait: dict, root: np.ndarray | None = None) -> None:
-    """Pose the armature for ``gait`` and place it in the world (see the module docstring).
-
-    ``root`` is :func:`walk.root_transform`'s (4, 4) matrix if already computed.
-    """
+def pose_body(arm_obj, pose: Pose) -> None:
+    """Pose the armature with ``pose``'s bone rotations and place it in the world (module docstring)."""
     import bpy
     from mathutils import Matrix
 
-    from .walk import euler_matrix
-
-    angles = joint_angles(gait)
     bones = arm_obj.data.bones
     for name in BONES:
         Lr = bones[name].matrix_local.to_3x3()
-        B = Lr.transposed() @ Matrix(euler_matrix(angles[name]).tolist()) @ Lr
+        B = Lr.transposed() @ Matrix(np.asarray(pose.rotations[name]).tolist()) @ Lr
         arm_obj.pose.bones[name].matrix_basis = B.to_4x4()
-    T = root_transform(subject, gait) if root is None else root
-    arm_obj.matrix_world = Matrix(T.tolist())
+    arm_obj.matrix_world = Matrix(np.asarray(pose.root).tolist())
     bpy.context.view_layer.update()
 
 
@@ -247,6 +243,42 @@ def evaluated_mesh(body) -> tuple[np.ndarray, np.ndarray]:
     return v @ M[:3, :3].T + M[:3, 3], tris.reshape(-1, 3)
 
 
+@dataclass(frozen=True, eq=False)
+class PosedMesh:
+    """Blender's posed body, read back.
+
+    Attributes:
+        vertices: (V, 3) float64 evaluated (posed, skinned, subdivided) vertices, world metres.
+        triangles: (T, 3) int32 vertex indices.
+        joints: (19, 3) float64 posed joints of the evaluated armature, world metres.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    joints: np.ndarray
+
+
+@contextlib.contextmanager
+def posed_body(subject: dict, pose: Pose) -> Iterator[PosedMesh]:
+    """Build ``subject``'s body, pose it, yield its geometry; the objects live until the block ends.
+
+    Renders made inside the block see the body; its datablocks are deleted afterwards.
+    """
+    arm, body = build_body(subject)
+    try:
+        pose_body(arm, pose)
+        vertices, triangles = evaluated_mesh(body)
+        yield PosedMesh(vertices, triangles, evaluated_joints(arm))
+    finally:
+        delete_objects([body, arm])
+
+
+def posed_mesh(subject: dict, pose: Pose) -> PosedMesh:
+    """The geometry of ``subject``'s posed body; nothing is left in the Blender scene."""
+    with posed_body(subject, pose) as mesh:
+        return mesh
+
+
 @contextlib.contextmanager
 def _quiet_stdout():
     """Send file descriptor 1 to /dev/null (Blender prints a 'Saved: ...' line per render)."""
@@ -286,8 +318,6 @@ def render_masks(cameras: list, tmpdir: str | os.PathLike, threshold: float = 0.
     Returns:
         (K, H, W) uint8 in {0, 1} (alpha > threshold), or float32 alpha if ``raw``.
     """
-    import cv2
-
     out = []
     for cam in cameras:
         path = render_camera_png(cam, tmpdir)
@@ -357,7 +387,5 @@ def render_sphere_targets(rig_dict: dict, centres, radius: float, engine: str = 
     reset_factory()
     cams = setup_scene(rig, engine, antialias=True)
     add_spheres(np.asarray(centres, float), radius)
-    import tempfile
-
     with tempfile.TemporaryDirectory(prefix="silpose-spheres-") as tmp:
         return render_masks(cams, tmp, raw=True)

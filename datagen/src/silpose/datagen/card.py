@@ -7,16 +7,18 @@ Polars, Hugging Face ``datasets`` and silpose, and embeds the preview contact sh
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from silpose.shared.atomic import write_text_atomic
 from silpose.shared.dataset import list_shards, load_split, read_metadata
 from silpose.shared.dataset_schema import TENSOR_DTYPES
 
 from .manifest import read_manifest
 from .preview import PREVIEW_NAME
+from .subjects import describe_distribution
+from .walk import GAIT_FIELDS, GAIT_RANGES
 
 CARD = "README.md"
 
@@ -61,8 +63,6 @@ def _schema_table(meta: dict, subject: list[str], gait: list[str]) -> str:
 
 def _distribution_section(split: str) -> str:
     try:
-        from .subjects import describe_distribution
-
         d = describe_distribution(split)
     except Exception as exc:  # the card must still be written
         return f"(documented distribution unavailable: {exc})\n"
@@ -80,10 +80,6 @@ def _distribution_section(split: str) -> str:
 
 
 def _gait_section() -> str:
-    try:
-        from .walk import GAIT_FIELDS, GAIT_RANGES
-    except Exception as exc:  # the card must still be written
-        return f"(documented gait distribution unavailable: {exc})\n"
     rows = ["| field | distribution | low | high |", "|---|---|---|---|"]
     for k in GAIT_FIELDS:
         lo, hi = GAIT_RANGES[k]
@@ -185,8 +181,4 @@ def write_card(root: str | Path) -> Path:
                   *[f"| {n} | {loaded[s].extra['contour_length'][:, k].mean():.1f} | "
                     f"{loaded[s].extra['area'][:, k].mean():.1f} |" for k, n in enumerate(first.rig.names)], ""]
     parts += ["## Loading\n", _loading(root.name)]
-    path = root / CARD
-    tmp = path.with_name(f".{CARD}.{os.getpid()}.tmp")
-    tmp.write_text("\n".join(parts) + "\n")
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(root / CARD, "\n".join(parts) + "\n")

@@ -7,13 +7,11 @@ inside the commands, and bpy only ever inside spawned worker processes.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
+from typing import Annotated, List, Optional
 
 import typer
-from typing_extensions import Annotated
 
-
-from silpose.shared.cli import fail as _fail
+from silpose.shared.cli import fail
 
 
 def gen(
@@ -42,7 +40,8 @@ def gen(
     from .config import ConfigError, load_config
     from .executor import ExecutorError
     from .manifest import LockError
-    from .pipeline import GenerationError, generate
+    from .pipeline import generate
+    from .shards import GenerationError
 
     overrides: dict = {"renderer": renderer, "blender_engine": blender_engine, "seed": seed}
     if rig:
@@ -57,9 +56,9 @@ def gen(
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
     except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
-        _fail("gen", str(exc))
+        fail("gen", str(exc))
     except KeyboardInterrupt:
-        _fail("gen", "interrupted; rerun the same command to resume", 130)
+        fail("gen", "interrupted; rerun the same command to resume", 130)
     t = manifest["timing"]
     counts = ", ".join(f"{n} {s}" for s, n in manifest["counts"].items())
     rate = f"{t['samples_per_second']} samples/s" if t["samples_per_second"] else "nothing to render"
@@ -81,11 +80,11 @@ def validate(
         try:
             shard = read_shard(path, with_masks=True)
         except DatasetError as exc:
-            _fail("validate", str(exc), 1)
+            fail("validate", str(exc), 1)
         print(f"{path}: readable silpose shard, {len(shard)} samples, {shard.n_views} views")
         return
     if not path.is_dir():
-        _fail("validate", f"{path}: no such dataset folder or shard file", 1)
+        fail("validate", f"{path}: no such dataset folder or shard file", 1)
     report = validate_dataset(path)
     print(report.format())
     if not report.ok:
@@ -106,5 +105,5 @@ def preview(
     try:
         written = write_preview(path, out, n_samples=samples, split=split)
     except (DatasetError, StopIteration) as exc:
-        _fail("preview", str(exc) or f"{path}: no shards", 1)
+        fail("preview", str(exc) or f"{path}: no shards", 1)
     print(written)

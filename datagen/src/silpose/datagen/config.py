@@ -4,7 +4,7 @@ Keys (all validated; errors are one line naming the file and the field)::
 
     name = "smoke"              # dataset name; default output folder data/<name>
     seed = 0                    # dataset seed: sample = f(seed, split, index)
-    renderer = "raster"         # "raster" (posed Blender mesh filled by OpenCV) | "blender"
+    renderer = "raster"         # "raster" (posed Blender mesh filled by OpenCV) | "blender" (.renderers)
     blender_engine = "workbench"  # "workbench" | "cycles" (renderer = "blender" only)
     shard_size = 32             # samples per Parquet shard
     n_points = 200              # contour points per view
@@ -28,13 +28,14 @@ import numpy as np
 
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
 
-RENDERERS = ("raster", "blender")
-ENGINES = ("workbench", "cycles")
+from .blender_scene import ENGINES
+from .renderers import MASK_RENDERERS
+
 SPLITS = ("train", "test")
 #: Height (m) up to which the workspace corners must be seen: a tall person's head top.
 WORKSPACE_CHECK_HEIGHT = 2.0
 _KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig", "frames"}
-#: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames_config`).
+#: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames.config`).
 _OTHER_SECTIONS = {"frames"}
 
 
@@ -161,7 +162,7 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
         raise ConfigError(f"{src}: field 'name' must be a non-empty string without spaces or slashes, got {name!r}")
     seed = _int(raw, "seed", src, 0, 2**63 - 1)
-    renderer = _choice(raw, "renderer", src, RENDERERS)
+    renderer = _choice(raw, "renderer", src, MASK_RENDERERS)
     engine = _choice(raw, "blender_engine", src, ENGINES, default="workbench")
     shard_size = _int(raw, "shard_size", src, 1, 100_000)
     n_points = _int(raw, "n_points", src, 8, 10_000)

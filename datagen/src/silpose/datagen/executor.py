@@ -2,8 +2,8 @@
 
 A task renders one shard: ``render(config, split, indices) -> list[record]`` where ``render``
 is named by a ``"module:function"`` string (default ``silpose.datagen.worker:render_samples``)
-and imported inside the worker. The driver never imports bpy (DESIGN §3): workers are spawned,
-never forked, and the render module is imported only in them.
+and imported inside the worker. The driver never imports bpy (docs/conventions.md, "Blender"):
+workers are spawned, never forked, and the render module is imported only in them.
 
 Executors yield ``(task, result)`` as tasks finish (any order); a result is a dict with
 ``records``, ``seconds`` (render wall time), ``pid`` and ``rss_mb`` of the worker after the task.
@@ -12,10 +12,13 @@ Executors yield ``(task, result)`` as tasks finish (any order); a result is a di
 from __future__ import annotations
 
 import importlib
+import multiprocessing
 import os
 import time
 from dataclasses import dataclass
 from typing import Iterable, Iterator
+
+import psutil
 
 DEFAULT_RENDER = "silpose.datagen.worker:render_samples"
 #: Shard tasks a worker runs before it is replaced (bounds memory growth in long runs).
@@ -47,12 +50,7 @@ def run_task(target: str, config: dict, split: str, indices: list[int]) -> dict:
     t0 = time.perf_counter()
     records = _resolve(target)(config, split, list(indices))
     seconds = time.perf_counter() - t0
-    try:
-        import psutil
-
-        rss_mb = psutil.Process().memory_info().rss / 2**20
-    except ImportError:  # pragma: no cover - psutil is a dependency
-        rss_mb = float("nan")
+    rss_mb = psutil.Process().memory_info().rss / 2**20
     return {"records": records, "seconds": seconds, "pid": os.getpid(), "rss_mb": rss_mb}
 
 
@@ -82,10 +80,8 @@ def run_local(
     """Run ``tasks`` on a ``multiprocessing`` spawn pool of ``workers`` processes (default: all cores).
 
     Uses ``Pool(maxtasksperchild=...)``, not ``ProcessPoolExecutor(max_tasks_per_child=...)``, which
-    can deadlock on Python 3.11 (DESIGN §3).
+    can deadlock on Python 3.11 (docs/conventions.md, "Blender").
     """
-    import multiprocessing
-
     tasks = list(tasks)
     if not tasks:
         return

@@ -6,6 +6,7 @@ sample-id range and redraw count, and the timing of the run that completed the d
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -28,17 +29,6 @@ def sha256_file(path: Path, chunk: int = 1 << 20) -> str:
         while block := f.read(chunk):
             h.update(block)
     return h.hexdigest()
-
-
-def write_json_atomic(path: Path, obj) -> None:
-    """Write JSON to a temporary name in the same folder, then ``os.replace``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def read_manifest(root: Path) -> dict:
@@ -76,8 +66,6 @@ class FolderLock:
         return holder if isinstance(holder, dict) else {}
 
     def acquire(self) -> None:
-        import fcntl
-
         info = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         for _ in range(10):
             fd = os.open(self.path, os.O_CREAT | os.O_RDWR, 0o644)

@@ -5,72 +5,36 @@ shard holds the fixed index range ``[i * shard_size, (i + 1) * shard_size)``, so
 depend on the number of workers, the executor or on interruptions: a rerun into the same folder
 verifies the shards already there (footer row count, sample ids, config) and renders only the
 missing ones. Shards are written under a temporary name and renamed; stale temporaries from a
-killed run are deleted first. A lock file keeps two runs out of one folder.
+killed run are deleted first. A lock file keeps two runs out of one folder. The planning, resume,
+lock and worker loop are :mod:`.shards` (shared with ``gen-frames``).
 """
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
-import numpy as np
+import pyarrow.parquet as pq
 
-from silpose.shared.dataset import SHARD_RE, DatasetError, build_metadata, read_metadata, read_shard, shard_name, write_shard
-from silpose.shared.dataset_schema import ALL_COLUMNS
+from silpose.shared.atomic import write_json_atomic
+from silpose.shared.dataset import SHARD_RE, build_metadata, write_shard
 
+from .card import write_card
 from .config import GenConfig
 from .executor import DEFAULT_MAX_TASKS_PER_CHILD, DEFAULT_RENDER, EXECUTORS, ShardTask, default_workers
-from .manifest import MANIFEST, MANIFEST_VERSION, FolderLock, sha256_file, write_json_atomic
-
-
-class GenerationError(RuntimeError):
-    """The output folder cannot be used or a shard could not be produced."""
+from .manifest import MANIFEST, MANIFEST_VERSION, sha256_file
+from .preview import write_preview
+from .shards import GenerationError, locked_folder, plan_split, run_tasks, shard_is_complete
 
 
 def plan_shards(config: GenConfig) -> list[ShardTask]:
     """All shards of the dataset, ``{split}-{i:05d}-of-{n:05d}.parquet``, in split then index order."""
-    tasks = []
-    for split, count in config.splits.items():
-        n = math.ceil(count / config.shard_size)
-        for i in range(n):
-            idx = tuple(range(i * config.shard_size, min(count, (i + 1) * config.shard_size)))
-            tasks.append(ShardTask(split, i, n, idx, shard_name(split, i, n)))
-    return tasks
+    return [t for split, count in config.splits.items() for t in plan_split(split, count, config.shard_size)]
 
 
 def dataset_metadata(config: GenConfig) -> dict:
+    """The schema metadata of every shard of ``config``'s dataset (``silpose.shared.dataset.build_metadata``)."""
     return build_metadata(config.rig.to_dict()["cameras"], config.to_dict(), config.n_points)
-
-
-def _remove_temporaries(root: Path) -> list[Path]:
-    stale = list(root.glob(".*.tmp"))  # shards, manifest, card, preview of a killed run (we hold the lock)
-    for p in stale:
-        p.unlink(missing_ok=True)
-    return stale
-
-
-def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
-    """True if ``path`` is a readable shard of this config holding exactly ``task.indices``.
-
-    Reads the whole shard through ``read_shard``, which verifies the schema, NaNs and every data
-    page's checksum, so a shard with an intact footer but damaged data is rewritten, not kept (and
-    hashed into the manifest). Raises GenerationError if the shard belongs to another configuration.
-    """
-    try:
-        meta = read_metadata(path)
-    except DatasetError:
-        return False  # unreadable or foreign: it will be rewritten
-    if meta["config"] != metadata["config"] or meta["cameras"] != metadata["cameras"]:
-        raise GenerationError(
-            f"{path}: field 'config' differs from this run's; the folder holds another dataset "
-            "(choose another --out or delete it)"
-        )
-    try:
-        shard = read_shard(path, columns=ALL_COLUMNS)
-    except DatasetError:
-        return False  # damaged data: it will be rewritten
-    return bool(np.array_equal(shard.sample_id, np.asarray(task.indices)))
 
 
 def _check_records(records: list[dict], task: ShardTask) -> None:
@@ -80,22 +44,6 @@ def _check_records(records: list[dict], task: ShardTask) -> None:
             f"shard {task.file}: field 'sample_id': renderer returned ids {ids[:3]}... for split "
             f"{records[0].get('split') if records else '?'}, expected {list(task.indices[:3])}... of {task.split}"
         )
-
-
-def prepare_folder(out: Path) -> None:
-    """Create ``out`` (and parents) or raise GenerationError naming it."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise GenerationError(f"{out}: cannot create the output folder ({exc.strerror or exc})") from None
-    if not out.is_dir():
-        raise GenerationError(f"{out}: output path exists and is not a folder")
-    probe = out / f".silpose-write-probe"
-    try:
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise GenerationError(f"{out}: output folder is not writable ({exc.strerror or exc})") from None
 
 
 def generate(
@@ -124,11 +72,9 @@ def generate(
     if executor not in EXECUTORS:
         raise GenerationError(f"executor: must be one of {', '.join(EXECUTORS)}, got {executor!r}")
     out = Path(out)
-    prepare_folder(out)
     if executor == "local":
         workers = workers or default_workers()
-    with FolderLock(out):
-        _remove_temporaries(out)
+    with locked_folder(out):
         metadata = dataset_metadata(config)
         tasks = plan_shards(config)
         planned = {t.file for t in tasks}
@@ -145,51 +91,35 @@ def generate(
         manifest = build_manifest(config, out, tasks, stats, workers, executor, skipped=len(tasks) - len(todo))
         write_json_atomic(out / MANIFEST, manifest)
         if preview:
-            from .preview import write_preview
-
             write_preview(out)
         if card:
-            from .card import write_card
-
             write_card(out)
     return manifest
 
 
 def _run(todo, config, out, metadata, workers, executor, render, progress, max_tasks_per_child) -> dict:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-    total = sum(len(t.indices) for t in todo)
+    """Render ``todo``, writing each shard as it arrives; returns the timing statistics."""
     stats = {"seconds": 0.0, "samples": 0, "worker_seconds": 0.0, "worker_rss_mb": {}, "shard_seconds": {}}
-    t0 = time.perf_counter()
-    columns = [
-        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]:>7.1f} samples/s"), TimeElapsedColumn(), TimeRemainingColumn(),
-    ]
-    with Progress(*columns, console=Console(stderr=True), disable=not progress or total == 0, transient=False) as bar:
-        job = bar.add_task(f"gen {config.name}", total=total, rate=0.0)
-        results = EXECUTORS[executor](todo, config.worker_config(), render, workers, max_tasks_per_child)
-        try:
-            for task, result in results:
-                records = result["records"]
-                _check_records(records, task)
-                write_shard(out / task.file, records, metadata)
-                stats["samples"] += len(records)
-                stats["worker_seconds"] += result["seconds"]
-                stats["shard_seconds"][task.file] = round(result["seconds"], 3)
-                stats["worker_rss_mb"].setdefault(str(result["pid"]), []).append(round(result["rss_mb"], 1))
-                elapsed = time.perf_counter() - t0
-                bar.update(job, advance=len(records), rate=stats["samples"] / max(elapsed, 1e-9))
-        finally:
-            results.close()
-    stats["seconds"] = time.perf_counter() - t0
+
+    def write(task: ShardTask, result: dict) -> None:
+        records = result["records"]
+        _check_records(records, task)
+        write_shard(out / task.file, records, metadata)
+        stats["samples"] += len(records)
+        stats["worker_seconds"] += result["seconds"]
+        stats["shard_seconds"][task.file] = round(result["seconds"], 3)
+        stats["worker_rss_mb"].setdefault(str(result["pid"]), []).append(round(result["rss_mb"], 1))
+
+    stats["seconds"] = run_tasks(
+        todo, config.worker_config(), render, write, sizes={t.file: len(t.indices) for t in todo},
+        description=f"gen {config.name}", unit="samples", executor=executor, workers=workers,
+        max_tasks_per_child=max_tasks_per_child, progress=progress,
+    )
     return stats
 
 
 def build_manifest(config: GenConfig, out: Path, tasks, stats: dict, workers: int, executor: str, skipped: int) -> dict:
     """The manifest of a complete dataset folder (hashes every shard)."""
-    import pyarrow.parquet as pq
-
     shards, redraws = [], {s: 0 for s in config.splits}
     for t in tasks:
         path = out / t.file

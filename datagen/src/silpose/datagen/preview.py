@@ -7,11 +7,11 @@ dots, terminal joints red crosses). Written with matplotlib's Agg backend.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from silpose.shared.atomic import atomic_path
 from silpose.shared.dataset import iter_shards, list_shards
 from silpose.shared.skeleton import BONES, N_JOINTS, TERMINAL_JOINTS
 
@@ -64,11 +64,9 @@ def write_preview(root: str | Path, out: str | Path | None = None, n_samples: in
                 ax.set_ylabel(f"{split} #{int(shard.sample_id[i])}", fontsize=7)
     fig.suptitle(f"{root.name}: mask, contour (orange), projected joints (blue; terminal x)", fontsize=8)
     fig.tight_layout()
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
     try:
-        fig.savefig(tmp, dpi=110, format="png")
-        os.replace(tmp, out)
+        with atomic_path(out) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
     finally:
         plt.close(fig)
-        tmp.unlink(missing_ok=True)
     return out

@@ -21,6 +21,7 @@ Three fillers are provided:
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from silpose.shared.camera import Camera
@@ -178,8 +179,6 @@ def fill_triangles_cv2(tri_px: np.ndarray, height: int, width: int) -> np.ndarra
     Returns:
         (height, width) uint8 mask in {0, 1}.
     """
-    import cv2
-
     mask = np.zeros((height, width), np.uint8)
     pts = np.round(np.asarray(tri_px, dtype=np.float64) * (1 << _SHIFT)).astype(np.int32)
     for tri in pts:  # one polygon per call: fillPoly of several polygons XORs overlaps

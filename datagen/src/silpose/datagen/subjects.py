@@ -1,7 +1,8 @@
 """Randomised subjects (body proportions, girths, clothing, hair) for the generator. Pure numpy.
 
 A *subject* is a flat ``dict[str, float]`` with the keys of :data:`SUBJECT_FIELDS`, in that
-order, for both splits (DESIGN §5: test characters differ from training ones):
+order, for both splits (docs/conventions.md, "Evaluation protocol": test characters differ from
+training ones):
 
 - ``height``: stature in metres (floor to head top, standing straight).
 - ``r_*``: segment lengths as fractions of the stature. The vertical chain
@@ -26,6 +27,8 @@ in :data:`TEST_CLOTHING_PROB`. The draw is a pure function of the generator pass
 from __future__ import annotations
 
 import numpy as np
+
+from silpose.shared.skeleton import JOINT_NAMES
 
 SPLITS = ("train", "test")
 
@@ -189,6 +192,17 @@ def joint_radii(subject: dict[str, float]) -> dict[str, float]:
     for name in ("hip", "knee", "ankle"):
         r[name] += float(subject["trouser_width"])
     return r
+
+
+def joint_type(name: str) -> str:
+    """The joint type of joint ``name`` (a key of :func:`joint_radii`): the name without ``l_``/``r_``."""
+    return name[2:] if name[:2] in ("l_", "r_") else name
+
+
+def joint_radius_array(subject: dict[str, float]) -> np.ndarray:
+    """(19,) skin radius (metres) at every joint of ``subject``, ``JOINT_NAMES`` order (:func:`joint_radii`)."""
+    radii = joint_radii(subject)
+    return np.array([radii[joint_type(n)] for n in JOINT_NAMES])
 
 
 def describe_distribution(split: str) -> dict:

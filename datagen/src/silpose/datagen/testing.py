@@ -1,17 +1,33 @@
-"""A synthetic stand-in renderer for unit tests of the pipeline (NOT a person, NOT Blender).
+"""Test helpers that must live in the installed package (spawned workers import them by name).
 
+Mostly a synthetic stand-in renderer for unit tests of the pipeline (NOT a person, NOT Blender):
 ``synthetic_render_samples`` has the signature and record layout of
 ``silpose.datagen.worker.render_samples`` but draws a stick figure with thick OpenCV lines
 instead of rendering a body, so IO, sharding, resume and executor logic can be tested in
 milliseconds. Every sample is a pure function of ``(config["seed"], split, index)``.
+:func:`render_scenes_with` renders the same scenes with several registered renderers (Blender,
+in a spawned worker) to compare them through the renderer protocol.
 """
 
 from __future__ import annotations
 
+import os
+import signal
+import time
+from pathlib import Path
+
+import cv2
 import numpy as np
 
 from silpose.shared.camera import Rig
+from silpose.shared.contours import extract_contours, normalise
+from silpose.shared.seeds import SPLIT_CODE, derive_rng
 from silpose.shared.skeleton import BONES, N_JOINTS
+
+from .config import GenConfig, load_config
+from .render import rendering
+from .renderers import renderer_from_config
+from .scene import draw_scene, joints_visible
 
 #: ``render=`` value of ``pipeline.generate`` that uses :func:`synthetic_render_samples`
 SYNTH_RENDER = "silpose.datagen.testing:synthetic_render_samples"
@@ -23,19 +39,17 @@ def tiny_config_toml(seed: int = 7, shard_size: int = 4, train: int = 8, test: i
             f"shard_size = {shard_size}\nn_points = 200\nmax_redraws = 50\n[splits]\ntrain = {train}\ntest = {test}\n")
 
 
-def tiny_config(folder, text: str | None = None):
+def tiny_config(folder, text: str | None = None) -> GenConfig:
     """A validated GenConfig written to ``folder/tiny.toml`` (``text`` default: :func:`tiny_config_toml`)."""
-    from pathlib import Path
-
-    from .config import load_config
-
     path = Path(folder) / "tiny.toml"
     path.write_text(tiny_config_toml() if text is None else text)
     return load_config(path)
 
+
 SUBJECT_FIELDS = ("height", "shoulder_width", "hip_width")
 GAIT_FIELDS = ("phase", "stride", "arm_swing", "knee_flex", "heading", "x", "y")
-_SPLIT_CODE = {"train": 0, "test": 1}
+#: Split key of an unknown split (the stand-in renders any split name).
+OTHER_SPLIT_CODE = 9
 
 # A rough standing pose (metres), pelvis at 0.95 m, facing +x.
 _REST = np.array(
@@ -51,12 +65,12 @@ _REST = np.array(
 
 
 def synthetic_record(config: dict, split: str, index: int) -> dict:
-    """One synthetic record (see ``silpose.datagen.worker.render_samples`` for the fields)."""
-    import cv2
+    """One synthetic record (see ``silpose.datagen.worker.render_samples`` for the fields).
 
-    from silpose.shared.contours import extract_contours, normalise
-
-    rng = np.random.default_rng(np.random.SeedSequence([int(config["seed"]), _SPLIT_CODE.get(split, 9), int(index)]))
+    Draws from ``derive_rng(seed, SPLIT_CODE[split], index)`` (:data:`OTHER_SPLIT_CODE` for other
+    split names): three keys, so never the stream of a real sample draw (four keys).
+    """
+    rng = derive_rng(config["seed"], SPLIT_CODE.get(split, OTHER_SPLIT_CODE), index)
     rig = Rig.from_dict(config["rig"])
     width, height = rig.image_size
     heading = rng.uniform(-np.pi, np.pi)
@@ -119,8 +133,6 @@ def wrong_ids_render_samples(config: dict, split: str, indices: list[int]) -> li
 
 def crashing_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     """Stand-in whose worker process dies abruptly on every split but ``train`` (tests the watchdog)."""
-    import os
-
     if split != "train":
         os._exit(3)
     return synthetic_render_samples(config, split, indices)
@@ -140,9 +152,6 @@ def killing_render_samples(config: dict, split: str, indices: list[int]) -> list
     SIGKILL -- unless ``marker`` already exists (so a rerun goes through). Otherwise it is
     ``synthetic_render_samples``.
     """
-    import os
-    import signal
-
     spec = os.environ.get(KILL_ENV, "")
     records = []
     for i in indices:
@@ -161,12 +170,44 @@ def killing_render_samples(config: dict, split: str, indices: list[int]) -> list
 
 def slow_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     """``synthetic_render_samples`` sleeping ``$SILPOSE_TEST_RENDER_DELAY`` s per sample (overlapping runs)."""
-    import os
-    import time
-
     delay = float(os.environ.get(DELAY_ENV, "0.1"))
     records = []
     for i in indices:
         time.sleep(delay)
         records.append(synthetic_record(config, split, i))
     return records
+
+
+def render_scenes_with(config: dict, names: list[str], split: str, indices: list[int]) -> dict[str, list[dict]]:
+    """Render the same scenes with each renderer of ``names``, through the Renderer protocol only.
+
+    Call in a spawned worker (Blender). Scene i is the first draw of sample ``indices[i]`` whose
+    joints and (for the first renderer) posed mesh are inside every image.
+
+    Returns:
+        ``{name: [{"redraw", "joints" (19, 3), "masks" (K, H, W)} per index]}``.
+    """
+    rig = Rig.from_dict(config["rig"])
+    renderers = [renderer_from_config(config, n) for n in names]
+    scenes = []
+    with rendering(renderers[0], rig) as first:
+        out = {names[0]: []}
+        for index in indices:
+            for redraw in range(int(config["max_redraws"]) + 1):
+                scene = draw_scene(int(config["seed"]), split, index, redraw, rig)
+                if not joints_visible(scene):
+                    continue
+                result = first.render(scene)
+                if result.masks is not None:
+                    break
+            else:
+                raise RuntimeError(f"{split} sample {index}: no visible draw")
+            scenes.append(scene)
+            out[names[0]].append({"redraw": redraw, "joints": result.joints, "masks": result.masks})
+    for name, renderer in zip(names[1:], renderers[1:]):
+        with rendering(renderer, rig):
+            out[name] = []
+            for scene in scenes:
+                r = renderer.render(scene)
+                out[name].append({"redraw": scene.redraw, "joints": r.joints, "masks": r.masks})
+    return out

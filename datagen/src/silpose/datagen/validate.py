@@ -5,7 +5,7 @@ Checks, per split and shard (streaming, one shard in memory at a time):
 - schema, metadata and NaNs (``silpose.shared.dataset`` validates every file it reads);
 - counts and sample ids against ``manifest.json`` (each id 0..n-1 exactly once), sha256 of every shard;
 - masks are 0/1; stored ``contour_centroid`` / ``contour_scale`` equal the mean / RMS radius of the
-  stored contour (DESIGN §2 normalisation);
+  stored contour (docs/conventions.md, "Contours");
 - joints project inside their silhouettes: the share of NON-terminal joints (``TERMINAL_JOINTS``
   excluded, their end caps may leave them ~2 px outside) whose projection, rounded to the nearest
   pixel, is foreground — must be >= ``MIN_JOINTS_INSIDE``;
@@ -22,10 +22,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from silpose.shared.dataset import DatasetError, iter_shards, list_shards
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
+
+from .manifest import MANIFEST, read_manifest, sha256_file
 
 MIN_JOINTS_INSIDE = 0.99
 #: Resampled points lie on segments between boundary-pixel centres (<= 1/sqrt(2) px away from one).
@@ -94,8 +97,6 @@ def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def contour_boundary_distance(mask: np.ndarray, contour: np.ndarray) -> np.ndarray:
     """(n,) distance in px of each contour point (n, 2) to the nearest boundary pixel centre of ``mask``."""
-    import cv2
-
     b = _boundary(mask)
     if not b.any():
         return np.full(len(contour), np.inf)
@@ -117,8 +118,6 @@ def joints_inside(masks: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 
 def validate_dataset(root: str | Path) -> ValidationReport:
     """Run every check on the dataset folder ``root`` (see the module docstring)."""
-    from .manifest import MANIFEST, read_manifest, sha256_file
-
     root = Path(root)
     report = ValidationReport(root)
     if not root.is_dir():
@@ -167,7 +166,7 @@ def _validate_split(root, split, expected, hashes, report, sha256_file) -> None:
         masks = s.masks
         if masks.max(initial=0) > 1:
             report.problems.append(f"{path}: column 'masks' has values other than 0/1")
-        # normalisation factors equal the mean / RMS radius of the stored contour (DESIGN §2)
+        # normalisation factors equal the mean / RMS radius of the stored contour (docs/conventions.md, "Contours")
         c = s.contours.astype(np.float64).mean(axis=2)
         r = np.sqrt(((s.contours - c[:, :, None]) ** 2).sum(-1).mean(-1))
         if np.abs(c - s.centroid).max() > NORMALISATION_TOL_PX or np.abs(r - s.scale).max() > NORMALISATION_TOL_PX:

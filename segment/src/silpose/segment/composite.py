@@ -5,7 +5,8 @@ floor and props of :mod:`.synthetic`), seen in ``n_background`` empty frames and
 sample where the person is a differently coloured, striped cloth region given by the mask, with a
 floor shadow beside the feet (an ellipse a quarter of the person's height long, where the background
 is darkened by ``shadow_factor``). Every frame gets independent Gaussian camera noise and a global
-illumination flicker. The truth is the mask itself, so segmentation can be scored exactly.
+illumination flicker (:mod:`silpose.shared.camera_noise`, computed in float32). The truth is the
+mask itself, so segmentation can be scored exactly.
 Images are BGR uint8 (``cv2.imwrite`` writes them as RGB PNGs).
 
 All draws come from ``numpy.random.default_rng(SeedSequence([seed, camera]))`` for the room and
@@ -17,16 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from silpose.shared.camera_noise import add_camera_noise
+
 from .synthetic import _background, _texture
 
 #: cloth colour (BGR): light orange, far from the room's greys and browns in graylevel too
 CLOTH_BGR = (70.0, 190.0, 250.0)
-
-
-def _noisy(img: np.ndarray, rng: np.random.Generator, noise_std: float, flicker: float) -> np.ndarray:
-    gain = rng.uniform(1.0 - flicker, 1.0 + flicker)
-    out = img * np.float32(gain) + rng.normal(0.0, noise_std, img.shape).astype(np.float32)
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def room(camera: int, size: tuple[int, int], seed: int = 0) -> np.ndarray:
@@ -40,7 +37,8 @@ def background_frames(camera: int, size: tuple[int, int], n: int, seed: int = 0,
     """``n`` empty-room frames of one camera: (n, H, W, 3) uint8 BGR."""
     clean = room(camera, size, seed)
     return np.stack([
-        _noisy(clean, np.random.default_rng(np.random.SeedSequence([seed, camera, 0, b])), noise_std, flicker)
+        add_camera_noise(clean, np.random.default_rng(np.random.SeedSequence([seed, camera, 0, b])), noise_std, flicker,
+                         np.float32)
         for b in range(n)
     ])
 
@@ -81,4 +79,4 @@ def composite_frame(mask: np.ndarray, camera: int, frame: int, seed: int = 0, no
         cloth[:] = CLOTH_BGR
         cloth -= (stripes + np.abs(_texture(rng, (h, w), 1.0, 6.0)))[..., None]
         img[fg] = cloth[fg]
-    return _noisy(img, rng, noise_std, flicker)
+    return add_camera_noise(img, rng, noise_std, flicker, np.float32)

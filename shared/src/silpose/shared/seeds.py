@@ -9,8 +9,9 @@ below are part of the data format (changing one changes every dataset or report 
 | stream | keys passed to :func:`derive_rng` | used by |
 |---|---|---|
 | sample draw | ``seed, SPLIT_CODE[split], index, redraw`` | datagen: subject, gait, placement of a sample; ``redraw`` counts rejected draws |
-| appearance | ``APPEARANCE_STREAM, seed, 1, index`` | datagen frames: clothing colours, room layout of a test sample |
-| camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | camera sensor noise and flicker of rendered frames |
+| appearance | ``APPEARANCE_STREAM, seed, SPLIT_CODE["test"], index`` | datagen frames: clothing colours of a test sample (the room layout is a fixed function of the rig) |
+| camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | ``camera_noise.noise_rng``: sensor noise and flicker of datagen's rendered frames |
+| synthetic stand-in | ``seed, SPLIT_CODE[split], index`` (9 for another split name) | datagen.testing stick-figure records (tests only; three keys, never a sample-draw stream) |
 | eval noise | ``seed, stream_code(name), sample_id`` | eval (``noise.sample_rng``): contour / mask noise of one test sample, one stream per family, ``name`` in ``"mask"``, ``"patches"``, ``"jitter"`` |
 | chance baseline | ``random_state, CHANCE_STREAM`` | eval (``baselines.ChanceBaseline``): random training poses |
 | validation split | ``seed, VALIDATION_STREAM`` | model selection: train / validation permutation |

@@ -1,15 +1,16 @@
-"""The README.md card of a frames dataset (see :mod:`.frames`)."""
+"""The README.md card of a frames dataset (see :mod:`.generate`)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from . import frames_scene as fs
-from .config import GenConfig
-from .frames_config import FramesConfig
+from silpose.shared.atomic import write_text_atomic
+
+from ..config import GenConfig
+from . import scene as fs
+from .config import FramesConfig
 
 
 def card_text(config: GenConfig, fcfg: FramesConfig, stats: dict) -> str:
@@ -64,11 +65,5 @@ Cameras: {', '.join(cams)}.
 
 
 def write_frames_card(root: Path, config: GenConfig, fcfg: FramesConfig, stats: dict) -> Path:
-    path = Path(root) / "README.md"
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(card_text(config, fcfg, stats))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    """Write ``root/README.md`` (:func:`card_text`) atomically; returns its path."""
+    return write_text_atomic(Path(root) / "README.md", card_text(config, fcfg, stats))

@@ -10,7 +10,7 @@
     shard_size = 2         # samples per worker task (and per truth Parquet shard)
 
 Every key is optional (defaults above); the rest of the TOML is the ordinary generator config
-(:mod:`.config`), whose seed and rig the frames share.
+(:mod:`silpose.datagen.config`), whose seed and rig the frames share.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from .config import ConfigError, GenConfig, load_config, resolve
+from ..config import ConfigError, GenConfig, load_config, resolve
 
 DEFAULTS = {"samples": 8, "background": 20, "cycles_samples": 16, "denoise": True, "noise_sigma": 2.0,
             "flicker": 0.02, "shard_size": 2}

@@ -1,16 +1,15 @@
 """``silpose gen-frames``: textured camera frames + empty-room frames + truth (issue 5).
 
 Only light modules are imported at module level; the generator inside the command, and bpy only
-in spawned workers. ``python -m silpose.datagen.frames_cli ...`` runs the command on its own.
+in spawned workers. ``python -m silpose.datagen.frames.cli ...`` runs the command on its own.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
-from typing_extensions import Annotated
 
 from silpose.shared.cli import fail
 
@@ -38,12 +37,12 @@ def gen_frames(
     from silpose.shared.camera import RigError
     from silpose.shared.dataset import DatasetError
 
-    from .config import ConfigError
-    from .executor import ExecutorError
-    from .frames import FramesError, generate_frames
-    from .frames_config import load_frames_config
-    from .manifest import LockError
-    from .pipeline import GenerationError
+    from ..config import ConfigError
+    from ..executor import ExecutorError
+    from ..manifest import LockError
+    from ..shards import GenerationError
+    from .config import load_frames_config
+    from .generate import FramesError, generate_frames
 
     try:
         config, fcfg = load_frames_config(preset, samples=samples, background=background)

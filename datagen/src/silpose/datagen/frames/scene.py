@@ -1,7 +1,7 @@
 """What the textured camera frames show, as data (pure numpy, no bpy): room, props, lights,
 per-subject clothing colours and which body triangle wears which garment.
 
-The Blender side (:mod:`.blender_room`) only turns these numbers into objects, so the layout can
+The Blender side (:mod:`silpose.datagen.blender_room`) only turns these numbers into objects, so the layout can
 be checked without Blender (props never hide the workspace from any camera; see
 :func:`check_props_do_not_occlude`).
 
@@ -13,14 +13,12 @@ from __future__ import annotations
 import numpy as np
 
 from silpose.shared.camera import WORKSPACE_HALF_SIZE, Rig
+from silpose.shared.seeds import APPEARANCE_STREAM, SPLIT_CODE, derive_rng
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
 #: Bumped whenever the rendered scene changes (part of a frames folder's identity: a rerun does not
 #: resume a folder rendered from another scene).
 SCENE_VERSION = 4
-
-#: Stream code of the appearance draws (keeps them out of the sample stream of ``worker.sample_rng``).
-APPEARANCE_STREAM = 0x5EED_C010
 
 #: Volume a person can occupy (metres): the workspace square grown by an arm's reach, up to 2.1 m.
 PERSON_VOLUME_HALF = WORKSPACE_HALF_SIZE + 0.4
@@ -55,8 +53,9 @@ SHOES = ((0.02, 0.02, 0.02), (0.60, 0.60, 0.60), (0.20, 0.08, 0.03))
 
 
 def appearance_rng(seed: int, index: int) -> np.random.Generator:
-    """Generator of test sample ``index``'s clothing (independent of its body/gait draws)."""
-    return np.random.default_rng(np.random.SeedSequence([APPEARANCE_STREAM, int(seed), 1, int(index)]))
+    """Generator of test sample ``index``'s clothing, independent of its body and gait draws:
+    ``derive_rng(APPEARANCE_STREAM, seed, SPLIT_CODE["test"], index)`` (docs/conventions.md, "Seeds")."""
+    return derive_rng(APPEARANCE_STREAM, seed, SPLIT_CODE["test"], index)
 
 
 def draw_appearance(seed: int, index: int) -> dict:
@@ -113,7 +112,7 @@ def part_labels(
     Args:
         vertices: (V, 3) posed body vertices, world metres; triangles: (T, 3) vertex indices.
         joints: (19, 3) posed joints, world metres.
-        radii: (19,) skin radius at each joint, metres (:func:`joint_radius_array`).
+        radii: (19,) skin radius at each joint, metres (``subjects.joint_radius_array``).
         appearance: :func:`draw_appearance`'s dict (sleeve length).
     Returns:
         (T,) int32. Each triangle takes the garment of its nearest bone; hands (the last 35 % of
@@ -137,14 +136,6 @@ def part_labels(
     hair = head & ((rel @ fwd < -0.02) | (rel[:, 2] > 0.06))
     labels[hair] = index["hair"]
     return labels
-
-
-def joint_radius_array(subject: dict) -> np.ndarray:
-    """(19,) skin radius (metres) at every joint of ``subject`` (``subjects.joint_radii``)."""
-    from .subjects import joint_radii
-
-    r = joint_radii(subject)
-    return np.array([r[n[2:] if n[:2] in ("l_", "r_") else n] for n in JOINT_NAMES])
 
 
 def room_half_size(rig: Rig) -> float:

@@ -12,31 +12,35 @@ Layout (the contract with the end-to-end path; ``<camera>`` = the rig camera's n
 
 Atomicity: the dataset is built in ``<parent>/.<name>.partial/`` and renamed to ``<dir>`` when
 complete, so ``<dir>`` is either absent or whole. Every file is written under a temporary name
-and renamed; a task's PNGs are written before its truth shard, so a shard on disk marks its
-samples done. A rerun resumes the partial folder of the same configuration (refuses another),
-and reports an existing complete ``<dir>`` of the same configuration as done (refuses another).
+and renamed (:mod:`silpose.shared.atomic`); a task's PNGs are written before its truth shard, so a
+shard on disk marks its samples done. A rerun resumes the partial folder of the same
+configuration (refuses another), and reports an existing complete ``<dir>`` of the same
+configuration as done (refuses another). Planning, lock, resume and the worker loop are
+:mod:`silpose.datagen.shards`, shared with ``silpose gen``.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
-import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
-from silpose.shared.dataset import shard_name, write_shard
+from silpose.shared.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
+from silpose.shared.camera_noise import add_camera_noise, noise_rng
+from silpose.shared.dataset import write_shard
 
-from .camera_noise import add_camera_noise, noise_rng
-from .config import GenConfig
-from .executor import ShardTask, default_workers, run_local
-from .frames_config import FramesConfig
-from .manifest import FolderLock, write_json_atomic
-from .pipeline import dataset_metadata, prepare_folder, shard_is_complete
+from ..config import GenConfig
+from ..executor import ShardTask
+from ..pipeline import dataset_metadata
+from ..shards import locked_folder, plan_split, run_tasks, shard_is_complete
+from .card import write_frames_card
+from .config import FramesConfig
+from .scene import SCENE_VERSION
 
-TARGET = "silpose.datagen.frames_worker:render_frames_task"
+TARGET = "silpose.datagen.frames.worker:render_frames_task"
 IDENTITY = ".silpose-frames.json"
 LAYOUT_VERSION = 1
 
@@ -51,32 +55,18 @@ def frame_name(i: int) -> str:
 
 def plan_tasks(fcfg: FramesConfig) -> list[ShardTask]:
     """The empty-room task, then one task (= one truth shard) per ``shard_size`` samples."""
-    n = math.ceil(fcfg.samples / fcfg.shard_size)
-    tasks = [ShardTask("background", 0, 1, (), "background")]
-    for i in range(n):
-        idx = tuple(range(i * fcfg.shard_size, min(fcfg.samples, (i + 1) * fcfg.shard_size)))
-        tasks.append(ShardTask("test", i, n, idx, shard_name("test", i, n)))
-    return tasks
+    return [ShardTask("background", 0, 1, (), "background")] + plan_split("test", fcfg.samples, fcfg.shard_size)
 
 
 def write_png(path: Path, rgb: np.ndarray) -> None:
-    """(H, W, 3) uint8 RGB -> PNG at ``path``, via a temporary name and ``os.replace``."""
-    import cv2
-
+    """(H, W, 3) uint8 RGB -> PNG at ``path``, atomically (``silpose.shared.atomic``)."""
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
     if not ok:
         raise FramesError(f"{path}: PNG encoding failed")
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(buf.tobytes())
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    write_bytes_atomic(path, buf.tobytes())
 
 
 def _identity(config: GenConfig, fcfg: FramesConfig) -> dict:
-    from .frames_scene import SCENE_VERSION
-
     return {"layout_version": LAYOUT_VERSION, "scene_version": SCENE_VERSION, "config": config.to_dict(),
             "frames": fcfg.to_dict()}
 
@@ -131,7 +121,7 @@ def generate_frames(
         out: the dataset folder (must not hold anything else).
         workers: spawned worker processes (default: all cores).
         progress: rich progress bar (images/s) on stderr.
-        target: ``"module:function"`` run in the workers (``frames_worker.render_frames_task``).
+        target: ``"module:function"`` run in the workers (``frames.worker.render_frames_task``).
     Returns:
         summary: ``out``, ``already_complete``, ``images_written``, ``seconds``, ``image_seconds``
         (Cycles render wall time per image, list), ``tasks_rendered``, ``tasks_skipped``.
@@ -148,12 +138,9 @@ def generate_frames(
             what = "another frames dataset" if _read_identity(out) is not None else "files that are not this frames dataset"
             raise FramesError(f"{out}: exists and holds {what}; choose another --out or delete it")
     work = out.parent / f".{out.name}.partial"
-    prepare_folder(work)
     cams = list(config.rig.names)
     metadata = dataset_metadata(config)
-    with FolderLock(work) as lock:
-        for p in work.rglob(".*.tmp"):
-            p.unlink(missing_ok=True)
+    with locked_folder(work, recursive=True) as lock:
         found = _read_identity(work)
         if found is None and any(p.name != lock.path.name for p in work.iterdir()):
             raise FramesError(f"{work}: unfinished folder without {IDENTITY}; delete it and rerun")
@@ -161,53 +148,32 @@ def generate_frames(
             raise FramesError(f"{work}: unfinished run of another configuration (field 'frames' or 'config' "
                               "differs); delete it or rerun with the same options")
         write_json_atomic(work / IDENTITY, identity)
-        (work / "rig.json").parent.mkdir(exist_ok=True)
-        _write_text(work / "rig.json", config.rig.to_json())
+        write_text_atomic(work / "rig.json", config.rig.to_json())
         for sub in ("background", "frames"):
             for c in cams:
                 (work / sub / c).mkdir(parents=True, exist_ok=True)
         tasks = plan_tasks(fcfg)
         todo = [t for t in tasks if not _task_done(work, t, cams, fcfg, metadata)]
         stats = _run(todo, config, fcfg, work, cams, metadata, workers, progress, target)
-        from .frames_card import write_frames_card
-
         write_frames_card(work, config, fcfg, stats)
         lock.release()
-    os.rename(work, out)
+    os.rename(work, out)  # the whole folder at once: <out> is absent or complete
     return {"out": str(out), "already_complete": False, **stats, "tasks_rendered": len(todo),
             "tasks_skipped": len(tasks) - len(todo)}
 
 
-def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def _run(todo, config, fcfg, work, cams, metadata, workers, progress, target) -> dict:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-    per_task = {t.file: (fcfg.background if t.split == "background" else len(t.indices)) * len(cams) for t in todo}
+    """Render ``todo``, writing each task's PNGs and truth shard as it arrives."""
     stats = {"images_written": 0, "seconds": 0.0, "image_seconds": []}
-    t0 = time.perf_counter()
-    columns = [TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[rate]:>6.2f} images/s"), TimeElapsedColumn(), TimeRemainingColumn()]
+
+    def write(task: ShardTask, result: dict) -> None:
+        stats["images_written"] += _write_result(work, task, result["records"], cams, config, fcfg, metadata)
+        stats["image_seconds"] += list(result["records"]["image_seconds"])
+
     worker_config = dict(config.worker_config(), frames={"cycles_samples": fcfg.cycles_samples, "denoise": fcfg.denoise})
-    n = min(workers or default_workers(), max(len(todo), 1))
-    with Progress(*columns, console=Console(stderr=True), disable=not progress or not todo) as bar:
-        job = bar.add_task(f"gen-frames {config.name}", total=sum(per_task.values()), rate=0.0)
-        results = run_local(todo, worker_config, target, n, max_tasks_per_child=20)
-        try:
-            for task, result in results:
-                stats["images_written"] += _write_result(work, task, result["records"], cams, config, fcfg, metadata)
-                stats["image_seconds"] += list(result["records"]["image_seconds"])
-                bar.update(job, advance=per_task[task.file],
-                           rate=stats["images_written"] / max(time.perf_counter() - t0, 1e-9))
-        finally:
-            results.close()
-    stats["seconds"] = time.perf_counter() - t0
+    sizes = {t.file: (fcfg.background if t.split == "background" else len(t.indices)) * len(cams) for t in todo}
+    stats["seconds"] = run_tasks(
+        todo, worker_config, target, write, sizes=sizes, description=f"gen-frames {config.name}", unit="images",
+        workers=workers, progress=progress,
+    )
     return stats
