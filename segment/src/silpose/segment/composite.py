@@ -16,11 +16,13 @@ so a frame does not depend on how many others are made or in which chunks.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from silpose.shared.camera_noise import add_camera_noise
+from silpose.shared.seeds import derive_rng
 
-from .synthetic import _background, _texture
+from .synthetic import room_background, texture
 
 #: cloth colour (BGR): light orange, far from the room's greys and browns in graylevel too
 CLOTH_BGR = (70.0, 190.0, 250.0)
@@ -29,7 +31,7 @@ CLOTH_BGR = (70.0, 190.0, 250.0)
 def room(camera: int, size: tuple[int, int], seed: int = 0) -> np.ndarray:
     """Noise-free background of one camera: (H, W, 3) float32 BGR, ``size`` = (W, H)."""
     w, h = size
-    return _background(np.random.default_rng(np.random.SeedSequence([seed, camera])), h, w)
+    return room_background(derive_rng(seed, camera), h, w)
 
 
 def background_frames(camera: int, size: tuple[int, int], n: int, seed: int = 0, noise_std: float = 3.0,
@@ -37,7 +39,7 @@ def background_frames(camera: int, size: tuple[int, int], n: int, seed: int = 0,
     """``n`` empty-room frames of one camera: (n, H, W, 3) uint8 BGR."""
     clean = room(camera, size, seed)
     return np.stack([
-        add_camera_noise(clean, np.random.default_rng(np.random.SeedSequence([seed, camera, 0, b])), noise_std, flicker,
+        add_camera_noise(clean, derive_rng(seed, camera, 0, b), noise_std, flicker,
                          np.float32)
         for b in range(n)
     ])
@@ -58,13 +60,11 @@ def composite_frame(mask: np.ndarray, camera: int, frame: int, seed: int = 0, no
     -------
     (H, W, 3) uint8 BGR
     """
-    import cv2
-
     fg = np.asarray(mask).astype(bool)
     h, w = fg.shape
     if clean is None:
         clean = room(camera, (w, h), seed)
-    rng = np.random.default_rng(np.random.SeedSequence([seed, camera, 1 + int(frame)]))
+    rng = derive_rng(seed, camera, 1 + int(frame))
     img = clean.copy()
     ys, xs = np.nonzero(fg)
     if len(ys):
@@ -77,6 +77,6 @@ def composite_frame(mask: np.ndarray, camera: int, frame: int, seed: int = 0, no
         stripes = 25.0 * (np.sin(np.arange(h, dtype=np.float32) * 0.7)[:, None] > 0)
         cloth = np.empty((h, w, 3), np.float32)
         cloth[:] = CLOTH_BGR
-        cloth -= (stripes + np.abs(_texture(rng, (h, w), 1.0, 6.0)))[..., None]
+        cloth -= (stripes + np.abs(texture(rng, (h, w), 1.0, 6.0)))[..., None]
         img[fg] = cloth[fg]
     return add_camera_noise(img, rng, noise_std, flicker, np.float32)

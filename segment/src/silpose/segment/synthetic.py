@@ -126,9 +126,3 @@ def render_scene(
         masks[i] = fg
         shadows[i] = shadow
     return SyntheticScene(background, frames, masks, shadows, clean)
-
-
-# Former private names, still imported by segment/composite.py on this branch (that module moves
-# on another branch, which should import the public names above); remove once it does.
-_texture = texture
-_background = room_background
