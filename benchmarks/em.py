@@ -1,19 +1,18 @@
-"""Benchmark: MPPCA EM and conditional inference against dense references, measured in one session.
+"""MPPCA EM: time per iteration and full fit, against sklearn's GaussianMixture and the BLAS floor.
 
-    python -m silpose.model.bench_em            # paper scale: N=20,000, d=1657, q=30, M=5
-    python -m silpose.model.bench_em --quick    # small smoke version
+Section ``em`` of ``python -m benchmarks.run`` (paper scale by default: N 20,000, d 1657, q 30, M 5).
 
-EM reference: ``sklearn.mixture.GaussianMixture(covariance_type="full")`` on the same data, run for
-``gmm_iters`` iterations (its per-iteration time is read from its own verbose output; iteration 1
-includes its initialisation, so the last iteration is the pure one). Inference reference: dense
-Gaussian conditioning (d x d covariance, Cholesky of C_aa) on the same observations.
+References measured in the same process: ``sklearn.mixture.GaussianMixture(covariance_type="full")``
+on the same data, run for ``gmm_iters`` iterations (its per-iteration time is read from its own
+verbose output; iteration 1 includes its initialisation, so the last iteration is the pure one),
+and the BLAS floor of one EM iteration at these shapes (:func:`benchmarks.blas_floor.em_iteration`:
+the products X W and X^T (R Z) every exact EM iteration needs).
 Synthetic data: a mixture of M low-rank Gaussians (rank q, decaying spectrum) plus isotropic noise.
 Timings are wall-clock on a shared machine; each row says what it measured.
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import re
@@ -23,18 +22,18 @@ import tracemalloc
 import warnings
 
 import numpy as np
-from scipy.special import logsumexp
 
-from silpose.model import _ppca
-from silpose.model.conditional import Conditioner, _Params, condition
-from silpose.model.mppca import MPPCA
+from silpose.model import MPPCA
+
+from . import blas_floor
 
 
 def synthetic_mixture(n: int, d: int, q: int, m: int, seed: int = 0, noise: float = 0.05, mean_scale: float = 0.25):
     """Draw n rows from a random mixture of m rank-q Gaussians in d dims plus noise.
 
-    Returns (X (n, d), labels (n,), params) where params has weights_ (m,), means_ (m, d),
-    components_ (m, d, q) and noise_variance_ (m,). Component means are N(0, mean_scale^2) per dim
+    Returns (X (n, d), labels (n,), truth) where truth is an :class:`MPPCA` holding the generating
+    parameters (weights_ (m,), means_ (m, d), components_ (m, d, q), noise_variance_ (m,)), so
+    ``truth.score(X)`` is the data's mean log-likelihood under them. Component means are N(0, mean_scale^2) per dim
     (0.25: mean separations ~0.35 sqrt(d), 14 at d = 1657, against within-component standard
     deviations <= 3, so k-means finds the clusters; at 0.1 the components overlap and one k-means
     start lands in a far worse optimum); each W is an orthonormal d x q basis times
@@ -54,7 +53,17 @@ def synthetic_mixture(n: int, d: int, q: int, m: int, seed: int = 0, noise: floa
         sel = np.flatnonzero(labels == i)
         X[sel] = means[i] + rng.standard_normal((sel.size, q)) @ comps[i].T
     X += np.sqrt(s2[labels])[:, None] * rng.standard_normal((n, d))
-    return X, labels, _Params(weights, means, comps, s2)
+    return X, labels, mixture_with(weights, means, comps, s2)
+
+
+def mixture_with(weights: np.ndarray, means: np.ndarray, components: np.ndarray, noise_variance: np.ndarray) -> MPPCA:
+    """An :class:`MPPCA` set to the given parameters (fitted attributes set directly, no EM):
+    weights (M,), means (M, d), components (M, d, q), noise_variance (M,)."""
+    m, d, q = components.shape
+    mix = MPPCA(n_components=m, n_latent=q)
+    mix.weights_, mix.means_, mix.components_, mix.noise_variance_ = weights, means, components, noise_variance
+    mix.n_features_in_ = d
+    return mix
 
 
 class _RssSampler:
@@ -83,13 +92,19 @@ class _RssSampler:
         self.peak = max(self.peak, self._proc.memory_info().rss)
 
 
-def _row(bench, quantity, value, unit, reference=None, ratio=None, note=""):
-    return dict(bench=bench, quantity=quantity, value=value, unit=unit, reference=reference, ratio=ratio, note=note)
+def _row(bench, quantity, value, unit, reference=None, ratio=None, note="", **extra):
+    return dict(bench=bench, quantity=quantity, value=value, unit=unit, reference=reference, ratio=ratio,
+                **extra, note=note)
 
 
-def run_em_bench(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9, seed=0) -> list[dict]:
-    """Time MPPCA EM (per iteration and full fit, peak memory, held-out log-likelihood) and the
-    full-covariance GaussianMixture on the same data. Returns table rows (dicts)."""
+def run(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9, floor_repeats=3, seed=0) -> list[dict]:
+    """Time MPPCA EM (per iteration and full fit, peak memory, held-out log-likelihood), the
+    full-covariance GaussianMixture on the same data and the BLAS floor of one iteration.
+
+    Rows: bench, quantity, value, unit, reference (GaussianMixture's figure), ratio (reference / value:
+    how many times faster MPPCA is), note; the iteration row adds blas_floor_s, over_floor (value /
+    blas_floor_s) and floor_products.
+    """
     X, _, truth = synthetic_mixture(n + n // 4, d, q, m, seed=seed)
     X_train, X_test = X[:n], X[n:]
     del X
@@ -113,9 +128,8 @@ def run_em_bench(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9,
         t_fit = time.perf_counter() - t0
     _, traced_peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    ll_true = float(np.mean(logsumexp(_ppca.weighted_log_prob(X_test, truth.weights_, truth.means_,
-                                                               truth.components_, truth.noise_variance_), axis=1)))
-    ll_mppca = est.score(X_test)
+    ll_true = truth.score(X_test)
+    ll_mppca, n_iter = est.score(X_test), est.n_iter_
 
     gmm_iter, t_gmm, ll_gmm = float("nan"), float("nan"), float("nan")
     if gmm_iters > 0:
@@ -132,12 +146,16 @@ def run_em_bench(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9,
         lapses = [float(x) for x in re.findall(r"Iteration \d+\s+time lapse ([0-9.]+)s", buf.getvalue())]
         gmm_iter = lapses[-1] if len(lapses) >= 2 else t_gmm / max(gmm_iters, 1)
         ll_gmm = gmm.score(X_test)
+        del gmm
+    del X_train, X_test, est
+    floor = blas_floor.floor_columns(t_iter, blas_floor.em_iteration(n, d, m, q), floor_repeats)
     tag = f"EM N={n} d={d} q={q} M={m}"
     return [
         _row(tag, "time per EM iteration", t_iter, "s", gmm_iter, gmm_iter / t_iter,
              f"median of {iter_runs - 1} iterations (E+M step), min {t_iter_min:.3g} s (ratio "
-             f"{gmm_iter / t_iter_min:.3g}); reference = GaussianMixture(full), its last timed iteration"),
-        _row(tag, f"full fit (n_init={n_init}, {est.n_iter_} iters best run)", t_fit, "s", t_gmm, None,
+             f"{gmm_iter / t_iter_min:.3g}); reference = GaussianMixture(full), its last timed iteration",
+             **floor),
+        _row(tag, f"full fit (n_init={n_init}, {n_iter} iters best run)", t_fit, "s", t_gmm, None,
              f"reference = GaussianMixture(full) with only max_iter={gmm_iters} incl. its k-means init"),
         _row(tag, "held-out mean log-likelihood", ll_mppca, "nats/sample", ll_gmm, None,
              f"reference stopped after {gmm_iters} iterations; generating parameters give {ll_true:.4g}"),
@@ -146,99 +164,3 @@ def run_em_bench(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9,
         _row(tag, "peak traced numpy/Python memory during fit", traced_peak / 2**30, "GiB", None, None,
              "tracemalloc; includes nothing allocated before the fit"),
     ]
-
-
-def _dense_condition(params, X_obs, obs, noise):
-    """Reference: dense Gaussian conditioning per component (forms d x d covariances). Returns
-    mixture mean (N, d_miss)."""
-    d = params.means_.shape[1]
-    miss = np.setdiff1d(np.arange(d), obs)
-    logp, cm = [], []
-    for w, mu, W, s2 in zip(params.weights_, params.means_, params.components_, params.noise_variance_):
-        C = W @ W.T + s2 * np.eye(d)
-        Caa = C[np.ix_(obs, obs)] + noise * np.eye(obs.size)
-        L = np.linalg.cholesky(Caa)
-        E = X_obs - mu[obs]
-        Y = np.linalg.solve(L, E.T)
-        logp.append(np.log(w) - 0.5 * (obs.size * np.log(2 * np.pi) + 2 * np.log(np.diag(L)).sum()
-                                       + np.einsum("ij,ij->j", Y, Y)))
-        cm.append(mu[miss] + (C[np.ix_(miss, obs)] @ np.linalg.solve(L.T, Y)).T)
-    logp = np.array(logp).T
-    r = np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
-    return np.einsum("nm,mnk->nk", r, np.array(cm))
-
-
-def run_infer_bench(n=20000, d=1657, q=30, m=5, d_obs=1600, noise=0.01, n_ref=2000, n_single=300,
-                    seed=0) -> list[dict]:
-    """Conditional-inference throughput (first d_obs dims observed, e.g. 4 views x 200 points x 2,
-    the remaining joint dims missing) and single-frame latency, against dense conditioning on the
-    same observations. Uses the generating parameters of the synthetic mixture as the model."""
-    X, _, params = synthetic_mixture(n, d, q, m, seed=seed)
-    obs = np.arange(d_obs)
-    X_obs = np.ascontiguousarray(X[:, obs])
-    t0 = time.perf_counter()
-    res = condition(params, X_obs, obs, noise)
-    t_batch = time.perf_counter() - t0
-    nr = min(n_ref, n)
-    t0 = time.perf_counter()
-    ref_mean = _dense_condition(params, X_obs[:nr], obs, noise)
-    t_ref = time.perf_counter() - t0
-    err = float(np.max(np.abs(ref_mean - res.mean[:nr])))
-    prepared = Conditioner(params, obs, noise)
-    lat_full, lat_prep = [], []
-    for k in range(n_single):
-        row = X_obs[k % n : k % n + 1]
-        t0 = time.perf_counter()
-        condition(params, row, obs, noise)
-        t1 = time.perf_counter()
-        prepared(row)
-        t2 = time.perf_counter()
-        lat_full.append(t1 - t0)
-        lat_prep.append(t2 - t1)
-    tag = f"infer N={n} d={d} d_obs={d_obs} q={q} M={m}"
-    fps, fps_ref = n / t_batch, nr / t_ref
-    return [
-        _row(tag, "batched throughput", fps, "frames/s", fps_ref, fps / fps_ref,
-             f"reference = dense d x d conditioning on {nr} frames; max |mean diff| {err:.2e}"),
-        _row(tag, "single frame latency, condition()", 1e3 * float(np.median(lat_full)), "ms", None, None,
-             f"median of {n_single}, includes the q x q factorisations"),
-        _row(tag, "single frame latency, prepared Conditioner", 1e3 * float(np.median(lat_prep)), "ms", None, None,
-             f"median of {n_single}"),
-    ]
-
-
-def format_table(rows: list[dict]) -> str:
-    """Plain-text table of benchmark rows."""
-    def f(v):
-        if v is None:
-            return "-"
-        return f"{v:.4g}" if isinstance(v, float) else str(v)
-
-    head = ["bench", "quantity", "value", "unit", "reference", "ratio", "note"]
-    cells = [head] + [[f(r[h]) for h in head] for r in rows]
-    widths = [max(len(c[j]) for c in cells) for j in range(len(head))]
-    return "\n".join("  ".join(c[j].ljust(widths[j]) for j in range(len(head))) for c in cells)
-
-
-def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="small sizes (seconds)")
-    ap.add_argument("--gmm-iters", type=int, default=2, help="GaussianMixture iterations (0 = skip reference)")
-    ap.add_argument("--n-init", type=int, default=3)
-    args = ap.parse_args(argv)
-    if args.quick:
-        size = dict(n=3000, d=257, q=10, m=3)
-        rows = run_em_bench(**size, gmm_iters=args.gmm_iters, n_init=args.n_init)
-        rows += run_infer_bench(**size, d_obs=200)
-    else:
-        rows = run_em_bench(gmm_iters=args.gmm_iters, n_init=args.n_init)
-        rows += run_infer_bench()
-    import os
-
-    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    print(f"machine: {os.cpu_count()} cores, load average (1/5/15 min) at the end: {load}")
-    print(format_table(rows))
-
-
-if __name__ == "__main__":
-    main()
