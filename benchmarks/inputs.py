@@ -49,6 +49,8 @@ def make_tiny(folder: Path, with_model: bool) -> tuple[Path, Path | None]:
     ``silpose.datagen.config.load_config("smoke", ...)``, ``silpose.datagen.pipeline.generate`` and
     ``silpose.model.training.run_training``.
     """
+    # imported here: the runner and the memory section's measuring children import this module for
+    # its constants and resolve(), and must not pay for (or have their baseline RSS include) these
     from silpose.datagen.config import load_config
     from silpose.datagen.pipeline import generate
 
