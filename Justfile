@@ -44,9 +44,9 @@ frames preset="default" *args: setup
 validate dir *args: setup
     uv run --no-sync silpose validate "$@"
 
-# run every benchmark (add --quick for a one-minute version)
+# run the benchmarks in benchmarks/ into reports/bench/: just bench [--quick] [--only SECTIONS] [--set S.K=V] (see --help)
 bench *args: setup
-    uv run --no-sync silpose bench "$@"
+    uv run --no-sync python -m benchmarks.run "$@"
 
 # the whole test suite (what CI runs)
 test *args: setup

@@ -282,15 +282,3 @@ def test_eval_hook_runs_when_frames_exist_and_notes_a_skip(model_path, frames_di
     assert frames_section(ev, model, dataset, tmp_path / "c", False, None) == {}
     with pytest.raises(EvalInputError, match="not found"):
         frames_section(ev, model, dataset, tmp_path / "d", tmp_path / "nowhere", None)
-
-
-def test_frames_bench_rows_are_consistent(model_path, dataset):
-    from silpose.eval.bench_frames import format_table, run_frames_bench
-
-    rows = run_frames_bench(n_frames=3, n_background=4, data=str(dataset), model=str(model_path))
-    total = rows[-1]
-    assert total["n_steps"] == 3 and total["n_cameras"] == 4 and 0.5 < total["mean_iou"] <= 1
-    stages = rows[1:-1]
-    assert abs(sum(r["seconds"] for r in stages) - total["seconds"]) < 1e-9
-    assert abs(sum(r["share"] for r in stages) - 1.0) < 1e-9
-    assert format_table(rows).count("\n") == len(rows) + 1

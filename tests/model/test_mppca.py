@@ -191,21 +191,6 @@ def test_predict_with_wrong_feature_count_raises(mixture_data):
         est.predict(np.full((2, X.shape[1]), np.nan))
 
 
-def test_fit_on_bench_data_reaches_generating_parameters_likelihood():
-    """The benchmark's synthetic data (small version): the held-out log-likelihood of the fit is
-    within the expected optimism of a k-parameter ML fit (about k / N nats per sample, the AIC
-    argument) of that of the generating parameters; the paper-scale run is
-    ``python -m silpose.model.bench_em``."""
-    from silpose.model.bench_em import synthetic_mixture
-
-    n_train = 4000
-    X, _, truth = synthetic_mixture(n_train + 1000, 60, 4, 3, seed=3, mean_scale=1.0)
-    est = MPPCA(3, 4, random_state=0).fit(X[:n_train])
-    ll_true = np.mean(np.logaddexp.reduce(_ppca.weighted_log_prob(
-        X[n_train:], truth.weights_, truth.means_, truth.components_, truth.noise_variance_), axis=1))
-    assert abs(est.score(X[n_train:]) - ll_true) < est.n_parameters() / n_train
-
-
 def test_em_em_continues_the_best_short_run(mixture_data):
     """n_init short runs (5 iterations), then the best one continues: lower_bounds_ starts with the
     short run whose last bound was highest."""
@@ -223,17 +208,3 @@ def test_em_em_continues_the_best_short_run(mixture_data):
     np.testing.assert_array_equal(est.lower_bounds_[: len(short[winner])], short[winner])
     assert est.lower_bound_ >= max(r[-1] for r in short)
     assert [it for it, _ in seen[starts[-2]:]][-1] == est.n_iter_  # the continuation counts on
-
-
-@pytest.mark.slow
-def test_paper_scale_fit_reaches_generating_parameters_likelihood():
-    """Paper scale (N = 20,000, d = 1657, q = 30, M = 5; about a minute): same criterion as the
-    small version above."""
-    from silpose.model.bench_em import synthetic_mixture
-
-    n_train = 20000
-    X, _, truth = synthetic_mixture(n_train + 2000, 1657, 30, 5, seed=1)
-    est = MPPCA(5, 30, random_state=0).fit(X[:n_train])
-    ll_true = np.mean(np.logaddexp.reduce(_ppca.weighted_log_prob(
-        X[n_train:], truth.weights_, truth.means_, truth.components_, truth.noise_variance_), axis=1))
-    assert abs(est.score(X[n_train:]) - ll_true) < est.n_parameters() / n_train

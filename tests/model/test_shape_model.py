@@ -197,19 +197,3 @@ def test_fast_normalisation_equals_shared_contours():
     np.testing.assert_allclose(s, s_ref, atol=1e-12)
     assert s[1, 1] == 0 and np.all(q[1, 1] == 0)
     np.testing.assert_allclose(denormalise_contours(q, c, s), denormalise(q_ref, c_ref, s_ref), atol=1e-12)
-
-
-@pytest.mark.slow
-def test_paper_size_inference_matches_dense_conditioning():
-    """d = 1657, q = 30, M = 5: the fused posterior agrees with dense conditioning (bench_infer's reference)."""
-    from silpose.model.bench_infer import dense_reference, paper_size_model, sample_frames
-
-    model = paper_size_model()
-    contours = sample_frames(model, 300)
-    res = model.infer(contours)
-    observed = model.layout_.observed_mask(np.ones(4, bool))
-    _, dense = dense_reference(model, observed)
-    norm, _, _ = normalise(contours)
-    full = np.zeros((300, model.layout_.dim))
-    full[:, ~observed] = dense(norm.reshape(300, -1))
-    np.testing.assert_allclose(res.joints, model.layout_.split(full)[1], rtol=1e-7, atol=1e-10)

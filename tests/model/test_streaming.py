@@ -221,14 +221,3 @@ def test_ray_fit_equals_local_streaming_and_cli(dataset, start_params, local_ray
     assert res.exit_code == 0, res.output
     report = json.loads(out.with_suffix(".report.json").read_text())
     assert report["mode"] == {"streaming": True, "executor": "ray", "n_shards": len(SHARD_ROWS)}
-
-
-def test_bench_memory_repeats_shards_for_the_measurement_only(dataset):
-    from silpose.model.bench_memory import run_memory_bench
-
-    rows = run_memory_bench(str(dataset), repeats=(1, 2), modes=("stream",), n_components=2, n_latent=3, max_iter=1)
-    assert [(r["mode"], r["repeat"], r["n_rows"]) for r in rows] == [("stream", 1, 100), ("stream", 2, 200)]
-    assert all(r["peak_mb"] >= r["baseline_mb"] > 0 and r["shard_rows"] == max(SHARD_ROWS) for r in rows)
-    assert run_memory_bench(str(dataset / "absent"), missing_ok=True)[0]["mode"] == "not measured"
-    with pytest.raises(FileNotFoundError, match="absent"):
-        run_memory_bench(str(dataset / "absent"))

@@ -4,10 +4,12 @@
 >>> mask = model.segment(frame)                           # (H, W) bool, one frame at a time
 >>> masks = model.segment_batch(frames)                   # (M, H, W) bool
 
-Modules: :mod:`.background` (the model), :mod:`.validate` (input checks, :class:`SegmentError`), :mod:`.ncc` (local normalised correlation with box
-filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.loaders` (image folders and
-videos), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput), :mod:`.evaluate_frames` (IoU on a
-rendered frames dataset with truth).
+Modules: :mod:`.background` (the model), :mod:`.validate` (input checks,
+:class:`SegmentError`), :mod:`.ncc` (local normalised correlation with box
+filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median,
+open/close, largest blob), :mod:`.loaders` (image folders and videos), :mod:`.synthetic` (scenes
+with known masks), :mod:`.evaluate_frames` (IoU on a rendered frames dataset with truth). The
+throughput benchmark is ``benchmarks/segmentation.py`` at the repository root.
 """
 
 from .validate import SegmentError

@@ -1,23 +1,21 @@
 """Render benchmark: samples/s per process for each renderer, on all cores, and worker memory.
 
-Every measurement runs in SPAWNED worker processes (this process never imports bpy), on the
-default rig (4 views, 320x240). Usage::
-
-    python -m silpose.datagen.bench                # 200 samples per renderer, 1,000 for memory
-    python -m silpose.datagen.bench --quick        # a smaller version (~1 minute)
-
-Timings are wall-clock and depend on the machine's load; the ratios (raster vs blender,
+Section ``generation`` of ``python -m benchmarks.run``. Every measurement runs in SPAWNED worker
+processes (this process never imports bpy), on the default rig (4 views, 320x240), through the
+generator's worker entry point ``silpose.datagen.worker.render_samples``. Timings are wall-clock
+and depend on the machine's load; the ratios (Blender's own render vs the raster renderer,
 measured in the same run) are the figures to compare.
 """
 
 from __future__ import annotations
 
-import argparse
 import multiprocessing as mp
 import os
-import platform
 import time
 
+import psutil
+
+from silpose.datagen.worker import render_samples
 from silpose.shared.camera import default_rig
 
 RENDERERS = ("raster", "blender")
@@ -42,10 +40,6 @@ def _worker_run(config: dict, split: str, start: int, n_samples: int, shard_size
         dict with ``n``, ``seconds`` (rendering only, after the warm-up shard), ``rss_mb``
         (RSS after the warm-up and after every shard, MiB), ``redraws``.
     """
-    import psutil
-
-    from .worker import render_samples
-
     proc = psutil.Process(os.getpid())
     if warmup:
         render_samples(config, split, list(range(start - warmup, start)))
@@ -72,7 +66,7 @@ def _run_pool(config: dict, n_samples: int, processes: int, shard_size: int, war
         return [j.get() for j in jobs]
 
 
-def run_render_bench(
+def run(
     n_samples: int = 200,
     renderers: tuple[str, ...] = RENDERERS,
     engine: str = "workbench",
@@ -140,47 +134,3 @@ def run_render_bench(
             }
         )
     return rows
-
-
-def format_table(rows: list[dict]) -> str:
-    """Markdown table of :func:`run_render_bench` rows."""
-    head = "| run | samples | s | samples/s | ms/sample/process | RSS start MiB | RSS growth MiB | raster speed-up |"
-    lines = [head, "|" + "---|" * 8]
-    for r in rows:
-        speed = f"{r['raster_speedup']:.1f}x" if "raster_speedup" in r else ""
-        lines.append(
-            f"| {r['name']} | {r['samples']} | {r['seconds']:.1f} | {r['samples_per_s']:.1f} | "
-            f"{r['ms_per_sample']:.1f} | {r['rss_start_mb']:.0f} | {r['rss_growth_mb']:+.1f} | {speed} |"
-        )
-    return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m silpose.datagen.bench", description=__doc__.split("\n")[0])
-    ap.add_argument("--samples", type=int, default=200, help="samples per renderer (speed)")
-    ap.add_argument("--memory-samples", type=int, default=1000, help="samples for the RSS run (0: skip)")
-    ap.add_argument("--renderers", default="raster,blender", help="comma-separated: raster,blender")
-    ap.add_argument("--engine", default="workbench", choices=("workbench", "cycles"))
-    ap.add_argument("--processes", type=int, default=None, help="worker processes for the all-cores run")
-    ap.add_argument("--quick", action="store_true", help="40 samples per renderer, 200 for memory")
-    args = ap.parse_args(argv)
-    if args.quick:
-        args.samples, args.memory_samples = 40, 200
-    rows = run_render_bench(
-        n_samples=args.samples,
-        renderers=tuple(args.renderers.split(",")),
-        engine=args.engine,
-        processes=args.processes,
-        memory_samples=args.memory_samples,
-    )
-    load = os.getloadavg() if hasattr(os, "getloadavg") else ("?",)
-    print(f"render benchmark: default rig (4 views, 320x240), {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} cores, load average after run {load[0]:.2f}")
-    print(format_table(rows))
-    for r in rows:
-        if "rss_curve_mb" in r:
-            print(f"RSS over {r['samples']} samples (MiB, per shard): {r['rss_curve_mb']}")
-
-
-if __name__ == "__main__":
-    main()

@@ -5,34 +5,32 @@ folder with :func:`silpose.datagen.pipeline.generate` -- shards, manifest, resum
 and reports samples/s; the Ray run starts (and stops) a local Ray instance with the same number of
 CPUs, so its startup cost is part of the figure, as it is for a user. The Ray row's ratio is against
 the local run measured in the same call. Both datasets' arrays are compared: they must be identical.
-
-    python -m silpose.datagen.bench_pipeline [--samples N] [--workers W] [--executors local,ray]
+Section ``pipeline`` of ``python -m benchmarks.run``.
 """
 
 from __future__ import annotations
 
-import argparse
+import os
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
+from silpose.datagen.config import load_config
+from silpose.datagen.pipeline import generate
+from silpose.shared.dataset import load_split
+
 
 def _arrays(root: Path):
-    from silpose.shared.dataset import load_split
-
     s = load_split(root, "train")
     return s.sample_id, s.joints, s.contours
 
 
-def run_pipeline_bench(n_samples: int = 400, workers: int = 2, executors=("local", "ray"), preset: str = "default",
-                       shard_size: int = 50) -> list[dict]:
+def run(n_samples: int = 400, workers: int = 2, executors=("local", "ray"), preset: str = "default",
+        shard_size: int = 50) -> list[dict]:
     """Rows ``{"name", "executor", "workers", "samples", "seconds", "samples_per_s", "identical_to_local"}``
     (Ray rows add ``"vs_local"``: samples/s ratio against the local run)."""
-    import numpy as np
-
-    from .config import load_config
-    from .pipeline import generate
-
     config = load_config(preset, shard_size=shard_size, splits={"train": int(n_samples), "test": 0})
     rows, ref = [], None
     with tempfile.TemporaryDirectory(prefix="silpose-bench-gen-") as tmp:
@@ -40,8 +38,6 @@ def run_pipeline_bench(n_samples: int = 400, workers: int = 2, executors=("local
             out = Path(tmp) / ex
             t0 = time.perf_counter()
             if ex == "ray":
-                import os
-
                 os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
                 import ray
 
@@ -64,19 +60,3 @@ def run_pipeline_bench(n_samples: int = 400, workers: int = 2, executors=("local
         if local is not None and r is not local:
             r["vs_local"] = r["samples_per_s"] / local["samples_per_s"]
     return rows
-
-
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m silpose.datagen.bench_pipeline", description=__doc__.split("\n")[0])
-    ap.add_argument("--samples", type=int, default=400, help="training samples to generate per run")
-    ap.add_argument("--workers", type=int, default=2, help="worker processes / Ray CPUs")
-    ap.add_argument("--executors", default="local,ray", help="comma-separated: local,ray")
-    args = ap.parse_args(argv)
-    for r in run_pipeline_bench(args.samples, args.workers, tuple(args.executors.split(","))):
-        extra = f", {r['vs_local']:.2f}x local" if "vs_local" in r else ""
-        print(f"{r['name']}: {r['samples']} samples in {r['seconds']:.1f} s = {r['samples_per_s']:.1f}/s{extra}"
-              f"{'' if r['identical_to_local'] is None else ', identical to local: ' + str(r['identical_to_local'])}")
-
-
-if __name__ == "__main__":
-    main()

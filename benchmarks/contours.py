@@ -1,23 +1,22 @@
-"""Benchmark of contour extraction on 4-view 320x240 silhouettes (the default rig).
+"""Contour extraction on 4-view 320x240 silhouettes (the default rig), against ``cv2.findContours``.
 
-Run: ``uv run --frozen python -m silpose.shared.bench_contours [--samples N]``.
-
-Silhouettes are a thick stick figure (19 joints of a standing pose, limbs drawn 9-14 px wide with
-OpenCV) seen by the default rig, at random positions in the workspace. Prints, per sample of 4
-views, the time of :func:`extract_contours` next to the OpenCV calls it is built on, as ratios to
-``cv2.findContours`` measured in the same process (timings are noisy on a shared machine).
+Section ``contours`` of ``python -m benchmarks.run``. Silhouettes are a thick stick figure (19
+joints of a standing pose, limbs drawn 9-14 px wide with OpenCV) seen by the default rig, at random
+positions in the workspace. Rows: per sample of 4 views, the time of
+:func:`silpose.shared.contours.extract_contours` next to the OpenCV calls it is built on, as ratios
+to ``cv2.findContours`` measured in the same process (timings are noisy on a shared machine).
 """
 
 from __future__ import annotations
 
-import argparse
 import time
 
+import cv2
 import numpy as np
 
-from .camera import default_rig
-from .contours import extract_contours
-from .skeleton import BONES, JOINT_INDEX
+from silpose.shared.camera import default_rig
+from silpose.shared.contours import extract_contours
+from silpose.shared.skeleton import BONES, JOINT_INDEX
 
 # A standing pose, metres, pelvis at 0.95 m (x forward, y left, z up).
 _POSE = {
@@ -32,8 +31,6 @@ _POSE = {
 
 def stick_masks(n_samples: int, seed: int = 0) -> np.ndarray:
     """(n_samples, 4, 240, 320) uint8 silhouettes of the stick figure at random workspace positions."""
-    import cv2
-
     rig = default_rig()
     joints = np.array([_POSE[name] for name in sorted(JOINT_INDEX, key=JOINT_INDEX.get)], float)
     rng = np.random.default_rng(seed)
@@ -62,13 +59,11 @@ def _time(fn, masks: np.ndarray, repeats: int = 3) -> float:
     return best
 
 
-def main(argv: list[str] | None = None) -> None:
-    import cv2
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--samples", type=int, default=200)
-    args = parser.parse_args(argv)
-    masks = stick_masks(args.samples)
+def run(n_samples: int = 200, repeats: int = 3, n_points: int = 200, seed: int = 0) -> list[dict]:
+    """Rows ``{"stage", "samples", "ms_per_sample", "ratio_to_findcontours"}`` (best of ``repeats``
+    mean times per sample of 4 views; ratio = ms_per_sample / that of the cv2.findContours row, the
+    first), the extract_contours row adding the raw contour length (median, min, max px, first 50 samples)."""
+    masks = stick_masks(n_samples, seed)
 
     def find(sample):
         for m in sample:
@@ -78,20 +73,15 @@ def main(argv: list[str] | None = None) -> None:
         for m in sample:
             cv2.connectedComponentsWithStats(m, connectivity=8)
 
-    rows = [
-        ("cv2.findContours (reference)", _time(find, masks)),
-        ("cv2.connectedComponentsWithStats", _time(components, masks)),
-        ("extract_contours, n=200", _time(lambda s: extract_contours(s, 200), masks)),
+    timed = [
+        ("cv2.findContours (reference)", _time(find, masks, repeats)),
+        ("cv2.connectedComponentsWithStats", _time(components, masks, repeats)),
+        (f"extract_contours, n={n_points}", _time(lambda s: extract_contours(s, n_points), masks, repeats)),
     ]
-    ref = rows[0][1]
+    ref = timed[0][1]
+    rows = [{"stage": name, "samples": n_samples, "ms_per_sample": 1e3 * sec, "ratio_to_findcontours": sec / ref}
+            for name, sec in timed]
     lengths = np.concatenate([extract_contours(s)["length"] for s in masks[:50]])
-    print(f"{args.samples} samples x 4 views, 320x240, stick-figure silhouettes; cv2 threads: {cv2.getNumThreads()}")
-    print("| stage | ms per sample (4 views) | ratio to findContours |")
-    print("|---|---:|---:|")
-    for name, sec in rows:
-        print(f"| {name} | {sec * 1e3:.3f} | {sec / ref:.1f} |")
-    print(f"raw contour length: median {np.median(lengths):.0f} px (min {lengths.min():.0f}, max {lengths.max():.0f})")
-
-
-if __name__ == "__main__":
-    main()
+    rows[-1].update(contour_px_median=float(np.median(lengths)), contour_px_min=float(lengths.min()),
+                    contour_px_max=float(lengths.max()), cv2_threads=cv2.getNumThreads())
+    return rows
