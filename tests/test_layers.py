@@ -223,8 +223,6 @@ def test_no_upward_imports(graph):
     assert not bad, "imports of a higher or sibling layer:\n" + "\n".join(bad)
 
 
-@pytest.mark.xfail(strict=False, reason="benchmarks move to benchmarks/ on the benchmarks helper's branch "
-                                        "(w9-bench); remove this marker once it is merged")
 def test_no_benchmark_modules_in_installed_packages():
     found = benchmark_modules(REPO)
     assert not found, "benchmarks belong in benchmarks/, not in installed packages:\n" + "\n".join(found)
