@@ -37,8 +37,11 @@ def gen(
     from silpose.shared.camera import RigError
     from silpose.shared.dataset import DatasetError
 
+    from .bvh_check import BvhError
+    from .clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
+    from .joint_maps import JointMapError
     from .manifest import LockError
     from .pipeline import generate
     from .shards import GenerationError
@@ -55,7 +58,8 @@ def gen(
         target = out if out is not None else Path("data") / config.name
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
-    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
+    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, BvhError, ClipError,
+            JointMapError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)
