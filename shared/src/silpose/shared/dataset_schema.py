@@ -11,7 +11,7 @@ column                        Arrow type                                  meanin
 ``seed``                      int64                                       dataset seed
 ``redraws``                   int32                                       rejected draws before it
 ``subject``                   struct<name: float32, ...>                  body proportions
-``gait``                      struct<name: float32, ...>                  walk-cycle parameters
+``gait``                      struct<name: float32, ...>                  motion parameters
 ``joints``                    fixed_shape_tensor<float32>[19, 3]          world, metres
 ``masks``                     fixed_shape_tensor<uint8>[K, H, W]          silhouettes, 0/1
 ``contours``                  fixed_shape_tensor<float32>[K, n, 2]        pixels (x right, y down)
