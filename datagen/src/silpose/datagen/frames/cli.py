@@ -37,8 +37,11 @@ def gen_frames(
     from silpose.shared.camera import RigError
     from silpose.shared.dataset import DatasetError
 
+    from ..bvh_check import BvhError
+    from ..clips import ClipError
     from ..config import ConfigError
     from ..executor import ExecutorError
+    from ..joint_maps import JointMapError
     from ..manifest import LockError
     from ..shards import GenerationError
     from .config import load_frames_config
@@ -48,7 +51,8 @@ def gen_frames(
         config, fcfg = load_frames_config(preset, samples=samples, background=background)
         target = out if out is not None else Path("data") / config.name / "frames"
         summary = generate_frames(config, fcfg, target, workers=workers, progress=progress)
-    except (ConfigError, FramesError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
+    except (ConfigError, FramesError, GenerationError, LockError, DatasetError, ExecutorError, RigError, BvhError,
+            ClipError, JointMapError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         _fail("interrupted; rerun the same command to resume", 130)
