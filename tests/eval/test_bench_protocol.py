@@ -6,7 +6,7 @@ import pytest
 
 from silpose.eval import bench
 from silpose.eval.bench_protocol import run_protocol_bench
-from silpose.model.training import run_training
+from silpose.app.training import run_training
 
 
 @pytest.mark.filterwarnings("ignore:MPPCA. EM did not converge")

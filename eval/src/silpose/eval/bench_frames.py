@@ -34,7 +34,7 @@ def run_frames_bench(n_frames: int = 200, n_background: int = 50, data: str = "d
     import cv2
     import numpy as np
 
-    from silpose.model.frames_io import run_frames_pipeline
+    from silpose.app.frames_pipeline import run_frames_pipeline
     from silpose.model.persistence import load_model
     from silpose.shared.dataset import load_split
 

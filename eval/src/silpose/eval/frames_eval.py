@@ -44,7 +44,7 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
     pose_cm / chamfer_px (dicts "segmented" / "true" -> (N,)), n_views (dict -> (N,)), status (N, K),
     masks_packed (list of per-frame packed masks), pipeline (FramesResult), timings.
     """
-    from silpose.model.frames_io import run_frames_pipeline
+    from silpose.app.frames_pipeline import run_frames_pipeline
     from silpose.shared.dataset import DatasetError, load_split
 
     from silpose.shared.metrics import chamfer_errors, place_contours, pose_error_cm
@@ -161,8 +161,8 @@ def plot_frames(ev: dict, path) -> Path:
 
 def example_overlay(ev: dict, model, frames_dir, path) -> Path | None:
     """Paper Fig. 9-style figure of the frame whose segmented pose error is nearest the median."""
-    from silpose.model.frames_io import open_frames
-    from silpose.model.frames_overlay import overlay_figure
+    from silpose.app.inputs.frames_folder import open_frames
+    from silpose.app.overlays import overlay_figure
 
     pose = ev["pose_cm"]["segmented"]
     if not np.isfinite(pose).any():

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from silpose.model import _ppca
-from silpose.model.conditional import Conditioner, _Params, condition
+from silpose.model.conditioning import Conditioner, MixtureParams as _Params, condition
 from silpose.model.mppca import MPPCA
 
 

@@ -45,7 +45,7 @@ def measure(mode: str, data: str, repeat: int, n_components: int, n_latent: int,
 
     from silpose.shared.dataset import load_split
     from silpose.model.shape_model import ShapeStructureModel
-    from silpose.model.streaming import DatasetShards, fit_model_shards
+    from silpose.model.streaming import DatasetShards
 
     warnings.simplefilter("ignore", ConvergenceWarning)
     plan = DatasetShards.open(data, "train")
@@ -59,7 +59,7 @@ def measure(mode: str, data: str, repeat: int, n_components: int, n_latent: int,
             c, j = np.concatenate([c] * repeat), np.concatenate([j] * repeat)
         model.fit(c, j, rig=split.rig)
     elif mode == "stream":
-        fit_model_shards(model, _repeated(plan, repeat))
+        model.fit_shards(_repeated(plan, repeat))
     else:
         raise ValueError(f"mode must be 'memory' or 'stream', got {mode!r}")
     seconds = time.perf_counter() - t0

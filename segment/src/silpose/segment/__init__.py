@@ -5,13 +5,12 @@
 >>> masks = model.segment_batch(frames)                   # (M, H, W) bool
 
 Modules: :mod:`.background` (the model), :mod:`.ncc` (local normalised correlation with box
-filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median, open/close, largest blob), :mod:`.loaders` (image folders and
-videos), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput), :mod:`.evaluate_frames` (IoU on a
-rendered frames dataset with truth).
+filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median,
+open/close, largest blob), :mod:`.synthetic` (scenes with known masks), :mod:`.bench` (throughput).
+A library on arrays: reading image folders, videos and frames folders is ``silpose.app.inputs``.
 """
 
 from ._validate import SegmentError
 from .background import STAGES, BackgroundModel
-from .loaders import load_frames, load_video
 
-__all__ = ["STAGES", "BackgroundModel", "SegmentError", "load_frames", "load_video"]
+__all__ = ["STAGES", "BackgroundModel", "SegmentError"]
