@@ -13,7 +13,7 @@ below are part of the data format (changing one changes every dataset or report 
 | camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | camera sensor noise and flicker of rendered frames |
 | eval noise | ``seed, stream_code(name), sample_id`` | eval: contour / mask noise of one test sample, one stream per noise type |
 | chance baseline | ``random_state, CHANCE_STREAM`` | eval: random training poses |
-| validation split | ``seed, VALIDATION_STREAM`` | model selection: train / validation permutation |
+| validation split | ``seed, VALIDATION_STREAM`` | ``silpose.model.selection.validation_split``: the train / validation permutation of model selection and the held-out part of ``silpose train`` |
 | synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
 | synthetic scene | ``seed, camera`` (room), ``seed, camera, 0, b`` (background frame b), ``seed, camera, 1 + frame`` (frame) | segment.composite test scenes |
 
