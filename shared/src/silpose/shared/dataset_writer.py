@@ -44,8 +44,38 @@ def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
     if not records:
         raise DatasetError(f"{path}: no records to write")
     table = records_to_table(records, metadata, source=str(path))
+    leaves = parquet_leaves(table.schema)
     with atomic_path(path, mkdir=False) as tmp:
-        pq.write_table(table, tmp, compression="zstd", row_group_size=len(records), write_page_checksum=True)
+        pq.write_table(
+            table, tmp, compression="zstd", row_group_size=len(records), write_page_checksum=True,
+            use_byte_stream_split=[p for p, typ in leaves if pa.types.is_floating(typ)],
+            use_dictionary=[p for p, typ in leaves if not pa.types.is_floating(typ) and not p.startswith("masks.")],
+        )
+
+
+def parquet_leaves(schema: pa.Schema) -> list[tuple[str, pa.DataType]]:
+    """``(Parquet column path, Arrow leaf type)`` of every leaf column of ``schema``, e.g.
+    ``("contours.list.element.list.element.list.element", float32)``, ``("subject.height", float32)``.
+
+    Floats are written with BYTE_STREAM_SPLIT (43 % smaller contours than dictionary/plain and
+    faster to decode); PNG masks without a dictionary (every file is unique).
+    """
+    out = []
+
+    def walk(path: str, typ: pa.DataType) -> None:
+        if pa.types.is_struct(typ):
+            for j in range(typ.num_fields):
+                walk(f"{path}.{typ.field(j).name}", typ.field(j).type)
+        elif pa.types.is_fixed_size_list(typ) or pa.types.is_list(typ):
+            walk(f"{path}.list.element", typ.value_type)
+        elif isinstance(typ, pa.ExtensionType):
+            walk(path, typ.storage_type)
+        else:
+            out.append((path, typ))
+
+    for field in schema:
+        walk(field.name, field.type)
+    return out
 
 
 def records_to_table(records: list[dict], metadata: dict, source: str = "records") -> pa.Table:
