@@ -72,6 +72,13 @@ def test_round_trip_values_types_and_metadata(tmp_path, metadata):
         == [K, NPTS, 2]
     assert contours_type.value_type.value_type.value_type == pa.float32()
     assert pq.ParquetFile(path).metadata.row_group(0).column(0).compression == "ZSTD"
+    rg = pq.ParquetFile(path).metadata.row_group(0)
+    encodings = {rg.column(j).path_in_schema: rg.column(j).encodings for j in range(rg.num_columns)}
+    assert "BYTE_STREAM_SPLIT" in encodings["contours.list.element.list.element.list.element"]
+    assert "BYTE_STREAM_SPLIT" in encodings["joints.list.element.list.element"]
+    assert "BYTE_STREAM_SPLIT" in encodings["gait.stride"]
+    assert "RLE_DICTIONARY" not in encodings["masks.list.element.bytes"]
+    assert "RLE_DICTIONARY" in encodings["split"]
     assert read_metadata(path) == json.loads(json.dumps(metadata))
     s = read_shard(path, with_masks=True)
     np.testing.assert_array_equal(s.sample_id, np.arange(5))
