@@ -2,9 +2,11 @@
 
 A mask is an (H, W) uint8 array of 0/1 (1 = person). It is stored losslessly as a 1-bit greyscale
 PNG (OpenCV ``IMWRITE_PNG_BILEVEL``, zlib level 6), so image viewers and Hugging Face's dataset
-viewer show it as a black-and-white picture. Measured on the default preset's raster masks
-(4 x 320x240 per sample): ~1.3 KB of PNG per sample (~1.1 KB after the shard's zstd), ~0.5 ms to
-encode and ~0.4 ms to decode the four views.
+viewer show it as a black-and-white picture. Measured on the default preset (2,500 samples, 4 x
+320x240 raster masks each, 2 cores): ~1.3 KB of PNG per sample (~1.1 KB after the shard's zstd);
+``load_split(..., columns=["masks"])`` takes 0.46 ms per sample (format 1's uint8 tensor column:
+2.2 ms, its list levels are slow to decode), and a whole shard is written in 0.7 ms per sample
+(format 1: 3.6 ms) and is 35 % smaller (5.8 KB per sample, floats byte-stream-split).
 
 Decoding accepts any single-channel PNG of the right size (1-bit as written here, or an 8-bit
 0/1 or 0/255 image from another tool): every nonzero pixel is foreground.
