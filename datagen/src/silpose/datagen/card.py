@@ -2,7 +2,8 @@
 
 It documents the files, the schema, units and conventions, the camera rig, the subject and gait
 distributions (documented and as measured), how to load the data with pyarrow, pandas, DuckDB,
-Polars, Hugging Face ``datasets`` and silpose, and embeds the preview contact sheet.
+Polars, Hugging Face ``datasets`` and silpose, embeds the preview contact sheet, and carries the
+license (CC BY 4.0), Hugging Face task and size categories and the paper's BibTeX.
 """
 
 from __future__ import annotations

@@ -224,9 +224,14 @@ def _nested_to_numpy(chunk: pa.FixedSizeListArray, name: str, row_shape, source:
     return leaf.to_numpy(zero_copy_only=False).reshape(len(chunk), *sizes)
 
 
-def _decode_images(images: pa.StructArray, lead: tuple[int, ...], size: tuple[int, int], name: str, source: str) -> np.ndarray:
-    """``lead`` + ``size`` uint8 0/1 array from a struct array of PNG files ``{bytes, path}``."""
+def _decode_images(
+    images: pa.StructArray, lead: tuple[int, ...], size: tuple[int, int], name: str, source: str
+) -> np.ndarray:
+    """``lead`` + ``size`` (e.g. (N, K) + (H, W)) uint8 0/1 array from a struct array of N*K PNG files
+    ``{bytes, path}``, decoded straight from the Arrow buffers (no Python bytes objects)."""
     blobs = images.field("bytes")
+    if len(blobs) == 0:
+        return np.empty((*lead, *size), np.uint8)
     if blobs.null_count:
         raise DatasetError(f"{source}: column {name!r}: {blobs.null_count} image(s) without bytes")
     offsets = np.frombuffer(blobs.buffers()[1], np.int32, count=len(blobs) + 1, offset=4 * blobs.offset)
