@@ -24,7 +24,7 @@ import numpy as np
 
 from silpose.eval.frames_composite import write_composite_frames
 from silpose.model import load_model
-from silpose.model.frames_io import run_frames_pipeline
+from silpose.app.frames_pipeline import run_frames_pipeline
 from silpose.shared.dataset import load_split
 from silpose.shared.metrics import mask_iou, pose_error_cm
 

@@ -47,7 +47,7 @@ def make_tiny(folder: Path, with_model: bool) -> tuple[Path, Path | None]:
 
     Returns (dataset folder, model file or None). Uses the public generator and trainer:
     ``silpose.datagen.config.load_config("smoke", ...)``, ``silpose.datagen.pipeline.generate`` and
-    ``silpose.model.training.run_training``.
+    ``silpose.app.training.run_training``.
     """
     # imported here: the runner and the memory section's measuring children import this module for
     # its constants and resolve(), and must not pay for (or have their baseline RSS include) these
@@ -60,7 +60,7 @@ def make_tiny(folder: Path, with_model: bool) -> tuple[Path, Path | None]:
         generate(config, data, workers=1, progress=False)
         done.touch()
     if with_model and not model.is_file():
-        from silpose.model.training import run_training
+        from silpose.app.training import run_training
 
         run_training(str(data), out=model, progress=False, **TINY_MODEL)
     return data, (model if with_model else None)

@@ -42,7 +42,7 @@ def measure(mode: str, data: str, repeat: int, n_components: int, n_latent: int,
     from sklearn.exceptions import ConvergenceWarning
 
     from silpose.model import ShapeStructureModel
-    from silpose.model.streaming import DatasetShards, fit_model_shards
+    from silpose.model.streaming import DatasetShards
     from silpose.shared.dataset import load_split
 
     warnings.simplefilter("ignore", ConvergenceWarning)
@@ -57,7 +57,7 @@ def measure(mode: str, data: str, repeat: int, n_components: int, n_latent: int,
             c, j = np.concatenate([c] * repeat), np.concatenate([j] * repeat)
         model.fit(c, j, rig=split.rig)
     elif mode == "stream":
-        fit_model_shards(model, _repeated(plan, repeat))
+        model.fit_shards(_repeated(plan, repeat))
     else:
         raise ValueError(f"mode must be 'memory' or 'stream', got {mode!r}")
     seconds = time.perf_counter() - t0

@@ -1,14 +1,14 @@
-"""Blender isolation: shared, model, eval and the ``silpose`` command never import bpy.
+"""Blender isolation: shared, model, segment, app, eval and the ``silpose`` command never import bpy.
 
 Two proofs:
 
 (a) In this environment (where bpy IS installed) a meta-path finder makes any ``import bpy``
-    fail and logs who tried. Every module of silpose.shared, .model, .eval and .segment is
+    fail and logs who tried. Every module of silpose.shared, .model, .segment, .app and .eval is
     imported in a subprocess, and ``silpose --help`` / ``silpose <cmd> --help`` run for every
     registered command with the blocker installed through a ``sitecustomize`` module. A command
     whose module does not exist yet makes its test fail, on purpose.
 (b) A fresh virtual environment holding only ./shared and ./model (built by ``uv``) imports them
-    with no bpy anywhere on its path.
+    with no bpy anywhere on its path (and without segment, app or eval: the model is a library).
 """
 
 from __future__ import annotations
@@ -26,8 +26,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 ENTRY_POINT_GROUP = "silpose.commands"
-#: Everything on the inference side of the data flow (docs/conventions.md, "Layers"); segment = background subtraction.
-CHECKED_PACKAGES = ("silpose.shared", "silpose.model", "silpose.eval", "silpose.segment")
+#: Everything on the inference side of the data flow (docs/conventions.md, "Layers"); segment = background
+#: subtraction, app = the train / infer workflows.
+CHECKED_PACKAGES = ("silpose.shared", "silpose.model", "silpose.segment", "silpose.app", "silpose.eval")
 
 BLOCKER = textwrap.dedent(
     '''
@@ -178,6 +179,8 @@ CHECK_VENV = textwrap.dedent(
         "bpy_spec": repr(importlib.util.find_spec("bpy")),
         "datagen_spec": repr(importlib.util.find_spec("silpose.datagen")),
         "eval_spec": repr(importlib.util.find_spec("silpose.eval")),
+        "segment_spec": repr(importlib.util.find_spec("silpose.segment")),
+        "app_spec": repr(importlib.util.find_spec("silpose.app")),
         "camera_file": silpose.shared.camera.__file__,
         "prefix": sys.prefix,
         "modules": mods,
@@ -220,6 +223,8 @@ def test_fresh_venv_with_shared_and_model_has_no_bpy(tmp_path):
     assert Path(res["prefix"]).resolve() == venv.resolve()
     assert Path(res["camera_file"]).resolve().is_relative_to(venv.resolve())
     assert res["datagen_spec"] == "None" and res["eval_spec"] == "None"
+    assert res["segment_spec"] == "None" and res["app_spec"] == "None"
     assert not res["failed"], f"modules failed to import in the bpy-free venv: {res['failed']}"
     assert res["contour_points"] == 16 and res["rig_cameras"] == 4
     assert "silpose.shared.contours" in res["modules"]
+    assert {"silpose.model.shape_model", "silpose.model.conditioning", "silpose.model.persistence"} <= set(res["modules"])

@@ -78,7 +78,7 @@ def _kill_while_saving(path, min_saves: int):
     deadline = time.monotonic() + 120
     try:
         while proc.poll() is None and time.monotonic() < deadline:
-            if sum(l.startswith("saved") for l in list(lines)) >= min_saves and list(path.parent.glob(f".{path.name}.tmp-*")):
+            if sum(l.startswith("saved") for l in list(lines)) >= min_saves and list(path.parent.glob(f".{path.name}.*.tmp")):
                 break
             time.sleep(0.0005)
         os.kill(proc.pid, signal.SIGKILL)
@@ -87,7 +87,7 @@ def _kill_while_saving(path, min_saves: int):
         proc.wait()
         reader.join(5)
     assert proc.returncode == -signal.SIGKILL, proc.stderr.read()[-2000:]
-    return [l.split() for l in lines], sorted(path.parent.glob(f".{path.name}.tmp-*"))
+    return [l.split() for l in lines], sorted(path.parent.glob(f".{path.name}.*.tmp"))
 
 
 @pytest.mark.parametrize("min_saves", [0, 3])

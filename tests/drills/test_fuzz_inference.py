@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import array_shapes, arrays
 
-from silpose.model.conditional import condition, condition_rows
+from silpose.model.conditioning import condition, condition_rows
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.dataset import load_split
 

@@ -20,8 +20,9 @@ import pytest
 from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
+from silpose.app.inputs.images import load_frames
 from silpose.model.persistence import load_model
-from silpose.segment import BackgroundModel, load_frames
+from silpose.segment import BackgroundModel
 from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
 from silpose.shared.contours import EmptyMaskError, extract_contour
@@ -71,7 +72,7 @@ def _joints(path):
 
 
 def _reference(model, frames, drop=()):
-    """Joints by hand: fit, segment, extract, infer (independent of silpose.model.frames_io)."""
+    """Joints by hand: fit, segment, extract, infer (independent of silpose.app.frames_pipeline)."""
     names = list(model.rig_.names)
     cont = np.full((N_TEST, len(names), N_POINTS, 2), np.nan)
     present = np.zeros((N_TEST, len(names)), bool)

@@ -8,7 +8,7 @@ import pytest
 from silpose.eval.run import match_training_subset, load_data
 from silpose.model.persistence import load_model
 from silpose.model.shape_model import ShapeStructureModel
-from silpose.model.training import run_training
+from silpose.app.training import run_training
 
 
 @pytest.mark.filterwarnings("ignore:MPPCA. EM did not converge")

@@ -1,11 +1,10 @@
-"""Conditional inference: equals dense Gaussian conditioning; marginalises missing dims."""
+"""Conditional inference (silpose.model.conditioning): equals dense Gaussian conditioning (the
+``dense_reference`` fixture, tests/model/conftest.py); marginalises missing dims."""
 
 import numpy as np
 import pytest
-from scipy.special import logsumexp
-from scipy.stats import multivariate_normal
 
-from silpose.model.conditional import ConditionalResult, Conditioner, condition, condition_rows
+from silpose.model.conditioning import MixtureParams, Posterior, Conditioner, condition, condition_rows
 from silpose.model.mppca import MPPCA
 
 
@@ -17,34 +16,9 @@ class Params:
         self.noise_variance_ = rng.uniform(0.1, 0.5, m)
 
 
-def _dense_reference(p, X_obs, obs, noise):
-    """Brute force: dense joint covariance per component, conditioned with np.linalg.solve."""
-    d = p.means_.shape[1]
-    miss = np.setdiff1d(np.arange(d), obs)
-    noise = np.broadcast_to(np.asarray(noise, float), (obs.size,))
-    logp, cmeans, ccovs = [], [], []
-    for w, mu, W, s2 in zip(p.weights_, p.means_, p.components_, p.noise_variance_):
-        C = W @ W.T + s2 * np.eye(d)
-        Caa = C[np.ix_(obs, obs)] + np.diag(noise)
-        Cba = C[np.ix_(miss, obs)]
-        logp.append(np.log(w) + multivariate_normal(mu[obs], Caa).logpdf(X_obs).reshape(-1))
-        cmeans.append(mu[miss] + np.linalg.solve(Caa, (X_obs - mu[obs]).T).T @ Cba.T)
-        ccovs.append(C[np.ix_(miss, miss)] - Cba @ np.linalg.solve(Caa, Cba.T))
-    logp = np.array(logp).T
-    log_marg = logsumexp(logp, axis=1)
-    resp = np.exp(logp - log_marg[:, None])
-    cmeans = np.stack(cmeans, axis=1)  # (N, M, dm)
-    mean = np.einsum("nm,nmk->nk", resp, cmeans)
-    dev = cmeans - mean[:, None]
-    cov = np.einsum("nm,mij->nij", resp, np.array(ccovs)) + np.einsum("nm,nmi,nmj->nij", resp, dev, dev)
-    return dict(mean=mean, component_means=cmeans, responsibilities=resp, log_marginal=log_marg, cov=cov,
-                component_cov=np.array(ccovs), variance=np.einsum("nii->ni", cov),
-                best_mean=cmeans[np.arange(len(mean)), resp.argmax(1)])
-
-
 @pytest.mark.parametrize("noise_kind", ["zero", "scalar", "per_dim"])
 @pytest.mark.parametrize("observed_kind", ["mask", "index"])
-def test_condition_equals_dense_gaussian_conditioning(noise_kind, observed_kind):
+def test_condition_equals_dense_gaussian_conditioning(noise_kind, observed_kind, dense_reference):
     rng = np.random.default_rng(5)
     p = Params(rng)
     d = p.means_.shape[1]
@@ -52,13 +26,46 @@ def test_condition_equals_dense_gaussian_conditioning(noise_kind, observed_kind)
     noise = {"zero": 0.0, "scalar": 0.3, "per_dim": rng.uniform(0.0, 1.0, obs.size)}[noise_kind]
     X_obs = p.means_[rng.integers(3, size=25)][:, obs] + rng.standard_normal((25, obs.size))
     observed = np.isin(np.arange(d), obs) if observed_kind == "mask" else obs
-    res = condition(p, X_obs, observed, noise, return_cov=True)
-    ref = _dense_reference(p, X_obs, obs, noise)
-    assert isinstance(res, ConditionalResult)
+    res = condition(p, X_obs, observed, noise, return_components=True, return_cov=True)
+    ref = dense_reference(p, X_obs, obs, noise)
+    assert isinstance(res, Posterior) and res.reconstruction is None
     np.testing.assert_array_equal(res.missing, np.setdiff1d(np.arange(d), obs))
     for key in ("mean", "best_mean", "component_means", "responsibilities", "variance", "cov", "component_cov"):
         np.testing.assert_allclose(getattr(res, key), ref[key], rtol=1e-9, atol=1e-11, err_msg=key)
     np.testing.assert_allclose(res.log_marginal, ref["log_marginal"], rtol=1e-10)
+    # reconstruct=True: the posterior mean of every dim (the Bayesian reconstruction at observed dims)
+    rec = condition(p, X_obs, observed, noise, reconstruct=True)
+    np.testing.assert_allclose(rec.reconstruction, ref["reconstruction"], rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(rec.mean, ref["mean"], rtol=1e-9, atol=1e-11)
+    assert rec.missing_mean is None
+
+
+def test_detail_dims_and_parameter_objects(dense_reference):
+    """``detail`` picks the missing dims whose spread is reported; MixtureParams and a fitted MPPCA are
+    interchangeable; a detail dim that is observed is refused."""
+    rng = np.random.default_rng(8)
+    p = Params(rng)
+    obs = np.array([0, 2, 3, 6, 9])
+    det = np.array([8, 1])
+    X_obs = rng.standard_normal((7, obs.size))
+    ref = dense_reference(p, X_obs, obs, 0.05)
+    cols = np.searchsorted(ref["missing"], det)
+    params = MixtureParams(p.weights_, p.means_, p.components_, p.noise_variance_)
+    for reconstruct in (False, True):
+        res = condition(params, X_obs, obs, 0.05, detail=det, reconstruct=reconstruct, return_cov=True)
+        np.testing.assert_array_equal(res.detail, det)
+        np.testing.assert_allclose(res.best_mean, ref["best_mean"][:, cols], rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(res.variance, ref["variance"][:, cols], rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(res.cov, ref["cov"][:, cols][:, :, cols], rtol=1e-9, atol=1e-11)
+        np.testing.assert_allclose(res.mean, ref["mean"], rtol=1e-9, atol=1e-11)
+    with pytest.raises(ValueError, match="'detail' must index missing dims"):
+        Conditioner(params, obs, 0.05, detail=np.array([2]))
+
+
+def test_values_whose_density_overflows_are_refused():
+    p = Params(np.random.default_rng(1))
+    with pytest.raises(ValueError, match="row 1 is not finite"):
+        condition(p, np.array([[0.0, 1.0], [1e300, 0.0]]), np.arange(2))
 
 
 def test_index_order_of_observed_is_respected():
@@ -78,6 +85,7 @@ def test_full_and_empty_observation_limits():
     X = rng.standard_normal((400, 8)) @ rng.standard_normal((8, 8))
     X[:200] += 4.0
     est = MPPCA(2, 2, random_state=0, n_init=1).fit(X)
+    assert MixtureParams.of(est).means_ is est.means_  # float64 parameters are used as they are
     full = condition(est, X[:20], np.ones(8, bool))
     np.testing.assert_allclose(full.log_marginal, est.score_samples(X[:20]), rtol=1e-10)
     np.testing.assert_allclose(full.responsibilities, est.predict_proba(X[:20]), rtol=1e-8, atol=1e-12)

@@ -1,14 +1,15 @@
 """ShapeStructureModel on synthetic data with a known linear contour <- joints link.
 
 References: the trivial mean-pose baseline, and dense Gaussian conditioning (full d x d
-covariances built here, scipy's multivariate normal) for the marginalisation of missing views.
+covariances, scipy's multivariate normal: the ``dense_reference`` fixture of tests/model/conftest.py)
+for the marginalisation of missing views.
 """
 
 import numpy as np
 import pytest
-from scipy.special import logsumexp
-from scipy.stats import multivariate_normal
 
+from silpose.model.conditioning import Conditioner
+from silpose.model.features import denormalise_contours, normalise_contours
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
 from silpose.shared.contours import normalise
@@ -49,29 +50,7 @@ def test_infers_joints_and_beats_mean_pose(fitted):
     assert np.abs(res.contours_px - test.contours).mean() < 1.0
 
 
-def _dense_reference(model, x_obs, observed, s2):
-    """Dense per-component Gaussian conditioning with full covariances (O(d^3), small d only)."""
-    mix = model.mixture_
-    miss = ~observed
-    logp, means, recs = [], [], []
-    for pi, mu, W, sig2 in zip(mix.weights_, mix.means_, mix.components_, mix.noise_variance_):
-        C = W @ W.T + sig2 * np.eye(len(mu))
-        Caa = C[np.ix_(observed, observed)] + s2 * np.eye(observed.sum())
-        Cba = C[np.ix_(miss, observed)]
-        diff = x_obs - mu[observed]
-        sol = np.linalg.solve(Caa, diff.T).T
-        logp.append(np.log(pi) + multivariate_normal(mu[observed], Caa).logpdf(x_obs))
-        means.append(mu[miss] + sol @ Cba.T)
-        Wa = W[observed]
-        recs.append(mu[observed] + sol @ Wa @ Wa.T)  # mu_a + W_a E[x | a]
-    logp = np.array(logp).T  # (N, M)
-    resp = np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
-    mean = np.einsum("nm,mnd->nd", resp, np.array(means))
-    rec = np.einsum("nm,mnd->nd", resp, np.array(recs))
-    return mean, rec, resp, logsumexp(logp, axis=1)
-
-
-def test_missing_view_is_marginalised_exactly(fitted):
+def test_missing_view_is_marginalised_exactly(fitted, dense_reference):
     model, _, test = fitted
     lay = model.layout_
     present = np.ones((80, 3), dtype=bool)
@@ -86,10 +65,11 @@ def test_missing_view_is_marginalised_exactly(fitted):
         rows = np.flatnonzero((present == pattern).all(1))
         observed = lay.observed_mask(pattern)
         x_obs = norm[rows].reshape(len(rows), -1)[:, observed[: lay.contour_dim]]
-        mean, rec, resp, logm = _dense_reference(model, x_obs, observed, s2)
+        ref = dense_reference(model.mixture_, x_obs, np.flatnonzero(observed), s2)
+        resp, logm = ref["responsibilities"], ref["log_marginal"]
         full = np.empty((len(rows), lay.dim))
-        full[:, ~observed] = mean
-        full[:, observed] = rec
+        full[:, ~observed] = ref["mean"]  # C_ba C_aa^-1 (a - mu_a)
+        full[:, observed] = ref["reconstruction"][:, observed]  # mu_a + W_a E[z | a]
         c_ref, j_ref = lay.split(full)
         np.testing.assert_allclose(res.joints[rows], j_ref, rtol=1e-7, atol=1e-9)
         np.testing.assert_allclose(res.contours_norm[rows], c_ref, rtol=1e-7, atol=1e-9)
@@ -160,31 +140,28 @@ def test_input_validation(fitted):
         ShapeStructureModel(1, 2).fit(bad, test.joints)
 
 
-def test_fused_posterior_equals_the_conditional_module(fitted):
-    """posterior.PatternPosterior against silpose.model.conditional (another implementation of the same maths)."""
-    from silpose.model.conditional import condition
-    from silpose.model.posterior import PatternPosterior
-
+def test_the_models_conditioner_equals_dense_conditioning(fitted, dense_reference):
+    """The conditioner infer uses (structure block as detail dims, every dim reconstructed) against the
+    dense reference: reconstruction, best component's joints, their variance, responsibilities, log p(a)."""
     model, _, test = fitted
     lay, mix = model.layout_, model.mixture_
     norm, _, _ = normalise(test.contours.astype(np.float64))
     observed = lay.observed_mask([True, False, True])
     x_obs = norm.reshape(80, -1)[:, observed[: lay.contour_dim]]
     det = np.arange(lay.structure_slice.start, lay.structure_slice.stop)
-    post = PatternPosterior(mix.weights_, mix.means_, mix.components_, mix.noise_variance_, observed, 3e-3, det)
-    mean, best, var, resp, logm = post(x_obs)
-    ref = condition(mix, x_obs, observed, noise_variance=3e-3)
+    post = Conditioner(mix, observed, 3e-3, detail=det, reconstruct=True)(x_obs)
+    ref = dense_reference(mix, x_obs, np.flatnonzero(observed), 3e-3)
     miss = np.flatnonzero(~observed)
-    np.testing.assert_allclose(mean[:, miss], ref.mean, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(post.reconstruction[:, miss], ref["mean"], rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(post.reconstruction, ref["reconstruction"], rtol=1e-8, atol=1e-10)
     struct = np.searchsorted(miss, det)
-    np.testing.assert_allclose(best, ref.best_mean[:, struct], rtol=1e-8, atol=1e-10)
-    np.testing.assert_allclose(var, ref.variance[:, struct], rtol=1e-7, atol=1e-12)
-    np.testing.assert_allclose(resp, ref.responsibilities, atol=1e-9)
-    np.testing.assert_allclose(logm, ref.log_marginal, rtol=1e-10)
+    np.testing.assert_allclose(post.best_mean, ref["best_mean"][:, struct], rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(post.variance, ref["variance"][:, struct], rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(post.responsibilities, ref["responsibilities"], atol=1e-9)
+    np.testing.assert_allclose(post.log_marginal, ref["log_marginal"], rtol=1e-10)
 
 
 def test_fast_normalisation_equals_shared_contours():
-    from silpose.model._inputs import denormalise_contours, normalise_contours
     from silpose.shared.contours import denormalise
 
     rng = np.random.default_rng(0)

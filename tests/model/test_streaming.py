@@ -2,7 +2,8 @@
 
 The in-memory fit is the reference (its EM is checked against dense densities and known mixtures in
 test_mppca.py). Streaming reads a dataset written as several Parquet shards with the dataset writer
-(records from ``silpose.datagen.testing.synthetic_record``, as in test_model_cli.py).
+(records from ``silpose.datagen.testing.synthetic_record``, as in tests/app/test_cli.py). The
+``silpose train --streaming`` / ``--executor ray`` commands are tested in tests/app/test_train_streaming.py.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ import weakref
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
 from silpose.model import streaming
@@ -22,7 +22,6 @@ from silpose.model.mppca import MPPCA
 from silpose.model.persistence import load_model
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.camera import default_rig
-from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split, write_shard
 from silpose.shared.dataset_schema import build_metadata
 
@@ -151,37 +150,10 @@ def test_streaming_holds_one_shard_of_features(dataset, start_params, monkeypatc
     assert max(rows for _, _, rows in calls) <= max(SHARD_ROWS)
 
 
-def test_train_cli_streaming_equals_in_memory(dataset, tmp_path):
-    """`silpose train --streaming`: same held-out rows, same k-means start (<= 5,000 rows), same model."""
-    common = [str(dataset), "-M", "2", "-q", "4", "--n-init", "2", "--max-iter", "15", "--tol", "0", "--no-progress"]
-    paths = {}
-    for mode, extra in (("memory", []), ("stream", ["--streaming"])):
-        paths[mode] = tmp_path / f"{mode}.npz"
-        res = CliRunner().invoke(build_app(), ["train", *common, "--out", str(paths[mode]), *extra])
-        assert res.exit_code == 0, res.output
-    a, b = load_model(paths["memory"]), load_model(paths["stream"])
-    np.testing.assert_allclose(a.mixture_.means_, b.mixture_.means_, rtol=1e-6, atol=1e-9)
-    np.testing.assert_allclose(a.mixture_.components_, b.mixture_.components_, rtol=1e-6, atol=1e-9)
-    ra = json.loads(paths["memory"].with_suffix(".report.json").read_text())
-    rb = json.loads(paths["stream"].with_suffix(".report.json").read_text())
-    assert rb["mode"] == {"streaming": True, "executor": "local", "n_shards": len(SHARD_ROWS)}
-    assert ra["mode"]["streaming"] is False and ra["n_fit"] == rb["n_fit"] == 90
-    np.testing.assert_allclose(ra["em"]["loglik_curve"], rb["em"]["loglik_curve"], rtol=1e-8)
-    np.testing.assert_allclose(ra["heldout"]["mean_loglik"], rb["heldout"]["mean_loglik"], rtol=1e-8)
-    np.testing.assert_allclose(ra["heldout"]["joint_error_cm"], rb["heldout"]["joint_error_cm"], rtol=1e-6)
-    assert "streamed over 4 shards (local)" in paths["stream"].with_suffix(".report.md").read_text()
-
-
-def test_train_cli_rejects_select_with_streaming(dataset, tmp_path):
-    res = CliRunner().invoke(build_app(), ["train", str(dataset), "--streaming", "--select", "--out",
-                                           str(tmp_path / "m.npz"), "--no-progress"])
-    assert res.exit_code == 2 and "--select fits its grid in memory" in res.output
-
-
 def test_model_imports_without_ray_and_says_so_when_asked_for_it(dataset):
     code = (
         "import sys; sys.modules['ray'] = None\n"
-        "import silpose.model.cli, silpose.model.streaming as s, silpose.model.training\n"
+        "import silpose.model, silpose.model.streaming as s\n"
         "from silpose.model.shape_model import ShapeStructureModel\n"
         "m = ShapeStructureModel(2, 3, n_init=1, max_iter=2)\n"
         "try:\n"
@@ -210,14 +182,8 @@ def test_corrupt_shard_is_named(dataset, tmp_path, start_params):
 
 
 @pytest.mark.ray
-def test_ray_fit_equals_local_streaming_and_cli(dataset, start_params, local_ray, tmp_path):
+def test_ray_fit_equals_local_streaming(dataset, start_params, local_ray):
     local = _model().fit_stream(dataset, "train", init_params=start_params)
     via_ray = _model().fit_stream(dataset, "train", executor="ray", init_params=start_params)
     _assert_same_fit(local.mixture_, via_ray.mixture_, rtol_ll=1e-10, rtol_par=1e-8)
 
-    out = tmp_path / "ray.npz"
-    res = CliRunner().invoke(build_app(), ["train", str(dataset), "-M", "2", "-q", "3", "--n-init", "1",
-                                           "--max-iter", "5", "--executor", "ray", "--out", str(out), "--no-progress"])
-    assert res.exit_code == 0, res.output
-    report = json.loads(out.with_suffix(".report.json").read_text())
-    assert report["mode"] == {"streaming": True, "executor": "ray", "n_shards": len(SHARD_ROWS)}

@@ -4,7 +4,7 @@ On ``<frames dir>`` (``data/<preset>/frames``: per-camera background and frames,
 split "test" whose row i is frame i), with the same model and the same frames:
 
 - **segmented**: the full camera path of ``silpose infer --frames`` (background subtraction,
-  contour extraction, inference; :func:`silpose.model.frames_io.run_frames_pipeline`);
+  contour extraction, inference; :func:`silpose.app.frames_pipeline.run_frames_pipeline`);
 - **true**: the truth split's clean contours (extracted from the true masks) given to the model.
 
 Measures per frame: mask IoU ``|S & T| / |S | T|`` of the segmented vs the true mask per camera
@@ -28,6 +28,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from silpose.app.frames_pipeline import run_frames_pipeline
 from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import chamfer_errors, mask_iou, place_contours, pose_error_cm
@@ -46,7 +47,6 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
     pose_cm / chamfer_px (dicts "segmented" / "true" -> (N,)), n_views (dict -> (N,)), status (N, K),
     masks_packed (list of per-frame packed masks), pipeline (FramesResult), timings.
     """
-    from silpose.model.frames_io import run_frames_pipeline
 
     frames_dir = Path(frames_dir)
     try:
@@ -155,8 +155,8 @@ def plot_frames(ev: dict, path) -> Path:
 
 def example_overlay(ev: dict, model, frames_dir, path) -> Path | None:
     """Paper Fig. 9-style figure of the frame whose segmented pose error is nearest the median."""
-    from silpose.model.frames_io import open_frames
-    from silpose.model.frames_overlay import overlay_figure
+    from silpose.app.inputs.frames_folder import open_frames
+    from silpose.app.overlays import overlay_figure
 
     pose = ev["pose_cm"]["segmented"]
     if not np.isfinite(pose).any():

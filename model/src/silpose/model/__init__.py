@@ -1,49 +1,47 @@
 """silpose.model: the shape+structure prior (mixture of PPCA over multi-view contours + 3D joints).
 
-Public API (imported lazily, so ``import silpose.model.cli`` and ``silpose --help`` stay light)::
+A library: estimators, their numerics and their model file; no command line, no image or video
+I/O (those live in ``silpose.app``). Modules, lowest first::
 
-    MPPCA                     mixture of probabilistic PCA, scikit-learn style (mppca.py)
-    condition, Conditioner    exact Gaussian conditioning of an MPPCA (conditional.py)
-    FeatureLayout             the shape vector layout, paper eq. 4 (features.py)
-    ShapeStructureModel       fit on contours + joints, infer joints and contours (shape_model.py)
-    InferenceResult           what ``ShapeStructureModel.infer`` returns
-    save_model, load_model    one-file .npz persistence, no pickle (persistence.py)
-    ModelFileError            a model file cannot be read
-    select, SelectionResult   validation grid search over q, M, structure weight, noise (selection.py)
+    _ppca, _em        private numerics of the mixture of PPCA (densities, E/M-step sums)
+    shards            row blocks EM maps over (ShardSource, ArrayShards)
+    mppca             MPPCA, the scikit-learn style estimator (paper eq. 3)
+    conditioning      Gaussian conditioning of an MPPCA: condition, Conditioner (the one inference path)
+    checks            input checks of the shape model
+    stature           metric stature from calibrated silhouettes
+    features          FeatureLayout, contour normalisation, shape_vectors (paper eq. 4)
+    streaming         DatasetShards: a dataset's Parquet shards as EM row blocks (locally or on Ray)
+    provenance        digests of the training data recorded in a model file
+    shape_model       ShapeStructureModel: fit, fit_stream, infer (paper sections 3-4)
+    persistence       save_model / load_model: the one-file .npz model, no pickle
+    selection         validation grid search over q, M, structure weight and noise
+    synthetic         synthetic shapes with a known linear joints -> contours link (tests)
 """
 
 from __future__ import annotations
 
-import importlib
+from .conditioning import Conditioner, MixtureParams, Posterior, RowsPosterior, condition, condition_rows
+from .features import FeatureLayout
+from .mppca import MPPCA
+from .persistence import ModelFileError, load_model, read_header, save_model
+from .selection import SelectionResult, select
+from .shape_model import InferenceResult, ShapeStructureModel
 
-_EXPORTS = {
-    "MPPCA": "mppca",
-    "condition": "conditional",
-    "condition_rows": "conditional",
-    "Conditioner": "conditional",
-    "ConditionalResult": "conditional",
-    "FeatureLayout": "features",
-    "ShapeStructureModel": "shape_model",
-    "InferenceResult": "shape_model",
-    "save_model": "persistence",
-    "load_model": "persistence",
-    "read_header": "persistence",
-    "ModelFileError": "persistence",
-    "select": "selection",
-    "SelectionResult": "selection",
-}
-
-__all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'silpose.model' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__all__ = [
+    "MPPCA",
+    "Conditioner",
+    "MixtureParams",
+    "Posterior",
+    "RowsPosterior",
+    "condition",
+    "condition_rows",
+    "FeatureLayout",
+    "ShapeStructureModel",
+    "InferenceResult",
+    "save_model",
+    "load_model",
+    "read_header",
+    "ModelFileError",
+    "select",
+    "SelectionResult",
+]

@@ -27,7 +27,7 @@ from typing import Iterable
 import numpy as np
 from scipy.special import logsumexp
 
-from silpose.model import _ppca
+from . import _ppca
 
 
 @dataclass

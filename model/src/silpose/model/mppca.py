@@ -7,7 +7,7 @@ M_i = W_i^T W_i + sigma_i^2 I (see ``_ppca``); EM never forms a d x d matrix (on
 closed-form PPCA initialisation does, when d <= 512).
 
 Used by the shape+structure model (paper eq. 3-4) as the prior over multi-view contour + joint
-vectors; ``silpose.model.conditional`` does the Bayesian reconstruction of missing blocks.
+vectors; :mod:`silpose.model.conditioning` does the Bayesian reconstruction of missing blocks.
 """
 
 from __future__ import annotations
@@ -18,11 +18,12 @@ import warnings
 import numpy as np
 from scipy.special import logsumexp
 from sklearn.base import BaseEstimator, DensityMixin
+from sklearn.cluster import KMeans
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from silpose.model import _em, _ppca
-from silpose.model.shards import ArrayShards, ShardSource, split_global_rows
+from . import _em, _ppca
+from .shards import ArrayShards, ShardSource, split_global_rows
 
 _SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
 _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
@@ -221,8 +222,6 @@ class MPPCA(DensityMixin, BaseEstimator):
         if m == 1:
             return np.zeros(n, dtype=np.intp)
         if self.init == "kmeans":
-            from sklearn.cluster import KMeans
-
             rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else slice(None)
             km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X[rows])
             centres = km.cluster_centers_

@@ -1,6 +1,7 @@
 """One-file persistence of a fitted :class:`ShapeStructureModel`: ``.npz`` + JSON header, no pickle.
 
-File layout (``numpy.savez``, written to a temporary name then ``os.replace``d):
+File layout (``numpy.savez``, written crash-safely through :func:`silpose.shared.atomic.atomic_open`:
+a temporary name, fsync, then ``os.replace``; docs/conventions.md, "Crash safety"):
 
 =====================  ===============  ==============================================
 key                    dtype / shape    meaning
@@ -26,15 +27,18 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from silpose.shared.atomic import atomic_open
+from silpose.shared.camera import Rig
 from silpose.shared.skeleton import JOINT_NAMES
 
 from .features import FeatureLayout
+from .mppca import MPPCA
+from .shape_model import ShapeStructureModel
 
 FORMAT_NAME = "silpose-model"
 FORMAT_VERSION = 1
@@ -57,18 +61,10 @@ def arrays_sha256(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def file_sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def save_model(path: str | Path, model) -> Path:
+def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
     """Write a fitted ShapeStructureModel to ``path`` (``.npz``); returns the path."""
     path = Path(path)
-    layout = model._layout()
+    layout = model.fitted_layout()
     mix = model.mixture_
     arrays = {
         "weights": np.asarray(mix.weights_, dtype=np.float64),
@@ -100,17 +96,8 @@ def save_model(path: str | Path, model) -> Path:
         "arrays_sha256": arrays_sha256(arrays),
     }
     blob = np.frombuffer(json.dumps(header, sort_keys=True).encode("utf-8"), dtype=np.uint8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "wb") as f:  # a file object keeps numpy from appending another ".npz"
-            np.savez(f, header=blob, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_open(path, "wb") as f:  # a file object keeps numpy from appending another ".npz"
+        np.savez(f, header=blob, **arrays)
     return path
 
 
@@ -196,11 +183,8 @@ def _check_shapes(path: Path, header: dict, data: dict[str, np.ndarray], layout:
         raise ModelFileError(f"{path}: field 'header.feature_layout.views' {layout.views} exceeds n_rig_views {header['n_rig_views']}")
 
 
-def load_model(path: str | Path):
+def load_model(path: str | Path) -> ShapeStructureModel:
     """Read a model written by :func:`save_model`; raises :class:`ModelFileError` naming the file and field."""
-    from .mppca import MPPCA
-    from .shape_model import ShapeStructureModel
-
     path = Path(path)
     header, data = _read(path)
     try:
@@ -226,8 +210,6 @@ def load_model(path: str | Path):
         raise ModelFileError(f"{path}: field 'header.hyperparameters' is invalid: {exc!r}") from None
     rig = None
     if header.get("rig") is not None:
-        from silpose.shared.camera import Rig
-
         try:
             rig = Rig.from_dict(header["rig"], source=f"{path}: header.rig")
         except Exception as exc:  # RigError and malformed dicts alike

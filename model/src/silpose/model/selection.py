@@ -3,9 +3,10 @@
 A validation split is carved from the *training* data (a seeded random permutation; the test
 split is never touched). For every (n_latent q, n_components M, structure_weight w) in a small grid a
 :class:`ShapeStructureModel` is fitted on the rest; each fitted model is then scored for every
-observation-noise variance s^2 in the grid (inference only, no refit) by the mean joint error in cm
-(mean Euclidean distance over the 19 root-relative joints, DESIGN §5) of the mixture posterior mean
-on the validation contours, with all modelled views observed. The lowest error wins.
+observation-noise variance s^2 in the grid (inference only, no refit) by the paper's pose error
+(:func:`silpose.shared.metrics.pose_error_cm`: mean Euclidean distance over the 19 root-relative
+joints in cm; docs/conventions.md, "Evaluation protocol") of the mixture posterior mean on the
+validation contours, with all modelled views observed. The lowest error wins.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from silpose.shared.skeleton import root_relative
+from silpose.shared.metrics import pose_error_cm
+from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 
 from .shape_model import ShapeStructureModel
 
@@ -36,19 +38,17 @@ COLUMNS = ("n_latent", "n_components", "structure_weight", "noise_variance", "va
 
 
 def validation_split(n_samples: int, fraction: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(train indices, validation indices), a seeded random split; the validation part has >= 1 sample."""
+    """(train indices, validation indices), a seeded random split; the validation part has >= 1 sample.
+
+    The permutation comes from ``derive_rng(seed, VALIDATION_STREAM)`` (``silpose.shared.seeds``).
+    """
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"validation fraction must be in (0, 1), got {fraction}")
     if n_samples < 2:
         raise ValueError(f"need at least 2 samples to carve a validation split, got {n_samples}")
-    perm = np.random.default_rng(np.random.SeedSequence([seed, 7919])).permutation(n_samples)
+    perm = derive_rng(seed, VALIDATION_STREAM).permutation(n_samples)
     n_val = min(max(1, int(round(fraction * n_samples))), n_samples - 1)
     return np.sort(perm[n_val:]), np.sort(perm[:n_val])
-
-
-def joint_error_cm(pred: np.ndarray, joints: np.ndarray) -> np.ndarray:
-    """(N,) mean Euclidean joint error in cm; pred (N, 19, 3) root-relative metres, joints (N, 19, 3) metres."""
-    return 100.0 * np.linalg.norm(pred - root_relative(np.asarray(joints, dtype=np.float64)), axis=-1).mean(axis=-1)
 
 
 @dataclass
@@ -142,8 +142,8 @@ def select(
                 "n_components": int(m),
                 "structure_weight": float(w),
                 "noise_variance": float(s2),
-                "val_error_cm": float(joint_error_cm(res.joints, joints[va]).mean()),
-                "val_error_best_cm": float(joint_error_cm(res.joints_best, joints[va]).mean()),
+                "val_error_cm": float(pose_error_cm(res.joints, joints[va]).mean()),
+                "val_error_best_cm": float(pose_error_cm(res.joints_best, joints[va]).mean()),
                 "val_loglik": val_ll,
                 "n_iter": int(model.mixture_.n_iter_),
                 "fit_time_s": fit_time,

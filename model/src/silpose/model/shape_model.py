@@ -10,8 +10,11 @@ Missing dimensions are marginalised by dropping their rows, never zero-filled; r
 missing-view patterns are grouped and conditioned separately. Every modelled view gets a
 reconstruction: missing views from the conditional mean, present views from their Bayesian
 reconstruction ``mu_a + W_a E[x | a]`` (the shape model of [8]). The numerics are the exact Gaussian
-conditioning of ``silpose.model.conditional`` arranged for throughput in
-``silpose.model.posterior`` (tests check both against dense conditioning).
+conditioning of :mod:`silpose.model.conditioning` (the tests check it against dense conditioning).
+
+Fitting: :meth:`ShapeStructureModel.fit` on arrays in memory, :meth:`~ShapeStructureModel.fit_stream`
+out of core over a dataset's Parquet shards (:mod:`silpose.model.streaming`, locally or on Ray);
+both build the vectors with :func:`silpose.model.features.shape_vectors` and run the same EM.
 """
 
 from __future__ import annotations
@@ -22,17 +25,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from silpose.shared.skeleton import N_JOINTS, root_relative
+from silpose.shared.skeleton import N_JOINTS
 
-from ._inputs import (
-    check_contours as _check_contours,
-    check_factors as _check_factors,
-    check_present as _check_present,
-    denormalise_contours,
-    normalise_contours,
-)
-from .features import FeatureLayout
+from .checks import check_contours, check_factors, check_present
+from .conditioning import Conditioner
+from .features import FeatureLayout, denormalise_contours, normalise_contours, shape_vectors
+from .mppca import DEFAULT_INIT_ROWS, MPPCA
+from .provenance import manifest_sha256
+from .shards import split_global_rows
 from .stature import REFERENCE_STATURE, estimate_stature
+from .streaming import DatasetShards
 
 # Defaults, from model selection on validation joint error (silpose.model.selection), measured
 # 2026-11-22 on the `default` preset (2,000 train samples, raster renderer, seed 0; generated with
@@ -58,26 +60,6 @@ DEFAULT_N_COMPONENTS = 20
 DEFAULT_N_LATENT = 40
 DEFAULT_STRUCTURE_WEIGHT = 30.0
 DEFAULT_NOISE_VARIANCE = 0.03
-
-
-def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray,
-                  rig=None) -> np.ndarray:
-    """The training vectors (N, d) of the model (paper eq. 4): the modelled views of rig-indexed pixel
-    contours (N, n_rig_views, n, 2), each normalised, and the weighted root-relative joints (N, 19, 3),
-    metres -- divided by ``stature / REFERENCE_STATURE`` when ``layout.joint_frame == "stature"``
-    (then ``rig``, the cameras of the n_rig_views views, is required). ``ShapeStructureModel.features``
-    and the streaming fit's shard readers both call this."""
-    c = _check_contours(contours_px, "contours_px")
-    if c.shape[1] != n_rig_views:
-        raise ValueError(f"contours_px has {c.shape[1]} views, the model's rig has {n_rig_views}")
-    views = list(layout.views)
-    norm, _, _ = normalise_contours(c[:, views])
-    if layout.joint_frame == "stature":
-        if rig is None:
-            raise ValueError("joint_frame 'stature' needs the camera rig (to measure each walker's stature)")
-        factor = estimate_stature(c[:, views], [rig[v] for v in views]) / REFERENCE_STATURE
-        joints = root_relative(np.asarray(joints, dtype=np.float64)) / factor[:, None, None]
-    return layout.build(norm, joints)
 
 
 @dataclass
@@ -117,7 +99,7 @@ class ShapeStructureModel:
     Parameters (stored only; validated in ``fit``):
         n_components: mixture components M.
         n_latent: latent dimension q of each PPCA component.
-        structure_weight: factor on the root-relative joints in the shape vector (DESIGN §4).
+        structure_weight: factor on the root-relative joints in the shape vector (docs/conventions.md, "Model").
         views: rig view indices to model (vector order); None = every view of the training data.
         noise_variance: observation noise s^2 on the contours at inference, normalised contour units^2.
         joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
@@ -191,9 +173,7 @@ class ShapeStructureModel:
             raise ValueError("joint_frame 'stature' needs the camera rig: pass rig= to fit (or joint_frame='metres')")
         return frame
 
-    def _make_mixture(self, init_params: dict | None = None):
-        from .mppca import MPPCA
-
+    def _make_mixture(self, init_params: dict | None = None) -> MPPCA:
         return MPPCA(
             n_components=int(self.n_components),
             n_latent=int(self.n_latent),
@@ -208,7 +188,7 @@ class ShapeStructureModel:
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
-        return shape_vectors(self._layout(), self.n_rig_views_, contours_px, joints, self.rig_)
+        return shape_vectors(self.fitted_layout(), self.n_rig_views_, contours_px, joints, self.rig_)
 
     def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None, *,
             init_params: dict | None = None) -> "ShapeStructureModel":
@@ -223,7 +203,7 @@ class ShapeStructureModel:
             self.
         """
         self._check_hyperparameters()
-        c = _check_contours(contours_px, "contours_px")
+        c = check_contours(contours_px, "contours_px")
         j = np.asarray(joints, dtype=np.float64)
         if j.ndim != 3 or j.shape[1:] != (N_JOINTS, 3):
             raise ValueError(f"joints must have shape (N, {N_JOINTS}, 3), got {j.shape}")
@@ -264,14 +244,43 @@ class ShapeStructureModel:
             workers: CPUs of the local Ray instance when this process starts one (None = all cores).
             init_rows: rows of the k-means + PPCA initialisation subsample (None = the MPPCA default).
             init_params: optional explicit MPPCA start (needs n_init = 1).
-        Every shard's vectors come from :func:`shape_vectors`, as in :meth:`fit`; memory is bounded
-        by one shard (see ``silpose.model.streaming``). Returns self.
+        Every shard's vectors come from :func:`~silpose.model.features.shape_vectors`, as in :meth:`fit`;
+        memory is bounded by one shard (see ``silpose.model.streaming``). Returns self.
         """
-        from .streaming import fit_model_stream
-
         self._check_hyperparameters()
-        return fit_model_stream(self, root, split, rows=rows, executor=executor, workers=workers,
-                                init_rows=init_rows, init_params=init_params)
+        source = DatasetShards.open(root, split, executor=executor, workers=workers)
+        return self.fit_shards(source, rows=rows, init_rows=init_rows, init_params=init_params,
+                               where=f"{root} split {split!r}")
+
+    def fit_shards(self, source: DatasetShards, *, rows=None, init_rows: int | None = None,
+                   init_params: dict | None = None, where: str = "dataset") -> "ShapeStructureModel":
+        """Fit by streaming EM over a planned :class:`~silpose.model.streaming.DatasetShards` (from
+        ``DatasetShards.open``); ``rows`` are global row indices over its shards, ``where`` names the
+        data in errors. See :meth:`fit_stream`. Returns self."""
+        self._check_hyperparameters()
+        n_rig = source.n_rig_views
+        views = tuple(range(n_rig)) if self.views is None else tuple(int(v) for v in self.views)
+        bad = [v for v in views if not 0 <= v < n_rig]
+        if bad:
+            raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
+        layout = FeatureLayout(views, source.n_points, N_JOINTS, float(self.structure_weight),
+                               self._resolve_joint_frame(source.rig))
+        source = source.with_layout(layout)
+        if rows is not None:
+            idx = np.unique(np.asarray(rows, dtype=np.int64))
+            total = sum(source.shard_rows())
+            if idx.size == 0 or idx[0] < 0 or idx[-1] >= total:
+                raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({where})")
+            source = source.select(split_global_rows(idx, source.shard_rows()))
+        self.layout_ = layout
+        self.n_rig_views_ = n_rig
+        self.rig_ = source.rig
+        t0 = time.perf_counter()
+        self.mixture_ = self._make_mixture(init_params).fit_stream(
+            source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
+        self.fit_time_ = time.perf_counter() - t0
+        self.n_train_ = int(self.mixture_.n_fit_samples_)
+        return self
 
     def fit_dataset(self, split) -> "ShapeStructureModel":
         """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig).
@@ -283,19 +292,17 @@ class ShapeStructureModel:
         info: dict = {"n_samples": int(len(split.joints))}
         files = list(getattr(split, "files", []) or [])
         if files:
-            from .persistence import file_sha256
-
             root = files[0].parent
-            manifest = root / "manifest.json"
             info["root"] = str(root)
-            info["manifest_sha256"] = file_sha256(manifest) if manifest.is_file() else None
+            info["manifest_sha256"] = manifest_sha256(root)
             info["config_name"] = (split.metadata.get("config") or {}).get("name")
             info["generator_config"] = split.metadata.get("config")
         self.dataset_info_ = info
         return self
 
     # ------------------------------------------------------------------ scoring
-    def _layout(self) -> FeatureLayout:
+    def fitted_layout(self) -> FeatureLayout:
+        """The shape-vector layout of a fitted model (``layout_``); RuntimeError when not fitted."""
         if not hasattr(self, "layout_"):
             raise RuntimeError("ShapeStructureModel is not fitted: call fit() or load_model() first")
         return self.layout_
@@ -330,17 +337,17 @@ class ShapeStructureModel:
         Returns:
             :class:`InferenceResult` over the K modelled views.
         """
-        layout = self._layout()
+        layout = self.fitted_layout()
         s2 = self.noise_variance if noise_variance is None else noise_variance
         if not np.isfinite(s2) or s2 < 0:
             raise ValueError(f"noise_variance must be finite and >= 0, got {s2}")
-        c_in = _check_contours(contours_px, "contours_px", n_points=layout.n_points)
+        c_in = check_contours(contours_px, "contours_px", n_points=layout.n_points)
         n, k_in = c_in.shape[:2]
         cols = self._input_columns(k_in, input_views)  # (K,) input column of each modelled view or -1
-        present_in = _check_present(views_present, n, k_in)
+        present_in = check_present(views_present, n, k_in)
 
         kmod = layout.n_views
-        cen_in, sc_in = _check_factors(centroid, scale, n, k_in)
+        cen_in, sc_in = check_factors(centroid, scale, n, k_in)
         if np.array_equal(cols, np.arange(k_in)):  # input columns are the modelled views, in order: no copies
             present, c_mod = present_in, c_in
             cen_true = cen_in if cen_in is not None else np.full((n, kmod, 2), np.nan)
@@ -396,9 +403,10 @@ class ShapeStructureModel:
             patterns, inverse = np.unique(present, axis=0, return_inverse=True)
             inverse = inverse.reshape(-1)
         if len(patterns) == 1:  # the common case: no fancy-index copies
-            post = self._posterior(patterns[0], float(s2))
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            mean, best, var, resp, logm = post(x_obs)
+            post = self._conditioner(patterns[0], float(s2))(x_obs)
+            mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
+                                           post.responsibilities, post.log_marginal)
         else:
             mean = np.empty((n, d))
             best = np.empty((n, layout.structure_dim))
@@ -408,7 +416,9 @@ class ShapeStructureModel:
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                mean[rows], best[rows], var[rows], resp[rows], logm[rows] = self._posterior(pattern, float(s2))(x_obs)
+                post = self._conditioner(pattern, float(s2))(x_obs)
+                mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
+                resp[rows], logm[rows] = post.responsibilities, post.log_marginal
 
         rec, joints = layout.split(mean)
         w = layout.structure_weight
@@ -437,37 +447,34 @@ class ShapeStructureModel:
         """(N,) metres: stature measured from the present modelled views (``silpose.model.stature``)."""
         if self.rig_ is None:
             raise ValueError("this model's joints are in the 'stature' frame but it has no camera rig")
-        cams = [self.rig_[v] for v in self._layout().views]
+        cams = [self.rig_[v] for v in self.fitted_layout().views]
         return estimate_stature(contours_mod, cams, present)
 
-    def _posterior(self, pattern: np.ndarray, s2: float):
-        """Cached :class:`~silpose.model.posterior.PatternPosterior` for one present-view pattern and s^2.
+    def _conditioner(self, pattern: np.ndarray, s2: float) -> Conditioner:
+        """Cached :class:`~silpose.model.conditioning.Conditioner` for one present-view pattern and s^2.
 
         Its q x q factorisations depend only on the pattern and s^2, so they are computed once per
         (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O((d_obs + d) q M).
         """
-        from .posterior import PatternPosterior
-
-        cache = getattr(self, "_post_cache", None)
+        cache = getattr(self, "_conditioner_cache", None)
         if cache is None or cache[0] is not self.mixture_:
             cache = (self.mixture_, {})
-            self._post_cache = cache
+            self._conditioner_cache = cache
         key = (np.asarray(pattern, dtype=bool).tobytes(), s2)
         post = cache[1].get(key)
         if post is None:
             if len(cache[1]) >= 64:  # bounded: K views give at most 2^K - 1 patterns per s^2
                 cache[1].clear()
-            layout = self._layout()
-            mix = self.mixture_
-            post = cache[1][key] = PatternPosterior(
-                mix.weights_, mix.means_, mix.components_, mix.noise_variance_, layout.observed_mask(pattern), s2,
-                detail=np.arange(layout.structure_slice.start, layout.structure_slice.stop),
+            layout = self.fitted_layout()
+            post = cache[1][key] = Conditioner(
+                self.mixture_, layout.observed_mask(pattern), s2,
+                detail=np.arange(layout.structure_slice.start, layout.structure_slice.stop), reconstruct=True,
             )
         return post
 
     def _input_columns(self, k_in: int, input_views: Sequence[int] | None) -> np.ndarray:
         """(K_mod,) input column of each modelled view, -1 when the input does not contain it."""
-        layout = self._layout()
+        layout = self.fitted_layout()
         if input_views is None:
             if k_in == self.n_rig_views_:
                 input_views = tuple(range(k_in))

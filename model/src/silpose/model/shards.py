@@ -46,7 +46,8 @@ def split_global_rows(idx: np.ndarray, shard_rows: Sequence[int]) -> list[np.nda
     return [idx[(idx >= lo) & (idx < hi)] - lo for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
-def _compose(current: np.ndarray | None, rows: np.ndarray) -> np.ndarray:
+def compose_rows(current: np.ndarray | None, rows: np.ndarray) -> np.ndarray:
+    """Rows ``rows`` of a selection ``current`` (local indices, or None = all rows): the composed selection."""
     rows = np.asarray(rows, dtype=np.intp)
     return rows if current is None else current[rows]
 
@@ -107,7 +108,7 @@ class ArrayShards(ShardSource):
     def select(self, rows: Sequence[np.ndarray]) -> "ArrayShards":
         if len(rows) != len(self._arrays):
             raise ValueError(f"select: {len(rows)} row lists for {len(self._arrays)} shards")
-        return self._clone([_compose(cur, r) for cur, r in zip(self._rows, rows)], self._offset)
+        return self._clone([compose_rows(cur, r) for cur, r in zip(self._rows, rows)], self._offset)
 
     def checked(self) -> "ArrayShards":
         """This source with the finiteness check switched off (the caller validated the arrays)."""

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import cv2
 import numpy as np
 
 #: metres: the joints are modelled as those of a walker of this stature (keeps w's meaning in metres)
@@ -40,8 +41,6 @@ def _pixel_rays(cam, points: np.ndarray) -> np.ndarray:
     """
     pts = np.asarray(points, dtype=np.float64)
     if np.any(np.asarray(cam.dist) != 0):
-        import cv2
-
         norm = cv2.undistortPoints(pts.reshape(-1, 1, 2), cam.K, np.asarray(cam.dist, dtype=np.float64))
         h = np.concatenate([norm.reshape(-1, 2), np.ones((len(pts), 1))], axis=1)
     else:

@@ -3,7 +3,7 @@
 :class:`DatasetShards` is a :class:`~silpose.model.shards.ShardSource` over one split of a silpose
 dataset. Each EM pass reads every shard (``silpose.shared.dataset.read_shard``: contours and joints
 only), builds its shape vectors with the model's own feature construction
-(``silpose.model.shape_model.shape_vectors``: view selection, contour normalisation, structure
+(``silpose.model.features.shape_vectors``: view selection, contour normalisation, structure
 weight) and hands them to one EM task (``silpose.model._em``); only the task's small result (the
 EM sums, O(d M q)) outlives the shard. With ``executor="local"`` the shards are read one after the
 other in this process, so at most one shard's features exist at a time. With ``executor="ray"``
@@ -12,21 +12,26 @@ fit equals the local one up to BLAS rounding). Ray is imported only then; silpos
 depend on it (the ``ray`` extra).
 
 Before training, the plan reads only the shards' footers: row counts and metadata, checked to agree
-across shards (the file is named in every error).
+across shards (the file is named in every error). ``ShapeStructureModel.fit_stream`` plans the
+shards and fits on them.
 """
 
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
-from .features import FeatureLayout
-from .shards import ShardSource, _compose
+from silpose.shared.camera import Rig
+from silpose.shared.dataset import DatasetError, list_shards, read_metadata, read_shard, shard_name
+
+from .features import FeatureLayout, shape_vectors
+from .shards import ShardSource, compose_rows
 
 EXECUTORS = ("local", "ray")
 _SAME_METADATA = ("format_version", "cameras", "n_points", "joint_names", "config")
@@ -38,10 +43,6 @@ class StreamingError(RuntimeError):
 
 def load_shard_features(path: str, rows, layout: FeatureLayout, n_rig_views: int) -> np.ndarray:
     """Shape vectors (n, d) float64 of one shard file (its ``rows``, sorted local indices, or all if None)."""
-    from silpose.shared.dataset import read_shard
-
-    from .shape_model import shape_vectors
-
     shard = read_shard(path, columns=["joints", "contours"])
     contours, joints, rig = shard.contours, shard.joints, shard.rig
     del shard
@@ -81,11 +82,6 @@ class DatasetShards(ShardSource):
     def open(cls, root: str | Path, split: str = "train", *, executor: str = "local",
              workers: int | None = None) -> "DatasetShards":
         """Plan over the shards of ``split`` in ``root``: reads footers only (metadata, row counts)."""
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        from silpose.shared.dataset import DatasetError, list_shards, read_metadata, shard_name
-
         if executor not in EXECUTORS:
             raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
         files = list_shards(root, split)
@@ -107,9 +103,7 @@ class DatasetShards(ShardSource):
 
     # ------------------------------------------------------------------ dataset facts
     @property
-    def rig(self):
-        from silpose.shared.camera import Rig
-
+    def rig(self) -> Rig:
         return Rig.from_dict({"cameras": self.metadata["cameras"]})
 
     @property
@@ -144,7 +138,7 @@ class DatasetShards(ShardSource):
     def select(self, rows: Sequence[np.ndarray]) -> "DatasetShards":
         if len(rows) != len(self.paths):
             raise ValueError(f"select: {len(rows)} row lists for {len(self.paths)} shards")
-        return replace(self, rows=tuple(_compose(cur, r) for cur, r in zip(self.rows, rows)))
+        return replace(self, rows=tuple(compose_rows(cur, r) for cur, r in zip(self.rows, rows)))
 
     def map(self, fn: Callable, *args) -> Iterator:
         todo = [s for s, n in enumerate(self.shard_rows()) if n]
@@ -153,48 +147,6 @@ class DatasetShards(ShardSource):
             return
         for s in todo:
             yield run_shard_task(self.paths[s], self.rows[s], self.layout, self.n_rig_views, self.offset, fn, args)
-
-
-def fit_model_stream(model, root, split: str = "train", *, rows=None, executor: str = "local",
-                     workers: int | None = None, init_rows: int | None = None, init_params: dict | None = None):
-    """``ShapeStructureModel.fit_stream`` (see there): plan the shards, set the layout, stream EM."""
-    source = DatasetShards.open(root, split, executor=executor, workers=workers)
-    return fit_model_shards(model, source, rows=rows, init_rows=init_rows, init_params=init_params,
-                            where=f"{root} split {split!r}")
-
-
-def fit_model_shards(model, source: DatasetShards, *, rows=None, init_rows: int | None = None,
-                     init_params: dict | None = None, where: str = "dataset"):
-    """Fit ``model`` (a ShapeStructureModel) by streaming EM over the planned ``source`` (from
-    :meth:`DatasetShards.open`); ``rows`` are global row indices over its shards. Returns the model."""
-    from silpose.shared.skeleton import N_JOINTS
-
-    from .mppca import DEFAULT_INIT_ROWS
-    from .shards import split_global_rows
-
-    n_rig = source.n_rig_views
-    views = tuple(range(n_rig)) if model.views is None else tuple(int(v) for v in model.views)
-    bad = [v for v in views if not 0 <= v < n_rig]
-    if bad:
-        raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
-    layout = FeatureLayout(views, source.n_points, N_JOINTS, float(model.structure_weight),
-                           model._resolve_joint_frame(source.rig))
-    source = source.with_layout(layout)
-    if rows is not None:
-        idx = np.unique(np.asarray(rows, dtype=np.int64))
-        total = sum(source.shard_rows())
-        if idx.size == 0 or idx[0] < 0 or idx[-1] >= total:
-            raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({where})")
-        source = source.select(split_global_rows(idx, source.shard_rows()))
-    model.layout_ = layout
-    model.n_rig_views_ = n_rig
-    model.rig_ = source.rig
-    t0 = time.perf_counter()
-    model.mixture_ = model._make_mixture(init_params).fit_stream(
-        source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
-    model.fit_time_ = time.perf_counter() - t0
-    model.n_train_ = int(model.mixture_.n_fit_samples_)
-    return model
 
 
 # ---------------------------------------------------------------------------- Ray

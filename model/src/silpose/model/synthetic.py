@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from silpose.shared.seeds import derive_rng
 from silpose.shared.skeleton import N_JOINTS, root_relative
 
 
@@ -45,11 +46,12 @@ def make_linear_shapes(
     ``t_k + G_k vec(s - s_root)`` in template units (a circle template of radius 1 deformed by a
     fixed random linear map ``G_k`` shared by all samples), then scaled by a per-sample size in
     ``[40, 60]`` px and shifted to a per-sample position, plus ``N(0, pixel_noise^2)`` px noise.
-    The generator, the template and all maps come from ``numpy.random.default_rng(seed)``.
+    The maps and bases come from ``derive_rng(seed, 0)``, the samples from ``derive_rng(seed, 1)``
+    (``silpose.shared.seeds``), so data sets of different sizes share the maps.
     """
     # fixed model structure from a separate stream, so data sets of different sizes share it
-    fixed = np.random.default_rng(np.random.SeedSequence([seed, 0]))
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 1]))
+    fixed = derive_rng(seed, 0)
+    rng = derive_rng(seed, 1)
     base = fixed.normal(0.0, 0.3, size=(n_clusters, N_JOINTS, 3))
     bases = fixed.normal(0.0, 0.08, size=(n_clusters, N_JOINTS * 3, n_factors))
     angle = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)

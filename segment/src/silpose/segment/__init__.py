@@ -7,13 +7,12 @@
 Modules: :mod:`.background` (the model), :mod:`.validate` (input checks,
 :class:`SegmentError`), :mod:`.ncc` (local normalised correlation with box
 filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median,
-open/close, largest blob), :mod:`.loaders` (image folders and videos), :mod:`.synthetic` (scenes
-with known masks), :mod:`.evaluate_frames` (IoU on a rendered frames dataset with truth). The
-throughput benchmark is ``benchmarks/segmentation.py`` at the repository root.
+open/close, largest blob), :mod:`.synthetic` (scenes with known masks). A library on arrays:
+reading image folders, videos and frames folders is ``silpose.app.inputs``. The throughput
+benchmark is ``benchmarks/segmentation.py`` at the repository root.
 """
 
 from .validate import SegmentError
 from .background import STAGES, BackgroundModel
-from .loaders import load_frames, load_video
 
-__all__ = ["STAGES", "BackgroundModel", "SegmentError", "load_frames", "load_video"]
+__all__ = ["STAGES", "BackgroundModel", "SegmentError"]

@@ -32,7 +32,7 @@ Colour frames are BGR (``cv2.imread`` order) and are converted with ``cv2.cvtCol
 graylevel statistics and the NCC.
 
 Defaults were measured on ``data/smoke/frames`` (Blender Cycles renders with floor shadows, 32
-views; ``python -m silpose.segment.evaluate_frames``): mean IoU against the true masks 0.662 with
+views; ``python -m silpose.app.segment_quality``): mean IoU against the true masks 0.662 with
 the paper's graylevel rules and the former cleanup (median 5, open 3, close 7), see
 ``BackgroundModel``'s parameters for the measured effect of each change.
 """

@@ -1,12 +1,12 @@
-"""Segmentation quality of :class:`BackgroundModel` on a rendered frames dataset (measurement tool).
+"""Segmentation quality of :class:`silpose.segment.BackgroundModel` on a rendered frames dataset (measurement tool).
 
-``python -m silpose.segment.evaluate_frames data/smoke/frames [--set name=value ...]`` fits one
+``python -m silpose.app.segment_quality data/smoke/frames [--set name=value ...]`` fits one
 background model per camera from ``background/<camera>/``, segments ``frames/<camera>/`` and
 compares with the truth split ``test`` of the same folder (row i = frame i; read with
-:func:`silpose.shared.dataset.load_split`, so this tool needs ``silpose-shared`` installed, which
-the segmentation itself does not). Per view (frame, camera) it prints:
+:func:`silpose.shared.dataset.load_split`). Per view (frame, camera) it prints:
 
-- ``iou``: ``|S & T| / |S | T|`` of the segmented mask S and the true mask T;
+- ``iou``: ``|S & T| / |S | T|`` of the segmented mask S and the true mask T
+  (:func:`silpose.shared.metrics.mask_iou`);
 - ``fp_out``: pixels of S outside T grown by ``--grow`` px (default 2; an elliptical dilation),
   i.e. shadow / background errors rather than boundary disagreement;
 - ``person_iou``: the IoU of ``S & grow(T)`` with T: the quality of the person's own outline once
@@ -25,13 +25,18 @@ import ast
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
+
+from silpose.segment import BackgroundModel
+from silpose.shared.dataset import load_split
+from silpose.shared.metrics import mask_iou
+
+from .inputs.frames_folder import FramesFolder
 
 
 def grow(mask: np.ndarray, px: int) -> np.ndarray:
     """Dilate an (H, W) bool mask by ``px`` pixels (elliptical element of side 2 px + 1); px <= 0: unchanged."""
-    import cv2
-
     if px <= 0:
         return mask.astype(bool)
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * px + 1, 2 * px + 1))
@@ -42,15 +47,10 @@ def view_scores(seg: np.ndarray, truth: np.ndarray, grow_px: int = 2) -> dict[st
     """Scores of one (H, W) bool segmentation vs its (H, W) bool truth: iou, fp_out, person_iou."""
     seg, truth = seg.astype(bool), truth.astype(bool)
     near = grow(truth, grow_px)
-
-    def iou(a, b):
-        u = np.count_nonzero(a | b)
-        return 1.0 if u == 0 else np.count_nonzero(a & b) / u
-
     return {
-        "iou": iou(seg, truth),
+        "iou": mask_iou(seg, truth),
         "fp_out": float(np.count_nonzero(seg & ~near)),
-        "person_iou": iou(seg & near, truth),
+        "person_iou": mask_iou(seg & near, truth),
     }
 
 
@@ -61,11 +61,6 @@ def evaluate(frames_dir, params: dict | None = None, grow_px: int = 2, stages: b
     :func:`view_scores` of the final mask, and with ``stages`` ``fp_out_<stage>`` for the
     ``candidates`` and ``shadow_rejected`` stages.
     """
-    from silpose.shared.dataset import load_split
-
-    from .background import BackgroundModel
-    from .frames_dir import FramesFolder
-
     frames_dir = Path(frames_dir)
     truth = load_split(frames_dir, "test", with_masks=True)
     cams = list(truth.rig.names)
@@ -106,7 +101,7 @@ def _parse_set(items: list[str]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
-        prog="python -m silpose.segment.evaluate_frames",
+        prog="python -m silpose.app.segment_quality",
         description="Score BackgroundModel on a frames dataset with truth masks: per-view IoU, false-positive "
         "pixels outside the truth grown by --grow px, and the person-only IoU (see the module docstring).",
     )

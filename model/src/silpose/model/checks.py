@@ -1,35 +1,14 @@
-"""Input checks and fast contour normalisation for :class:`~silpose.model.shape_model.ShapeStructureModel`."""
+"""Input checks of :class:`~silpose.model.shape_model.ShapeStructureModel`: contours, view flags,
+normalisation factors. Each raises ValueError naming the argument and the expected shape."""
 
 from __future__ import annotations
 
 import numpy as np
 
 
-def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``silpose.shared.contours.normalise`` in float64, arranged for speed (same definition).
-
-    centroid c = mean of the points, scale s = RMS distance from c, q = (p - c) / s, and q = 0 with
-    s = 0 for a degenerate contour. points (..., n, 2) px -> (q (..., n, 2), c (..., 2), s (...,)).
-    """
-    p = np.asarray(points, dtype=np.float64)
-    lead, n = p.shape[:-2], p.shape[-2]
-    f = p.reshape(-1, n, 2)
-    c = np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1) / n  # strided sums: fast
-    q = f - c[:, None, :]
-    flat = q.reshape(q.shape[0], -1)
-    s = np.sqrt(np.einsum("ij,ij->i", flat, flat) / n)
-    q /= np.where(s > 0, s, 1.0)[:, None, None]
-    return q.reshape(p.shape), c.reshape(*lead, 2), s.reshape(lead)
-
-
-def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64."""
-    out = q * np.asarray(scale, dtype=np.float64)[..., None, None]
-    out += np.asarray(centroid, dtype=np.float64)[..., None, :]
-    return out
-
-
-def check_contours(contours: np.ndarray, name: str, n_points: int | None = None) -> np.ndarray:
+def check_contours(contours, name: str, n_points: int | None = None) -> np.ndarray:
+    """``contours`` as a float64 array (N, K, n, 2) of pixel coordinates (N >= 1, K >= 1); ``n_points``
+    checks n. Values are not checked here (absent views may hold NaN)."""
     raw = np.asarray(contours)
     if np.iscomplexobj(raw):
         raise ValueError(f"{name} must be real pixel coordinates, got dtype {raw.dtype}")
@@ -47,6 +26,7 @@ def check_contours(contours: np.ndarray, name: str, n_points: int | None = None)
 
 
 def check_present(views_present, n: int, k_in: int) -> np.ndarray:
+    """(n, k_in) bool view flags; None = every view present; 0/1 integers are accepted."""
     if views_present is None:
         return np.ones((n, k_in), dtype=bool)
     p = np.asarray(views_present)
@@ -60,6 +40,7 @@ def check_present(views_present, n: int, k_in: int) -> np.ndarray:
 
 
 def check_factors(centroid, scale, n: int, k_in: int):
+    """(centroid (n, k_in, 2), scale (n, k_in)) float64 pixel normalisation factors, or (None, None)."""
     if centroid is None and scale is None:
         return None, None
     if centroid is None or scale is None:

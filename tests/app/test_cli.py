@@ -1,4 +1,4 @@
-"""``silpose train`` / ``silpose infer`` end to end on a tiny dataset written with the dataset writer.
+"""``silpose train`` / ``silpose infer`` (silpose.app) end to end on a tiny dataset written with the dataset writer.
 
 The records come from ``silpose.datagen.testing.synthetic_record`` (stick-figure masks, real contour
 extraction): fast, and written and read through ``silpose.shared.dataset`` like a generated dataset.

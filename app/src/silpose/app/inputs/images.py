@@ -1,19 +1,27 @@
 """Frame loaders: a folder of images, or a video file (OpenCV).
 
-Both return BGR uint8 stacks, ready for :meth:`BackgroundModel.fit` / ``segment_batch``.
-Errors are :class:`SegmentError` naming the folder or file.
+Both return BGR uint8 stacks, ready for :meth:`silpose.segment.BackgroundModel.fit` /
+``segment_batch``. Errors are :class:`~silpose.app.errors.FramesInputError` naming the folder or file.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
-from .validate import SegmentError, frame_size_text
+from ..errors import FramesInputError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 """Image file suffixes :func:`load_frames` reads (case-insensitive)."""
+VIDEO_SUFFIXES = (".mp4", ".avi")
+"""Video file suffixes accepted for a camera (case-insensitive)."""
+
+
+def frame_size_text(shape) -> str:
+    """``"<W>x<H> (WxH)"`` for an image shape (H, W[, C]), as error messages print frame sizes."""
+    return f"{shape[1]}x{shape[0]} (WxH)"
 
 
 def load_frames(folder, gray: bool = False) -> tuple[np.ndarray, list[str]]:
@@ -33,25 +41,23 @@ def load_frames(folder, gray: bool = False) -> tuple[np.ndarray, list[str]]:
     frames : array (N, H, W, 3) uint8 BGR, or (N, H, W) uint8 with ``gray``
     names : list of N file names (without the folder)
     """
-    import cv2
-
     folder = Path(folder)
     if not folder.exists():
-        raise SegmentError(f"folder: {folder} does not exist")
+        raise FramesInputError(f"folder: {folder} does not exist")
     if not folder.is_dir():
-        raise SegmentError(f"folder: {folder} is not a directory")
+        raise FramesInputError(f"folder: {folder} is not a directory")
     paths = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
     if not paths:
-        raise SegmentError(f"folder: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in {folder}")
+        raise FramesInputError(f"folder: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in {folder}")
     frames = []
     for p in paths:
         img = cv2.imread(str(p), cv2.IMREAD_COLOR)
         if img is None:
-            raise SegmentError(f"{p}: cannot read this image (corrupt or not an image)")
+            raise FramesInputError(f"{p}: cannot read this image (corrupt or not an image)")
         if gray:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if frames and img.shape != frames[0].shape:
-            raise SegmentError(
+            raise FramesInputError(
                 f"{p}: frame size {frame_size_text(img.shape)} differs from {paths[0].name} "
                 f"({frame_size_text(frames[0].shape)})"
             )
@@ -74,17 +80,15 @@ def load_video(path, max_frames: int | None = None, gray: bool = False) -> np.nd
     -------
     array (N, H, W, 3) uint8 BGR, or (N, H, W) uint8 with ``gray``; N >= 1.
     """
-    import cv2
-
     path = Path(path)
     if not path.is_file():
-        raise SegmentError(f"path: video file {path} does not exist")
+        raise FramesInputError(f"path: video file {path} does not exist")
     if max_frames is not None and max_frames < 1:
-        raise SegmentError(f"max_frames: must be >= 1 or None, got {max_frames!r}")
+        raise FramesInputError(f"max_frames: must be >= 1 or None, got {max_frames!r}")
     cap = cv2.VideoCapture(str(path))
     try:
         if not cap.isOpened():
-            raise SegmentError(f"{path}: OpenCV cannot open this video")
+            raise FramesInputError(f"{path}: OpenCV cannot open this video")
         frames = []
         while max_frames is None or len(frames) < max_frames:
             ok, img = cap.read()
@@ -96,5 +100,5 @@ def load_video(path, max_frames: int | None = None, gray: bool = False) -> np.nd
     finally:
         cap.release()
     if not frames:
-        raise SegmentError(f"{path}: the video has no decodable frames")
+        raise FramesInputError(f"{path}: the video has no decodable frames")
     return np.stack(frames)

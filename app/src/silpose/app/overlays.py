@@ -10,25 +10,25 @@ One PNG per frame, one column per camera of the model's rig:
   (orthographic: the joints rotated by the camera's R, x right and y down), so it lines up with the
   frame above it. The paper picked such viewpoints by hand; the rig gives them exactly.
 
-matplotlib is imported lazily (it is not a dependency of silpose-model); a missing matplotlib is
-a clear error when the writer is created, before any work.
+matplotlib (heavy) is imported when a figure is drawn, with the non-interactive Agg backend.
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from silpose.shared.atomic import atomic_path
+from silpose.shared.skeleton import BONES
 
-def _plt():
-    try:
-        import matplotlib
-    except ImportError:
-        from .frames_io import FramesInputError
+from .contours import STATUS_OK
 
-        raise FramesInputError("--save-overlays draws with matplotlib, which is not installed") from None
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (files only, no display)."""
+    import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -56,7 +56,7 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
     """Draw and save one frame's figure (see the module docstring).
 
     Args:
-        path: PNG file to write (temporary name, then renamed).
+        path: PNG file to write (atomically: temporary name, then renamed).
         images: per rig camera a (H, W, 3) uint8 BGR frame, or None (no camera).
         masks: per rig camera a (H, W) bool silhouette, or None.
         recon_px: (K, n, 2) reconstructed contours in px, rig order (NaN rows: not drawn).
@@ -65,9 +65,7 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
         rig: the model's rig (camera names and rotations).
         title: figure title.
     """
-    from silpose.shared.skeleton import BONES
-
-    plt = _plt()
+    plt = pyplot()
     K = len(rig)
     fig, axes = plt.subplots(3, K, figsize=(2.3 * K, 6.2), squeeze=False,
                              gridspec_kw={"height_ratios": [1, 1, 1.1]})
@@ -89,7 +87,7 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
             a1.imshow(masks[k], cmap="gray", vmin=0, vmax=1.6)
         else:
             a1.imshow(np.zeros((cam.height, cam.width)), cmap="gray", vmin=0, vmax=1.6)
-        if status[k] == "ok":
+        if status[k] == STATUS_OK:
             c = recon_px[k]
             if np.all(np.isfinite(c)):
                 c = np.vstack([c, c[:1]])
@@ -114,26 +112,22 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        fig.savefig(tmp, dpi=90, format="png")
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=90, format="png")
     finally:
         plt.close(fig)
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
 class OverlayWriter:
-    """``on_chunk`` callback of :func:`silpose.model.frames_io.run_frames_pipeline` writing one PNG per frame.
+    """``on_chunk`` callback of :func:`silpose.app.frames_pipeline.run_frames_pipeline` writing one PNG per frame.
 
     Files: ``<folder>/<frame name>.png``. ``n_written`` counts them.
     """
 
     def __init__(self, model, folder):
-        _plt()  # fail before any work if matplotlib is missing
+        pyplot()  # import matplotlib now, before any work
         self.model = model
         self.folder = Path(folder)
         self.n_written = 0

@@ -1,10 +1,12 @@
-"""load_frames / load_video round trips and their errors (each naming the file or folder)."""
+"""silpose.app.inputs.images: load_frames / load_video round trips and their errors (each naming the file or folder)."""
 
 import cv2
 import numpy as np
 import pytest
 
-from silpose.segment import BackgroundModel, SegmentError, load_frames, load_video
+from silpose.app.errors import FramesInputError
+from silpose.app.inputs.images import load_frames, load_video
+from silpose.segment import BackgroundModel
 
 
 def _images(n, h=24, w=32, seed=0):
@@ -29,28 +31,28 @@ def test_load_frames_round_trip_sorted_by_name(tmp_path):
 
 
 def test_load_frames_errors_name_the_folder_or_file(tmp_path):
-    with pytest.raises(SegmentError, match=r"^folder: .*missing does not exist"):
+    with pytest.raises(FramesInputError, match=r"^folder: .*missing does not exist"):
         load_frames(tmp_path / "missing")
     (tmp_path / "a_file.png").write_bytes(b"")
-    with pytest.raises(SegmentError, match=r"^folder: .*a_file.png is not a directory"):
+    with pytest.raises(FramesInputError, match=r"^folder: .*a_file.png is not a directory"):
         load_frames(tmp_path / "a_file.png")
     empty = tmp_path / "empty"
     empty.mkdir()
-    with pytest.raises(SegmentError, match=r"^folder: no png/jpg/jpeg images in .*empty"):
+    with pytest.raises(FramesInputError, match=r"^folder: no png/jpg/jpeg images in .*empty"):
         load_frames(empty)
 
     bad = tmp_path / "bad"
     bad.mkdir()
     cv2.imwrite(str(bad / "0.png"), _images(1)[0])
     (bad / "1.jpg").write_bytes(b"\xff\xd8 this is not a jpeg")
-    with pytest.raises(SegmentError, match=r"1\.jpg: cannot read this image"):
+    with pytest.raises(FramesInputError, match=r"1\.jpg: cannot read this image"):
         load_frames(bad)
 
     sizes = tmp_path / "sizes"
     sizes.mkdir()
     cv2.imwrite(str(sizes / "0.png"), _images(1)[0])
     cv2.imwrite(str(sizes / "1.png"), _images(1, h=20)[0])
-    with pytest.raises(SegmentError, match=r"1\.png: frame size 32x20 \(WxH\) differs from 0\.png \(32x24"):
+    with pytest.raises(FramesInputError, match=r"1\.png: frame size 32x20 \(WxH\) differs from 0\.png \(32x24"):
         load_frames(sizes)
 
 
@@ -72,12 +74,12 @@ def test_load_video_round_trip(tmp_path):
 
 
 def test_load_video_errors_name_the_file(tmp_path):
-    with pytest.raises(SegmentError, match=r"^path: video file .*nope\.avi does not exist"):
+    with pytest.raises(FramesInputError, match=r"^path: video file .*nope\.avi does not exist"):
         load_video(tmp_path / "nope.avi")
     junk = tmp_path / "junk.avi"
     junk.write_bytes(b"definitely not a video" * 10)
-    with pytest.raises(SegmentError, match=r"junk\.avi: (OpenCV cannot open this video|the video has no decodable frames)"):
+    with pytest.raises(FramesInputError, match=r"junk\.avi: (OpenCV cannot open this video|the video has no decodable frames)"):
         load_video(junk)
     (tmp_path / "ok.avi").write_bytes(b"")
-    with pytest.raises(SegmentError, match=r"^max_frames: must be >= 1"):
+    with pytest.raises(FramesInputError, match=r"^max_frames: must be >= 1"):
         load_video(tmp_path / "ok.avi", max_frames=0)

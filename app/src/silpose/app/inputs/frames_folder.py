@@ -11,12 +11,13 @@ Layout (the "frames dataset" contract; only the two folders below are read here)
 file name (image folders: every camera folder must hold the same file names) or by index
 (videos: ``00000``, ``00001``, ...; every video must have the same number of frames). A camera
 whose frames entry is absent is reported in :attr:`FramesFolder.missing` (the caller decides what
-that means); every other problem raises :class:`SegmentError` naming the file or folder: an
+that means); every other problem raises :class:`~silpose.app.errors.FramesInputError` naming the file or folder: an
 unknown camera name, missing or too few background frames, unreadable images or videos, frame
 sizes that differ from the camera's size, frame names or counts that differ across cameras.
 
-Images are returned as BGR uint8 (``cv2.imread`` order), like :mod:`.loaders`. Frames are read
+Images are returned as BGR uint8 (``cv2.imread`` order), like :mod:`.images`. Frames are read
 in chunks (:meth:`FramesFolder.iter_chunks`) so long recordings never sit in memory at once.
+:func:`open_frames` opens a folder for a model's rig.
 """
 
 from __future__ import annotations
@@ -25,13 +26,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Sequence
 
+import cv2
 import numpy as np
 
-from .validate import SegmentError, frame_size_text
-from .loaders import IMAGE_SUFFIXES, load_frames, load_video
-
-VIDEO_SUFFIXES = (".mp4", ".avi")
-"""Video file suffixes accepted for a camera (case-insensitive)."""
+from ..errors import FramesInputError
+from .images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, frame_size_text, load_frames, load_video
 
 
 @dataclass(frozen=True)
@@ -65,25 +64,23 @@ def _entries(folder: Path, cameras: Sequence[str], what: str) -> dict[str, Camer
         else:
             continue
         if name not in cameras:
-            raise SegmentError(
+            raise FramesInputError(
                 f"{p}: camera {name!r} is not in the rig (cameras {list(cameras)}); rename or remove this {what} entry"
             )
         if name in found:
-            raise SegmentError(f"{p}: camera {name!r} has both {found[name].path.name} and {p.name} in {folder}")
+            raise FramesInputError(f"{p}: camera {name!r} has both {found[name].path.name} and {p.name} in {folder}")
         if images is not None and not images:
-            raise SegmentError(f"{p}: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in this {what} folder")
+            raise FramesInputError(f"{p}: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} images in this {what} folder")
         found[name] = CameraEntry(name, p, images)
     return found
 
 
 def _video_length(path: Path) -> int:
     """Frame count OpenCV reports for a video (checked again while decoding)."""
-    import cv2
-
     cap = cv2.VideoCapture(str(path))
     try:
         if not cap.isOpened():
-            raise SegmentError(f"{path}: OpenCV cannot open this video")
+            raise FramesInputError(f"{path}: OpenCV cannot open this video")
         return int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
     finally:
         cap.release()
@@ -116,33 +113,33 @@ class FramesFolder:
         self.root = Path(root)
         self.cameras = tuple(str(c) for c in cameras)
         if sizes is not None and len(sizes) != len(self.cameras):
-            raise SegmentError(f"sizes: {len(sizes)} sizes for {len(self.cameras)} cameras")
+            raise FramesInputError(f"sizes: {len(sizes)} sizes for {len(self.cameras)} cameras")
         self.sizes = None if sizes is None else {c: (int(w), int(h)) for c, (w, h) in zip(self.cameras, sizes)}
         if not self.root.is_dir():
-            raise SegmentError(f"{self.root}: frames folder not found")
+            raise FramesInputError(f"{self.root}: frames folder not found")
         frames_dir, bg_dir = self.root / "frames", self.root / "background"
         if not frames_dir.is_dir():
-            raise SegmentError(
+            raise FramesInputError(
                 f"{frames_dir}: no such folder; a frames folder holds frames/<camera>/ (or frames/<camera>.mp4) "
                 f"and background/<camera>/, cameras {list(self.cameras)}"
             )
         self._frames = _entries(frames_dir, self.cameras, "frames")
         if not self._frames:
-            raise SegmentError(f"{frames_dir}: no camera folders or videos named as the rig's cameras {list(self.cameras)}")
+            raise FramesInputError(f"{frames_dir}: no camera folders or videos named as the rig's cameras {list(self.cameras)}")
         if not bg_dir.is_dir():
-            raise SegmentError(f"{bg_dir}: no such folder: background frames are needed to learn each camera's background")
+            raise FramesInputError(f"{bg_dir}: no such folder: background frames are needed to learn each camera's background")
         self._background = _entries(bg_dir, self.cameras, "background")
         self.present = tuple(c for c in self.cameras if c in self._frames)
         self.missing = tuple(c for c in self.cameras if c not in self._frames)
         for cam in self.present:
             if cam not in self._background:
-                raise SegmentError(
+                raise FramesInputError(
                     f"{bg_dir}: missing background frames for camera {cam!r} "
                     f"(expected {bg_dir / cam}/00000.png ... or {bg_dir / cam}.mp4)"
                 )
             bg = self._background[cam]
             if bg.images is not None and len(bg.images) < 2:
-                raise SegmentError(f"{bg.path}: a background needs at least 2 frames, found {len(bg.images)}")
+                raise FramesInputError(f"{bg.path}: a background needs at least 2 frames, found {len(bg.images)}")
         self.frame_names = self._match_frames()
 
     # ------------------------------------------------------------------ validation
@@ -162,17 +159,17 @@ class FramesFolder:
             elif stems != names:
                 only = sorted(set(stems) ^ set(names))
                 what = f"file {only[0]!r} is in one but not the other" if only else "the file names differ"
-                raise SegmentError(
+                raise FramesInputError(
                     f"{e.path}: frame files differ from {ref.path} ({len(stems)} vs {len(names)} frames; {what}); "
                     f"every camera folder must hold the same file names"
                 )
         counts = set(lengths.values())
         if len(counts) > 1:
             desc = ", ".join(f"{self._frames[c].path.name}: {n}" for c, n in lengths.items())
-            raise SegmentError(f"{self.root / 'frames'}: frame counts differ across cameras ({desc})")
+            raise FramesInputError(f"{self.root / 'frames'}: frame counts differ across cameras ({desc})")
         n = counts.pop()
         if n == 0:
-            raise SegmentError(f"{self._frames[self.present[0]].path}: no frames")
+            raise FramesInputError(f"{self._frames[self.present[0]].path}: no frames")
         return names if names is not None else [f"{i:05d}" for i in range(n)]
 
     def _check_size(self, cam: str, img: np.ndarray, source: Path | str) -> None:
@@ -183,7 +180,7 @@ class FramesFolder:
         else:
             origin = "the rig"
         if want is not None and (img.shape[1], img.shape[0]) != want:
-            raise SegmentError(
+            raise FramesInputError(
                 f"{source}: frame size {frame_size_text(img.shape)} differs from camera {cam!r} "
                 f"({want[0]}x{want[1]} (WxH), from {origin})"
             )
@@ -203,7 +200,7 @@ class FramesFolder:
         if e.is_video:
             stack = load_video(e.path, max_frames=max_frames)
             if len(stack) < 2:
-                raise SegmentError(f"{e.path}: a background needs at least 2 frames, the video has {len(stack)}")
+                raise FramesInputError(f"{e.path}: a background needs at least 2 frames, the video has {len(stack)}")
         else:
             stack, _ = load_frames(e.path)
             stack = stack[:max_frames] if max_frames else stack
@@ -213,21 +210,13 @@ class FramesFolder:
         self._bg_sizes[cam] = (stack.shape[2], stack.shape[1])
         return stack
 
-    def fit_backgrounds(self, **params) -> dict:
-        """One fitted :class:`~silpose.segment.BackgroundModel` per present camera (``params`` go to its constructor)."""
-        from .background import BackgroundModel
-
-        return {cam: BackgroundModel(**params).fit(self.background(cam)) for cam in self.present}
-
     def iter_chunks(self, chunk: int = 64) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         """Yield ``(start, {camera: (n, H, W, 3) uint8 BGR})`` for consecutive chunks of up to ``chunk`` frames.
 
         Every image is checked (readable, size); videos must deliver exactly :attr:`n_frames` frames.
         """
-        import cv2
-
         if chunk < 1:
-            raise SegmentError(f"chunk: must be >= 1, got {chunk}")
+            raise FramesInputError(f"chunk: must be >= 1, got {chunk}")
         caps = {}
         try:
             for cam in self.present:
@@ -235,7 +224,7 @@ class FramesFolder:
                 if e.is_video:
                     cap = cv2.VideoCapture(str(e.path))
                     if not cap.isOpened():
-                        raise SegmentError(f"{e.path}: OpenCV cannot open this video")
+                        raise FramesInputError(f"{e.path}: OpenCV cannot open this video")
                     caps[cam] = cap
             for start in range(0, self.n_frames, chunk):
                 stop = min(start + chunk, self.n_frames)
@@ -247,14 +236,14 @@ class FramesFolder:
                         if e.is_video:
                             ok, img = caps[cam].read()
                             if not ok:
-                                raise SegmentError(
+                                raise FramesInputError(
                                     f"{e.path}: the video ends after {i} frames; other cameras have {self.n_frames}"
                                 )
                             source = f"{e.path} frame {i}"
                         else:
                             img = cv2.imread(str(e.images[i]), cv2.IMREAD_COLOR)
                             if img is None:
-                                raise SegmentError(f"{e.images[i]}: cannot read this image (corrupt or not an image)")
+                                raise FramesInputError(f"{e.images[i]}: cannot read this image (corrupt or not an image)")
                             source = e.images[i]
                         self._check_size(cam, img, source)
                         imgs.append(img)
@@ -262,10 +251,21 @@ class FramesFolder:
                 yield start, out
             for cam, cap in caps.items():
                 if cap.read()[0]:
-                    raise SegmentError(
+                    raise FramesInputError(
                         f"{self._frames[cam].path}: the video has more than the {self.n_frames} frames OpenCV reported; "
                         f"re-encode it"
                     )
         finally:
             for cap in caps.values():
                 cap.release()
+
+
+def open_frames(model, root) -> FramesFolder:
+    """A frames folder validated against a fitted model's rig (camera names and image sizes).
+
+    model: a ShapeStructureModel with a rig (``rig_``); root: the folder. FramesInputError otherwise.
+    """
+    if model.rig_ is None:
+        raise FramesInputError("the model file stores no rig, so camera folders cannot be matched to views")
+    rig = model.rig_
+    return FramesFolder(root, rig.names, [(c.width, c.height) for c in rig])

@@ -8,32 +8,39 @@ remaining part of train.
 With ``streaming`` (``silpose train --streaming``) or ``executor="ray"`` the split is never loaded
 whole: EM streams over its Parquet shards (``silpose.model.streaming``) and the held-out part is
 scored shard by shard; the held-out rows are the same as in memory.
+
+Writes ``<model>.npz`` (:mod:`silpose.model.persistence`) and its training report
+``<model>.report.md`` / ``.report.json``, each atomically.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from .persistence import save_model
-from .selection import joint_error_cm, select as run_selection, validation_split
-from .shape_model import (
+from silpose.model.persistence import save_model
+from silpose.model.provenance import manifest_sha256
+from silpose.model.selection import select as run_selection, validation_split
+from silpose.model.shape_model import (
     DEFAULT_N_COMPONENTS,
     DEFAULT_N_LATENT,
     DEFAULT_NOISE_VARIANCE,
     DEFAULT_STRUCTURE_WEIGHT,
     ShapeStructureModel,
 )
+from silpose.model.shards import split_global_rows
+from silpose.model.streaming import EXECUTORS, DatasetShards
+from silpose.shared.atomic import write_text_atomic
+from silpose.shared.dataset import load_split, read_shard
+from silpose.shared.metrics import pose_error_cm
 
-
-class TrainingError(ValueError):
-    """Bad training input (dataset folder, options)."""
+from .errors import TrainingError
 
 
 @dataclass
@@ -68,7 +75,7 @@ def resolve_dataset(preset: str, data_root: Path) -> tuple[Path, str]:
     )
 
 
-class _EMProgress:
+class EMProgress:
     """rich progress display fed by MPPCA's ``callback(iteration, mean_loglik)``."""
 
     def __init__(self, enabled: bool, max_iter: int, n_init: int):
@@ -81,8 +88,6 @@ class _EMProgress:
 
     def __enter__(self):
         if self.enabled:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
             self._progress = Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                                       transient=False)
             self._progress.__enter__()
@@ -106,12 +111,6 @@ class _EMProgress:
             self._progress.update(self._task, completed=iteration,
                                   description=f"EM segment {self.run} iteration {iteration:3d}  "
                                               f"log-lik {loglik:,.2f}/sample")
-
-
-def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def run_training(
@@ -142,9 +141,7 @@ def run_training(
     and scores the held-out part shard by shard; ``executor="ray"`` (implies streaming) runs each
     shard's EM task on Ray with ``workers`` CPUs when it starts a local Ray instance.
     """
-    from silpose.shared.dataset import load_split
-
-    if executor not in ("local", "ray"):
+    if executor not in EXECUTORS:
         raise TrainingError(f"executor must be 'local' or 'ray', got {executor!r}")
     streaming = bool(streaming) or executor == "ray"
     if streaming and select:
@@ -152,8 +149,6 @@ def run_training(
                             "then train the chosen hyperparameters with streaming")
     root, name = resolve_dataset(preset, data_root)
     if streaming:
-        from .streaming import DatasetShards
-
         plan = DatasetShards.open(root, "train", executor=executor, workers=workers)
         split, metadata, rig = None, plan.metadata, plan.rig
         n, n_views, n_points = sum(plan.shard_rows()), plan.n_rig_views, plan.n_points
@@ -199,7 +194,7 @@ def run_training(
     for note in notes:
         print(f"note: {note}", flush=True)
 
-    with _EMProgress(progress, max_iter, n_init) as em:
+    with EMProgress(progress, max_iter, n_init) as em:
         model = ShapeStructureModel(
             hp["n_components"], hp["n_latent"], structure_weight=hp["structure_weight"], views=views,
             noise_variance=hp["noise_variance"], tol=tol, max_iter=max_iter, n_init=n_init, random_state=seed,
@@ -222,7 +217,7 @@ def run_training(
         held_ll, held_err = _heldout_streaming(model, plan, held_idx)
     else:
         held_ll = model.score_samples(contours[held_idx], joints[held_idx])
-        held_err = joint_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
+        held_err = pose_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
 
     out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     save_model(out, model)
@@ -252,17 +247,13 @@ def run_training(
     }
     report_json = out.with_suffix(".report.json")
     report_md = out.with_suffix(".report.md")
-    _write_text(report_json, json.dumps(report, indent=2))
-    _write_text(report_md, _report_markdown(report, selection))
+    write_text_atomic(report_json, json.dumps(report, indent=2))
+    write_text_atomic(report_md, report_markdown(report, selection))
     return TrainingResult(out, report_md, report_json, report)
 
 
 def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(log-likelihood (H,), joint error cm (H,)) of the held-out rows, reading one shard at a time."""
-    from silpose.shared.dataset import read_shard
-
-    from .shards import split_global_rows
-
     lls, errs = [], []
     for path, rows in zip(plan.paths, split_global_rows(np.asarray(held_idx), plan.shard_rows())):
         if rows.size == 0:
@@ -271,14 +262,12 @@ def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, n
         c, j = shard.contours[rows], shard.joints[rows]
         del shard
         lls.append(model.score_samples(c, j))
-        errs.append(joint_error_cm(model.infer(c).joints, j))
+        errs.append(pose_error_cm(model.infer(c).joints, j))
     return np.concatenate(lls), np.concatenate(errs)
 
 
 def _dataset_info(root: Path, name: str, metadata: dict, n_samples: int, n_fit: int, n_held: int) -> dict:
-    from .persistence import file_sha256
-
-    manifest = Path(root) / "manifest.json"
+    """What the model file records about its training data (``dataset_info_``)."""
     return {
         "name": name,
         "root": str(root),
@@ -286,13 +275,14 @@ def _dataset_info(root: Path, name: str, metadata: dict, n_samples: int, n_fit: 
         "n_samples": int(n_samples),
         "n_fit": n_fit,
         "n_heldout": n_held,
-        "manifest_sha256": file_sha256(manifest) if manifest.is_file() else None,
+        "manifest_sha256": manifest_sha256(root),
         "config_name": (metadata.get("config") or {}).get("name"),
         "generator_config": metadata.get("config"),
     }
 
 
-def _report_markdown(r: dict, selection) -> str:
+def report_markdown(r: dict, selection) -> str:
+    """The training report as Markdown (from the report dict ``r`` and the selection result or None)."""
     hp, em, held = r["hyperparameters"], r["em"], r["heldout"]
     curve = em["loglik_curve"]
     shown = curve if len(curve) <= 12 else curve[:6] + curve[-6:]

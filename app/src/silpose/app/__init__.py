@@ -1,0 +1,18 @@
+"""silpose.app: the user workflows. The only package that composes ``silpose.segment`` and ``silpose.model``.
+
+The data path, top to bottom::
+
+    inputs/            read: silhouette PNG folders, dataset splits, image folders / videos, frames folders
+    segmentation       camera frames -> silhouette masks (silpose.segment's background subtraction)
+    contours           masks -> view contours, with each view's status (used, empty, too small, ...)
+    inference          contours -> the model (silpose.model) -> joints; ``silpose infer`` on silhouettes
+    frames_pipeline    ``silpose infer --frames``: frames -> masks -> contours -> joints, chunk by chunk
+    writers            joints (Parquet / JSON), reconstructed contours (.npz), segmentation status (JSON)
+    overlays           per-frame figures of frames, silhouettes, reconstructions and the inferred pose
+    training           ``silpose train``: load a dataset, select hyperparameters, fit, report, save
+    segment_quality    measurement tool: segmentation IoU on a frames dataset with truth masks
+    cli/               the ``train`` and ``infer`` commands (entry points ``silpose.commands``)
+    errors             one-line input errors naming the file
+
+Camera rigs (``silpose rig``) and multi-person recordings will live in ``rig/`` and ``recordings/``.
+"""

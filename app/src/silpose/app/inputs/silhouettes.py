@@ -1,0 +1,63 @@
+"""Per-camera folders of silhouette PNGs as ``silpose infer`` input.
+
+Layout::
+
+    INPUT/<camera name>/<frame>.png      one folder per camera, named as in the model's rig
+
+Frames are matched by file name across cameras. A missing camera folder, a frame file absent from
+one camera's folder, or an empty mask (no foreground pixel) is a missing view for that frame; the
+model marginalises it. Foreground = grey value > ``threshold``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..contours import STATUS_OK, view_contour
+from ..errors import InferenceInputError
+
+
+def read_png_input(model, folder: Path, threshold: int = 127):
+    """The contours of a folder of per-camera silhouette PNGs (module doc), extracted at the model's n.
+
+    Returns (frame names (N,), contours (N, K_rig, n, 2) px (NaN where missing),
+    views_present (N, K_rig) bool, None).
+    """
+    if model.rig_ is None:
+        raise InferenceInputError("the model file stores no rig, so camera folders cannot be named; use a dataset")
+    names = list(model.rig_.names)
+    subdirs = {p.name for p in folder.iterdir() if p.is_dir()}
+    present_dirs = [n for n in names if n in subdirs]
+    if not present_dirs:
+        raise InferenceInputError(
+            f"{folder}: neither a dataset (no .parquet files) nor a PNG folder: expected subfolders named as the "
+            f"model's cameras {names}, found {sorted(subdirs) or 'none'}"
+        )
+    files = {n: {p.stem: p for p in (folder / n).glob("*.png")} for n in present_dirs}
+    frames = sorted(set().union(*[set(f) for f in files.values()]))
+    if not frames:
+        raise InferenceInputError(f"{folder}: the camera folders {present_dirs} hold no .png files")
+    n_pts = model.layout_.n_points
+    contours = np.full((len(frames), len(names), n_pts, 2), np.nan)
+    present = np.zeros((len(frames), len(names)), dtype=bool)
+    for k, cam_name in enumerate(names):
+        cam = model.rig_[k]
+        for i, frame in enumerate(frames):
+            path = files.get(cam_name, {}).get(frame)
+            if path is None:
+                continue
+            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            if img is None:
+                raise InferenceInputError(f"{path}: not a readable image")
+            if img.shape != (cam.height, cam.width):
+                raise InferenceInputError(
+                    f"{path}: image is {img.shape[1]}x{img.shape[0]}, camera {cam_name!r} is {cam.width}x{cam.height}"
+                )
+            points, status, _ = view_contour(img > threshold, n_pts)
+            if status == STATUS_OK:
+                contours[i, k] = points
+                present[i, k] = True
+    return np.array(frames), contours, present, None

@@ -1,0 +1,113 @@
+"""What ``silpose infer`` writes, each file atomically (:mod:`silpose.shared.atomic`):
+
+- joints: Parquet (one row per frame; ``<joint>_x/_y/_z`` and ``<joint>_x_std`` ... in metres,
+  root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``);
+- reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
+- segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from silpose.shared.atomic import atomic_open, atomic_path, write_text_atomic
+from silpose.shared.skeleton import JOINT_NAMES
+
+from .contours import STATUS_EMPTY, STATUS_NO_CAMERA, STATUS_NOT_MODELLED, STATUS_OK, STATUS_SMALL, STATUSES
+
+UNITS = "metres, root-relative (pelvis at the origin), world orientation"
+
+
+def sibling(out: Path, suffix: str) -> Path:
+    """``<out stem><suffix>`` next to the joints file ``out`` (e.g. ``j.parquet`` -> ``j.contours.npz``)."""
+    out = Path(out)
+    return out.with_name(out.name.rsplit(".", 1)[0] + suffix)
+
+
+def _view_names(result, rig_names) -> list[str]:
+    return [rig_names[v] if rig_names else str(v) for v in result.views]
+
+
+def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "") -> None:
+    """Write the joints of an InferenceResult of N frames (module doc).
+
+    Args:
+        path: ``.parquet`` or ``.json``.
+        frames: (N,) frame names; result: ``ShapeStructureModel.infer``'s result over the K modelled views.
+        rig_names: the rig's camera names (None: views are named by their indices).
+        sample_id: optional (N,) dataset sample ids; model_path: recorded in the file.
+    """
+    path = Path(path)
+    n = len(frames)
+    names = _view_names(result, rig_names)
+    if path.suffix.lower() == ".json":
+        doc = {
+            "model": model_path,
+            "units": UNITS,
+            "joint_names": list(JOINT_NAMES),
+            "views": names,
+            "frames": [
+                {
+                    "frame": str(frames[i]),
+                    **({"sample_id": int(sample_id[i])} if sample_id is not None else {}),
+                    "views_present": [names[k] for k in np.flatnonzero(result.views_present[i])],
+                    "joints": result.joints[i].round(6).tolist(),
+                    "joint_std": result.joint_std[i].round(6).tolist(),
+                    "log_marginal": float(result.log_marginal[i]),
+                    "component": int(np.argmax(result.responsibilities[i])),
+                }
+                for i in range(n)
+            ],
+        }
+        write_text_atomic(path, json.dumps(doc, indent=1))
+        return
+    cols: dict = {"frame": pa.array([str(f) for f in frames])}
+    if sample_id is not None:
+        cols["sample_id"] = pa.array(np.asarray(sample_id, dtype=np.int64))
+    cols["n_views_present"] = pa.array(result.views_present.sum(1).astype(np.int32))
+    cols["views_present"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in result.views_present])
+    cols["log_marginal"] = pa.array(result.log_marginal)
+    cols["component"] = pa.array(np.argmax(result.responsibilities, axis=1).astype(np.int32))
+    for j, jn in enumerate(JOINT_NAMES):
+        for a, axis in enumerate("xyz"):
+            cols[f"{jn}_{axis}"] = pa.array(result.joints[:, j, a].astype(np.float32))
+    for j, jn in enumerate(JOINT_NAMES):
+        for a, axis in enumerate("xyz"):
+            cols[f"{jn}_{axis}_std"] = pa.array(result.joint_std[:, j, a].astype(np.float32))
+    meta = {"model": model_path, "units": UNITS, "joint_names": list(JOINT_NAMES), "views": names}
+    table = pa.table(cols).replace_schema_metadata({b"silpose_infer": json.dumps(meta).encode()})
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp, compression="zstd")
+
+
+def write_contours(path: Path, frames, result, rig_names) -> None:
+    """Reconstructed contours (.npz, no pickle): frames (N,) str, views (K,) str, contours_norm / contours_px
+    (N, K, n, 2) (px NaN where the view's normalisation is unknown), views_present (N, K)."""
+    names = np.array(_view_names(result, rig_names))
+    with atomic_open(path, "wb") as f:
+        np.savez(f, frames=np.asarray(frames).astype(str), views=names, contours_norm=result.contours_norm,
+                 contours_px=result.contours_px, views_present=result.views_present)
+
+
+def write_segmentation(path: Path, fr, root: Path, min_area: int) -> None:
+    """Per (frame, camera) segmentation status and blob area as JSON.
+
+    fr: the frames pipeline's result (frames (N,), cameras (K,), status (N, K) str, area (N, K) px).
+    """
+    doc = {
+        "frames_dir": str(root),
+        "cameras": list(fr.cameras),
+        "statuses": {STATUS_OK: "used", STATUS_NO_CAMERA: "no frames for this camera (missing view)",
+                     STATUS_EMPTY: "segmentation found no foreground (missing view for this frame)",
+                     STATUS_SMALL: f"largest blob under {min_area} px (missing view for this frame)",
+                     STATUS_NOT_MODELLED: "the model does not use this camera"},
+        "counts": {c: {s: int((fr.status[:, k] == s).sum()) for s in STATUSES} for k, c in enumerate(fr.cameras)},
+        "frames": [{"frame": str(f), "status": [str(s) for s in fr.status[i]], "area_px": fr.area[i].tolist()}
+                   for i, f in enumerate(fr.frames)],
+    }
+    write_text_atomic(path, json.dumps(doc, indent=1))

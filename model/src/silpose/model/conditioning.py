@@ -1,0 +1,380 @@
+"""Gaussian conditioning of a mixture of PPCA: the posterior of every dimension given the observed ones.
+
+The one conditioning path of silpose: :meth:`ShapeStructureModel.infer` calls it for each pattern
+of present views; the tests compare it with dense conditioning (d x d covariances).
+
+Notation. A vector x (d,) splits into an observed block a (d_a dims, indices ``observed``) and a
+missing block b. The mixture has weights pi_i (M,), means mu_i (M, d), loadings W_i (M, d, q) and
+isotropic noise variances sigma_i^2 (M,) (Tipping & Bishop 1999). The observed values carry extra
+zero-mean Gaussian noise of variance s_j^2 >= 0 (one scalar s^2 for all observed dims, or one per
+dim). Per component i, with D_i = diag(sigma_i^2 + s_j^2) (d_a,)::
+
+    K_i = I_q + W_a^T D_i^-1 W_a                                          (q, q)
+    x_hat_i = K_i^-1 W_a^T D_i^-1 (a - mu_a)                              latent posterior mean (q,)
+    log N(a; mu_a, W_a W_a^T + D_i)
+        = -1/2 (d_a log 2 pi + log|D_i| + log|K_i| + e^T D_i^-1 e - u^T K_i^-1 u),
+          e = a - mu_a,  u = W_a^T D_i^-1 e                                (Woodbury + determinant lemma)
+    E[x | a, i] = mu_i + W_i x_hat_i         every dim: at b the conditional mean E[b | a, i], at a the
+                                             Bayesian reconstruction mu_a + W_a x_hat_i (the shape model of [8])
+    Cov[b | a, i] = W_b K_i^-1 W_b^T + sigma_i^2 I
+    r_i = p(i | a) = pi_i N(a; mu_a, C_aa,i) / sum_j pi_j N(a; mu_a, C_aa,j)
+
+The component weights r_i come from each component's marginal likelihood of the observed rows
+alone. The mixture posterior mean is ``sum_i r_i E[x | a, i]``; its covariance follows the law of
+total covariance, ``sum_i r_i (Cov[b | a, i] + (E[b|a,i] - E[b|a]) (E[b|a,i] - E[b|a])^T)``. With
+scalar noise this is docs/conventions.md, "Model": tau^2 = sigma^2 + s^2, M_a = W_a^T W_a + tau^2 I
+= tau^2 K, x_hat = M_a^-1 W_a^T (a - mu_a), Cov[b | a, i] = tau^2 W_b M_a^-1 W_b^T + sigma^2 I.
+Missing dims are dropped from every product (marginalised), never zero-filled.
+
+Evaluation. All q x q factorisations are done once per (pattern, noise) in :class:`Conditioner`.
+A batch then costs two large matrix products per chunk of rows, ``A (N, d_a) @ [P_1 .. P_M  mu_a..]``
+with ``P_i = D_i^-1 W_a K_i^-1`` (so ``x_hat_i = a P_i - mu_a P_i``) and ``[r_i x_hat_i]_i @
+[W_1^T .. W_M^T]``, with ``e^T D^-1 e`` expanded as ``a^T D^-1 a - 2 a^T D^-1 mu_a + mu_a^T D^-1
+mu_a`` from the first product and ``u^T K^-1 u = x_hat^T K x_hat``: O(N (d_a + d) q M) at BLAS-3
+speed, no (N, M, d) intermediate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["MixtureParams", "Posterior", "RowsPosterior", "Conditioner", "condition", "condition_rows"]
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+_CHUNK = 2048  # rows per block of the batched products
+
+
+@dataclass(frozen=True)
+class MixtureParams:
+    """The parameters of a mixture of PPCA under the fitted-attribute names of :class:`~silpose.model.mppca.MPPCA`.
+
+    weights_ (M,) pi_i; means_ (M, d) mu_i; components_ (M, d, q) W_i; noise_variance_ (M,) sigma_i^2.
+    """
+
+    weights_: np.ndarray
+    means_: np.ndarray
+    components_: np.ndarray
+    noise_variance_: np.ndarray
+
+    @classmethod
+    def of(cls, model_or_params) -> "MixtureParams":
+        """Validated float64 parameters of a fitted MPPCA (or any object with the four attributes).
+
+        Raises TypeError when an attribute is missing (an unfitted model), ValueError when the shapes
+        disagree, a noise variance is <= 0 or a weight < 0.
+        """
+        try:
+            w, mu, W, s2 = (np.asarray(getattr(model_or_params, name), dtype=np.float64)
+                            for name in ("weights_", "means_", "components_", "noise_variance_"))
+        except AttributeError as exc:
+            raise TypeError("condition: the model needs weights_, means_, components_ and noise_variance_ "
+                            "(a fitted MPPCA)") from exc
+        if W.ndim != 3 or mu.shape != W.shape[:2] or w.shape != (W.shape[0],) or s2.shape != (W.shape[0],):
+            raise ValueError(f"condition: inconsistent parameter shapes weights_ {w.shape}, means_ {mu.shape}, "
+                             f"components_ {W.shape}, noise_variance_ {s2.shape}")
+        if np.any(s2 <= 0) or np.any(w < 0):
+            raise ValueError("condition: noise_variance_ must be > 0 and weights_ >= 0")
+        return cls(w, mu, W, s2)
+
+
+@dataclass
+class Posterior:
+    """Posterior of a batch of N observations (M components, d dims, ``detail`` dims d_det).
+
+    :attr:`mean` (N, d_miss): the mixture posterior mean E[b | a] of the missing dims. With
+    ``reconstruct=True``, ``reconstruction`` (N, d) holds E[x | a] for every dim instead (the
+    conditional mean at the missing dims, the Bayesian reconstruction at the observed ones) and
+    ``missing_mean`` is None; otherwise ``missing_mean`` holds E[b | a] and ``reconstruction`` is None.
+    best_mean (N, d_det): the most probable component's mean of the detail dims; variance
+    (N, d_det): diagonal of the mixture posterior covariance of the detail dims; responsibilities
+    (N, M): p(i | a); log_marginal (N,): log p(a) in nats; missing (d_miss,) and detail (d_det,):
+    dim indices. Only on request: component_means (N, M, d_det), cov (N, d_det, d_det),
+    component_cov (M, d_det, d_det).
+    """
+
+    reconstruction: np.ndarray | None
+    missing_mean: np.ndarray | None
+    best_mean: np.ndarray
+    variance: np.ndarray
+    responsibilities: np.ndarray
+    log_marginal: np.ndarray
+    missing: np.ndarray
+    detail: np.ndarray
+    component_means: np.ndarray | None = None
+    cov: np.ndarray | None = None
+    component_cov: np.ndarray | None = None
+
+    @property
+    def mean(self) -> np.ndarray:
+        """(N, d_miss) the conditional mean E[b | a] of the missing dims."""
+        return self.missing_mean if self.reconstruction is None else self.reconstruction[:, self.missing]
+
+
+@dataclass
+class RowsPosterior:
+    """:func:`condition_rows`: each row conditioned on its own finite entries (N rows, d dims, M components).
+
+    mean, best_mean (N, d) and component_means (N, M, d): the observed values at observed dims and the
+    posterior (best component's, each component's) means at missing ones; variance (N, d): posterior
+    variance, 0 at observed dims; responsibilities (N, M); log_marginal (N,); missing (N, d) bool.
+    """
+
+    mean: np.ndarray
+    best_mean: np.ndarray
+    component_means: np.ndarray
+    variance: np.ndarray
+    responsibilities: np.ndarray
+    log_marginal: np.ndarray
+    missing: np.ndarray
+
+
+def _observed_index(observed, d: int) -> np.ndarray:
+    """(d_a,) indices of the observed dims from a (d,) bool mask or an index array (order kept)."""
+    obs = np.asarray(observed)
+    if obs.dtype == bool:
+        if obs.shape != (d,):
+            raise ValueError(f"condition: boolean 'observed' mask must have shape ({d},), got {obs.shape}")
+        return np.flatnonzero(obs)
+    if obs.ndim != 1 or (obs.size and not np.issubdtype(obs.dtype, np.integer)):
+        raise ValueError("condition: 'observed' must be a (d,) bool mask or a 1-D integer index array")
+    obs = obs.astype(np.intp)
+    if obs.size and (obs.min() < 0 or obs.max() >= d):
+        raise ValueError(f"condition: 'observed' indices must lie in [0, {d}), got [{obs.min()}, {obs.max()}]")
+    if np.unique(obs).size != obs.size:
+        raise ValueError("condition: 'observed' index array has repeated indices")
+    return obs
+
+
+def _noise(noise_variance, d_a: int) -> np.ndarray:
+    """The observation noise as a float64 scalar (0-d) or (d_a,) vector, checked finite and >= 0."""
+    noise = np.asarray(noise_variance, dtype=np.float64)
+    if noise.ndim != 0 and noise.shape != (d_a,):
+        raise ValueError(f"condition: noise_variance must be a scalar or have shape ({d_a},) "
+                         f"(one per observed dim), got {noise.shape}")
+    if not np.all(np.isfinite(noise)) or np.any(noise < 0):
+        raise ValueError("condition: noise_variance must be finite and >= 0")
+    return noise
+
+
+class Conditioner:
+    """Precomputed posterior for one observed pattern and one observation noise; call it on batches.
+
+    Args:
+        model_or_params: a fitted MPPCA or :class:`MixtureParams` (anything with weights_ (M,),
+            means_ (M, d), components_ (M, d, q), noise_variance_ (M,)).
+        observed: (d,) bool mask, or (d_a,) integer indices of the observed dims in the column
+            order of the observations.
+        noise_variance: observation noise s^2 >= 0 on the observed dims (data units squared), a scalar
+            or (d_a,) one per observed dim.
+        detail: (d_det,) indices of missing dims for which ``best_mean`` and ``variance`` (and on request
+            the component means and covariances) are returned; None = every missing dim.
+        reconstruct: also reconstruct the observed dims: the posterior mean of all d dims
+            (``Posterior.reconstruction``); False = the missing dims only.
+
+    Attributes: ``observed`` (d_a,), ``missing`` (d_miss,), ``detail`` (d_det,) indices.
+    The q x q factorisations are done here once; a call costs O(N (d_a + d_out) q M), d_out = d
+    with ``reconstruct`` else d_miss.
+    """
+
+    def __init__(self, model_or_params, observed, noise_variance=0.0, detail=None, reconstruct: bool = False):
+        p = MixtureParams.of(model_or_params)
+        W, mu, sig2 = p.components_, p.means_, p.noise_variance_
+        m, d, q = W.shape
+        obs = _observed_index(observed, d)
+        mask = np.zeros(d, dtype=bool)
+        mask[obs] = True
+        self.observed, self.missing = obs, np.flatnonzero(~mask)
+        det = self.missing if detail is None else np.asarray(detail, dtype=np.intp).reshape(-1)
+        if det.size and (det.min() < 0 or det.max() >= d or mask[det].any()):
+            raise ValueError("condition: 'detail' must index missing dims")
+        self.detail = det
+        noise = _noise(noise_variance, obs.size)
+        self.m, self.d, self.q, self.d_a = m, d, q, obs.size
+        Wa = W[:, obs, :]  # (M, d_a, q)
+        mu_a = mu[:, obs]  # (M, d_a)
+        if noise.ndim == 0:  # one variance D_i = sigma_i^2 + s^2 for every observed dim
+            D = sig2 + float(noise)  # (M,)
+            self.invD = 1.0 / D
+            self.invD_dims = None
+        else:
+            D_dims = sig2[:, None] + noise[None, :]  # (M, d_a)
+            self.invD_dims = 1.0 / D_dims
+            self.invD = None
+        # Per component: P_i = D_i^-1 W_a K_i^-1  (d_a, q), so x_hat = (a - mu_a) @ P_i.
+        A = np.empty((obs.size, m * q + m))
+        self.K = np.empty((m, q, q))
+        self.c = np.empty((m, q))  # mu_a @ P_i
+        self.log_norm = np.empty(m)  # log pi - 1/2 (d_a log 2 pi + log|D| + log|K|)
+        for i in range(m):
+            if self.invD_dims is None:
+                K = np.eye(q) + (Wa[i].T @ Wa[i]) * self.invD[i]
+            else:
+                K = np.eye(q) + Wa[i].T @ (Wa[i] * self.invD_dims[i][:, None])
+            L = np.linalg.cholesky(K)
+            Kinv = np.linalg.inv(K)
+            Kinv = 0.5 * (Kinv + Kinv.T)
+            if self.invD_dims is None:
+                P = Wa[i] @ Kinv * self.invD[i]
+            else:
+                P = (Wa[i] * self.invD_dims[i][:, None]) @ Kinv
+            A[:, i * q : (i + 1) * q] = P
+            self.K[i] = K
+            self.c[i] = mu_a[i] @ P
+            with np.errstate(divide="ignore"):
+                lw = np.log(p.weights_[i])
+            if self.invD_dims is None:  # d_a log 2 pi + log|D_i|
+                gauss_norm = obs.size * (_LOG_2PI + np.log(D[i]))
+            else:
+                gauss_norm = obs.size * _LOG_2PI + np.log(D_dims[i]).sum()
+            self.log_norm[i] = lw - 0.5 * (gauss_norm + 2.0 * np.log(np.diag(L)).sum())
+        if self.invD_dims is None:  # a^T mu_a (times D^-1 later) and ||mu_a||^2
+            A[:, m * q :] = mu_a.T
+            self.mu_sq = np.einsum("ij,ij->i", mu_a, mu_a)
+        else:  # a^T D^-1 mu_a and mu_a^T D^-1 mu_a
+            A[:, m * q :] = (mu_a * self.invD_dims).T
+            self.mu_sq = np.einsum("ij,ij->i", mu_a * self.invD_dims, mu_a)
+        self.A = A
+        # the dims whose mixture mean is returned, and where the detail dims sit among them
+        self.reconstruct = bool(reconstruct)
+        out_dims = np.arange(d) if self.reconstruct else self.missing
+        self.detail_pos = det if self.reconstruct else np.searchsorted(self.missing, det)
+        Wo = W if self.reconstruct else W[:, out_dims, :]
+        self.B = np.ascontiguousarray(Wo.transpose(0, 2, 1).reshape(m * q, out_dims.size))  # stacked W_i^T (Mq, d_out)
+        self.means = mu if self.reconstruct else mu[:, out_dims]
+        self.W_det = W[:, det, :]  # (M, d_det, q)
+        self.mu_det = mu[:, det]
+        self.Kinv = np.linalg.inv(self.K)
+        self.sig2 = sig2
+        # posterior variance of the detail dims per component: diag(W_det K^-1 W_det^T) + sigma^2
+        self.var_det = np.einsum("mjq,mqr,mjr->mj", self.W_det, self.Kinv, self.W_det) + sig2[:, None]  # (M, d_det)
+
+    def component_cov(self) -> np.ndarray:
+        """(M, d_det, d_det) per-component posterior covariance of the detail dims,
+        ``W_det K^-1 W_det^T + sigma_i^2 I`` (independent of the observed values)."""
+        return (np.matmul(np.matmul(self.W_det, self.Kinv), self.W_det.transpose(0, 2, 1))
+                + self.sig2[:, None, None] * np.eye(self.detail.size))
+
+    def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False) -> Posterior:
+        """Posterior for observations X_obs (N, d_a) (or (d_a,) for one row), columns in ``observed`` order.
+
+        ``return_components`` adds the component means of the detail dims (N, M, d_det); ``return_cov``
+        the mixture and per-component covariances of the detail dims (module doc). Raises ValueError
+        for a wrong shape, NaN or inf, or values so large that the log density overflows.
+        """
+        X = np.asarray(X_obs, dtype=np.float64)
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != self.d_a:
+            raise ValueError(f"condition: X_obs must have shape (N, {self.d_a}) (one column per observed "
+                             f"dim), got {np.shape(X_obs)}")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("condition: X_obs contains NaN or inf; use condition_rows for per-row missing dims")
+        n, m, q, n_det = X.shape[0], self.m, self.q, self.detail.size
+        mean = np.empty((n, self.B.shape[1]))
+        best = np.empty((n, n_det))
+        var = np.empty((n, n_det))
+        resp = np.empty((n, m))
+        logm = np.empty(n)
+        cmeans = np.empty((n, m, n_det)) if (return_components or return_cov) else None
+        Kt = self.K  # (M, q, q)
+        WdT = self.W_det.transpose(0, 2, 1)  # (M, q, d_det)
+        for s in range(0, n, _CHUNK):
+            sl = slice(s, min(s + _CHUNK, n))
+            x = X[sl]
+            b = x.shape[0]
+            Pm = x @ self.A  # (b, Mq + M): a @ P_i for every i, then a . mu_a,i (D^-1-weighted)
+            xh = Pm[:, : m * q].reshape(b, m, q).transpose(1, 0, 2) - self.c[:, None, :]  # x_hat (M, b, q)
+            if self.invD_dims is None:
+                xx = np.einsum("ij,ij->i", x, x)
+                e2 = xx[:, None] - 2.0 * Pm[:, m * q :] + self.mu_sq[None, :]  # ||a - mu_a,i||^2  (b, M)
+                maha = e2 * self.invD[None, :]
+            else:
+                maha = (x * x) @ self.invD_dims.T - 2.0 * Pm[:, m * q :] + self.mu_sq[None, :]  # e^T D^-1 e
+            quad = np.sum(np.matmul(xh, Kt) * xh, axis=2).T  # u^T K^-1 u = x_hat^T K x_hat  (b, M)
+            logp = self.log_norm[None, :] - 0.5 * (maha - quad)
+            top = logp.max(axis=1, keepdims=True)  # log-sum-exp, stable
+            r = np.exp(logp - top)
+            tot = r.sum(axis=1, keepdims=True)
+            r /= tot
+            lm = (top + np.log(tot))[:, 0]
+            H = (xh * r.T[:, :, None]).transpose(1, 0, 2).reshape(b, m * q)  # [r_i x_hat_i]
+            mean[sl] = H @ self.B + r @ self.means
+            cm = self.mu_det[:, None, :] + np.matmul(xh, WdT)  # per-component means of the detail dims (M, b, d_det)
+            best[sl] = cm[np.argmax(r, axis=1), np.arange(b)]
+            dev = cm - mean[sl][:, self.detail_pos][None]
+            var[sl] = r @ self.var_det + np.einsum("bm,mbj->bj", r, dev * dev)  # law of total variance
+            resp[sl] = r
+            logm[sl] = lm
+            if cmeans is not None:
+                cmeans[sl] = cm.transpose(1, 0, 2)
+        if not np.all(np.isfinite(logm)):
+            row = int(np.flatnonzero(~np.isfinite(logm))[0])
+            raise ValueError(f"condition: the log density of row {row} is not finite (X_obs values too large)")
+        out = Posterior(mean if self.reconstruct else None, None if self.reconstruct else mean, best, var, resp,
+                        logm, self.missing, self.detail)
+        if return_components:
+            out.component_means = cmeans
+        if return_cov:
+            out.component_cov = self.component_cov()
+            dev = cmeans - mean[:, self.detail_pos][:, None, :]  # (N, M, d_det)
+            out.cov = (np.einsum("nm,mij->nij", resp, out.component_cov)
+                       + np.einsum("nm,nmi,nmj->nij", resp, dev, dev))
+        return out
+
+
+def condition(model_or_params, X_obs, observed, noise_variance=0.0, *, detail=None, reconstruct: bool = False,
+              return_components: bool = False, return_cov: bool = False) -> Posterior:
+    """Posterior of a mixture of PPCA given observations of some dims: ``Conditioner(...)(X_obs, ...)``.
+
+    model_or_params: fitted MPPCA or :class:`MixtureParams`. X_obs (N, d_a): observed values, columns
+    in the order of ``observed``, a (d,) bool mask or (d_a,) index array. noise_variance: scalar or
+    (d_a,) observation-noise variance added to the model noise of the observed dims. Returns a
+    :class:`Posterior` (module doc for the equations).
+    """
+    return Conditioner(model_or_params, observed, noise_variance, detail, reconstruct)(
+        X_obs, return_components=return_components, return_cov=return_cov)
+
+
+def condition_rows(model_or_params, X, noise_variance=0.0) -> RowsPosterior:
+    """Condition each row on its own finite entries; NaN marks a missing dim.
+
+    X (N, d) with NaN where a dim is missing (rows may miss different dims: rows are grouped by
+    pattern and each group is conditioned once by a :class:`Conditioner`). noise_variance: scalar or
+    (d,) per dim (only each row's observed entries are used). Returns a :class:`RowsPosterior`.
+    """
+    p = MixtureParams.of(model_or_params)
+    m, d, _ = p.components_.shape
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != d:
+        raise ValueError(f"condition_rows: X must have shape (N, {d}) with NaN for missing dims, got {X.shape}")
+    if np.any(np.isinf(X)):
+        raise ValueError("condition_rows: X contains inf; mark missing dims with NaN")
+    noise = np.asarray(noise_variance, dtype=np.float64)
+    if noise.ndim != 0 and noise.shape != (d,):
+        raise ValueError(f"condition_rows: noise_variance must be a scalar or have shape ({d},), got {noise.shape}")
+    miss = np.isnan(X)
+    n = X.shape[0]
+    mean = np.where(miss, 0.0, X)
+    best = mean.copy()
+    cmeans = np.repeat(mean[:, None, :], m, axis=1)
+    variance = np.zeros((n, d))
+    resp = np.empty((n, m))
+    log_marg = np.empty(n)
+    patterns, group = np.unique(miss, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    for g, pattern in enumerate(patterns):
+        rows = np.flatnonzero(group == g)
+        obs = np.flatnonzero(~pattern)
+        res = Conditioner(p, obs, noise if noise.ndim == 0 else noise[obs])(X[np.ix_(rows, obs)],
+                                                                             return_components=True)
+        mcols = res.missing
+        mean[np.ix_(rows, mcols)] = res.mean
+        best[np.ix_(rows, mcols)] = res.best_mean
+        cmeans[rows[:, None, None], np.arange(m)[None, :, None], mcols[None, None, :]] = res.component_means
+        variance[np.ix_(rows, mcols)] = res.variance
+        resp[rows] = res.responsibilities
+        log_marg[rows] = res.log_marginal
+    return RowsPosterior(mean=mean, best_mean=best, component_means=cmeans, variance=variance,
+                         responsibilities=resp, log_marginal=log_marg, missing=miss)
