@@ -324,3 +324,61 @@ def test_draws_follow_the_weights_and_the_motion_stream():
     assert subj_bvh == subj_walk and set(gait) == set(GAIT_FIELDS)
     from silpose.shared.seeds import MOTION_STREAM, SPLIT_CODE
     assert params == motion.draw(derive_rng(MOTION_STREAM, 3, SPLIT_CODE["train"], 7, 0))
+
+
+# -- the clip table from a (pre-filled) import cache: no Blender needed -----------------------------
+
+def _fill_cache(root, path, unit=0.01, n_frames=4):
+    """Write the cache entry Blender's import would write for ``path`` (positions from the
+    independent forward kinematics, in the file's unit)."""
+    import json
+
+    from silpose.datagen.clips import entry_dir
+    from silpose.datagen.manifest import sha256_file
+
+    pos, ends = synthetic_clip_positions(n_frames)
+    tails = np.where(np.isnan(ends), pos, ends)
+    folder = entry_dir(root, sha256_file(path))
+    folder.mkdir(parents=True)
+    np.save(folder / "heads.npy", (pos / unit).astype(np.float32))
+    np.save(folder / "tails.npy", (tails / unit).astype(np.float32))
+    (folder / "meta.json").write_text(json.dumps({
+        "names": CMU, "parents": PARENT_IDX, "frames": n_frames, "frame_time": 1 / 30,
+        "rest_heads": (pos[0] / unit).tolist(), "rest_tails": (tails[0] / unit).tolist()}))
+    return folder
+
+
+def test_prepared_clips_record_their_identity_and_pose_subjects(tmp_path, monkeypatch):
+    from silpose.datagen.bvh_motion import BvhMotion
+    from silpose.datagen.clips import ClipError
+    from silpose.datagen.manifest import sha256_file
+
+    monkeypatch.setenv("SILPOSE_CACHE_DIR", str(tmp_path / "cache"))
+    clip = write_synthetic_bvh(tmp_path / "walk.bvh", unit=0.01)
+    _fill_cache(tmp_path / "cache" / "bvh", clip)
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(BASE + '[motion]\nsource = "bvh"\nbvh = ["walk.bvh"]\nscale = 0.01\nframes = [1, -1]\n'
+                   'licence = "test licence"\n')
+    prepared = load_config(cfg).with_motion()
+    rec = prepared.to_dict()["motion"]["clips"][0]
+    assert (rec["name"], rec["file"], rec["frames"], rec["used_frames"], rec["n_used"]) == ("walk", "walk.bvh", 4, [1, 3, 1], 3)
+    assert rec["sha256"] == sha256_file(clip) and rec["joint_map"] == "cmu" and rec["licence"] == "test licence"
+    assert 1.0 < rec["vertical_extent_m"] < 2.0  # the unit is right: a person-sized clip
+    motion = BvhMotion.from_config(prepared.worker_config()["motion"])
+    rng = derive_rng(1)
+    for _ in range(5):
+        params = motion.draw(rng)
+        assert params["frame"] in (1.0, 2.0, 3.0) and params["mirror"] == 0.0
+        pose = motion.pose(SUBJECT, params)
+        rest = rest_skeleton(SUBJECT)
+        for c in range(1, 19):
+            assert np.linalg.norm(pose.joints[c] - pose.joints[PARENTS[c]]) == pytest.approx(
+                np.linalg.norm(rest[c] - rest[PARENTS[c]]), abs=1e-9)
+        assert pose.root[0, 3] == params["x"] and pose.root[1, 3] == params["y"]
+
+    cfg.write_text(BASE + '[motion]\nsource = "bvh"\nbvh = ["walk.bvh"]\nframes = [2, 9]\n')
+    with pytest.raises(ClipError, match=rf"^{clip}: frames \[2, 9\] are outside the clip's 4 frames \(0..3\)$"):
+        load_config(cfg).with_motion()
+    cfg.write_text(BASE + '[motion]\nsource = "bvh"\nbvh = ["walk.bvh"]\njoint_map = "bandai"\n')
+    with pytest.raises(JointMapError, match=rf"^{clip}: joint map 'bandai': BVH joint 'UpperArm_L' \(silpose l_shoulder\) not in"):
+        load_config(cfg).with_motion()
