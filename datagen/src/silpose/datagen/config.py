@@ -221,7 +221,7 @@ def parse_workspace(spec, src: str) -> Workspace:
     try:
         return Workspace(spec.get("center", [0.0, 0.0]), spec["size"])
     except ValueError as exc:
-        raise ConfigError(f"{src}: field {exc}") from None
+        raise ConfigError(f"{src}: {exc}") from None
 
 
 def build_rig(spec, base: Path, src: str) -> Rig:

@@ -141,7 +141,7 @@ class Rig:
                 transform = WorldTransform.from_dict(d["transform"]) if "transform" in d else WorldTransform()
                 workspace = Workspace.from_dict(d["workspace"]) if "workspace" in d else Workspace()
             except ValueError as exc:
-                raise RigError(f"{where}: field {exc}") from None
+                raise RigError(f"{where}: {exc}") from None
             stored = d.get("source", "")
             if not isinstance(stored, str):
                 raise RigError(f"{where}: field source: expected a string")
