@@ -14,5 +14,8 @@ The data path, top to bottom::
     cli/               the ``train`` and ``infer`` commands (entry points ``silpose.commands``)
     errors             one-line input errors naming the file
 
-Camera rigs (``silpose rig``) and multi-person recordings will live in ``rig/`` and ``recordings/``.
+    rig/               ``silpose rig import`` / ``silpose rig show``: calibration files (OpenCV, EasyMocap,
+                       Pose2Sim/anipose, silpose) -> a rig in silpose's frame with its transform and workspace
+
+Multi-person recordings will live in ``recordings/``.
 """

@@ -217,7 +217,8 @@ def draw_rig(rig: Rig, out: str | Path, title: str | None = None, height: float 
         ax.set_yticks([0, cam.height // 2, cam.height - 1])
         ax.tick_params(labelsize=7)
         ax.set_title(f"{cam.name} ({cam.width}x{cam.height}): workspace box to {height:g} m", fontsize=8, color=col)
-    fig.suptitle(title or f"{rig.where}: workspace {ws.describe()}", fontsize=10)
+    files = ", ".join(Path(part).name for part in rig.where.split(", "))
+    fig.suptitle(title or f"{files}: {k} camera(s), workspace {ws.describe()}", fontsize=10)
     fig.tight_layout()
     out = Path(out)
     with atomic_path(out) as tmp:
