@@ -133,7 +133,9 @@ def test_layout_and_file_sizes(built, configs):
     )
     assert files == expect
     assert not list(built.parent.glob(".*partial*"))
-    assert Rig.from_json((built / "rig.json").read_text()).to_dict() == RIG.to_dict()
+    written = Rig.from_json((built / "rig.json").read_text())
+    assert {**written.to_dict(), "source": ""} == {**RIG.to_dict(), "source": ""}  # the same rig; source: its file
+    assert written.source.endswith("rig.json")
     for p in built.rglob("*.png"):
         assert _read_rgb(p).shape == (H, W, 3)
         assert 5_000 < p.stat().st_size < 200_000  # noisy 160x120 RGB: neither empty nor raw

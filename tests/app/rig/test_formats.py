@@ -113,3 +113,13 @@ def test_silpose_rig_json_reimports_and_composes_the_transforms(tmp_path, known_
 
 def _pose2sim(tmp_path, calibration):
     return [write_pose2sim(tmp_path / "Calib.toml", calibration)]
+
+
+def test_easymocap_cameras_without_extrinsics_are_left_out_and_said(tmp_path, known_calibration):
+    cams = [type(c)(str(i + 1), c.K, c.dist, c.R, c.t, c.size, c.source) for i, c in enumerate(known_calibration)]
+    intri, extri = write_easymocap(tmp_path, cams)
+    write_easymocap(tmp_path / "fewer", cams[:3])
+    extri.write_text((tmp_path / "fewer" / "extri.yml").read_text())  # camera 4 has intrinsics only
+    result = import_rig([intri], options())
+    assert result.rig.names == ("1", "2", "3")
+    assert any("camera(s) 4 have intrinsics but no extrinsics" in n for n in result.notes)

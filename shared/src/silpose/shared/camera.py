@@ -123,8 +123,8 @@ class Rig:
 
     @classmethod
     def from_dict(cls, d: dict, source: str | None = None) -> "Rig":
-        """A rig from :meth:`to_dict`'s dict. ``source`` (the file read) names errors and becomes
-        ``Rig.source``; without it the dict's own ``source`` is kept."""
+        """A rig from :meth:`to_dict`'s dict; ``source`` names errors (default: the dict's own
+        ``source``). ``Rig.source`` is the dict's ``source`` (``load_rig`` sets the file it read)."""
         where = source or (d.get("source") if isinstance(d, dict) and isinstance(d.get("source"), str) else "") or "rig"
         if not isinstance(d, dict) or not isinstance(d.get("cameras"), list):
             raise RigError(f"{where}: expected an object with a 'cameras' list")
@@ -145,7 +145,7 @@ class Rig:
             stored = d.get("source", "")
             if not isinstance(stored, str):
                 raise RigError(f"{where}: field source: expected a string")
-            return cls(tuple(cams), transform, workspace, source if source is not None else stored)
+            return cls(tuple(cams), transform, workspace, stored)
         except RigError as exc:  # Camera / Rig checks know the field, not the file
             msg = str(exc)
             raise RigError(msg if msg.startswith(f"{where}: ") else f"{where}: {msg}") from None
@@ -274,4 +274,4 @@ def load_rig(path: str | Path) -> Rig:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{p}: cannot read the rig file as UTF-8 text ({exc})") from None
-    return Rig.from_json(text, source=str(p))
+    return dataclasses.replace(Rig.from_json(text, source=str(p)), source=str(p))

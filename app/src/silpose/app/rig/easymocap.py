@@ -68,8 +68,9 @@ def _names(root, source: str) -> list[str]:
     return out
 
 
-def read_easymocap(path: str | Path) -> list[CalibratedCamera]:
-    """The cameras of the EasyMocap pair ``path`` belongs to (module docstring)."""
+def read_easymocap(path: str | Path, skipped: list[str] | None = None) -> list[CalibratedCamera]:
+    """The cameras of the EasyMocap pair ``path`` belongs to (module docstring); the names of cameras
+    with intrinsics only are appended to ``skipped``."""
     intri, extri = easymocap_pair(path)
     for p in (intri, extri):
         if not p.is_file():
@@ -89,6 +90,8 @@ def read_easymocap(path: str | Path) -> list[CalibratedCamera]:
         cams = []
         for name in names_i:
             if name not in names_e:
+                if skipped is not None:
+                    skipped.append(name)
                 continue
             suffix = f"_{name}"
             keys = [k for k in owner if k.endswith(suffix)]

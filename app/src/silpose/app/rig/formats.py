@@ -49,11 +49,13 @@ def detect_format(path: str | Path) -> str:
 class Calibrations:
     """The cameras read from the files, with the format used and, for a silpose rig file, that rig."""
 
-    def __init__(self, cameras: list[CalibratedCamera], formats: list[str], rig: Rig | None, sources: list[str]):
+    def __init__(self, cameras: list[CalibratedCamera], formats: list[str], rig: Rig | None, sources: list[str],
+                 notes: list[str] | None = None):
         self.cameras = cameras
         self.formats = formats
         self.rig = rig
         self.sources = sources
+        self.notes = notes or []
 
 
 def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
@@ -73,6 +75,7 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
     formats: list[str] = []
     sources: list[str] = []
     rig = None
+    notes: list[str] = []
     seen_pairs: set[tuple[str, str]] = set()
     for p in paths:
         kind = detect_format(p) if fmt == "auto" else fmt
@@ -90,8 +93,12 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
             if pair in seen_pairs:
                 continue
             seen_pairs.add(pair)
-            got = read_easymocap(p)
+            skipped: list[str] = []
+            got = read_easymocap(p, skipped)
             sources += list(pair)
+            if skipped:
+                notes.append(f"{pair[0]}: camera(s) {', '.join(skipped)} have intrinsics but no extrinsics in "
+                             f"{pair[1]}; left out")
         elif kind == "pose2sim":
             got = read_pose2sim(p)
             sources.append(str(p))
@@ -104,4 +111,4 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
                 raise RigError(f"{c.source}: camera name {c.name!r} is also a camera of {twin.source}; names must be "
                                "unique (a camera is named by its name field, its section, or its file's stem)")
         cams.extend(got)
-    return Calibrations(cams, formats, rig, sources)
+    return Calibrations(cams, formats, rig, sources, notes)

@@ -118,7 +118,7 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     read = read_calibrations(paths, o.fmt)
     calib = read.cameras
     notes = [f"read {len(calib)} camera(s) ({', '.join(c.name for c in calib)}) as {'/'.join(sorted(set(read.formats)))} "
-             f"from {', '.join(read.sources)}"]
+             f"from {', '.join(read.sources)}", *read.notes]
     if read.rig is not None and o.unit not in (None, "m", "1", "1.0"):
         raise RigError(f"{read.sources[0]}: a silpose rig is in metres already; drop --unit")
     scale = 1.0 if o.unit is None else parse_unit(o.unit)
