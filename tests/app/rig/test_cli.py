@@ -65,6 +65,7 @@ def test_import_prints_its_decisions_and_show_draws_the_rig(tmp_path):
     r = run("rig", "show", out, "--out", png)
     assert r.exit_code == 0, r.output
     assert "centre x, y, z (m)" in r.output and "workspace: " in r.output and "calibration frame -> silpose" in r.output
+    assert f"imported from {paths[0]}" in r.output
     img = cv2.imread(str(png))
     assert img is not None and img.shape[1] > 1000 and img.std() > 10
 

@@ -89,15 +89,16 @@ def show_command(
     """Print each camera in silpose's convention (centre, viewing direction, focal length, image size,
     distortion) and the workspace; with --out, draw a top view and every camera's image with the
     workspace box and a 1.75 m figure."""
-    from silpose.shared.camera import RigError, load_rig
+    from silpose.shared.camera import Rig, RigError, load_rig
 
     from .show import describe_rig, draw_rig
 
     try:
         loaded = load_rig(rig)
+        stored = Rig.from_json(rig.read_text(encoding="utf-8")).source  # where it was imported from
     except RigError as exc:
         fail("rig show", str(exc))
-    print(describe_rig(loaded, str(rig), height=person_height))
+    print(describe_rig(loaded, str(rig), height=person_height, imported_from=stored))
     if out is not None:
         try:
             print(f"wrote {draw_rig(loaded, out, height=person_height)}")

@@ -58,12 +58,14 @@ def camera_row(cam: Camera, rig: Rig, height: float = PERSON_HEIGHT_M) -> dict[s
     }
 
 
-def describe_rig(rig: Rig, name: str | None = None, height: float = PERSON_HEIGHT_M) -> str:
+def describe_rig(rig: Rig, name: str | None = None, height: float = PERSON_HEIGHT_M,
+                 imported_from: str | None = None) -> str:
     """The text ``silpose rig show`` prints: frame, workspace, one row per camera."""
     tr, ws = rig.transform, rig.workspace
     (x0, x1), (y0, y1) = ws.bounds
-    lines = [f"{name or rig.where}: {len(rig)} camera(s)" + (f", imported from {rig.source}" if rig.source and
-                                                              rig.source != name else ""),
+    origin = imported_from if imported_from is not None else rig.source
+    lines = [f"{name or rig.where}: {len(rig)} camera(s)" + (f", imported from {origin}" if origin and
+                                                              origin != name else ""),
              "frame: silpose's world (right-handed, z up, metres, floor at z = 0, walkers inside the workspace)"]
     if tr.is_identity:
         lines.append("calibration frame: the same (identity transform)")
