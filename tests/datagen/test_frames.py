@@ -127,7 +127,8 @@ def test_layout_and_file_sizes(built, configs):
     W, H = RIG.image_size
     files = sorted(str(p.relative_to(built)) for p in built.rglob("*") if p.is_file())
     expect = sorted(
-        ["rig.json", "README.md", ".silpose-frames.json", "test-00000-of-00002.parquet", "test-00001-of-00002.parquet"]
+        ["rig.json", "README.md", ".silpose-frames.json", ".silpose-output.json", "test-00000-of-00002.parquet",
+         "test-00001-of-00002.parquet"]
         + [f"background/{c}/{j:05d}.png" for c in RIG.names for j in range(BACKGROUND)]
         + [f"frames/{c}/{i:05d}.png" for c in RIG.names for i in range(SAMPLES)]
     )

@@ -224,6 +224,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     mix.weights_ = data["weights"]
     mix.means_ = data["means"]
     mix.components_ = data["components"]
+    mix.n_latent_ = int(data["components"].shape[-1])
     mix.noise_variance_ = data["noise_variance"]
     mix.lower_bounds_ = data["lower_bounds"]
     training = header.get("training", {})
@@ -241,3 +242,20 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     model.training_config_ = dict(header.get("training_config", {}) or {})
     model.header_ = header
     return model
+
+
+def is_model_file(path: str | Path) -> bool:
+    """True if ``path`` is an .npz archive whose header names the silpose model format (any format
+    version): a file ``silpose train`` may replace (``silpose.shared.output_dir.claim_files``)."""
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+        return False
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        return False
+    with z:
+        try:
+            header = json.loads(bytes(z["header"]).decode("utf-8")) if "header" in z.files else None
+        except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+            return False
+    return isinstance(header, dict) and header.get("format") == FORMAT_NAME

@@ -48,6 +48,7 @@ def infer(
     from silpose.shared.dataset import DatasetError
 
     from ..inference import run_inference
+    from ..writers import claim_outputs, sibling
 
     if (input is None) == (frames is None):
         fail("infer", "give either INPUT (silhouettes or a dataset) or --frames DIR (camera frames), not both"
@@ -55,6 +56,8 @@ def infer(
     if save_overlays and frames is None:
         fail("infer", "--save-overlays needs --frames")
     try:
+        claim_outputs(out, contours=save_contours, segmentation=frames is not None,
+                      overlay_dir=(overlay_dir or sibling(out, ".overlays")) if save_overlays else None)
         if frames is not None:
             summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
                                     noise_variance, progress)
