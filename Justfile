@@ -6,17 +6,12 @@ set shell := ["bash", "-euo", "pipefail", "-c"]
 default:
     @just --list
 
-# install everything into .venv (Python 3.11, bpy, Ray extra, dev tools); re-syncs only when uv.lock or a
-# pyproject.toml changed, because bpy 5.0.1's wheel metadata says cp39 and uv reinstalls it on every sync
-# (which would break Blender workers running at that moment)
+# install everything into .venv (Python 3.11, bpy, Ray extra, dev tools); changes nothing while .venv matches
+# uv.lock. Then correct bpy 5.0.1's installed WHEEL tags (cp39; its wheel file is cp311), or every later
+# `uv sync` / `uv run` would reinstall bpy under running Blender workers (see silpose.shared.wheel_tags)
 setup:
-    #!/usr/bin/env bash
-    set -euo pipefail
-    stamp=.venv/.silpose-synced
-    if [ ! -f "$stamp" ] || [ -n "$(find uv.lock pyproject.toml */pyproject.toml -newer "$stamp" 2>/dev/null)" ]; then
-        uv sync --all-extras --frozen
-        touch "$stamp"
-    fi
+    uv sync --all-extras --frozen
+    .venv/bin/python -m silpose.shared.wheel_tags
 
 # generate a dataset: just gen [preset|config.toml] [extra silpose gen options]
 gen preset="default" *args: setup

@@ -16,3 +16,39 @@ def local_ray(monkeypatch):
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
+
+
+def _write_v1_shard(path, records: list[dict], metadata: dict) -> None:
+    """Write ``records`` in dataset format version 1 (``arrow.fixed_shape_tensor`` columns, raw uint8
+    masks), the layout silpose wrote before version 2, with plain pyarrow (not silpose's writer)."""
+    import json
+
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    meta = dict(metadata, format_version=1)
+    cols = {
+        "sample_id": pa.array([r["sample_id"] for r in records], pa.int64()),
+        "split": pa.array([r["split"] for r in records], pa.string()),
+        "seed": pa.array([r["seed"] for r in records], pa.int64()),
+        "redraws": pa.array([r["redraws"] for r in records], pa.int32()),
+    }
+    for name in ("subject", "gait"):
+        keys = list(records[0][name])
+        cols[name] = pa.StructArray.from_arrays(
+            [pa.array(np.float32([r[name][k] for r in records])) for k in keys], names=keys)
+    dtypes = {"joints": np.float32, "masks": np.uint8, "contours": np.float32, "contour_centroid": np.float32,
+              "contour_scale": np.float32, "contour_length": np.float32, "area": np.int32, "n_blobs": np.int32}
+    for name, dt in dtypes.items():
+        cols[name] = pa.FixedShapeTensorArray.from_numpy_ndarray(np.stack([np.asarray(r[name], dt) for r in records]))
+    tb = np.stack([np.asarray(r["touches_border"], bool) for r in records])
+    cols["touches_border"] = pa.FixedSizeListArray.from_arrays(pa.array(tb.ravel()), tb.shape[1])
+    table = pa.table(cols).replace_schema_metadata({b"silpose": json.dumps(meta, sort_keys=True).encode()})
+    pq.write_table(table, path, compression="zstd", write_page_checksum=True)
+
+
+@pytest.fixture
+def write_v1_shard():
+    """``write_v1_shard(path, records, metadata)``: a shard in the previous dataset format (version 1)."""
+    return _write_v1_shard

@@ -2,7 +2,8 @@
 
 It documents the files, the schema, units and conventions, the camera rig, the subject and gait
 distributions (documented and as measured), how to load the data with pyarrow, pandas, DuckDB,
-Polars, Hugging Face ``datasets`` and silpose, and embeds the preview contact sheet.
+Polars, Hugging Face ``datasets`` and silpose, embeds the preview contact sheet, and carries the
+license (CC BY 4.0), Hugging Face task and size categories and the paper's BibTeX.
 """
 
 from __future__ import annotations
@@ -23,9 +24,37 @@ from .walk import GAIT_FIELDS, GAIT_RANGES
 CARD = "README.md"
 
 
-def _front_matter(name: str, splits: list[str]) -> str:
-    lines = ["---", f"pretty_name: silpose {name}", "tags:", "- silhouettes", "- multi-view", "- 3d-human-pose",
-             "- synthetic", "configs:", "- config_name: default", "  data_files:"]
+#: License of every generated dataset (synthetic data made by silpose); the code is MIT (LICENSE).
+DATA_LICENSE = "cc-by-4.0"
+#: Hugging Face task categories of the data: 2D silhouettes in, 3D joints (and keypoints) out.
+TASK_CATEGORIES = ("image-to-3d", "keypoint-detection")
+#: Hugging Face ``size_categories`` buckets: (upper bound on the row count, exclusive; label).
+SIZE_BUCKETS = ((10**3, "n<1K"), (10**4, "1K<n<10K"), (10**5, "10K<n<100K"), (10**6, "100K<n<1M"),
+                (10**7, "1M<n<10M"), (10**8, "10M<n<100M"), (10**9, "100M<n<1B"), (10**10, "1B<n<10B"),
+                (10**11, "10B<n<100B"), (10**12, "100B<n<1T"))
+#: The paper this dataset is made for (BibTeX, also in CITATION.cff at the repository root).
+PAPER_BIBTEX = """@inproceedings{grauman2003inferring,
+  author    = {Grauman, Kristen and Shakhnarovich, Gregory and Darrell, Trevor},
+  title     = {Inferring {3D} Structure with a Statistical Image-Based Shape Model},
+  booktitle = {Proceedings of the Ninth IEEE International Conference on Computer Vision (ICCV)},
+  year      = {2003},
+  pages     = {641--647}
+}"""
+
+
+def size_category(n_rows: int) -> str:
+    """Hugging Face's ``size_categories`` label for a dataset of ``n_rows`` rows (all splits)."""
+    for bound, label in SIZE_BUCKETS:
+        if n_rows < bound:
+            return label
+    return "n>1T"
+
+
+def _front_matter(name: str, splits: list[str], n_rows: int) -> str:
+    lines = ["---", f"pretty_name: silpose {name}", f"license: {DATA_LICENSE}", "task_categories:",
+             *[f"- {t}" for t in TASK_CATEGORIES], "size_categories:", f"- {size_category(n_rows)}", "tags:",
+             "- silhouettes", "- multi-view", "- 3d-human-pose", "- synthetic", "configs:", "- config_name: default",
+             "  data_files:"]
     for s in splits:
         lines += [f"  - split: {s}", f'    path: "{s}-*.parquet"']
     return "\n".join(lines + ["---", ""])
@@ -50,14 +79,22 @@ def _schema_table(meta: dict, subject: list[str], gait: list[str]) -> str:
         "joints": "19, 3", "masks": f"{K}, {H}, {W}", "contours": f"{K}, {n}, 2", "contour_centroid": f"{K}, 2",
         "contour_scale": f"{K}", "contour_length": f"{K}", "area": f"{K}", "n_blobs": f"{K}",
     }
+    types = {
+        "joints": "list<list<float32>[3]>[19]", "masks": f"list<image>[{K}] (1-bit PNG, {W}x{H})",
+        "contours": f"list<list<list<float32>[2]>[{n}]>[{K}]", "contour_centroid": f"list<list<float32>[2]>[{K}]",
+        "contour_scale": f"list<float32>[{K}]", "contour_length": f"list<float32>[{K}]",
+        "area": f"list<int32>[{K}]", "n_blobs": f"list<int32>[{K}]",
+    }
     units = meta["units"]
     rows = ["| column | type | per-row shape | unit / meaning |", "|---|---|---|---|",
             "| sample_id | int64 | | index within the split |", "| split | string | | train / test |",
             "| seed | int64 | | dataset seed |", "| redraws | int32 | | draws rejected (not fully visible) before this one |",
             f"| subject | struct of float32 | | {', '.join(subject)} |", f"| gait | struct of float32 | | {', '.join(gait)} |"]
-    for col, dt in TENSOR_DTYPES.items():
-        rows.append(f"| {col} | fixed_shape_tensor<{dt}> | ({shapes[col]}) | {units.get(col, meta['conventions'].get(col, ''))} |")
-    rows.append(f"| touches_border | fixed_size_list<bool>[{K}] | ({K}) | {meta['conventions'].get('touches_border', '')} |")
+    for col in TENSOR_DTYPES:
+        rows.append(f"| {col} | {types[col]} | ({shapes[col]}) | {units.get(col, meta['conventions'].get(col, ''))} |")
+    rows.append(f"| touches_border | list<bool>[{K}] | ({K}) | {meta['conventions'].get('touches_border', '')} |")
+    rows.append("\n`list<T>[m]` is an Arrow/Parquet fixed-size list (Hugging Face `List(T, length=m)`); `image` is "
+                "Hugging Face's `Image` storage, a struct `{bytes: PNG file, path: null}` (1 = person).")
     return "\n".join(rows)
 
 
@@ -100,16 +137,26 @@ def _measured_table(values: dict[str, np.ndarray]) -> str:
 def _loading(name: str) -> str:
     return f"""```python
 import glob, json
+import numpy as np
 
-# pyarrow: tensor columns come back as numpy arrays without copying
+# Hugging Face datasets (>= 4): masks come back as images (PIL, mode "1"), arrays as nested lists
+from datasets import load_dataset
+hf = load_dataset("{name}")   # this card's `configs`; or:
+hf = load_dataset("parquet", data_files={{"train": "{name}/train-*.parquet", "test": "{name}/test-*.parquet"}})
+sample = hf["train"].with_format("numpy")[0]   # joints (19, 3), contours (K, n, 2), masks (K, H, W)
+
+# pyarrow: nested fixed-size lists flatten to numpy arrays without copying
 import pyarrow.parquet as pq
 files = sorted(glob.glob("{name}/train-*.parquet"))
-table = pq.read_table(files)
-joints = table["joints"].combine_chunks().to_numpy_ndarray()   # (N, 19, 3) float32, metres
+table = pq.read_table(files, columns=["joints", "masks"])
+joints = table["joints"].combine_chunks().flatten().flatten().to_numpy().reshape(-1, 19, 3)   # metres
 meta = json.loads(pq.read_schema(files[0]).metadata[b"silpose"])  # cameras, joint names, conventions
+import cv2   # or PIL: every mask is a PNG file
+png = table["masks"].combine_chunks().flatten().field("bytes")[0].as_py()
+mask = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED) > 0   # (H, W) bool, first view
 
-# pandas (tensor columns become flat arrays; reshape with the shapes above)
-df = table.select(["sample_id", "gait", "joints"]).to_pandas()
+# pandas
+df = pq.read_table(files, columns=["sample_id", "gait", "contour_scale"]).to_pandas()
 
 # DuckDB
 import duckdb
@@ -119,14 +166,17 @@ duckdb.sql("SELECT split, count(*), avg(gait.stride) FROM '{name}/*.parquet' GRO
 import polars as pl
 df = pl.read_parquet("{name}/train-*.parquet", columns=["sample_id", "joints"])
 
-# Hugging Face datasets
-from datasets import load_dataset
-hf = load_dataset("parquet", data_files={{"train": "{name}/train-*.parquet", "test": "{name}/test-*.parquet"}})
-
 # silpose
 from silpose.shared.dataset import load_split
-train = load_split("{name}", "train", with_masks=True)   # numpy arrays, rig, metadata
+train = load_split("{name}", "train", with_masks=True)   # numpy arrays (masks decoded), rig, metadata
 ```"""
+
+
+def _citation() -> str:
+    return (f"## License and citation\n\nThe data are synthetic, rendered by silpose, and licensed under "
+            f"[CC BY 4.0](https://creativecommons.org/licenses/by/4.0/) (`license: {DATA_LICENSE}`); the silpose "
+            "code is MIT. The shape+structure model these data are made for:\n\n```bibtex\n"
+            f"{PAPER_BIBTEX}\n```\n")
 
 
 def write_card(root: str | Path) -> Path:
@@ -140,7 +190,7 @@ def write_card(root: str | Path) -> Path:
     subject, gait = list(first.subject), list(first.gait)
     cfg = manifest["config"]
     parts = [
-        _front_matter(manifest["name"], splits),
+        _front_matter(manifest["name"], splits, sum(int(manifest["counts"][s]) for s in splits)),
         f"# silpose dataset `{manifest['name']}`\n",
         "Synthetic multi-view silhouettes of walking people with exact 3D joints, generated by "
         f"`silpose gen` ({meta['generator']['name']} {meta['generator']['version']}) for the shape+structure "
@@ -180,5 +230,5 @@ def write_card(root: str | Path) -> Path:
                   "| view | contour length px | area px |\n|---|---|---|",
                   *[f"| {n} | {loaded[s].extra['contour_length'][:, k].mean():.1f} | "
                     f"{loaded[s].extra['area'][:, k].mean():.1f} |" for k, n in enumerate(first.rig.names)], ""]
-    parts += ["## Loading\n", _loading(root.name)]
+    parts += ["## Loading\n", _loading(root.name), "", _citation()]
     return write_text_atomic(root / CARD, "\n".join(parts) + "\n")

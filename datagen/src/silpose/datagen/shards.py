@@ -94,6 +94,8 @@ def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
             f"{path}: field 'config' differs from this run's; the folder holds another dataset "
             "(choose another --out or delete it)"
         )
+    if meta["format_version"] != metadata["format_version"]:
+        return False  # an older dataset format: rewritten in the current one
     try:
         shard = read_shard(path, columns=ALL_COLUMNS)
     except DatasetError:

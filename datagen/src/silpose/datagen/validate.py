@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from silpose.shared.dataset import DatasetError, iter_shards, list_shards
+from silpose.shared.dataset_schema import FORMAT_VERSION
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
 from .manifest import MANIFEST, read_manifest, sha256_file
@@ -157,6 +158,7 @@ def _validate_split(root, split, expected, hashes, report, sha256_file) -> None:
     for path, s in iter_shards(root, split, with_masks=True):
         n_shards += 1
         names = s.rig.names
+        version = s.metadata["format_version"]
         if path.name in hashes and sha256_file(path) != hashes[path.name]:
             report.problems.append(f"{path}: sha256 differs from manifest.json")
         elif hashes and path.name not in hashes:
@@ -193,6 +195,12 @@ def _validate_split(root, split, expected, hashes, report, sha256_file) -> None:
         height_sum = heights if height_sum is None else height_sum + heights
         length_sum = lengths if length_sum is None else length_sum + lengths
         area_sum = areas if area_sum is None else area_sum + areas
+    if version != FORMAT_VERSION:
+        report.notes.append(
+            f"{root}: split {split!r} is in dataset format version {version}: silpose reads it, Hugging Face "
+            f"datasets cannot; regenerate it for version {FORMAT_VERSION} with `silpose gen` (a run into the "
+            "same folder rewrites the old shards)"
+        )
     all_ids = np.sort(np.concatenate(ids))
     n = len(all_ids)
     if expected is not None and n != expected:

@@ -44,7 +44,21 @@ def fail(command: str, message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+def repair_wheel_tags() -> None:
+    """Correct installed ``WHEEL`` tags that make ``uv run`` reinstall a package (bpy 5.0.1) on every
+    call (see ``silpose.shared.wheel_tags``); reads ~100 small files, writes only when one is wrong."""
+    from .wheel_tags import repair
+
+    try:
+        for r in repair():
+            print(f"silpose: repaired the installed metadata of {r.describe()} (uv reinstalled it on every run)",
+                  file=sys.stderr)
+    except OSError as exc:  # a read-only environment: uv's churn stays, silpose still runs
+        print(f"silpose: cannot repair installed wheel tags ({exc})", file=sys.stderr)
+
+
 def main() -> None:
+    repair_wheel_tags()
     build_app()()
 
 

@@ -2,8 +2,9 @@
 
 The format (schema and metadata) is documented in ``silpose.shared.dataset_schema`` and in every
 dataset's card; other tools read it without this code (pyarrow, pandas, DuckDB, Polars, HF
-``datasets``). This module gives numpy arrays out, zero-copy per Parquet chunk where pyarrow allows,
-and checks every file it reads, naming the file and the field in its errors.
+``datasets``). This module gives numpy arrays out, zero-copy per Parquet chunk where pyarrow allows
+(masks are decoded from their PNG files), and checks every file it reads, naming the file and the
+field in its errors. It reads format versions 1 (tensor columns) and 2 (nested lists, PNG masks).
 """
 
 from __future__ import annotations
@@ -26,10 +27,11 @@ from .dataset_schema import (
     METADATA_KEY,
     SCALAR_COLUMNS,
     build_metadata,
+    column_shapes,
     per_view_fields,
 )
 from .dataset_writer import records_to_table, write_shard
-from .skeleton import N_JOINTS
+from .mask_png import decode_mask_into
 
 __all__ = [
     "DatasetError",
@@ -170,7 +172,9 @@ def read_metadata(path: str | Path) -> dict:
 
 def _check_schema(schema: pa.Schema, meta: dict, source: str) -> None:
     cams = meta["cameras"]
-    expected = per_view_fields(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(meta["n_points"]))
+    expected = per_view_fields(
+        len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(meta["n_points"]), meta["format_version"]
+    )
     expected.update(SCALAR_COLUMNS)
     for name, typ in expected.items():
         idx = schema.get_field_index(name)
@@ -187,18 +191,60 @@ def _check_schema(schema: pa.Schema, meta: dict, source: str) -> None:
             raise DatasetError(f"{source}: column {name!r}: expected a struct of float32, got {typ}")
 
 
-def _to_numpy(column: pa.ChunkedArray, name: str) -> np.ndarray:
-    """(rows, ...) numpy array of a tensor / fixed-size-list / scalar column."""
+def _to_numpy(column: pa.ChunkedArray, name: str, row_shape: tuple[int, ...] | None, source: str) -> np.ndarray:
+    """(rows, ...) numpy array of a tensor / nested fixed-size-list / PNG-image / scalar column.
+
+    ``row_shape`` is the per-row shape of a per-view column (``column_shapes``), else None.
+    """
     chunks = column.chunks or [pa.array([], type=column.type)]
     out = []
     for chunk in chunks:
-        if isinstance(chunk.type, pa.FixedShapeTensorType):
+        if isinstance(chunk.type, pa.FixedShapeTensorType):  # format version 1
             out.append(chunk.to_numpy_ndarray())  # zero-copy per chunk
         elif pa.types.is_fixed_size_list(chunk.type):
-            out.append(chunk.flatten().to_numpy(zero_copy_only=False).reshape(len(chunk), chunk.type.list_size))
+            out.append(_nested_to_numpy(chunk, name, row_shape, source))
         else:
             out.append(chunk.to_numpy(zero_copy_only=False))
     return out[0] if len(out) == 1 else np.concatenate(out)
+
+
+def _nested_to_numpy(chunk: pa.FixedSizeListArray, name: str, row_shape, source: str) -> np.ndarray:
+    """Nested fixed-size lists -> (rows, d1, ..., dk), zero-copy for numbers without nulls; a leaf of
+    ``{bytes, path}`` image structs (the masks) -> (rows, K, H, W) uint8 decoded from the PNG files."""
+    sizes, leaf = [], chunk
+    while pa.types.is_fixed_size_list(leaf.type):
+        if leaf.null_count:
+            raise DatasetError(f"{source}: column {name!r} has {leaf.null_count} null value(s) inside its lists")
+        sizes.append(leaf.type.list_size)
+        leaf = leaf.flatten()  # respects slice offsets (``.values`` does not)
+    if leaf.null_count:
+        raise DatasetError(f"{source}: column {name!r} has {leaf.null_count} null value(s) inside its lists")
+    if pa.types.is_struct(leaf.type):
+        return _decode_images(leaf, (len(chunk), *sizes), tuple(row_shape[len(sizes):]), name, source)
+    return leaf.to_numpy(zero_copy_only=False).reshape(len(chunk), *sizes)
+
+
+def _decode_images(
+    images: pa.StructArray, lead: tuple[int, ...], size: tuple[int, int], name: str, source: str
+) -> np.ndarray:
+    """``lead`` + ``size`` (e.g. (N, K) + (H, W)) uint8 0/1 array from a struct array of N*K PNG files
+    ``{bytes, path}``, decoded straight from the Arrow buffers (no Python bytes objects)."""
+    blobs = images.field("bytes")
+    if len(blobs) == 0:
+        return np.empty((*lead, *size), np.uint8)
+    if blobs.null_count:
+        raise DatasetError(f"{source}: column {name!r}: {blobs.null_count} image(s) without bytes")
+    offsets = np.frombuffer(blobs.buffers()[1], np.int32, count=len(blobs) + 1, offset=4 * blobs.offset)
+    data = blobs.buffers()[2]
+    data = np.frombuffer(data, np.uint8) if data is not None else np.empty(0, np.uint8)
+    out = np.empty((len(blobs), *size), np.uint8)
+    per_row = int(np.prod(lead[1:]))
+    for j in range(len(blobs)):
+        try:
+            decode_mask_into(data[offsets[j]:offsets[j + 1]], out[j])
+        except ValueError as exc:
+            raise DatasetError(f"{source}: column {name!r}: row {j // per_row} view {j % per_row}: {exc}") from None
+    return out.reshape(*lead, *size)
 
 
 def _read_shard(
@@ -215,6 +261,8 @@ def _read_shard(
                 first = f"the split's first shard {reference_path}" if reference_path else "the split's first shard"
                 raise DatasetError(f"{source}: metadata field {key!r} differs from {first} (one of them is damaged or foreign)")
     _check_schema(pf.schema_arrow, meta, source)
+    cams = meta["cameras"]
+    shapes = column_shapes(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(meta["n_points"]))
     try:
         table = pf.read(columns=list(columns))
     except _READ_ERRORS as exc:  # a failed page checksum is an OSError
@@ -231,7 +279,7 @@ def _read_shard(
                 for j in range(struct.type.num_fields)
             }
         else:
-            arrays[name] = _to_numpy(col, name)
+            arrays[name] = _to_numpy(col, name, shapes.get(name), source)
         if name in FINITE_COLUMNS and not np.all(np.isfinite(arrays[name])):
             row = int(np.flatnonzero(~np.isfinite(arrays[name].reshape(len(table), -1)).all(1))[0])
             raise DatasetError(f"{source}: column {name!r} contains NaN or infinity (row {row})")
@@ -354,10 +402,6 @@ def _shard_arrays(shard: DatasetSplit, cols: list[str]) -> dict:
 
 
 def expected_shapes(metadata: dict) -> dict[str, tuple[int, ...]]:
-    """Per-row shape of every tensor column for ``metadata`` (K views, H x W, n points)."""
+    """Per-row shape of every per-view column for ``metadata`` (K views, H x W, n points)."""
     cams = metadata["cameras"]
-    types = per_view_fields(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"]))
-    shapes = {k: tuple(t.shape) for k, t in types.items() if k != "touches_border"}
-    shapes["touches_border"] = (len(cams),)
-    assert shapes["joints"] == (N_JOINTS, 3)
-    return shapes
+    return column_shapes(len(cams), int(cams[0]["height"]), int(cams[0]["width"]), int(metadata["n_points"]))

@@ -1,29 +1,42 @@
 """The silpose dataset schema: Arrow column types and the ``silpose`` metadata document.
 
 A dataset is a folder of Parquet shards ``{split}-{i:05d}-of-{n:05d}.parquet`` (zstd). One row is
-one sample seen by K calibrated cameras:
+one sample seen by K calibrated cameras. Format version 2 stores every array as nested
+fixed-size lists (``list<T>[m]`` below; one nesting level per axis, outermost first) and every
+silhouette as a 1-bit PNG image, so Hugging Face ``datasets``, pyarrow, pandas, DuckDB and Polars
+all read it without silpose code:
 
-============================  ==========================================  =======================
-column                        Arrow type                                  meaning
-============================  ==========================================  =======================
-``sample_id``                 int64                                       index within its split
-``split``                     string                                      ``train`` / ``test``
-``seed``                      int64                                       dataset seed
-``redraws``                   int32                                       rejected draws before it
-``subject``                   struct<name: float32, ...>                  body proportions
-``gait``                      struct<name: float32, ...>                  walk-cycle parameters
-``joints``                    fixed_shape_tensor<float32>[19, 3]          world, metres
-``masks``                     fixed_shape_tensor<uint8>[K, H, W]          silhouettes, 0/1
-``contours``                  fixed_shape_tensor<float32>[K, n, 2]        pixels (x right, y down)
-``contour_centroid``          fixed_shape_tensor<float32>[K, 2]           pixels
-``contour_scale``             fixed_shape_tensor<float32>[K]              pixels
-``contour_length``            fixed_shape_tensor<float32>[K]              pixels
-``area``                      fixed_shape_tensor<int32>[K]                pixels (mask sum)
-``n_blobs``                   fixed_shape_tensor<int32>[K]                connected components
-``touches_border``            fixed_size_list<bool>[K]                    mask touches the border
-============================  ==========================================  =======================
+=====================  =======================================  ==========  ========================
+column                 Arrow type (version 2)                   row shape   meaning
+=====================  =======================================  ==========  ========================
+``sample_id``          int64                                                index within its split
+``split``              string                                               ``train`` / ``test``
+``seed``               int64                                                dataset seed
+``redraws``            int32                                                rejected draws before it
+``subject``            struct<name: float32, ...>                           body proportions
+``gait``               struct<name: float32, ...>                           walk-cycle parameters
+``joints``             list<list<float32>[3]>[19]               (19, 3)     world, metres
+``masks``              list<struct<bytes: binary, path: str>>[K]  (K,)      1-bit PNG per view
+``contours``           list<list<list<float32>[2]>[n]>[K]       (K, n, 2)   pixels (x right, y down)
+``contour_centroid``   list<list<float32>[2]>[K]                (K, 2)      pixels
+``contour_scale``      list<float32>[K]                         (K,)        pixels
+``contour_length``     list<float32>[K]                         (K,)        pixels
+``area``               list<int32>[K]                           (K,)        pixels (mask sum)
+``n_blobs``            list<int32>[K]                           (K,)        connected components
+``touches_border``     list<bool>[K]                            (K,)        mask touches the border
+=====================  =======================================  ==========  ========================
 
-The schema metadata holds one JSON document under the key ``silpose`` (see ``build_metadata``).
+``masks`` is Hugging Face's ``Image`` storage, one struct ``{bytes: PNG file, path: null}`` per view
+(H x W, 1-bit greyscale, 1 = person; see ``silpose.shared.mask_png``); silpose's readers decode it
+to (K, H, W) uint8 0/1. Every field is nullable in the Arrow schema, because ``datasets`` applies a
+declared feature only to a nullable field, but the readers reject null values. The schema
+metadata holds two JSON documents: ``silpose`` (see ``build_metadata``) and ``huggingface``
+(``{"info": {"features": ...}}``, see ``hf_features``), which tells ``datasets`` that ``masks`` is a
+list of K images.
+
+Format version 1 stored the same arrays as ``arrow.fixed_shape_tensor`` extension columns
+(``masks`` a uint8 (K, H, W) tensor). The readers still accept it (``per_view_fields(...,
+version=1)``); Hugging Face ``datasets`` cannot load it: regenerate with ``silpose gen``.
 """
 
 from __future__ import annotations
@@ -31,14 +44,18 @@ from __future__ import annotations
 import json
 from importlib.metadata import PackageNotFoundError, version
 
+import numpy as np
 import pyarrow as pa
 
 from .camera import Rig, RigError
 from .skeleton import JOINT_NAMES, N_JOINTS, PARENTS, TERMINAL_JOINTS
 
-FORMAT_VERSION = 1
-KNOWN_VERSIONS = (1,)
+#: Version written; see the module docstring. Readers accept every version in ``KNOWN_VERSIONS``.
+FORMAT_VERSION = 2
+KNOWN_VERSIONS = (1, 2)
 METADATA_KEY = b"silpose"
+#: Schema metadata key Hugging Face ``datasets`` reads its features from.
+HF_METADATA_KEY = b"huggingface"
 GENERATOR_NAME = "silpose-datagen"
 
 class DatasetError(ValueError):
@@ -60,7 +77,7 @@ REQUIRED_METADATA = (
 
 UNITS = {
     "joints": "metres, world frame",
-    "masks": "0/1 silhouette (uint8), one per view",
+    "masks": "1-bit PNG silhouette per view (1 = person); silpose reads (K, H, W) uint8 0/1",
     "contours": "pixels",
     "contour_centroid": "pixels",
     "contour_scale": "pixels",
@@ -92,23 +109,7 @@ DEFAULT_CONVENTIONS = {
 }
 
 
-def per_view_fields(n_views: int, height: int, width: int, n_points: int) -> dict[str, pa.DataType]:
-    """Arrow types of the tensor columns for K = ``n_views`` views of ``width`` x ``height``."""
-    K = n_views
-    return {
-        "joints": pa.fixed_shape_tensor(pa.float32(), (N_JOINTS, 3)),
-        "masks": pa.fixed_shape_tensor(pa.uint8(), (K, height, width)),
-        "contours": pa.fixed_shape_tensor(pa.float32(), (K, n_points, 2)),
-        "contour_centroid": pa.fixed_shape_tensor(pa.float32(), (K, 2)),
-        "contour_scale": pa.fixed_shape_tensor(pa.float32(), (K,)),
-        "contour_length": pa.fixed_shape_tensor(pa.float32(), (K,)),
-        "area": pa.fixed_shape_tensor(pa.int32(), (K,)),
-        "n_blobs": pa.fixed_shape_tensor(pa.int32(), (K,)),
-        "touches_border": pa.list_(pa.bool_(), K),
-    }
-
-
-#: Numpy dtype of every tensor column.
+#: Numpy dtype of every per-view array column (``touches_border`` is bool).
 TENSOR_DTYPES = {
     "joints": "float32",
     "masks": "uint8",
@@ -125,16 +126,98 @@ STRUCT_COLUMNS = ("subject", "gait")
 ALL_COLUMNS = tuple(SCALAR_COLUMNS) + STRUCT_COLUMNS + TENSOR_COLUMNS + ("touches_border",)
 
 
+def column_shapes(n_views: int, height: int, width: int, n_points: int) -> dict[str, tuple[int, ...]]:
+    """Per-row array shape of every per-view column for K = ``n_views`` views of ``width`` x ``height``."""
+    K = n_views
+    return {
+        "joints": (N_JOINTS, 3),
+        "masks": (K, height, width),
+        "contours": (K, n_points, 2),
+        "contour_centroid": (K, 2),
+        "contour_scale": (K,),
+        "contour_length": (K,),
+        "area": (K,),
+        "n_blobs": (K,),
+        "touches_border": (K,),
+    }
+
+
+#: Hugging Face ``datasets.Image`` storage: one PNG file per struct (``path`` stays null).
+MASK_IMAGE_TYPE = pa.struct([pa.field("bytes", pa.binary()), pa.field("path", pa.string())])
+
+
+def nested_list_type(value_type: pa.DataType, shape: tuple[int, ...]) -> pa.DataType:
+    """``fixed_size_list`` nested once per axis of ``shape``, outermost first: (19, 3) -> list<list<v>[3]>[19]."""
+    typ = value_type
+    for size in reversed(shape):
+        typ = pa.list_(typ, int(size))
+    return typ
+
+
+def per_view_fields(
+    n_views: int, height: int, width: int, n_points: int, version: int = FORMAT_VERSION
+) -> dict[str, pa.DataType]:
+    """Arrow types of the per-view columns of format ``version`` (see the module docstring)."""
+    if version not in KNOWN_VERSIONS:
+        raise ValueError(f"format version {version!r} unknown (known: {list(KNOWN_VERSIONS)})")
+    shapes = column_shapes(n_views, height, width, n_points)
+    if version == 1:
+        types = {name: pa.fixed_shape_tensor(pa.from_numpy_dtype(np.dtype(dt)), shapes[name])
+                 for name, dt in TENSOR_DTYPES.items()}
+        types["touches_border"] = pa.list_(pa.bool_(), n_views)
+        return types
+    types = {name: nested_list_type(pa.from_numpy_dtype(np.dtype(dt)), shapes[name])
+             for name, dt in TENSOR_DTYPES.items() if name != "masks"}
+    types["masks"] = pa.list_(MASK_IMAGE_TYPE, n_views)
+    types["touches_border"] = pa.list_(pa.bool_(), n_views)
+    return {name: types[name] for name in shapes}
+
+
 def build_schema(metadata: dict, subject_fields: list[str], gait_fields: list[str]) -> pa.Schema:
-    """The Arrow schema of a shard, with ``metadata`` serialised under the ``silpose`` key."""
+    """The Arrow schema of a shard (format ``FORMAT_VERSION``), with ``metadata`` serialised under the
+    ``silpose`` key and the Hugging Face features (``hf_features``) under ``huggingface``."""
     cams = metadata["cameras"]
     height, width = int(cams[0]["height"]), int(cams[0]["width"])
-    fields = [pa.field(name, typ, nullable=False) for name, typ in SCALAR_COLUMNS.items()]
-    fields.append(pa.field("subject", pa.struct([pa.field(f, pa.float32(), nullable=False) for f in subject_fields])))
-    fields.append(pa.field("gait", pa.struct([pa.field(f, pa.float32(), nullable=False) for f in gait_fields])))
+    fields = [pa.field(name, typ) for name, typ in SCALAR_COLUMNS.items()]
+    fields.append(pa.field("subject", pa.struct([pa.field(f, pa.float32()) for f in subject_fields])))
+    fields.append(pa.field("gait", pa.struct([pa.field(f, pa.float32()) for f in gait_fields])))
     for name, typ in per_view_fields(len(cams), height, width, int(metadata["n_points"])).items():
-        fields.append(pa.field(name, typ, nullable=False))
-    return pa.schema(fields, metadata={METADATA_KEY: json.dumps(metadata, sort_keys=True).encode()})
+        fields.append(pa.field(name, typ))
+    features = hf_features(len(cams), int(metadata["n_points"]), subject_fields, gait_fields)
+    return pa.schema(fields, metadata={
+        METADATA_KEY: json.dumps(metadata, sort_keys=True).encode(),
+        HF_METADATA_KEY: json.dumps({"info": {"features": features}}).encode(),
+    })
+
+
+def _hf_value(dtype: str) -> dict:
+    return {"dtype": dtype, "_type": "Value"}
+
+
+def _hf_list(feature: dict, shape: tuple[int, ...]) -> dict:
+    for size in reversed(shape):
+        feature = {"feature": feature, "length": int(size), "_type": "List"}
+    return feature
+
+
+def hf_features(n_views: int, n_points: int, subject_fields: list[str], gait_fields: list[str]) -> dict:
+    """The Hugging Face ``datasets.Features`` of a version-2 shard, as ``Features.to_dict()`` writes it.
+
+    Nested ``List(..., length=...)`` for the arrays and ``List(Image(), length=K)`` for ``masks``
+    (``datasets`` >= 4 understands this form). ``datasets`` applies a declared feature only where its
+    Arrow type equals the column's, which ``tests/shared/test_dataset_hf.py`` checks.
+    """
+    shapes = column_shapes(n_views, 1, 1, n_points)  # image size does not enter the features
+    features = {name: _hf_value(str(typ)) for name, typ in SCALAR_COLUMNS.items()}  # "int64", "string", ...
+    features["subject"] = {f: _hf_value("float32") for f in subject_fields}
+    features["gait"] = {f: _hf_value("float32") for f in gait_fields}
+    for name, dt in TENSOR_DTYPES.items():
+        if name == "masks":
+            features[name] = _hf_list({"_type": "Image"}, (n_views,))
+        else:
+            features[name] = _hf_list(_hf_value(dt), shapes[name])
+    features["touches_border"] = _hf_list(_hf_value("bool"), (n_views,))
+    return features
 
 
 def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_version: str | None = None) -> dict:

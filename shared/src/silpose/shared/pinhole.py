@@ -13,14 +13,16 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-__all__ = ["Camera", "RigError", "MAX_IMAGE_SIDE"]
+__all__ = ["Camera", "RigError", "finite_array", "MAX_IMAGE_SIDE"]
 
 
 class RigError(ValueError):
     """A camera rig is malformed or does not see the workspace."""
 
 
-def _as_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+def finite_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` (any layout of the same size), all finite; else a
+    :class:`RigError` naming ``what`` (e.g. "camera 'cam1' field K")."""
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -61,9 +63,9 @@ class Camera:
 
     def __post_init__(self) -> None:
         what = f"camera {self.name!r}"
-        object.__setattr__(self, "K", _as_array(self.K, (3, 3), f"{what} field K"))
-        object.__setattr__(self, "R", _as_array(self.R, (3, 3), f"{what} field R"))
-        object.__setattr__(self, "t", _as_array(self.t, (3,), f"{what} field t"))
+        object.__setattr__(self, "K", finite_array(self.K, (3, 3), f"{what} field K"))
+        object.__setattr__(self, "R", finite_array(self.R, (3, 3), f"{what} field R"))
+        object.__setattr__(self, "t", finite_array(self.t, (3,), f"{what} field t"))
         try:
             dist = np.asarray(self.dist, dtype=np.float64).ravel()
         except (TypeError, ValueError) as exc:

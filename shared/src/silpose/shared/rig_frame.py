@@ -17,19 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .pinhole import finite_array
+
 __all__ = ["WorldTransform", "Workspace", "DEFAULT_WORKSPACE"]
-
-
-def _finite(value, shape: tuple[int, ...], what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what}: not numeric") from None
-    if arr.shape != shape:
-        raise ValueError(f"{what}: expected shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what}: contains NaN or infinity")
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +37,7 @@ class WorldTransform:
     offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
-        A = _finite(self.rotation, (3, 3), "transform field rotation")
+        A = finite_array(self.rotation, (3, 3), "transform field rotation")
         if not np.allclose(A @ A.T, np.eye(3), atol=1e-6) or np.linalg.det(A) < 0:
             raise ValueError("transform field rotation: not a proper rotation matrix")
         s = float(self.scale)
@@ -55,7 +45,7 @@ class WorldTransform:
             raise ValueError(f"transform field scale: must be a positive number, got {self.scale!r}")
         object.__setattr__(self, "rotation", A)
         object.__setattr__(self, "scale", s)
-        object.__setattr__(self, "offset", _finite(self.offset, (3,), "transform field offset"))
+        object.__setattr__(self, "offset", finite_array(self.offset, (3,), "transform field offset"))
 
     @property
     def is_identity(self) -> bool:
@@ -106,8 +96,8 @@ class Workspace:
     size: np.ndarray = field(default_factory=lambda: np.array([3.0, 3.0]))
 
     def __post_init__(self) -> None:
-        c = _finite(self.center, (2,), "workspace field center")
-        s = _finite(self.size, (2,), "workspace field size")
+        c = finite_array(self.center, (2,), "workspace field center")
+        s = finite_array(self.size, (2,), "workspace field size")
         if np.any(s <= 0):
             raise ValueError(f"workspace field size: must be positive, got {s.tolist()}")
         object.__setattr__(self, "center", c)
