@@ -233,7 +233,7 @@ def run_training(
         "n_fit": int(len(fit_idx)),
         "n_heldout": int(len(held_idx)),
         "mode": mode,
-        "hyperparameters": model.get_params(),
+        "hyperparameters": model.hyperparameters(),
         "em": {
             "n_iter": int(mix.n_iter_),
             "converged": bool(mix.converged_),

@@ -16,7 +16,7 @@ key                    dtype / shape    meaning
 
 Header: ``format`` (= "silpose-model"), ``format_version``, ``feature_layout``
 (FeatureLayout.to_dict), ``views``, ``joint_names``, ``n_rig_views``, ``rig`` (Rig.to_dict or
-null), ``hyperparameters`` (ShapeStructureModel.get_params), ``training`` (n_iter, converged,
+null), ``hyperparameters`` (ShapeStructureModel.hyperparameters), ``training`` (n_iter, converged,
 lower_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
 config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
 ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
@@ -82,7 +82,7 @@ def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
         "joint_names": list(JOINT_NAMES),
         "n_rig_views": int(model.n_rig_views_),
         "rig": None if rig is None else rig.to_dict(),
-        "hyperparameters": model.get_params(),
+        "hyperparameters": model.hyperparameters(),
         "training": {
             "n_iter": int(getattr(mix, "n_iter_", -1)),
             "converged": bool(getattr(mix, "converged_", False)),
