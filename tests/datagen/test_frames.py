@@ -301,6 +301,7 @@ def test_bad_cli_input(tmp_path):
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("x")
     line = _error_line(_cli("smoke", "--out", tmp_path / "busy"))
-    assert str(tmp_path / "busy") in line and "not this frames dataset" in line
+    assert str(tmp_path / "busy") in line and "silpose did not write notes.txt" in line
+    assert (tmp_path / "busy" / "notes.txt").read_text() == "x"
     r = _cli("--help")
     assert r.returncode == 0 and "--background" in r.stdout and "--samples" in r.stdout
