@@ -35,10 +35,11 @@ def gen(
     """
     from silpose.shared.camera import RigError
     from silpose.shared.dataset import DatasetError
+    from silpose.shared.output_dir import OutputFolderError, claim_folder
 
     from .config import ConfigError, load_config
     from .executor import ExecutorError
-    from .manifest import LockError
+    from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError
 
@@ -48,9 +49,10 @@ def gen(
     try:
         config = load_config(preset, **overrides)
         target = out if out is not None else Path("data") / config.name
+        claim_folder(target, "gen", recognise=is_dataset_folder)
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
-    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError) as exc:
+    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)

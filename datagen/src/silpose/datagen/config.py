@@ -172,8 +172,9 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     if unknown:
         raise ConfigError(f"{src}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(_KEYS))}")
     name = raw.get("name")
-    if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
-        raise ConfigError(f"{src}: field 'name' must be a non-empty string without spaces or slashes, got {name!r}")
+    if not isinstance(name, str) or not name or name in (".", "..") or any(c in name for c in "/\\ "):
+        raise ConfigError(f"{src}: field 'name' must be a folder name (not '.' or '..') without spaces or slashes, "
+                          f"got {name!r}")
     seed = _int(raw, "seed", src, 0, 2**63 - 1)
     renderer = _choice(raw, "renderer", src, MASK_RENDERERS)
     engine = _choice(raw, "blender_engine", src, ENGINES, default="workbench")

@@ -173,7 +173,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     settings = {
         "data": str(data_dir),
         "model": str(model_path),
-        "model_hyperparameters": model.get_params(),
+        "model_hyperparameters": model.hyperparameters(),
         "n_train": int(len(data.train_joints)),
         "training_subset": train_note,
         "n_test": int(len(data.test_ids)),

@@ -24,7 +24,7 @@ def infer(
     split: Annotated[str, typer.Option(help="Split to read when INPUT is a dataset folder.")] = "test",
     save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz.")] = False,
     noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² (default: the model's).")] = None,
-    threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground.")] = 127,
+    threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground (images holding only 0 and 1 are read as 0/1 masks).")] = 127,
     frames: Annotated[Optional[Path], typer.Option("--frames", help="Camera frames folder: background/<camera>/ and frames/<camera>/ (PNG/JPG folders or .mp4/.avi videos); segmented by background subtraction.")] = None,
     save_overlays: Annotated[bool, typer.Option("--save-overlays", help="With --frames: one PNG per frame (frames, silhouettes with reconstructed contours, inferred stick figure; paper Fig. 9) in <out stem>.overlays/.")] = False,
     overlay_dir: Annotated[Optional[Path], typer.Option(help="Folder of the --save-overlays figures (default <out stem>.overlays/).")] = None,
@@ -48,6 +48,7 @@ def infer(
     from silpose.shared.dataset import DatasetError
 
     from ..inference import run_inference
+    from ..writers import claim_outputs, sibling
 
     if (input is None) == (frames is None):
         fail("infer", "give either INPUT (silhouettes or a dataset) or --frames DIR (camera frames), not both"
@@ -55,6 +56,8 @@ def infer(
     if save_overlays and frames is None:
         fail("infer", "--save-overlays needs --frames")
     try:
+        claim_outputs(out, contours=save_contours, segmentation=frames is not None,
+                      overlay_dir=(overlay_dir or sibling(out, ".overlays")) if save_overlays else None)
         if frames is not None:
             summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
                                     noise_variance, progress)
