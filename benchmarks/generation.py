@@ -33,7 +33,7 @@ def bench_config(renderer: str, engine: str = "workbench", seed: int = 0) -> dic
     }
 
 
-def _worker_run(config: dict, split: str, start: int, n_samples: int, shard_size: int, warmup: int) -> dict:
+def worker_run(config: dict, split: str, start: int, n_samples: int, shard_size: int, warmup: int) -> dict:
     """Inside a spawned worker: render ``n_samples`` in shards, timing and sampling RSS.
 
     Returns:
@@ -54,13 +54,13 @@ def _worker_run(config: dict, split: str, start: int, n_samples: int, shard_size
     return {"n": n_samples, "seconds": time.perf_counter() - t0, "rss_mb": rss, "redraws": redraws}
 
 
-def _run_pool(config: dict, n_samples: int, processes: int, shard_size: int, warmup: int) -> list[dict]:
+def run_pool(config: dict, n_samples: int, processes: int, shard_size: int, warmup: int) -> list[dict]:
     ctx = mp.get_context("spawn")
     per = [n_samples // processes + (1 if i < n_samples % processes else 0) for i in range(processes)]
     starts = [warmup + sum(per[:i]) for i in range(processes)]
     with ctx.Pool(processes) as pool:
         jobs = [
-            pool.apply_async(_worker_run, (config, "train", starts[i], per[i], shard_size, warmup))
+            pool.apply_async(worker_run, (config, "train", starts[i], per[i], shard_size, warmup))
             for i in range(processes)
         ]
         return [j.get() for j in jobs]
@@ -93,7 +93,7 @@ def run(
     for renderer in renderers:
         cfg = bench_config(renderer, engine)
         for nproc in sorted({1, processes}):
-            res = _run_pool(cfg, n_samples, nproc, shard_size, warmup)
+            res = run_pool(cfg, n_samples, nproc, shard_size, warmup)
             seconds = max(r["seconds"] for r in res)
             rows.append(
                 {
@@ -116,7 +116,7 @@ def run(
             r["raster_speedup"] = r["ms_per_sample"] / raster[r["processes"]]["ms_per_sample"]
     if memory_samples:
         renderer = renderers[0]
-        res = _run_pool(bench_config(renderer, engine), memory_samples, 1, shard_size, warmup)[0]
+        res = run_pool(bench_config(renderer, engine), memory_samples, 1, shard_size, warmup)[0]
         rows.append(
             {
                 "name": f"memory {renderer} x1",

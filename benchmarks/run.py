@@ -51,6 +51,11 @@ SECTIONS: dict[str, Section] = {
         {"n_samples": 16, "memory_samples": 0, "shard_size": 8},
         "samples/s per process and on all cores for the raster and Blender renderers; worker RSS growth",
     ),
+    "motion": Section(
+        "motion", {"n_samples": 200}, {"n_samples": 16, "synthetic_frames": 60, "shard_size": 8},
+        "generation with poses from motion-capture clips (BVH, retargeted) vs the procedural walk: ms per sample, "
+        "and the one-off Blender import of the clips",
+    ),
     "pipeline": Section(
         "pipeline", {"n_samples": 1000, "workers": 2},
         {"n_samples": 40, "workers": 2, "executors": ["local"]},

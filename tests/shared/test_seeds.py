@@ -34,3 +34,4 @@ def test_stream_codes_and_stream_constants_are_pinned():
     assert (seeds.APPEARANCE_STREAM, seeds.CAMERA_NOISE_STREAM) == (0x5EEDC010, 0x15E0C4)
     assert seeds.NOISE_KIND == {"background": 0, "frames": 1}
     assert (seeds.CHANCE_STREAM, seeds.VALIDATION_STREAM) == (29, 7919)
+    assert seeds.MOTION_STREAM == 0x5EED0B7C  # motion-capture draws (clip, frame, mirror, placement)

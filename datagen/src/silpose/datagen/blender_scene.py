@@ -280,7 +280,7 @@ def posed_mesh(subject: dict, pose: Pose) -> PosedMesh:
 
 
 @contextlib.contextmanager
-def _quiet_stdout():
+def quiet_stdout():
     """Send file descriptor 1 to /dev/null (Blender prints a 'Saved: ...' line per render)."""
     sys.stdout.flush()
     saved = os.dup(1)
@@ -303,7 +303,7 @@ def render_camera_png(cam, tmpdir: str | os.PathLike) -> Path:
     path = Path(tmpdir) / f"{cam.name}.png"
     scene.camera = cam
     scene.render.filepath = str(path)
-    with _quiet_stdout():
+    with quiet_stdout():
         bpy.ops.render.render(write_still=True)
     return path
 

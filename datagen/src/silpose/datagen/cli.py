@@ -37,8 +37,11 @@ def gen(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, claim_folder
 
+    from .bvh_check import BvhError
+    from .clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
+    from .joint_maps import JointMapError
     from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError
@@ -52,7 +55,8 @@ def gen(
         claim_folder(target, "gen", recognise=is_dataset_folder)
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
-    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError) as exc:
+    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError,
+            BvhError, ClipError, JointMapError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)

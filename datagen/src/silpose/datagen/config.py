@@ -17,17 +17,23 @@ Keys (all validated; errors are one line naming the file and the field)::
     [workspace]                 # optional: overrides the rig's workspace (metres, silpose's frame)
     center = [0.0, 0.0]
     size = [3.0, 3.0]
+    [motion]                    # optional: poses from motion-capture clips (.motion_config)
+    source = "bvh"              # "procedural" (default, the walk cycle) | "bvh"
+    bvh = ["clips/*.bvh"]
 
-Relative rig paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
+Relative rig and clip paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
 workspace (the rig's, or ``[workspace]``); every camera must see it up to a tall person's head
 (``silpose.shared.rig_frame.PERSON_HEIGHT_M``). Calibration files of other tools are converted by
-``silpose rig import`` first (units, up axis, origin, automatic workspace).
+``silpose rig import`` first (units, up axis, origin, automatic workspace). A ``[motion] source =
+"bvh"`` config must be prepared (:meth:`GenConfig.with_motion`, done by ``generate``: the clips are
+imported and checked) before its ``to_dict`` and ``worker_config`` exist; a procedural config's
+dicts are exactly those of a config without ``[motion]``.
 """
 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,13 +42,15 @@ from silpose.shared.camera import Rig, RigError, default_rig, load_rig
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
 from .blender_scene import ENGINES
+from .clips import PreparedMotion, prepare_motion
+from .motion_config import MotionConfig, MotionConfigError, motion_from_dict
 from .renderers import MASK_RENDERERS
 
 SPLITS = ("train", "test")
 #: Height (m) up to which the workspace corners must be seen: a tall person's head top.
 WORKSPACE_CHECK_HEIGHT = PERSON_HEIGHT_M
 _KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig",
-         "workspace", "frames"}
+         "workspace", "frames", "motion"}
 #: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames.config`).
 _OTHER_SECTIONS = {"frames"}
 
@@ -81,11 +89,25 @@ class GenConfig:
     rig: Rig = field(repr=False)
     source: str = ""
     workspace_spec: dict | None = None
+    motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
+    prepared: PreparedMotion | None = field(default=None, repr=False)
+
+    def with_motion(self, workers: int | None = None) -> "GenConfig":
+        """This config with its motion-capture clips imported and checked (itself if procedural)."""
+        if not self.motion.is_bvh or self.prepared is not None:
+            return self
+        return replace(self, prepared=prepare_motion(self.motion, workers=workers))
+
+    def _prepared(self) -> PreparedMotion | None:
+        if self.motion.is_bvh and self.prepared is None:
+            raise ValueError(f"{self.source}: [motion] source = \"bvh\": call with_motion() first (imports the clips)")
+        return self.prepared
 
     def to_dict(self) -> dict:
         """JSON-serialisable config, as stored in the dataset metadata and manifest (``workspace``
-        only when the config has a ``[workspace]`` table)."""
-        d = {
+        only when the config has a ``[workspace]`` table, ``motion`` only for motion-capture clips)."""
+        prepared = self._prepared()
+        out = {
             "name": self.name,
             "seed": self.seed,
             "renderer": self.renderer,
@@ -97,12 +119,16 @@ class GenConfig:
             "rig_spec": dict(self.rig_spec),
         }
         if self.workspace_spec is not None:
-            d["workspace"] = dict(self.workspace_spec)
-        return d
+            out["workspace"] = dict(self.workspace_spec)
+        if prepared is not None:
+            out["motion"] = prepared.metadata()
+        return out
 
     def worker_config(self) -> dict:
-        """The dict ``render_samples`` reads (seed, renderer, blender_engine, rig, n_points, max_redraws)."""
-        return {
+        """The dict ``render_samples`` reads (seed, renderer, blender_engine, rig, n_points,
+        max_redraws, and ``motion`` for motion-capture clips)."""
+        prepared = self._prepared()
+        out = {
             "seed": self.seed,
             "renderer": self.renderer,
             "blender_engine": self.blender_engine,
@@ -110,6 +136,9 @@ class GenConfig:
             "n_points": self.n_points,
             "max_redraws": self.max_redraws,
         }
+        if prepared is not None:
+            out["motion"] = prepared.worker()
+        return out
 
     def data_config(self) -> dict:
         """The part of the config the sample content depends on (not shard size or name)."""
@@ -191,14 +220,19 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     if not splits or sum(splits.values()) == 0:
         raise ConfigError(f"{src}: field 'splits' must ask for at least one sample")
     rig_spec = raw.get("rig", {"preset": "default"})
-    rig = build_rig(rig_spec, Path(source).parent if Path(source).suffix == ".toml" else Path.cwd(), src)
+    base = Path(source).parent if Path(source).suffix == ".toml" else Path.cwd()
+    rig = build_rig(rig_spec, base, src)
     workspace_spec = raw.get("workspace")
     if workspace_spec is not None:
         rig = rig.with_workspace(parse_workspace(workspace_spec, src))
     check_rig(rig, src, workspace_from=None if workspace_spec is None else f"{src}: field 'workspace'")
+    try:
+        motion = motion_from_dict(raw.get("motion"), base, src)
+    except MotionConfigError as exc:
+        raise ConfigError(str(exc)) from None
     return GenConfig(name, seed, renderer, engine, shard_size, n_points, max_redraws, splits,
                      _portable_rig_spec(rig_spec), rig, source,
-                     None if workspace_spec is None else rig.workspace.to_dict())
+                     workspace_spec=None if workspace_spec is None else rig.workspace.to_dict(), motion=motion)
 
 
 def _portable_rig_spec(spec) -> dict:

@@ -3,7 +3,7 @@
 A :class:`Pose` is the seam between motion and rendering: one local rotation per bone plus the
 body -> world transform, with the posed joints they give. Renderers only read a ``Pose``; they
 never know whether it came from the procedural walk cycle (:class:`WalkMotion`, the default) or
-from another source (e.g. motion-capture clips), which only has to implement
+from motion-capture clips (:class:`bvh_motion.BvhMotion`); a source only has to implement
 :class:`MotionSource`.
 
 Bones and frames are those of :mod:`.walk`: one bone per non-root joint, named after its child
@@ -50,11 +50,14 @@ class Pose:
 class MotionSource(Protocol):
     """Draws motion parameters and turns them into a :class:`Pose` of a subject.
 
-    ``fields`` are the keys of the parameter dict (stored with every sample); ``draw`` consumes
-    the sample's generator after the subject's draws.
+    ``fields`` are the keys of the parameter dict (stored with every sample, the ``gait``
+    column). ``stream`` None: ``draw`` consumes the sample's generator after the subject's draws;
+    an integer: ``draw`` gets its own generator ``derive_rng(stream, seed, split code, index,
+    redraw)`` (:func:`scene.draw_sample_parameters`).
     """
 
     fields: tuple[str, ...]
+    stream: int | None
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]: ...
 
@@ -66,6 +69,7 @@ class WalkMotion:
     placed anywhere in ``workspace`` (default: the built-in 3 m x 3 m square)."""
 
     fields = GAIT_FIELDS
+    stream = None
 
     def __init__(self, workspace: Workspace = DEFAULT_WORKSPACE):
         self.workspace = workspace

@@ -18,6 +18,7 @@ import pyarrow.parquet as pq
 
 from silpose.shared.atomic import write_json_atomic
 from silpose.shared.dataset import SHARD_RE, build_metadata, write_shard
+from silpose.shared.seeds import MOTION_STREAM
 
 from .card import write_card
 from .config import GenConfig
@@ -76,6 +77,7 @@ def generate(
     out = Path(out)
     if executor == "local":
         workers = workers or default_workers()
+    config = config.with_motion(workers=workers)  # motion-capture clips: imported once, cached
     with locked_folder(out):
         metadata = dataset_metadata(config)
         tasks = plan_shards(config)
@@ -141,6 +143,8 @@ def build_manifest(config: GenConfig, out: Path, tasks, stats: dict, workers: in
         "seeds": {
             "dataset_seed": config.seed,
             "rule": "sample i of split s is a pure function of (dataset_seed, s, i): draw r uses numpy SeedSequence([dataset_seed, split_code, i, r]) with split_code train=0, test=1; rejected draws are counted in redraws",
+            **({"motion_rule": f"motion-capture draws (clip, frame, mirror, heading, x, y) use SeedSequence([{MOTION_STREAM}, dataset_seed, split_code, i, r])"}
+               if config.motion.is_bvh else {}),
         },
         "counts": dict(config.splits),
         "redraws": redraws,

@@ -2,7 +2,8 @@
 
 Each cell shows the silhouette mask (grey), the stored contour (orange, start point marked), and
 the 3D joints projected with the stored calibration as a stick figure (non-terminal joints blue
-dots, terminal joints red crosses). Written with matplotlib's Agg backend.
+dots, terminal joints red crosses); a motion-capture sample's row names its clip and frame (``m``:
+mirrored). Written with matplotlib's Agg backend.
 """
 
 from __future__ import annotations
@@ -23,6 +24,16 @@ def pick_samples(root: Path, split: str, n_samples: int):
     path, shard = next(iter_shards(root, split, with_masks=True))
     idx = np.linspace(0, len(shard) - 1, min(n_samples, len(shard))).round().astype(int)
     return shard, idx
+
+
+def _clip_label(shard, i: int) -> str:
+    """``"\\n<clip> f<frame>"`` for a motion-capture sample (``m`` when mirrored), else ``""``."""
+    clips = (shard.metadata.get("config", {}).get("motion") or {}).get("clips")
+    if not clips or "clip" not in shard.gait:
+        return ""
+    c, f = int(shard.gait["clip"][i]), int(shard.gait["frame"][i])
+    name = clips[c]["name"] if 0 <= c < len(clips) else f"clip {c}"
+    return f"\n{name[:22]} f{f}{' m' if shard.gait.get('mirror', [0] * (i + 1))[i] else ''}"
 
 
 def write_preview(root: str | Path, out: str | Path | None = None, n_samples: int = 4, split: str | None = None) -> Path:
@@ -61,7 +72,7 @@ def write_preview(root: str | Path, out: str | Path | None = None, n_samples: in
             if r == 0:
                 ax.set_title(shard.rig.names[k], fontsize=8)
             if k == 0:
-                ax.set_ylabel(f"{split} #{int(shard.sample_id[i])}", fontsize=7)
+                ax.set_ylabel(f"{split} #{int(shard.sample_id[i])}{_clip_label(shard, i)}", fontsize=7)
     fig.suptitle(f"{root.name}: mask, contour (orange), projected joints (blue; terminal x)", fontsize=8)
     fig.tight_layout()
     try:

@@ -6,7 +6,9 @@ renders, wearing what. Renderers (:mod:`.render`) turn it into masks or images.
 
 Sample ``index`` of ``split``, draw ``redraw``, is a pure function of ``(seed, split, index,
 redraw)``: its generator is ``derive_rng(seed, SPLIT_CODE[split], index, redraw)``
-(docs/conventions.md, "Seeds"); the subject is drawn first, then the motion parameters. A draw
+(docs/conventions.md, "Seeds"); the subject is drawn first, then the motion parameters (from the
+same generator for the walk; from ``derive_rng(motion.stream, seed, SPLIT_CODE[split], index,
+redraw)`` for a source with its own stream, e.g. motion-capture clips). A draw
 whose person is not fully inside every image is rejected by the caller and redrawn with
 ``redraw + 1`` (:func:`joints_visible` before any rendering, :func:`mesh_visible` on the posed
 mesh).
@@ -63,10 +65,13 @@ def sample_rng(seed: int, split: str, index: int, redraw: int) -> np.random.Gene
 def draw_sample_parameters(
     seed: int, split: str, index: int, redraw: int, motion: MotionSource = WALK
 ) -> tuple[dict, dict]:
-    """(subject, motion parameters) of one draw: subject first, then motion, from :func:`sample_rng`."""
+    """(subject, motion parameters) of one draw: subject first from :func:`sample_rng`, then motion
+    (from the same generator, or from the source's own stream; module docstring)."""
     rng = sample_rng(seed, split, index, redraw)
     subject = sample_subject(rng, split)
-    params = motion.draw(rng)
+    stream = getattr(motion, "stream", None)
+    motion_rng = rng if stream is None else derive_rng(stream, seed, SPLIT_CODE[split], index, redraw)
+    params = motion.draw(motion_rng)
     return subject, params
 
 

@@ -216,3 +216,145 @@ def render_scenes_with(config: dict, names: list[str], split: str, indices: list
                 r = renderer.render(scene)
                 out[name].append({"redraw": scene.redraw, "joints": r.joints, "masks": r.masks})
     return out
+
+
+# ----------------------------------------------------------------------------- synthetic BVH clips
+#
+# A small known skeleton for the motion-capture tests, written as BVH text in two naming schemes
+# (``cmu`` and ``hip-knee``) and two units, with an independent forward kinematics of the file's
+# own definition (BVH: Y up, a joint's frame is its parent's frame translated by OFFSET then
+# rotated by its channels in the order listed) to check Blender's import and the retargeting.
+
+#: (cmu name, hip-knee name, parent index, OFFSET in metres (BVH axes: x left, y up, z forward),
+#: End Site offset or None). Left is +x for a character facing +z.
+SYNTH_SKELETON: tuple = (
+    ("Hips", "Hips", -1, (0.0, 0.0, 0.0), None),
+    ("Spine", "Spine", 0, (0.0, 0.12, 0.0), None),
+    ("Spine1", "Chest", 1, (0.0, 0.15, 0.0), None),
+    ("Neck", "Neck", 2, (0.0, 0.18, 0.0), None),
+    ("Head", "Head", 3, (0.0, 0.10, 0.01), (0.0, 0.17, 0.0)),
+    ("LeftShoulder", "LeftCollar", 2, (0.03, 0.16, 0.0), None),
+    ("LeftArm", "LeftShoulder", 5, (0.15, 0.01, 0.0), None),
+    ("LeftForeArm", "LeftElbow", 6, (0.28, 0.0, 0.0), None),
+    ("LeftHand", "LeftWrist", 7, (0.25, 0.0, 0.0), (0.07, 0.0, 0.0)),
+    ("RightShoulder", "RightCollar", 2, (-0.03, 0.16, 0.0), None),
+    ("RightArm", "RightShoulder", 9, (-0.15, 0.01, 0.0), None),
+    ("RightForeArm", "RightElbow", 10, (-0.28, 0.0, 0.0), None),
+    ("RightHand", "RightWrist", 11, (-0.25, 0.0, 0.0), (-0.07, 0.0, 0.0)),
+    ("LeftUpLeg", "LeftHip", 0, (0.09, -0.06, 0.0), None),
+    ("LeftLeg", "LeftKnee", 13, (0.0, -0.42, 0.0), None),
+    ("LeftFoot", "LeftAnkle", 14, (0.0, -0.41, 0.0), None),
+    ("LeftToeBase", "LeftToe", 15, (0.0, -0.05, 0.13), (0.0, 0.0, 0.05)),
+    ("RightUpLeg", "RightHip", 0, (-0.09, -0.06, 0.0), None),
+    ("RightLeg", "RightKnee", 17, (0.0, -0.42, 0.0), None),
+    ("RightFoot", "RightAnkle", 18, (0.0, -0.41, 0.0), None),
+    ("RightToeBase", "RightToe", 19, (0.0, -0.05, 0.13), (0.0, 0.0, 0.05)),
+)
+#: Rotation channel order of every joint (the root adds X/Y/Z position first).
+SYNTH_ROT_ORDER = "ZXY"
+
+
+def synthetic_clip_motion(n_frames: int = 4, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Known motion of :data:`SYNTH_SKELETON`: root positions (F, 3) metres (BVH axes) and
+    rotations (F, J, 3) degrees in :data:`SYNTH_ROT_ORDER`; frame 0 is the rest pose lifted to
+    0.95 m, later frames turn every joint by up to 35 degrees about each axis (the root: any
+    yaw about y, up to 15 degrees about x and z)."""
+    rng = np.random.default_rng(seed)
+    J = len(SYNTH_SKELETON)
+    pos = np.tile([0.0, 0.95, 0.0], (n_frames, 1))
+    rot = np.zeros((n_frames, J, 3))
+    for f in range(1, n_frames):
+        pos[f] += (rng.uniform(-0.5, 0.5), rng.uniform(-0.1, 0.05), rng.uniform(-0.5, 0.5))
+        rot[f] = rng.uniform(-35.0, 35.0, size=(J, 3))
+        rot[f, 0] = (rng.uniform(-15.0, 15.0), rng.uniform(-180.0, 180.0), rng.uniform(-15.0, 15.0))  # root: any yaw (Y)
+    return pos, rot
+
+
+def write_synthetic_bvh(path, scheme: str = "cmu", unit: float = 1.0, n_frames: int = 4, seed: int = 0) -> Path:
+    """Write :data:`SYNTH_SKELETON` with :func:`synthetic_clip_motion` as a BVH file.
+
+    Args:
+        scheme: ``"cmu"`` or ``"hip-knee"`` joint names.
+        unit: metres per file unit (0.01 writes centimetres).
+    """
+    col = {"cmu": 0, "hip-knee": 1}[scheme]
+    pos, rot = synthetic_clip_motion(n_frames, seed)
+    axes = {"X": 0, "Y": 1, "Z": 2}
+    lines = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        name, off, end = SYNTH_SKELETON[j][col], SYNTH_SKELETON[j][3], SYNTH_SKELETON[j][4]
+        pad = "\t" * depth
+        lines.append(f"{pad}{'ROOT' if j == 0 else 'JOINT'} {name}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}\tOFFSET " + " ".join(f"{v / unit:.6f}" for v in off))
+        chans = [f"{a}rotation" for a in SYNTH_ROT_ORDER]
+        if j == 0:
+            chans = ["Xposition", "Yposition", "Zposition"] + chans
+        lines.append(f"{pad}\tCHANNELS {len(chans)} " + " ".join(chans))
+        for k, row in enumerate(SYNTH_SKELETON):
+            if row[2] == j:
+                emit(k, depth + 1)
+        if end is not None:
+            lines.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET " + " ".join(f"{v / unit:.6f}" for v in end),
+                          f"{pad}\t}}"])
+        lines.append(f"{pad}}}")
+
+    emit(0, 0)
+    order: list[int] = []
+
+    def walk(j: int) -> None:
+        order.append(j)
+        for k, row in enumerate(SYNTH_SKELETON):
+            if row[2] == j:
+                walk(k)
+
+    walk(0)
+    lines += ["MOTION", f"Frames: {n_frames}", "Frame Time: 0.0333333"]
+    for f in range(n_frames):
+        vals = [v / unit for v in pos[f]]
+        for j in order:
+            vals += [rot[f, j, axes[a]] for a in SYNTH_ROT_ORDER]
+        lines.append(" ".join(f"{v:.6f}" for v in vals))
+    path = Path(path)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _axis_rot(axis: str, deg: float) -> np.ndarray:
+    a = np.deg2rad(deg)
+    c, s = np.cos(a), np.sin(a)
+    return {"X": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]), "Y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+            "Z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
+
+
+def synthetic_clip_positions(n_frames: int = 4, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Independent forward kinematics of the file :func:`write_synthetic_bvh` writes, in metres, in
+    Blender's axes after its BVH import (x, y, z)_Blender = (x, -z, y)_BVH.
+
+    Returns:
+        joints (F, J, 3) and end sites (F, J, 3) (NaN where a joint has no End Site).
+    """
+    pos, rot = synthetic_clip_motion(n_frames, seed)
+    axes = {"X": 0, "Y": 1, "Z": 2}
+    J = len(SYNTH_SKELETON)
+    out = np.zeros((n_frames, J, 3))
+    ends = np.full((n_frames, J, 3), np.nan)
+    to_blender = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+    for f in range(n_frames):
+        R = np.zeros((J, 3, 3))
+        P = np.zeros((J, 3))
+        for j, (_, _, parent, off, end) in enumerate(SYNTH_SKELETON):
+            local = np.eye(3)
+            for a in SYNTH_ROT_ORDER:  # channels listed Z X Y: R = Rz Rx Ry
+                local = local @ _axis_rot(a, rot[f, j, axes[a]])
+            if parent < 0:
+                R[j], P[j] = local, pos[f]
+            else:
+                R[j] = R[parent] @ local
+                P[j] = P[parent] + R[parent] @ np.asarray(off)
+            if end is not None:
+                ends[f, j] = P[j] + R[j] @ np.asarray(end)
+        out[f] = P @ to_blender.T
+        ends[f] = ends[f] @ to_blender.T
+    return out, ends

@@ -21,11 +21,12 @@ from silpose.shared.contours import extract_contours, normalise
 from silpose.shared.seeds import SPLIT_CODE
 from silpose.shared.skeleton import N_JOINTS
 
+from .bvh_motion import BvhMotion
+from .motion import WALK, MotionSource
 from .render import RenderResult, Renderer, rendering
 from .renderers import MASK_RENDERERS, renderer_from_config
 from .scene import SampleScene, draw_scene, joints_visible
 from .subjects import SUBJECT_FIELDS
-from .walk import GAIT_FIELDS
 
 
 class SampleError(RuntimeError):
@@ -48,8 +49,22 @@ def check_worker_config(config: dict) -> tuple[int, Rig, int, int]:
     return int(config["seed"]), rig, n_points, max_redraws
 
 
-def make_record(scene: SampleScene, result: RenderResult, seed: int, n_points: int) -> dict[str, Any]:
-    """Assemble one output record (see :func:`render_samples`) from a scene and its masks."""
+def motion_from_config(config: dict) -> MotionSource:
+    """The worker config's motion source: the walk, or ``BvhMotion`` for a ``motion`` entry."""
+    motion = config.get("motion")
+    if motion is None:
+        return WALK
+    if motion.get("source") != "bvh":
+        raise ValueError(f"config field motion.source: must be 'bvh' in a worker config, got {motion.get('source')!r}")
+    return BvhMotion.from_config(motion)
+
+
+def make_record(scene: SampleScene, result: RenderResult, seed: int, n_points: int,
+                fields: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """Assemble one output record (see :func:`render_samples`) from a scene and its masks.
+
+    ``fields``: the motion parameters stored in the ``gait`` column (default: all of ``scene.motion``).
+    """
     masks = result.masks
     c = extract_contours(masks, n_points)
     _, centroid, scale = normalise(c["points"])
@@ -59,7 +74,7 @@ def make_record(scene: SampleScene, result: RenderResult, seed: int, n_points: i
         "seed": int(seed),
         "redraws": int(scene.redraw),
         "subject": {k: float(scene.subject[k]) for k in SUBJECT_FIELDS},
-        "gait": {k: float(scene.motion[k]) for k in GAIT_FIELDS},
+        "gait": {k: float(scene.motion[k]) for k in (fields or tuple(scene.motion))},
         "joints": np.asarray(result.joints, np.float32).reshape(N_JOINTS, 3),
         "masks": masks.astype(np.uint8),
         "contours": c["points"].astype(np.float32),
@@ -73,19 +88,19 @@ def make_record(scene: SampleScene, result: RenderResult, seed: int, n_points: i
 
 
 def render_sample(renderer: Renderer, seed: int, split: str, index: int, rig: Rig, n_points: int,
-                  max_redraws: int) -> dict[str, Any]:
+                  max_redraws: int, motion: MotionSource = WALK) -> dict[str, Any]:
     """The record of sample ``index`` of ``split``: its first fully visible draw (module docstring).
 
     ``renderer`` must be open on ``rig``. Raises SampleError after ``max_redraws + 1`` rejected draws.
     """
     for redraw in range(max_redraws + 1):
-        scene = draw_scene(seed, split, index, redraw, rig)
+        scene = draw_scene(seed, split, index, redraw, rig, motion)
         if not joints_visible(scene):
             continue
         result = renderer.render(scene)
         if result.masks is None or np.any(result.masks.reshape(len(rig), -1).max(axis=1) == 0):
             continue
-        rec = make_record(scene, result, seed, n_points)
+        rec = make_record(scene, result, seed, n_points, motion.fields)
         if np.any(rec["touches_border"]):
             continue
         return rec
@@ -104,12 +119,14 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     Args:
         config: ``seed`` (int), ``renderer`` ("raster" | "blender"), ``blender_engine``
             ("workbench" | "cycles", blender renderer only), ``rig`` (``Rig.to_dict()``),
-            ``n_points`` (contour points), ``max_redraws``.
+            ``n_points`` (contour points), ``max_redraws``, optionally ``motion`` (motion-capture
+            clips, :meth:`clips.PreparedMotion.worker`; default the walk cycle).
         split: "train" or "test".
         indices: sample indices.
     Returns:
         one dict per index, in order: ``sample_id``, ``split``, ``seed``, ``redraws``,
-        ``subject`` (SUBJECT_FIELDS), ``gait`` (GAIT_FIELDS), ``joints`` (19, 3) float32 world
+        ``subject`` (SUBJECT_FIELDS), ``gait`` (the motion source's fields: ``walk.GAIT_FIELDS``
+        or ``clips.BVH_FIELDS``), ``joints`` (19, 3) float32 world
         metres, ``masks`` (K, H, W) uint8 {0,1}, ``contours`` (K, n, 2) float32 px,
         ``contour_centroid`` (K, 2), ``contour_scale`` (K,), ``touches_border`` (K,) bool,
         ``n_blobs`` (K,) int32, ``contour_length`` (K,) float32, ``area`` (K,) int32.
@@ -119,5 +136,6 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     if split not in SPLIT_CODE:
         raise ValueError(f"split must be one of {tuple(SPLIT_CODE)}, got {split!r}")
     seed, rig, n_points, max_redraws = check_worker_config(config)
+    motion = motion_from_config(config)
     with rendering(renderer_from_config(config), rig) as renderer:
-        return [render_sample(renderer, seed, split, index, rig, n_points, max_redraws) for index in indices]
+        return [render_sample(renderer, seed, split, index, rig, n_points, max_redraws, motion) for index in indices]

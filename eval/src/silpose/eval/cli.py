@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
@@ -29,6 +29,10 @@ def evaluate(
     quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 2px, patches 8px, mask strong)."),
     frames: Optional[Path] = typer.Option(None, help="Frames dataset for the camera-frames evaluation (default: <data>/frames if it exists)."),
     no_frames: bool = typer.Option(False, "--no-frames", help="Skip the camera-frames evaluation."),
+    test_data: Optional[List[Path]] = typer.Option(None, "--test-data", help="Evaluate on this dataset's test split "
+                                                   "instead (repeat for several, e.g. test sets generated from "
+                                                   "motion-capture clips); each gets its own report folder under "
+                                                   "--out, and test_sets.md puts them side by side."),
 ) -> None:
     """Run experiments E1-E5 of the paper (section 6) and write reports/<name>/: summary.md, results.parquet,
     headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
@@ -44,7 +48,8 @@ def evaluate(
     from .experiments import DEFAULT_SWEEP, EvalConfig
     from .noise import STANDARD_NOISE
     from .errors import EvalInputError
-    from .run import run_evaluation
+    from .report import headline
+    from .run import run_evaluation, write_test_sets
 
     console = Console(stderr=True)
     given = Path(preset_or_data_dir)
@@ -83,18 +88,26 @@ def evaluate(
                 tasks[key] = progress.add_task(key, total=total)
             progress.update(tasks[key], completed=done, total=total, description=what[:42])
 
+        runs = [(None, out, f"silpose evaluation — {name}")] if not test_data else [
+            (t, out / t.name, f"silpose evaluation — model {model.name} on {t.name}") for t in test_data]
+        rows = []
         try:
             if data_dir.is_dir() and model.is_file():  # else run_evaluation says what is missing, writing nothing
                 claim_folder(out, "eval", recognise=is_report_folder)
-            ev, written = run_evaluation(data_dir, model, out, config, progress=on_step, title=f"silpose evaluation — {name}",
-                                         frames_dir=False if no_frames else frames)
+            for test_dir, run_out, title in runs:
+                ev, written = run_evaluation(data_dir, model, run_out, config, progress=on_step, title=title,
+                                             frames_dir=False if (no_frames or test_dir is not None) else frames,
+                                             test_dir=test_dir)
+                console.print(f"wrote {len(written)} artefacts to {run_out}/ in {sum(ev.timings.values()):.0f} s:")
+                for key, path in written.items():
+                    console.print(f"  {path}")
+                rows.append((run_out.name if test_dir is not None else name, headline(ev.frame()), len(ev.data.test_ids)))
         except (EvalInputError, OutputFolderError) as exc:
             progress.stop()
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(code=2) from None
-    console.print(f"wrote {len(written)} artefacts to {out}/ in {sum(ev.timings.values()):.0f} s:")
-    for key, path in written.items():
-        console.print(f"  {path}")
+    if test_data:
+        console.print(f"  {write_test_sets(out, model, rows)}")
 
 
 def is_report_folder(folder: Path) -> bool:

@@ -29,22 +29,33 @@ from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .report import headline, markdown_summary, pct_per_px
+from .tables import fmt
 
-__all__ = ["load_data", "match_training_subset", "write_reports", "frames_section", "run_evaluation", "EvalInputError"]
+__all__ = ["load_data", "match_training_subset", "write_reports", "frames_section", "run_evaluation", "EvalInputError",
+           "test_sets_table", "write_test_sets"]
 
 
-def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool) -> EvalData:
-    """Read ``data_dir``'s train and test splits (test masks only if ``with_masks``)."""
+def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool, test_dir: str | Path | None = None) -> EvalData:
+    """Read ``data_dir``'s train split and the test split of ``test_dir`` (default ``data_dir``; test
+    masks only if ``with_masks``). Another dataset's test split must have the same cameras and
+    contour points (e.g. a test set generated from motion-capture clips)."""
     data_dir = Path(data_dir)
-    if not data_dir.is_dir():
-        raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {data_dir.name}`)")
+    test_dir = data_dir if test_dir is None else Path(test_dir)
+    for d in dict.fromkeys((data_dir, test_dir)):
+        if not d.is_dir():
+            raise EvalInputError(f"dataset folder {d} not found: generate it first (`just gen {d.name}`)")
     try:
         train = load_split(data_dir, "train")
-        test = load_split(data_dir, "test", with_masks=with_masks)
+        test = load_split(test_dir, "test", with_masks=with_masks)
     except DatasetError as exc:
-        raise EvalInputError(f"cannot read the dataset in {data_dir}: {exc} (regenerate with `just gen {data_dir.name}`)") from exc
+        raise EvalInputError(f"cannot read the dataset in {data_dir} / {test_dir}: {exc} (regenerate it)") from exc
     if len(train) == 0 or len(test) == 0:
         raise EvalInputError(f"{data_dir}: the train or test split is empty")
+    if test_dir != data_dir:
+        if train.rig.to_dict() != test.rig.to_dict():
+            raise EvalInputError(f"{test_dir}: its cameras differ from those of the training data {data_dir}")
+        if train.n_points != test.n_points:
+            raise EvalInputError(f"{test_dir}: {test.n_points} contour points, the training data {data_dir} has {train.n_points}")
     return EvalData.from_splits(train, test, n_test)
 
 
@@ -141,12 +152,14 @@ def frames_section(ev: Evaluation, model, data_dir, out_dir, frames_dir, progres
 
 def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | Path, config: EvalConfig,
                    progress: Progress | None = None, title: str | None = None,
-                   frames_dir: str | Path | None | bool = None) -> tuple[Evaluation, dict[str, Path]]:
+                   frames_dir: str | Path | None | bool = None,
+                   test_dir: str | Path | None = None) -> tuple[Evaluation, dict[str, Path]]:
     """Everything ``silpose eval`` does, without the terminal UI.
 
     ``frames_dir``: the camera-frames evaluation (:mod:`silpose.eval.frames_eval`, ``frames.md``) runs on
     this frames dataset; None = ``<data_dir>/frames`` when it exists (skipped with a note otherwise);
-    False = never.
+    False = never. ``test_dir``: take the test split from this dataset instead of ``data_dir`` (the
+    training split, for the baselines and chance, stays ``data_dir``'s).
     """
     model_path = Path(model_path)
     if not Path(data_dir).is_dir():
@@ -155,7 +168,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         raise EvalInputError(f"model file {model_path} not found: train it first (`just train {Path(data_dir).name}`)")
     t0 = time.perf_counter()
     needs_masks = "E3" in config.experiments and any(s.needs_masks for s in config.sweep)
-    data = load_data(data_dir, config.n_test, with_masks=needs_masks)
+    data = load_data(data_dir, config.n_test, with_masks=needs_masks, test_dir=test_dir)
     try:
         model = load_model(model_path)
     except Exception as exc:  # persistence raises clear ValueErrors; keep its message
@@ -172,6 +185,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     frames_written = frames_section(ev, model, data_dir, out_dir, frames_dir, progress)
     settings = {
         "data": str(data_dir),
+        "test_data": str(test_dir if test_dir is not None else data_dir),
         "model": str(model_path),
         "model_hyperparameters": model.hyperparameters(),
         "n_train": int(len(data.train_joints)),
@@ -189,3 +203,29 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
+
+
+def test_sets_table(rows: list[tuple[str, dict, int]]) -> str:
+    """Markdown table of several test sets' headline figures: ``rows`` = (name, headline, n_test)."""
+    head = ["test set", "n", "pose 4 views mean (cm)", "median", "pose 1 view mean (cm)", "kNN 4 views", "chance"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, h, n in rows:
+        by = h.get("pose_cm_by_n_views", {})
+        n_views = max(by) if by else None
+        four = by.get(n_views, {}) if n_views else {}
+        one = by.get(1, {})
+        knn = (h.get("pose_mean_cm_by_method_and_n_views", {}).get(n_views, {}) or {}).get("knn")
+        chance = h.get("chance_cm", {}).get("mean")
+        cells = [name, str(n), fmt(four.get("mean")), fmt(four.get("median")), fmt(one.get("mean")), fmt(knn), fmt(chance)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_test_sets(out_dir: str | Path, model_path: str | Path, rows: list[tuple[str, dict, int]]) -> Path:
+    """Write ``test_sets.md``: one model's headline figures on several test sets, side by side."""
+    out = Path(out_dir) / "test_sets.md"
+    text = (f"# One model on several test sets\n\nModel `{model_path}`; each test set's full report is in its own "
+            "folder. Pose error: mean Euclidean distance over the 19 joints, root-relative, cm, with the standard "
+            "test noise; chance = a random training pose; kNN = the k-nearest-neighbour baseline on all views.\n\n"
+            + test_sets_table(rows) + "\n")
+    return write_text_atomic(out, text)

@@ -14,7 +14,7 @@ column                 Arrow type (version 2)                   row shape   mean
 ``seed``               int64                                                dataset seed
 ``redraws``            int32                                                rejected draws before it
 ``subject``            struct<name: float32, ...>                           body proportions
-``gait``               struct<name: float32, ...>                           walk-cycle parameters
+``gait``               struct<name: float32, ...>                           motion parameters
 ``joints``             list<list<float32>[3]>[19]               (19, 3)     world, metres
 ``masks``              list<struct<bytes: binary, path: str>>[K]  (K,)      1-bit PNG per view
 ``contours``           list<list<list<float32>[2]>[n]>[K]       (K, n, 2)   pixels (x right, y down)

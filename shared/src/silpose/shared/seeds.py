@@ -9,6 +9,7 @@ below are part of the data format (changing one changes every dataset or report 
 | stream | keys passed to :func:`derive_rng` | used by |
 |---|---|---|
 | sample draw | ``seed, SPLIT_CODE[split], index, redraw`` | datagen: subject, gait, placement of a sample; ``redraw`` counts rejected draws |
+| motion-capture draw | ``MOTION_STREAM, seed, SPLIT_CODE[split], index, redraw`` | datagen (``bvh_motion.BvhMotion``): clip, frame, mirror, heading and floor position of a sample posed from BVH clips (its subject still comes from the sample draw) |
 | appearance | ``APPEARANCE_STREAM, seed, SPLIT_CODE["test"], index`` | datagen frames: clothing colours of a test sample (the room layout is a fixed function of the rig) |
 | camera noise | ``CAMERA_NOISE_STREAM, seed, NOISE_KIND[kind], camera, index`` | ``camera_noise.noise_rng``: sensor noise and flicker of datagen's rendered frames |
 | synthetic stand-in | ``seed, SPLIT_CODE[split], index`` (9 for another split name) | datagen.testing stick-figure records (tests only; three keys, never a sample-draw stream) |
@@ -31,6 +32,7 @@ import numpy as np
 __all__ = [
     "SPLIT_CODE",
     "APPEARANCE_STREAM",
+    "MOTION_STREAM",
     "CAMERA_NOISE_STREAM",
     "NOISE_KIND",
     "CHANCE_STREAM",
@@ -43,6 +45,8 @@ __all__ = [
 SPLIT_CODE = {"train": 0, "test": 1}
 #: first key of the frames appearance stream (clothing colours, room props).
 APPEARANCE_STREAM = 0x5EED_C010
+#: first key of the motion-capture draw (clip, frame, mirror, placement) of a BVH-driven sample.
+MOTION_STREAM = 0x5EED_0B7C
 #: first key of the camera-noise stream.
 CAMERA_NOISE_STREAM = 0x0015_E0C4
 #: kind of camera-noise frame -> key.

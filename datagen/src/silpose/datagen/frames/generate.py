@@ -137,6 +137,7 @@ def generate_frames(
         (Cycles render wall time per image, list), ``tasks_rendered``, ``tasks_skipped``.
     """
     out = Path(out)
+    config = config.with_motion(workers=workers)  # motion-capture clips: imported once, cached
     identity = _identity(config, fcfg)
     if out.exists():
         if out.is_dir() and not any(out.iterdir()):

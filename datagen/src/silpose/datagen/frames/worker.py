@@ -18,7 +18,7 @@ from silpose.shared.camera import Rig
 
 from ..render import rendering
 from ..scene import draw_scene
-from ..worker import render_samples
+from ..worker import motion_from_config, render_samples
 from .render import TexturedRenderer
 from .scene import draw_appearance
 
@@ -52,11 +52,12 @@ def render_person_frames(config: dict, indices: list[int]) -> dict:
     rig = Rig.from_dict(config["rig"])
     renderer = TexturedRenderer.from_config(config)  # checks the frames options before any render
     records = render_samples(config, "test", list(indices))
+    motion = motion_from_config(config)  # the walk, or the dataset's motion-capture clips
     frames, looks, seconds = [], [], []
     with rendering(renderer, rig):
         for rec in records:
             i = rec["sample_id"]
-            scene = draw_scene(seed, "test", i, rec["redraws"], rig, appearance=draw_appearance(seed, i))
+            scene = draw_scene(seed, "test", i, rec["redraws"], rig, motion, appearance=draw_appearance(seed, i))
             result = renderer.render(scene)
             if not np.array_equal(result.joints.astype(np.float32), rec["joints"]):
                 raise FramesRenderError(f"test sample {i}: posed joints differ from the truth record's")
