@@ -1,0 +1,164 @@
+"""``joints.parquet`` and ``joints.csv`` of a recording, written as rows arrive (memory does not grow).
+
+One row per person per time step (rows ordered by frame, then person). Columns:
+
+=================== ============================================================================
+frame               time step: the frame index of cameras without an offset (int64)
+time                seconds, ``frame / fps`` (NaN when no video states its frame rate)
+person              person id, 1, 2, ... (stable over the recording)
+status              ``ok`` (joints inferred), ``no usable view`` (on the floor, but every view
+                    merged, cut or missing: no joints), ``not detected`` (the person's track
+                    bridged this step without a detection: no joints)
+floor_x, floor_y    metres, silpose's frame: where the floor grid found the person (NaN: not detected)
+n_views, views      usable views and their camera names (comma-separated)
+view_status         per rig camera, why the view was or was not used (``silpose.app.recordings.views``)
+log_marginal        the model's log density of the observed views (its plausibility; NaN without joints)
+joints              (19, 3) metres, silpose's frame (z up, floor z = 0): root placed in the room
+joints_calibration  (19, 3) the same joints in the calibration's own frame and units
+joint_std           (19, 3) metres, the posterior standard deviation per coordinate
+root, root_calibration  (3,) the pelvis, both frames
+contours_px         (K, n, 2) px, every modelled view's reconstructed contour (missing views projected)
+=================== ============================================================================
+
+Nested columns are fixed-size lists (DuckDB, Polars and pandas read them). The schema metadata key
+``silpose_recording`` holds one JSON document: joint and camera names, units, the world transform and
+workspace, the frame rate, the model, the per-view statuses' meanings. The CSV has the same rows with the
+nested columns flattened (``<joint>_x`` ... in silpose's frame, ``<joint>_cal_x`` ... in the calibration's,
+``<joint>_std_x`` ...) and no contours. Both files are written to temporary names and renamed when the
+run ends (:mod:`silpose.shared.atomic`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from silpose.shared.atomic import atomic_open, atomic_path
+from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
+
+STATUS_OK = "ok"
+STATUS_NO_VIEW = "no usable view"
+STATUS_NOT_DETECTED = "not detected"
+ROW_STATUSES = (STATUS_OK, STATUS_NO_VIEW, STATUS_NOT_DETECTED)
+
+
+@dataclass
+class PersonRows:
+    """Rows of R (person, step) pairs; arrays lead with R. K rig cameras, V modelled views, n contour points.
+
+    frame (R,) int; person (R,) int; status (R,) str; floor (R, 2); view_status (R, K) str; views_used
+    (R, K) bool; log_marginal (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
+    root_calibration (R, 3); contours (R, V, n, 2).
+    """
+
+    frame: np.ndarray
+    person: np.ndarray
+    status: np.ndarray
+    floor: np.ndarray
+    view_status: np.ndarray
+    views_used: np.ndarray
+    log_marginal: np.ndarray
+    joints: np.ndarray
+    joints_calibration: np.ndarray
+    joint_std: np.ndarray
+    root: np.ndarray
+    root_calibration: np.ndarray
+    contours: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.frame)
+
+    def take(self, idx) -> "PersonRows":
+        return PersonRows(**{f: getattr(self, f)[idx] for f in self.__dataclass_fields__})
+
+    @staticmethod
+    def concat(parts: list["PersonRows"]) -> "PersonRows":
+        return PersonRows(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in PersonRows.__dataclass_fields__})
+
+
+def _fixed(a: np.ndarray) -> pa.Array:
+    """A nested fixed-size list array of float32 from an (R, d1, d2, ...) array."""
+    a = np.ascontiguousarray(a, np.float32)
+    arr = pa.array(a.reshape(-1))
+    for d in reversed(a.shape[1:]):
+        arr = pa.FixedSizeListArray.from_arrays(arr, d)
+    return arr
+
+
+class RecordingWriter:
+    """Streams :class:`PersonRows` to ``joints.parquet`` and ``joints.csv`` (module docstring).
+
+    Args:
+        parquet, csv_path: output files. cameras: rig camera names; views: the modelled views' names;
+        n_points: contour points; fps: frames per second (0: unknown); meta: the metadata document.
+    """
+
+    def __init__(self, parquet: Path, csv_path: Path, cameras, views, n_points: int, fps: float, meta: dict):
+        self.cameras, self.views, self.n_points = list(cameras), list(views), int(n_points)
+        self.fps = float(fps)
+        self.n_rows = 0
+        self.counts = dict.fromkeys(ROW_STATUSES, 0)
+        self._stack = ExitStack()
+        tmp = self._stack.enter_context(atomic_path(parquet))
+        self.schema = self._schema().with_metadata({b"silpose_recording": json.dumps(meta).encode()})
+        self._pq = self._stack.enter_context(pq.ParquetWriter(tmp, self.schema, compression="zstd"))
+        self._csv_file = self._stack.enter_context(atomic_open(csv_path, "w", newline="", encoding="utf-8"))
+        self._csv = csv.writer(self._csv_file)
+        header = ["frame", "time", "person", "status", "n_views", "views", "log_marginal", "floor_x", "floor_y"]
+        header += [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
+        for tag in ("", "_cal", "_std"):
+            header += [f"{j}{tag}_{a}" for j in JOINT_NAMES for a in "xyz"]
+        self._csv.writerow(header)
+
+    def _schema(self) -> pa.Schema:
+        j = pa.list_(pa.list_(pa.float32(), 3), N_JOINTS)
+        v3 = pa.list_(pa.float32(), 3)
+        return pa.schema([
+            ("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
+            ("floor_x", pa.float32()), ("floor_y", pa.float32()), ("n_views", pa.int8()), ("views", pa.string()),
+            ("view_status", pa.list_(pa.string(), len(self.cameras))), ("log_marginal", pa.float64()),
+            ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
+            ("contours_px", pa.list_(pa.list_(pa.list_(pa.float32(), 2), self.n_points), len(self.views))),
+        ])
+
+    def write(self, rows: PersonRows) -> None:
+        if not len(rows):
+            return
+        R, K = len(rows), len(self.cameras)
+        time = rows.frame / self.fps if self.fps > 0 else np.full(R, np.nan)
+        names = np.array(self.cameras)
+        views = [",".join(names[u]) for u in rows.views_used]
+        n_views = rows.views_used.sum(axis=1).astype(np.int8)
+        vs = pa.FixedSizeListArray.from_arrays(pa.array(rows.view_status.reshape(-1).astype(str).tolist()), K)
+        table = pa.Table.from_arrays([
+            pa.array(rows.frame.astype(np.int64)), pa.array(time), pa.array(rows.person.astype(np.int32)),
+            pa.array(rows.status.astype(str).tolist()), pa.array(rows.floor[:, 0].astype(np.float32)),
+            pa.array(rows.floor[:, 1].astype(np.float32)), pa.array(n_views), pa.array(views), vs,
+            pa.array(rows.log_marginal.astype(np.float64)), _fixed(rows.joints), _fixed(rows.joints_calibration),
+            _fixed(rows.joint_std), _fixed(rows.root), _fixed(rows.root_calibration), _fixed(rows.contours),
+        ], schema=self.schema)
+        self._pq.write_table(table)
+        flat = np.concatenate([rows.floor, rows.root, rows.root_calibration, rows.joints.reshape(R, -1),
+                               rows.joints_calibration.reshape(R, -1), rows.joint_std.reshape(R, -1)], axis=1)
+        for i in range(R):
+            head = [int(rows.frame[i]), f"{time[i]:.6g}", int(rows.person[i]), str(rows.status[i]), int(n_views[i]),
+                    views[i], f"{rows.log_marginal[i]:.6g}"]
+            self._csv.writerow(head + [f"{v:.6g}" for v in flat[i]])
+        self.n_rows += R
+        for s in rows.status:
+            self.counts[str(s)] = self.counts.get(str(s), 0) + 1
+
+    def close(self) -> None:
+        """Finish both files (rename them into place)."""
+        self._stack.close()
+
+    def abort(self) -> None:
+        """Drop both files (the temporary names are removed; nothing appears under the final names)."""
+        self._stack.__exit__(RuntimeError, RuntimeError("aborted"), None)
