@@ -89,7 +89,7 @@ def tiny_model_file(tiny_model, tmp_path_factory):
     from silpose.model.persistence import save_model
 
     path = tmp_path_factory.mktemp("tiny-model") / "tiny.npz"
-    save_model(tiny_model, path)
+    save_model(path, tiny_model)
     return path
 
 

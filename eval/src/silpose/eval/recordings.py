@@ -111,7 +111,7 @@ def clean_reference(model, masks: np.ndarray, noise_variance: float | None = Non
         for p in range(P):
             i = f * P + p
             m = [masks[f, p, k].view(np.uint8) for k in range(K)]
-            det = grid.detect(grid.occupancy([x if x.any() else None for x in m]))
+            det = grid.locate([x if x.any() else None for x in m])
             if not len(det.positions):
                 continue
             floor[i] = det.positions[int(np.argmax(det.scores))]

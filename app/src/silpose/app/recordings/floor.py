@@ -11,7 +11,14 @@ nothing). Cells seen by fewer than ``min_views`` such cameras score 0.
 
 People are the peaks of the score map smoothed by a Gaussian (sigma 2 cells), at least
 ``min_score`` high and ``separation`` metres apart (strongest first), each placed at the score-weighted
-centroid of its cells within 0.25 m (sub-cell).
+centroid of its cells within 0.25 m (sub-cell). A person hidden from one camera (a pillar, a table, a
+segmentation that lost them) scores 0 there; so a second, tolerant map takes, where ``min_views + 2`` or
+more cameras see a cell, the second-smallest fraction (all cameras but one agree, and still at least
+``min_views + 1`` of them: two cameras alone make ghosts wherever their rays cross), and its peaks are
+added when no peak of the strict map lies within ``separation``. Measured on the lab recording with the right half of
+cam2's masks blanked: the strict map alone lost a person in 68 of 75 frames, strict + tolerant found both
+in all 75 (2.9 cm from the pelvis on average); without the blanking the tolerant peaks add nothing (the
+tolerant map alone merges the two people in 4 frames of the crossing, which is why it only supplements).
 
 Why a visual hull and not the blobs' foot points through each camera's floor homography: measured on
 the lab recording (two walkers crossing in front of four cameras on one wall, 75 frames, lossy mask
@@ -79,11 +86,13 @@ class FloorGrid:
             self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, cells)
         self.n_heights = len(hz)
 
-    def occupancy(self, masks: list) -> np.ndarray:
-        """(ny, nx) float32 score (module docstring) from per-camera (H, W) {0, 1} uint8 masks (None: no mask)."""
+    def occupancy(self, masks: list) -> tuple[np.ndarray, np.ndarray]:
+        """(strict, tolerant) (ny, nx) float32 scores (module docstring) from per-camera (H, W) {0, 1} uint8
+        masks (None: no mask)."""
         ny, nx = self.X.shape
         unseen = np.uint8(255)
         best = np.full(ny * nx, unseen, np.uint8)
+        second = best.copy()
         views = np.zeros(ny * nx, np.int16)
         for k, m in enumerate(masks):
             if m is None:
@@ -92,11 +101,30 @@ class FloorGrid:
             count = flat[self.index[k][0]].copy()  # foreground points of each column, one height at a time
             for row in self.index[k][1:]:
                 count += flat[row]
-            np.minimum(best, np.where(self.sees[k], count, unseen), out=best)
+            count = np.where(self.sees[k], count, unseen)
+            np.minimum(second, np.maximum(best, count), out=second)
+            np.minimum(best, count, out=best)
             views += self.sees[k]
-        score = best.astype(np.float32) / self.n_heights
-        score[(views < self.min_views) | (best == unseen)] = 0.0
-        return score.reshape(ny, nx)
+        strict = best.astype(np.float32) / self.n_heights
+        tolerant = np.where(views >= self.min_views + 2, second, best).astype(np.float32) / self.n_heights
+        off = (views < self.min_views) | (best == unseen)
+        strict[off] = 0.0
+        tolerant[off] = 0.0
+        return strict.reshape(ny, nx), tolerant.reshape(ny, nx)
+
+    def locate(self, masks: list, min_score: float = 0.7, separation: float = 0.5) -> Detections:
+        """People on the floor from per-camera masks: the strict map's peaks plus the tolerant map's peaks
+        away from them (module docstring)."""
+        strict, tolerant = self.occupancy(masks)
+        a = self.detect(strict, min_score, separation)
+        b = self.detect(tolerant, min_score, separation)
+        if not len(b.positions):
+            return a
+        if len(a.positions):
+            far = np.linalg.norm(b.positions[:, None] - a.positions[None], axis=2).min(axis=1) >= separation
+        else:
+            far = np.ones(len(b.positions), bool)
+        return Detections(np.concatenate([a.positions, b.positions[far]]), np.concatenate([a.scores, b.scores[far]]))
 
     def detect(self, occupancy: np.ndarray, min_score: float = 0.7, separation: float = 0.5) -> Detections:
         """People in an occupancy map (module docstring)."""

@@ -331,7 +331,7 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     for c in names:
         s = seen.get(c)
         masks.append(None if s is None or s.blobs is None or s.blobs.empty else s.mask)
-    det = grid.detect(grid.occupancy(masks))
+    det = grid.locate(masks)
     links = tracker.update(step, det.positions)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
