@@ -191,7 +191,10 @@ def test_place_contours_maps_missing_views_with_the_observed_metric_scale(rig):
     assert np.allclose(out[0, 2], expect) and np.allclose(out[0, [0, 1, 3]], px[0, [0, 1, 3]])
 
 
-def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path):
+def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monkeypatch):
+    from silpose.app.recordings import writers
+
+    monkeypatch.setattr(writers, "ROW_GROUP", 3)
     R, K, V, n = 3, 4, 4, 5
     rows = PersonRows(frame=np.arange(R), person=np.array([1, 2, 1]), status=np.array(["ok", "no usable view", "ok"], object),
                       floor=np.zeros((R, 2)), view_status=np.full((R, K), "ok", object), views_used=np.ones((R, K), bool),
@@ -204,6 +207,7 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path):
     w.write(rows.take([0]))
     assert not (tmp_path / "j.parquet").exists()  # only under a temporary name until closed
     w.close()
+    assert pq.ParquetFile(tmp_path / "j.parquet").num_row_groups == 2  # 3 rows, then the last one at close
     t = pq.read_table(tmp_path / "j.parquet")
     assert t.num_rows == 4 and t.column("time").to_pylist()[:3] == [0.0, 0.04, 0.08]
     j = np.array(t.column("joints").to_pylist(), float)

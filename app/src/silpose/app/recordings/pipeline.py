@@ -154,7 +154,6 @@ class _Person:
     step: int
     track: Track
     floor: np.ndarray  # (2,) or NaN
-    labels: np.ndarray  # (K,) blob per camera
     status: list  # (K,) view statuses
     contours: np.ndarray  # (K, n, 2) px, NaN where not used
 
@@ -214,7 +213,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
 
     lay = model.fitted_layout()
     modelled = [names[v] for v in lay.views]
-    K, n_pts = len(names), lay.n_points
+    n_pts = lay.n_points
     grid = FloorGrid(list(rig), workspace.bounds)
     fps = recording.fps
     tracker = Tracker(min_hits=opt.min_hits,
@@ -258,11 +257,10 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 timings["cameras"] += time.perf_counter() - t0
                 if any(s.status == VIEW_ENDED for s in seen.values()):
                     ended = [c for c, s in seen.items() if s.status == VIEW_ENDED]
-                    if total < 0 or step < total:
+                    early = step < total if total >= 0 else len(ended) < len(seen)  # unknown length: unequal ends
+                    if early:
                         msg = f"{', '.join(recording.sources[c].path.name for c in ended)} ended after {step} frames"
-                        if total >= 0:
-                            msg += f" (expected {total})"
-                        warnings.append(msg + ": stopping there")
+                        warnings.append(msg + (f" (expected {total})" if total >= 0 else "") + ": stopping there")
                         if warn:
                             warn(warnings[-1])
                     done = True
@@ -349,7 +347,7 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     out = []
     for track, d in links:
         if d < 0:
-            out.append(_Person(step, track, np.full(2, np.nan), np.zeros(len(names), int), [VIEW_NOT_SEEN] * len(names),
+            out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
                                np.full((len(names), n_pts, 2), np.nan)))
             continue
         cont = np.full((len(names), n_pts, 2), np.nan)
@@ -361,7 +359,7 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
                     st[k] = VIEW_EMPTY
                 else:
                     cont[k] = pts
-        out.append(_Person(step, track, det.positions[d].copy(), labels[:, d].copy(), st, cont))
+        out.append(_Person(step, track, det.positions[d].copy(), st, cont))
     timings["views"] += time.perf_counter() - t0
     return out
 

@@ -25,7 +25,7 @@ Nested columns are fixed-size lists (DuckDB, Polars and pandas read them). The s
 workspace, the frame rate, the model, the per-view statuses' meanings. The CSV has the same rows with the
 nested columns flattened (``<joint>_x`` ... in silpose's frame, ``<joint>_cal_x`` ... in the calibration's,
 ``<joint>_std_x`` ...) and no contours. Both files are written to temporary names and renamed when the
-run ends (:mod:`silpose.shared.atomic`).
+run ends (:mod:`silpose.shared.atomic`). Parquet row groups hold :data:`ROW_GROUP` rows (the last one fewer).
 """
 
 from __future__ import annotations
@@ -47,6 +47,8 @@ STATUS_OK = "ok"
 STATUS_NO_VIEW = "no usable view"
 STATUS_NOT_DETECTED = "not detected"
 ROW_STATUSES = (STATUS_OK, STATUS_NO_VIEW, STATUS_NOT_DETECTED)
+#: rows per Parquet row group (with 4 views of 200 contour points, ~4 MB held at most)
+ROW_GROUP = 512
 
 
 @dataclass
@@ -111,6 +113,7 @@ class RecordingWriter:
         self._pq = self._stack.enter_context(pq.ParquetWriter(tmp, self.schema, compression="zstd"))
         self._csv_file = self._stack.enter_context(atomic_open(csv_path, "w", newline="", encoding="utf-8"))
         self._csv = csv.writer(self._csv_file)
+        self._held: list[PersonRows] = []
         header = ["frame", "time", "person", "status", "n_views", "views", "log_marginal", "floor_x", "floor_y"]
         header += [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
         for tag in ("", "_cal", "_std"):
@@ -129,10 +132,27 @@ class RecordingWriter:
         ])
 
     def write(self, rows: PersonRows) -> None:
+        """Append rows (the CSV at once, the Parquet file by row groups of :data:`ROW_GROUP`)."""
         if not len(rows):
             return
+        self._held.append(rows)
+        if sum(len(r) for r in self._held) >= ROW_GROUP:
+            self._flush()
+        self._write_csv(rows)
+        self.n_rows += len(rows)
+        for s in rows.status:
+            self.counts[str(s)] = self.counts.get(str(s), 0) + 1
+
+    def _time(self, rows: PersonRows) -> np.ndarray:
+        return rows.frame / self.fps if self.fps > 0 else np.full(len(rows), np.nan)
+
+    def _flush(self) -> None:
+        if not self._held:
+            return
+        rows = PersonRows.concat(self._held)
+        self._held = []
         R, K = len(rows), len(self.cameras)
-        time = rows.frame / self.fps if self.fps > 0 else np.full(R, np.nan)
+        time = self._time(rows)
         names = np.array(self.cameras)
         views = [",".join(names[u]) for u in rows.views_used]
         n_views = rows.views_used.sum(axis=1).astype(np.int8)
@@ -145,18 +165,27 @@ class RecordingWriter:
             _fixed(rows.joint_std), _fixed(rows.root), _fixed(rows.root_calibration), _fixed(rows.contours),
         ], schema=self.schema)
         self._pq.write_table(table)
+
+    def _write_csv(self, rows: PersonRows) -> None:
+        R = len(rows)
+        time = self._time(rows)
+        names = np.array(self.cameras)
+        views = [",".join(names[u]) for u in rows.views_used]
+        n_views = rows.views_used.sum(axis=1)
         flat = np.concatenate([rows.floor, rows.root, rows.root_calibration, rows.joints.reshape(R, -1),
                                rows.joints_calibration.reshape(R, -1), rows.joint_std.reshape(R, -1)], axis=1)
         for i in range(R):
             head = [int(rows.frame[i]), f"{time[i]:.6g}", int(rows.person[i]), str(rows.status[i]), int(n_views[i]),
                     views[i], f"{rows.log_marginal[i]:.6g}"]
             self._csv.writerow(head + [f"{v:.6g}" for v in flat[i]])
-        self.n_rows += R
-        for s in rows.status:
-            self.counts[str(s)] = self.counts.get(str(s), 0) + 1
 
     def close(self) -> None:
         """Finish both files (rename them into place)."""
+        try:
+            self._flush()
+        except BaseException:
+            self.abort()
+            raise
         self._stack.close()
 
     def abort(self) -> None:
