@@ -202,7 +202,7 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
                       joints_calibration=np.ones((R, 19, 3)), joint_std=np.zeros((R, 19, 3)), root=np.ones((R, 3)),
                       root_calibration=np.ones((R, 3)), contours=np.zeros((R, V, n, 2)))
     cams = [f"cam{k}" for k in range(K)]
-    w = RecordingWriter(tmp_path / "j.parquet", tmp_path / "j.csv", cams, cams, n, 25.0, {"a": 1})
+    w = RecordingWriter(tmp_path / "j.parquet", tmp_path / "j.csv", cams, cams, n, 25.0, {"a": 1}, contours=True)
     w.write(rows)
     w.write(rows.take([0]))
     assert not (tmp_path / "j.parquet").exists()  # only under a temporary name until closed
@@ -223,6 +223,7 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
     assert float(lines[1][header.index(f"{JOINT_NAMES[1]}_x")]) == rows.joints[0, 1, 0]
     assert all(len(r) == len(header) for r in lines)
     w2 = RecordingWriter(tmp_path / "k.parquet", tmp_path / "k.csv", cams, cams, n, 25.0, {})
+    assert "contours_px" not in w2.schema.names
     w2.write(rows)
     w2.abort()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["j.csv", "j.parquet"]

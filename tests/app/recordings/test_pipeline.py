@@ -27,7 +27,8 @@ def _rows(out):
 
 def test_cli_writes_joints_overlays_floorplan(tiny_model_file, two_cylinders, tmp_path):
     out = tmp_path / "out"
-    res = _invoke("infer", tiny_model_file, "--videos", two_cylinders, "--masks", "--out", out, "--no-progress")
+    res = _invoke("infer", tiny_model_file, "--videos", two_cylinders, "--masks", "--out", out, "--no-progress",
+                  "--contours")
     assert res.exit_code == 0, res.output
     assert "2 person(s) over 20 frames" in res.output
     for name in ("joints.parquet", "joints.csv", "floorplan.png", "summary.json", "overlays/cam0.mp4", "overlays/cam3.mp4"):
@@ -44,6 +45,10 @@ def test_cli_writes_joints_overlays_floorplan(tiny_model_file, two_cylinders, tm
     ok = np.array(r["status"]) == "ok"
     assert np.isfinite(joints[ok]).all() and np.isnan(joints[~ok]).all()  # never joints from nothing
     assert np.allclose(joints[ok, 0], root[ok], atol=1e-5)  # pelvis = root, in the room
+    contours = np.array(t.column("contours_px").to_pylist())
+    merged = np.array(r["view_status"]) == "merged"
+    assert contours.shape == (40, 4, 40, 2) and merged[ok].any()
+    assert np.isfinite(contours[ok]).all()  # every view's contour in pixels, the missing (merged) ones projected
     floor = np.c_[t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()]
     assert np.linalg.norm(root[ok, :2] - floor[ok], axis=1).max() < 0.5
     cap = cv2.VideoCapture(str(out / "overlays" / "cam1.mp4"))

@@ -1,4 +1,4 @@
-"""``silpose infer``: joints (and every view's contour) from silhouettes or camera frames.
+"""``silpose infer``: joints (and every view's contour) from silhouettes, camera frames or recordings (``--videos``).
 
 Only light modules are imported at module level (typer, pathlib, typing); numpy, OpenCV, pyarrow
 and rich come with the work, imported inside the command (:mod:`silpose.app.inference`,
@@ -19,10 +19,10 @@ from ..errors import InputError
 
 def infer(
     model: Annotated[Path, typer.Argument(help="Model file written by silpose train (.npz).")],
-    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera silhouette PNG folders (omit with --frames).")] = None,
+    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera silhouette PNG folders (omit with --frames or --videos).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Joints file: .parquet, or .json (default joints.parquet); with --videos an output folder (default <DIR>.silpose/).")] = None,
     split: Annotated[str, typer.Option(help="Split to read when INPUT is a dataset folder.")] = "test",
-    save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz.")] = False,
+    save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz (with --videos: a contours_px column in joints.parquet).")] = False,
     noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² (default: the model's).")] = None,
     threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground.")] = 127,
     frames: Annotated[Optional[Path], typer.Option("--frames", help="Camera frames folder: background/<camera>/ and frames/<camera>/ (PNG/JPG folders or .mp4/.avi videos); segmented by background subtraction.")] = None,
@@ -38,7 +38,7 @@ def infer(
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
 ) -> None:
-    """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or camera frames.
+    """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
 
     INPUT is either a dataset folder (its --split is read) or a folder with one subfolder per
     camera, named as in the model's rig, holding silhouette PNGs; frames are matched by file name,
@@ -75,7 +75,7 @@ def infer(
     try:
         if videos is not None:
             summary = infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays,
-                                   video_min_area, noise_variance, progress)
+                                   video_min_area, noise_variance, progress, save_contours)
         elif frames is not None:
             summary = infer_frames(model, frames, out or Path("joints.parquet"), save_contours, save_overlays, overlay_dir,
                                    min_area, noise_variance, progress)
@@ -106,7 +106,7 @@ def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, 
 
 
 def infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays, min_area, noise_variance,
-                 progress) -> str:
+                 progress, contours=False) -> str:
     """``silpose infer --videos``: :func:`~silpose.app.recordings.pipeline.run_recording` with a progress bar
     (frames/s) and warnings on stderr."""
     from rich.console import Console
@@ -117,7 +117,8 @@ def infer_videos(model, videos, out, masks, background, background_frames, offse
     console = Console(stderr=True)
     out = out if out is not None else Path(f"{Path(videos).name}.silpose")
     options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
-                               offsets=offsets, overlays=overlays, min_area=min_area, noise_variance=noise_variance)
+                               offsets=offsets, overlays=overlays, min_area=min_area, noise_variance=noise_variance,
+                               contours=contours)
     with Progress(TextColumn("[bold]recording"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(), console=console,
                   disable=not progress, transient=True) as bar:

@@ -72,6 +72,7 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
         if p.get("outline") is not None and np.all(np.isfinite(p["outline"])):
             cv2.fillPoly(tint, [np.round(p["outline"]).astype(np.int32)], person_colour(p["person"]))
     img = cv2.addWeighted(img, 0.6, tint, 0.4, 0.0)
+    placed: list[tuple[int, int]] = []
     for p in people:
         col = person_colour(p["person"])
         ok = p["status"] == VIEW_OK
@@ -93,6 +94,9 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
         label = f"#{p['person']}" if p["person"] > 0 else "?"
         if not ok:
             label += f" {p['status']}"
+        while any(abs(anchor[0] - a) < 90 and abs(anchor[1] - b) < 14 for a, b in placed):  # labels must not overlap
+            anchor = (anchor[0], anchor[1] - 15)
+        placed.append(anchor)
         cv2.putText(img, label, anchor, cv2.FONT_HERSHEY_SIMPLEX, 0.5, col, 1, cv2.LINE_AA)
     cv2.putText(img, f"{camera}  frame {frame}", (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (230, 230, 230), 1, cv2.LINE_AA)
     return img

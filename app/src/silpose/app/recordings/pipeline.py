@@ -17,6 +17,11 @@ then per chunk:
    are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
 
+Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count), and BLAS
+is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
+threads competing with the camera threads cost more than they give (measured on this 2-core machine
+under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1).
+
 Rows of a track are held back until the track is a person (``min_hits`` detections): a detection that never
 becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
@@ -34,6 +39,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from silpose.model.persistence import load_model
 from silpose.shared.atomic import write_json_atomic
@@ -68,6 +74,7 @@ class RecordingOptions:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
     (:class:`~silpose.app.recordings.tracking.Tracker`; max_misses None: half a second of frames).
+    contours: also write every view's reconstructed contour (``contours_px``) to joints.parquet.
     """
 
     masks: bool = False
@@ -83,6 +90,7 @@ class RecordingOptions:
     segment_params: dict | None = None
     min_hits: int = 3
     max_misses: int | None = None
+    contours: bool = False
 
 
 @dataclass
@@ -229,7 +237,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         "views": modelled, "fps": fps, "first_frame": first_frame, "transform": transform.to_dict(),
         "workspace": workspace.to_dict(), "view_statuses": list(VIEW_STATUSES),
     }
-    writer = RecordingWriter(out / "joints.parquet", out / "joints.csv", names, modelled, n_pts, fps, meta)
+    writer = RecordingWriter(out / "joints.parquet", out / "joints.csv", names, modelled, n_pts, fps, meta,
+                             contours=opt.contours)
     overlays = None
     timings = dict.fromkeys(("cameras", "floor", "views", "infer", "place", "write", "overlays"), 0.0)
     camera_status = {c: dict.fromkeys(VIEW_STATUSES, 0) for c in names}
@@ -241,6 +250,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     cam_list = list(cams.values())
     stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     step = 0
+    blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
         if opt.overlays:
             overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in rig}, fps)
@@ -265,7 +275,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                             warn(warnings[-1])
                     done = True
                     break
-                people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings)
+                people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings, pool.map if pool else map)
                 seen_chunk.append(seen)
                 for c in names:
                     s = seen.get(c)
@@ -301,6 +311,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             overlays.abort()
         raise
     finally:
+        blas.restore_original_limits()
         if pool:
             pool.shutdown()
         for c in cams.values():
@@ -322,8 +333,29 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     return summary
 
 
-def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings) -> list[_Person]:
-    """Floor detection, tracking and view assignment of one step."""
+def _camera_views(cam, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
+    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) px, NaN where unused).
+    Runs in a worker thread (OpenCV's labelling and contour tracing release the GIL)."""
+    P = len(positions)
+    cont = np.full((P, n_pts, 2), np.nan)
+    if s is None:
+        return [VIEW_NO_VIDEO] * P, cont
+    if s.blobs is None or s.blobs.empty:
+        return [s.status or VIEW_EMPTY] * P, cont
+    labels, status = assign_views(cam, s.blobs, positions)
+    for d in range(P):
+        if status[d] == VIEW_OK:
+            pts = blob_contour(s.blobs, labels[d], n_pts)
+            if pts is None:
+                status[d] = VIEW_EMPTY
+            else:
+                cont[d] = pts
+    return status, cont
+
+
+def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
+                 mapper=map) -> list[_Person]:
+    """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step."""
     t0 = time.perf_counter()
     masks = []
     for c in names:
@@ -333,33 +365,15 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     links = tracker.update(step, det.positions)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    P = len(det.positions)
-    labels = np.zeros((len(names), P), int)
-    status = [[VIEW_NO_VIDEO] * P for _ in names]
-    for k, c in enumerate(names):
-        s = seen.get(c)
-        if s is None:
-            continue
-        if s.blobs is None or s.blobs.empty:
-            status[k] = [s.status or VIEW_EMPTY] * P
-            continue
-        labels[k], status[k] = assign_views(rig[k], s.blobs, det.positions)
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), det.positions, n_pts), range(len(names))))
     out = []
     for track, d in links:
         if d < 0:
             out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
                                np.full((len(names), n_pts, 2), np.nan)))
-            continue
-        cont = np.full((len(names), n_pts, 2), np.nan)
-        st = [status[k][d] for k in range(len(names))]
-        for k, c in enumerate(names):
-            if st[k] == VIEW_OK:
-                pts = blob_contour(seen[c].blobs, labels[k, d], n_pts)
-                if pts is None:
-                    st[k] = VIEW_EMPTY
-                else:
-                    cont[k] = pts
-        out.append(_Person(step, track, det.positions[d].copy(), st, cont))
+        else:
+            out.append(_Person(step, track, det.positions[d].copy(), [st[d] for st, _ in per_cam],
+                               np.stack([c[d] for _, c in per_cam])))
     timings["views"] += time.perf_counter() - t0
     return out
 

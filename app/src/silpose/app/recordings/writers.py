@@ -17,7 +17,9 @@ joints              (19, 3) metres, silpose's frame (z up, floor z = 0): root pl
 joints_calibration  (19, 3) the same joints in the calibration's own frame and units
 joint_std           (19, 3) metres, the posterior standard deviation per coordinate
 root, root_calibration  (3,) the pelvis, both frames
-contours_px         (K, n, 2) px, every modelled view's reconstructed contour (missing views projected)
+contours_px         (K, n, 2) px, every modelled view's reconstructed contour (missing views projected);
+                    only with ``contours=True`` (``--contours``): it is most of the file and of the
+                    writing time (~1 ms per row, measured with zstd on this machine)
 =================== ============================================================================
 
 Nested columns are fixed-size lists (DuckDB, Polars and pandas read them). The schema metadata key
@@ -25,12 +27,12 @@ Nested columns are fixed-size lists (DuckDB, Polars and pandas read them). The s
 workspace, the frame rate, the model, the per-view statuses' meanings. The CSV has the same rows with the
 nested columns flattened (``<joint>_x`` ... in silpose's frame, ``<joint>_cal_x`` ... in the calibration's,
 ``<joint>_std_x`` ...) and no contours. Both files are written to temporary names and renamed when the
-run ends (:mod:`silpose.shared.atomic`). Parquet row groups hold :data:`ROW_GROUP` rows (the last one fewer).
+run ends (:mod:`silpose.shared.atomic`), :data:`ROW_GROUP` rows at a time (a Parquet row group; the CSV
+through ``pyarrow.csv``).
 """
 
 from __future__ import annotations
 
-import csv
 import json
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -38,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from silpose.shared.atomic import atomic_open, atomic_path
@@ -99,11 +102,14 @@ class RecordingWriter:
 
     Args:
         parquet, csv_path: output files. cameras: rig camera names; views: the modelled views' names;
-        n_points: contour points; fps: frames per second (0: unknown); meta: the metadata document.
+        n_points: contour points; fps: frames per second (0: unknown); meta: the metadata document;
+        contours: also write the ``contours_px`` column.
     """
 
-    def __init__(self, parquet: Path, csv_path: Path, cameras, views, n_points: int, fps: float, meta: dict):
+    def __init__(self, parquet: Path, csv_path: Path, cameras, views, n_points: int, fps: float, meta: dict,
+                 contours: bool = False):
         self.cameras, self.views, self.n_points = list(cameras), list(views), int(n_points)
+        self.contours = bool(contours)
         self.fps = float(fps)
         self.n_rows = 0
         self.counts = dict.fromkeys(ROW_STATUSES, 0)
@@ -111,34 +117,37 @@ class RecordingWriter:
         tmp = self._stack.enter_context(atomic_path(parquet))
         self.schema = self._schema().with_metadata({b"silpose_recording": json.dumps(meta).encode()})
         self._pq = self._stack.enter_context(pq.ParquetWriter(tmp, self.schema, compression="zstd"))
-        self._csv_file = self._stack.enter_context(atomic_open(csv_path, "w", newline="", encoding="utf-8"))
-        self._csv = csv.writer(self._csv_file)
         self._held: list[PersonRows] = []
-        header = ["frame", "time", "person", "status", "n_views", "views", "log_marginal", "floor_x", "floor_y"]
-        header += [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
+        head = [("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
+                ("n_views", pa.int8()), ("views", pa.string()), ("log_marginal", pa.float64()),
+                ("floor_x", pa.float32()), ("floor_y", pa.float32())]
+        flat = [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
         for tag in ("", "_cal", "_std"):
-            header += [f"{j}{tag}_{a}" for j in JOINT_NAMES for a in "xyz"]
-        self._csv.writerow(header)
+            flat += [f"{j}{tag}_{a}" for j in JOINT_NAMES for a in "xyz"]
+        self.csv_schema = pa.schema(head + [(c, pa.float32()) for c in flat])
+        csv_file = self._stack.enter_context(atomic_open(csv_path, "wb"))
+        self._csv = self._stack.enter_context(pacsv.CSVWriter(csv_file, self.csv_schema))
 
     def _schema(self) -> pa.Schema:
         j = pa.list_(pa.list_(pa.float32(), 3), N_JOINTS)
         v3 = pa.list_(pa.float32(), 3)
-        return pa.schema([
+        fields = [
             ("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
             ("floor_x", pa.float32()), ("floor_y", pa.float32()), ("n_views", pa.int8()), ("views", pa.string()),
             ("view_status", pa.list_(pa.string(), len(self.cameras))), ("log_marginal", pa.float64()),
             ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
-            ("contours_px", pa.list_(pa.list_(pa.list_(pa.float32(), 2), self.n_points), len(self.views))),
-        ])
+        ]
+        if self.contours:
+            fields.append(("contours_px", pa.list_(pa.list_(pa.list_(pa.float32(), 2), self.n_points), len(self.views))))
+        return pa.schema(fields)
 
     def write(self, rows: PersonRows) -> None:
-        """Append rows (the CSV at once, the Parquet file by row groups of :data:`ROW_GROUP`)."""
+        """Append rows (written :data:`ROW_GROUP` at a time)."""
         if not len(rows):
             return
         self._held.append(rows)
         if sum(len(r) for r in self._held) >= ROW_GROUP:
             self._flush()
-        self._write_csv(rows)
         self.n_rows += len(rows)
         for s in rows.status:
             self.counts[str(s)] = self.counts.get(str(s), 0) + 1
@@ -157,27 +166,21 @@ class RecordingWriter:
         views = [",".join(names[u]) for u in rows.views_used]
         n_views = rows.views_used.sum(axis=1).astype(np.int8)
         vs = pa.FixedSizeListArray.from_arrays(pa.array(rows.view_status.reshape(-1).astype(str).tolist()), K)
+        frame, person = pa.array(rows.frame.astype(np.int64)), pa.array(rows.person.astype(np.int32))
+        status, logm = pa.array(rows.status.astype(str).tolist()), pa.array(rows.log_marginal.astype(np.float64))
+        fx, fy = pa.array(rows.floor[:, 0].astype(np.float32)), pa.array(rows.floor[:, 1].astype(np.float32))
         table = pa.Table.from_arrays([
-            pa.array(rows.frame.astype(np.int64)), pa.array(time), pa.array(rows.person.astype(np.int32)),
-            pa.array(rows.status.astype(str).tolist()), pa.array(rows.floor[:, 0].astype(np.float32)),
-            pa.array(rows.floor[:, 1].astype(np.float32)), pa.array(n_views), pa.array(views), vs,
-            pa.array(rows.log_marginal.astype(np.float64)), _fixed(rows.joints), _fixed(rows.joints_calibration),
-            _fixed(rows.joint_std), _fixed(rows.root), _fixed(rows.root_calibration), _fixed(rows.contours),
-        ], schema=self.schema)
+            frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs, logm,
+            _fixed(rows.joints), _fixed(rows.joints_calibration), _fixed(rows.joint_std), _fixed(rows.root),
+            _fixed(rows.root_calibration),
+        ] + ([_fixed(rows.contours)] if self.contours else []), schema=self.schema)
         self._pq.write_table(table)
-
-    def _write_csv(self, rows: PersonRows) -> None:
-        R = len(rows)
-        time = self._time(rows)
-        names = np.array(self.cameras)
-        views = [",".join(names[u]) for u in rows.views_used]
-        n_views = rows.views_used.sum(axis=1)
-        flat = np.concatenate([rows.floor, rows.root, rows.root_calibration, rows.joints.reshape(R, -1),
+        flat = np.concatenate([rows.root, rows.root_calibration, rows.joints.reshape(R, -1),
                                rows.joints_calibration.reshape(R, -1), rows.joint_std.reshape(R, -1)], axis=1)
-        for i in range(R):
-            head = [int(rows.frame[i]), f"{time[i]:.6g}", int(rows.person[i]), str(rows.status[i]), int(n_views[i]),
-                    views[i], f"{rows.log_marginal[i]:.6g}"]
-            self._csv.writerow(head + [f"{v:.6g}" for v in flat[i]])
+        flat = flat.astype(np.float32)
+        self._csv.write_table(pa.Table.from_arrays(
+            [frame, pa.array(time), person, status, pa.array(n_views), pa.array(views), logm, fx, fy]
+            + [pa.array(flat[:, c]) for c in range(flat.shape[1])], schema=self.csv_schema))
 
     def close(self) -> None:
         """Finish both files (rename them into place)."""
