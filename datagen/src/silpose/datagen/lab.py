@@ -10,7 +10,7 @@ end to end against known joints:
   calibration frame: millimetres, z pointing into the floor, origin at a floor corner of the room
   (:data:`LAB_TRANSFORM`). :func:`write_lab_calibration` writes that calibration as one OpenCV
   ``cv2.FileStorage`` file per camera, the way a lab would bring it
-  (``silpose.shared.camera.load_rig(files, unit=0.001)`` reads it back in the calibration frame).
+  (``silpose rig import`` reads it).
 - :class:`Walker`: a person walking back and forth between two floor points at constant speed; its
   body and gait style are those of test sample ``index`` (:func:`silpose.datagen.scene.draw_sample_parameters`,
   so test-split builds and clothing), its pose at time ``t`` is the procedural walk
@@ -41,7 +41,6 @@ import numpy as np
 
 from silpose.shared.atomic import atomic_open, atomic_path
 from silpose.shared.camera import Camera, Rig, look_at
-from silpose.shared.opencv_calibration import write_opencv_camera
 from silpose.shared.rig_frame import Workspace, WorldTransform
 
 from .motion import WALK
@@ -93,6 +92,24 @@ def calibration_camera(cam: Camera, transform: WorldTransform) -> Camera:
                   width=cam.width, height=cam.height, dist=cam.dist)
 
 
+def write_opencv_file(path: Path, cam: Camera, unit: float) -> None:
+    """One camera as an OpenCV FileStorage YAML file, the way ``cv2.calibrateCamera`` users store it:
+    ``camera_matrix``, ``distortion_coefficients``, ``rvec`` (Rodrigues), ``tvec`` in calibration
+    units (metres / ``unit``), ``image_width``, ``image_height``. ``silpose rig import`` reads it."""
+    rvec, _ = cv2.Rodrigues(np.asarray(cam.R, np.float64))
+    with atomic_path(path) as tmp:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+        try:
+            fs.write("camera_matrix", np.asarray(cam.K, np.float64))
+            fs.write("distortion_coefficients", np.asarray(cam.dist, np.float64).reshape(-1, 1))
+            fs.write("rvec", rvec.reshape(3, 1))
+            fs.write("tvec", (np.asarray(cam.t, np.float64) / unit).reshape(3, 1))
+            fs.write("image_width", int(cam.width))
+            fs.write("image_height", int(cam.height))
+        finally:
+            fs.release()
+
+
 def write_lab_calibration(folder: Path, rig: Rig, transform: WorldTransform = LAB_TRANSFORM) -> list[Path]:
     """One OpenCV FileStorage file per camera, ``<folder>/<camera>.yml``, in the calibration frame's units
     (millimetres for :data:`LAB_TRANSFORM`): ``camera_matrix``, ``distortion_coefficients``, ``rvec``, ``tvec``."""
@@ -101,7 +118,7 @@ def write_lab_calibration(folder: Path, rig: Rig, transform: WorldTransform = LA
     paths = []
     for cam in rig:
         p = folder / f"{cam.name}.yml"
-        write_opencv_camera(p, calibration_camera(cam, transform), unit=transform.scale)
+        write_opencv_file(p, calibration_camera(cam, transform), unit=transform.scale)
         paths.append(p)
     return paths
 
