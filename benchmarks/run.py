@@ -93,6 +93,12 @@ SECTIONS: dict[str, Section] = {
         "frames -> joints (4 cameras) time steps/s: PNG reading, segmentation, contours, inference "
         "(frames composited from the dataset's test masks, with its trained model)",
     ),
+    "recordings": Section(
+        "recordings", {"n_frames": 150, "repeat": 10, "train": 400},
+        {"n_frames": 30, "repeat": 3, "train": 120, "n_points": 100},
+        "silpose infer --videos on the lab recording (4 cameras 644x486, mask videos): time steps/s, CPU per step, "
+        "peak RSS on 1x vs a repeat-x longer video; accuracy vs truth and clean masks; occupancy grid vs foot points",
+    ),
     "protocol": Section(
         "protocol", {"n_test": 500, "fallback": "skip"},
         {"n_test": 40, "experiments": ["E2", "E4"], "fallback": "tiny"},

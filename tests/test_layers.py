@@ -209,7 +209,7 @@ def graph():
     assert len(g) > 50, sorted(g)
     assert "silpose.shared.dataset" in g["silpose.eval.run"]
     assert "silpose.eval.run" in g["silpose.eval.cli"]
-    assert "silpose.shared.atomic" in g["silpose.shared.opencv_calibration"]
+    assert "silpose.shared.rig_frame" in g["silpose.shared.camera"]
     return g
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from silpose.datagen.config import ConfigError, available_presets, configs_dir, load_config
 from silpose.datagen.pipeline import plan_shards
-from silpose.shared.camera import default_rig, ring_rig
+from silpose.shared.camera import Camera, Rig, default_rig, ring_rig
 
 BASE = """name = "tiny"
 seed = 7
@@ -107,59 +107,58 @@ def test_rig_file_relative_to_the_toml(tmp_path):
     cfg = load_config(write(tmp_path, BASE + '[rig]\nfile = "rigs/three.json"\n'))
     assert len(cfg.rig) == 3
     np.testing.assert_allclose(cfg.rig[2].R, rig[2].R)
-    assert cfg.worker_config()["rig"] == rig.to_dict()
+    assert cfg.worker_config()["rig"] == {**rig.to_dict(), "source": str(tmp_path / "rigs" / "three.json")}
 
 
-def test_rig_that_does_not_see_the_workspace(tmp_path):
+def test_rig_that_does_not_see_the_workspace_is_blamed_on_the_rig_file(tmp_path):
     narrow = ring_rig(focal_px=2000.0)  # a telephoto lens sees only the middle of the floor
     (tmp_path / "narrow.json").write_text(narrow.to_json())
     path = write(tmp_path, BASE + '[rig]\nfile = "narrow.json"\n')
     with pytest.raises(ConfigError) as err:
         load_config(path)
     msg = str(err.value)
-    assert msg.startswith(str(path)) and "field 'rig'" in msg and "camera 'cam0'" in msg and "workspace" in msg
+    assert msg.startswith(f"{tmp_path / 'narrow.json'}: camera 'cam0' does not see the workspace corner"), msg
+    assert "silpose rig show" in msg and "\n" not in msg
+
+
+def test_workspace_table_overrides_the_rig_and_moves_the_walkers(tmp_path):
+    path = write(tmp_path, BASE + "[workspace]\ncenter = [0.25, -0.5]\nsize = [1.0, 2.0]\n")
+    cfg = load_config(path)
+    assert cfg.rig.workspace.bounds == ((-0.25, 0.75), (-1.5, 0.5))
+    assert cfg.to_dict()["workspace"] == {"center": [0.25, -0.5], "size": [1.0, 2.0]}
+    assert cfg.worker_config()["rig"]["workspace"] == {"center": [0.25, -0.5], "size": [1.0, 2.0]}
+    assert "workspace" not in load_config(write(tmp_path, BASE, name="plain.toml")).to_dict()  # unchanged dict
+    with pytest.raises(ConfigError) as err:  # a workspace the default rig cannot see
+        load_config(write(tmp_path, BASE + "[workspace]\nsize = [9.0, 9.0]\n", name="big.toml"))
+    assert str(err.value).startswith(f"{tmp_path / 'big.toml'}: field 'workspace': rig: camera 'cam0' does not see")
 
 
 @pytest.mark.parametrize(
     "rig,field",
     [
         ('[rig]\npreset = "other"\n', "'rig.preset' must be 'default'"),
-        ('[rig]\nfile = "absent.json"\n', "rig file not found"),
-        ('[rig]\npreset = "default"\nfile = "x.json"\n', "exactly one of preset, file, opencv"),
-        ('[rig]\npreset = "default"\nunit = -1\n', "'rig.unit' must be a positive number"),
+        ('[rig]\nfile = "absent.json"\n', "field 'rig.file'"),
+        ('[rig]\npreset = "default"\nfile = "x.json"\n', "exactly one of preset, file"),
+        ('[rig]\nopencv = ["cam0.yml"]\n', "field 'rig.opencv': calibration files are converted once with `silpose rig import"),
+        ('[rig]\nfile = "x.json"\nunit = 0.001\n', "field 'rig.unit'"),
+        ('[workspace]\ncenter = [0, 0]\n', "field 'workspace.size' missing"),
+        ('[workspace]\nsize = [1, 2, 3]\n', "field 'workspace.size' must be two numbers"),
+        ('[workspace]\nsize = [1, -2]\n', "workspace field size: must be positive"),
+        ('[workspace]\nsize = [1, 2]\ncentre = [0, 0]\n', "field 'workspace.centre': unknown"),
+        ('workspace = 3\n', "field 'workspace' must be a table"),
     ],
 )
 def test_bad_rig_tables(tmp_path, rig, field):
-    path = write(tmp_path, BASE + rig)
+    path = write(tmp_path, rig + BASE if rig.startswith("workspace =") else BASE + rig)
     with pytest.raises(ConfigError, match=field.replace("(", r"\(").replace(".", r"\.")) as err:
         load_config(path)
-    assert str(path) in str(err.value)
+    assert str(err.value).startswith(str(path))
 
 
-def test_opencv_rig_in_millimetres(tmp_path):
-    """A real user's rig: OpenCV FileStorage YAML files written with cv2 itself, translations in mm."""
-    import cv2
-
+def test_rig_in_the_wrong_unit_says_so(tmp_path):
+    """A rig whose translations were left in millimetres puts the cameras 1000x too far."""
     ref = default_rig()
-    names = []
-    for cam in ref:
-        name = f"{cam.name}.yml"
-        fs = cv2.FileStorage(str(tmp_path / name), cv2.FILE_STORAGE_WRITE)
-        fs.write("camera_matrix", cam.K)
-        fs.write("distortion_coefficients", np.zeros((5, 1)))
-        fs.write("rvec", cv2.Rodrigues(cam.R)[0])
-        fs.write("tvec", (cam.t * 1000.0).reshape(3, 1))
-        fs.write("image_width", cam.width)
-        fs.write("image_height", cam.height)
-        fs.release()
-        names.append(name)
-    files = ", ".join(f'"{n}"' for n in names)
-    cfg = load_config(write(tmp_path, BASE + f"[rig]\nopencv = [{files}]\nunit = 0.001\n"))
-    assert len(cfg.rig) == len(ref)
-    for got, want in zip(cfg.rig, ref):
-        np.testing.assert_allclose(got.K, want.K)
-        np.testing.assert_allclose(got.R, want.R, atol=1e-9)
-        np.testing.assert_allclose(got.t, want.t, atol=1e-9)
-    # the same files read as metres put the cameras 1000x too far: a person is a fraction of a pixel
-    with pytest.raises(ConfigError, match=r"field 'rig': camera 'cam0' shows a 1.75 m person only 0.\d+ px tall"):
-        load_config(write(tmp_path, BASE + f"[rig]\nopencv = [{files}]\n", name="metres.toml"))
+    far = Rig(tuple(Camera(c.name, c.K, c.R, c.t * 1000.0, c.width, c.height) for c in ref))
+    (tmp_path / "mm.json").write_text(far.to_json())
+    with pytest.raises(ConfigError, match=r"camera 'cam0' shows a 1.75 m person at the workspace centre only 0.\d+ px tall"):
+        load_config(write(tmp_path, BASE + '[rig]\nfile = "mm.json"\n'))

@@ -127,13 +127,16 @@ def test_layout_and_file_sizes(built, configs):
     W, H = RIG.image_size
     files = sorted(str(p.relative_to(built)) for p in built.rglob("*") if p.is_file())
     expect = sorted(
-        ["rig.json", "README.md", ".silpose-frames.json", "test-00000-of-00002.parquet", "test-00001-of-00002.parquet"]
+        ["rig.json", "README.md", ".silpose-frames.json", ".silpose-output.json", "test-00000-of-00002.parquet",
+         "test-00001-of-00002.parquet"]
         + [f"background/{c}/{j:05d}.png" for c in RIG.names for j in range(BACKGROUND)]
         + [f"frames/{c}/{i:05d}.png" for c in RIG.names for i in range(SAMPLES)]
     )
     assert files == expect
     assert not list(built.parent.glob(".*partial*"))
-    assert Rig.from_json((built / "rig.json").read_text()).to_dict() == RIG.to_dict()
+    written = Rig.from_json((built / "rig.json").read_text())
+    assert {**written.to_dict(), "source": ""} == {**RIG.to_dict(), "source": ""}  # the same rig; source: its file
+    assert written.source.endswith("rig.json")
     for p in built.rglob("*.png"):
         assert _read_rgb(p).shape == (H, W, 3)
         assert 5_000 < p.stat().st_size < 200_000  # noisy 160x120 RGB: neither empty nor raw
@@ -300,6 +303,7 @@ def test_bad_cli_input(tmp_path):
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("x")
     line = _error_line(_cli("smoke", "--out", tmp_path / "busy"))
-    assert str(tmp_path / "busy") in line and "not this frames dataset" in line
+    assert str(tmp_path / "busy") in line and "silpose did not write notes.txt" in line
+    assert (tmp_path / "busy" / "notes.txt").read_text() == "x"
     r = _cli("--help")
     assert r.returncode == 0 and "--background" in r.stdout and "--samples" in r.stdout

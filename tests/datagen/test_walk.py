@@ -152,3 +152,27 @@ def test_describe_distribution_matches_sampling_and_is_json():
     assert tuple(d["fields"]) == walk.GAIT_FIELDS
     for k, spec in d["fields"].items():
         assert (spec["low"], spec["high"]) == pytest.approx(walk.GAIT_RANGES[k])
+
+
+def test_walkers_stand_inside_the_given_workspace_and_the_default_draws_are_unchanged():
+    from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
+
+    # The built-in workspace gives exactly the draws of the former constant ranges (+-1.5 m).
+    ref = np.random.default_rng(11)
+    expected = [float(ref.uniform(*(walk.GAIT_RANGES[k] if k not in "xy" else (-1.5, 1.5)))) for k in walk.GAIT_FIELDS]
+    assert list(walk.sample_gait(np.random.default_rng(11)).values()) == expected
+    assert walk.sample_gait(np.random.default_rng(11), DEFAULT_WORKSPACE) == walk.sample_gait(np.random.default_rng(11))
+    ws = Workspace([2.0, -3.0], [1.0, 0.5])
+    rng = np.random.default_rng(12)
+    xy = np.array([[g["x"], g["y"]] for g in (walk.sample_gait(rng, ws) for _ in range(300))])
+    assert ws.contains(xy).all()
+    assert xy[:, 0].max() - xy[:, 0].min() > 0.9 and xy[:, 1].max() - xy[:, 1].min() > 0.45  # the whole rectangle
+    assert walk.describe_distribution(ws)["fields"]["x"]["low"] == 1.5
+
+
+def test_person_height_of_the_workspace_checks_covers_every_configured_stature():
+    from silpose.datagen.subjects import describe_distribution as subjects
+    from silpose.shared.rig_frame import PERSON_HEIGHT_M
+
+    tallest = max(subjects(s)["fields"]["height"]["high"] for s in ("train", "test"))
+    assert tallest <= PERSON_HEIGHT_M < tallest + 0.05

@@ -1,7 +1,7 @@
-"""Fuzz: malformed rig files (JSON rigs and OpenCV XML/YAML calibrations).
+"""Fuzz: malformed rig files (JSON rigs) and calibrations (OpenCV XML/YAML, read by ``silpose rig import``).
 
-``load_rig`` either returns a Rig or raises ``RigError`` (a ValueError) whose message names the
-file -- never another exception type, never a hang, never a crash of the interpreter.
+``load_rig`` / ``read_calibrations`` either return or raise ``RigError`` (a ValueError) whose message
+names the file -- never another exception type, never a hang, never a crash of the interpreter.
 """
 
 from __future__ import annotations
@@ -16,8 +16,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from silpose.app.rig.calibration import CalibratedCamera
+from silpose.app.rig.formats import read_calibrations
+from silpose.app.rig.opencv import write_opencv_camera
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
-from silpose.shared.opencv_calibration import write_opencv_camera
 
 FUZZ = settings(max_examples=80, deadline=2000, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -31,9 +33,9 @@ json_values = st.recursive(_json_scalars, lambda inner: st.one_of(
 CAMERA_KEYS = ("name", "K", "R", "t", "width", "height", "dist")
 
 
-def _check(path) -> Rig | None:
+def _check(path) -> Rig | list | None:
     try:
-        return load_rig(path)
+        return load_rig(path) if str(path).endswith(".json") else read_calibrations([path]).cameras
     except RigError as exc:
         assert str(path) in str(exc), str(exc)
         assert "\n" not in str(exc)
@@ -103,7 +105,8 @@ def opencv_texts(tmp_path_factory):
     texts = {}
     for suffix, rotation in ((".yml", "rvec"), (".xml", "matrix")):
         p = tmp / f"cam{suffix}"
-        write_opencv_camera(p, default_rig()[0], rotation=rotation)
+        c = default_rig()[0]
+        write_opencv_camera(p, CalibratedCamera(c.name, c.K, c.dist, c.R, c.t, (c.width, c.height), ""), rotation=rotation)
         texts[suffix] = p.read_text()
     return texts
 
@@ -158,10 +161,11 @@ def test_garbage_bytes_as_opencv_calibration(tmp_path_factory, suffix, data):
 _CRASH_CHECK = r"""
 import sys
 from pathlib import Path
-from silpose.shared.camera import RigError, load_rig
+from silpose.app.rig.formats import read_calibrations
+from silpose.shared.camera import RigError
 for p in sorted(Path(sys.argv[1]).iterdir()):
     try:
-        load_rig(p)
+        read_calibrations([p])
     except RigError:
         pass
 print("survived", flush=True)

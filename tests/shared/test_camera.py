@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import cv2
 import numpy as np
 import pytest
 
 from silpose.shared.camera import (
-    WORKSPACE_HALF_SIZE,
     Camera,
     Rig,
     RigError,
@@ -16,6 +17,7 @@ from silpose.shared.camera import (
     look_at,
     ring_rig,
 )
+from silpose.shared.rig_frame import Workspace, WorldTransform
 
 DIST = np.array([-0.21, 0.08, 0.0013, -0.0009, -0.012])
 
@@ -129,7 +131,68 @@ def test_check_sees_workspace_names_the_camera_turned_away():
     c = cams[1]
     cams[1] = Camera(c.name, c.K * np.array([[4, 1, 1], [1, 4, 1], [1, 1, 1]]), c.R, c.t, c.width, c.height)
     with pytest.raises(RigError, match=r"cam1.*workspace corner"):
-        Rig(tuple(cams)).check_sees_workspace(WORKSPACE_HALF_SIZE)
+        Rig(tuple(cams)).check_sees_workspace()
+
+
+def test_workspace_error_teaches_the_convention_and_names_the_file(tmp_path):
+    """Which camera, which corner, where it projects, what silpose assumes, what to do, which file."""
+    path = tmp_path / "lab.json"
+    path.write_text(Rig(default_rig().cameras, workspace=Workspace([4.0, 0.0], [3.0, 3.0])).to_json())
+    rig = load_rig(path)
+    with pytest.raises(RigError) as info:
+        rig.check_sees_workspace(height=2.0)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}: camera 'cam0' does not see the workspace corner [2.5, -1.5, 0.0] m")
+    assert "projects to [" in msg and "in a 320x240 image" in msg
+    for words in ("z up", "metres", "floor at z = 0", "3.00 m x 3.00 m centred at (4.00, 0.00) m",
+                  "--up", "--origin", "silpose rig show"):
+        assert words in msg, words
+    assert "\n" not in msg
+    rig.check_sees_workspace(height=2.0, workspace=Workspace())  # the default square is seen
+
+
+def test_transform_workspace_and_source_round_trip_and_old_files_still_load(tmp_path):
+    base = default_rig()
+    assert base.to_dict().keys() == {"cameras"}  # the built-in rig's dict is unchanged (bit-identical datasets)
+    tr = WorldTransform(np.diag([1.0, -1.0, -1.0]), 0.001, [-3.0, 4.0, 0.0])
+    rig = Rig(base.cameras, tr, Workspace([0.5, -0.25], [2.2, 2.6]), source="cam0.xml, cam1.xml")
+    path = tmp_path / "rig.json"
+    path.write_text(rig.to_json())
+    back = load_rig(path)
+    assert back.source == str(path)  # errors name the file read
+    assert Rig.from_dict(rig.to_dict()).source == "cam0.xml, cam1.xml"  # the stored provenance
+    assert back.transform.to_dict() == tr.to_dict() and back.workspace.to_dict() == rig.workspace.to_dict()
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps({"cameras": base.to_dict()["cameras"]}))
+    loaded = load_rig(old)
+    assert loaded.transform.is_identity and loaded.workspace.is_default
+    assert loaded.with_workspace(Workspace(size=[2.0, 2.0])).workspace.size.tolist() == [2.0, 2.0]
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"transform": {"rotation": np.diag([1, 1, -1.0]).tolist()}}, "transform field rotation"),
+    ({"transform": {"scale": -1}}, "transform field scale"),
+    ({"workspace": {"size": [0, 2]}}, "workspace field size"),
+    ({"workspace": {"center": [0, 0]}}, "workspace: expected an object with 'size'"),
+    ({"workspace": {"size": [1, 1], "centre": [0, 0]}}, "workspace: unknown field(s) centre"),
+    ({"cams": []}, "unknown field(s) cams"),
+    ({"source": 3}, "field source"),
+])
+def test_bad_rig_frame_fields_name_the_file_and_field(tmp_path, change, words):
+    d = {**default_rig().to_dict(), **change}
+    path = tmp_path / "rig.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(RigError) as info:
+        load_rig(path)
+    assert str(info.value).startswith(f"{path}: ") and words in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".yml", ".yaml", ".toml"])
+def test_load_rig_sends_calibration_files_to_rig_import(tmp_path, suffix):
+    path = tmp_path / f"cam1{suffix}"
+    path.write_text("x")
+    with pytest.raises(RigError, match=r"silpose rig import .*cam1" + suffix.replace(".", r"\.")):
+        load_rig(path)
 
 
 @pytest.mark.parametrize(

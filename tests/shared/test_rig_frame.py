@@ -35,3 +35,25 @@ def test_workspace_bounds_contains_and_corners():
     with pytest.raises(ValueError):
         Workspace(size=[0.0, 1.0])
     assert Workspace.from_dict(ws.to_dict()).to_dict() == ws.to_dict()
+
+
+def test_composition_applies_the_first_then_the_second():
+    rng = np.random.default_rng(7)
+    a = WorldTransform(Rotation.random(random_state=1).as_matrix(), 0.001, [1.0, 2.0, 3.0])
+    b = WorldTransform(Rotation.random(random_state=2).as_matrix(), 2.5, [-0.5, 0.0, 0.25])
+    X = rng.normal(scale=1000, size=(6, 3))
+    np.testing.assert_allclose(a.followed_by(b).to_silpose(X), b.to_silpose(a.to_silpose(X)), rtol=1e-12, atol=1e-9)
+    z_down = WorldTransform(np.diag([1.0, -1.0, -1.0]))
+    assert z_down.up_in_calibration.tolist() == [0.0, 0.0, -1.0]
+    assert WorldTransform().is_identity and not z_down.is_identity
+
+
+def test_workspace_describe_and_default():
+    assert Workspace().is_default and not Workspace(size=[3.0, 2.0]).is_default
+    assert Workspace([0.5, -1.0], [2.2, 2.0]).describe() == "2.20 m x 2.00 m centred at (0.50, -1.00) m"
+    with pytest.raises(ValueError, match="unknown"):
+        Workspace.from_dict({"size": [1, 1], "centre": [0, 0]})
+    with pytest.raises(ValueError, match="unknown"):
+        WorldTransform.from_dict({"scale": 1, "origin": [0, 0, 0]})
+    with pytest.raises(ValueError, match="scale"):
+        WorldTransform(scale="abc")

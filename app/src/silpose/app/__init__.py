@@ -9,10 +9,13 @@ The data path, top to bottom::
     frames_pipeline    ``silpose infer --frames``: frames -> masks -> contours -> joints, chunk by chunk
     writers            joints (Parquet / JSON), reconstructed contours (.npz), segmentation status (JSON)
     overlays           per-frame figures of frames, silhouettes, reconstructions and the inferred pose
+    recordings/        ``silpose infer --videos``: per-camera videos of several people -> each person's joints in
+                       the room (floor grid, tracking, per-person views, placement, overlay videos, floor plan)
     training           ``silpose train``: load a dataset, select hyperparameters, fit, report, save
     segment_quality    measurement tool: segmentation IoU on a frames dataset with truth masks
     cli/               the ``train`` and ``infer`` commands (entry points ``silpose.commands``)
     errors             one-line input errors naming the file
 
-Camera rigs (``silpose rig``) and multi-person recordings will live in ``rig/`` and ``recordings/``.
+    rig/               ``silpose rig import`` / ``silpose rig show``: calibration files (OpenCV, EasyMocap,
+                       Pose2Sim/anipose, silpose) -> a rig in silpose's frame with its transform and workspace
 """

@@ -20,3 +20,7 @@ class InferenceInputError(InputError):
 
 class FramesInputError(InferenceInputError):
     """Bad camera frames input (a frames folder, an image folder or a video); the message names the file or folder."""
+
+
+class RecordingError(InferenceInputError):
+    """Bad recording input (``silpose infer --videos``): a video, the videos folder, an option; names the file."""

@@ -88,6 +88,8 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
         raise InferenceInputError(
             f"{input_path}: {int(empty.sum())} frame(s) have no usable silhouette in any modelled view "
             f"(first: {frames[np.flatnonzero(empty)[0]]})"
+            + ("" if is_dataset(input_path) else f"; a pixel is foreground when brighter than --threshold "
+               f"({threshold}; 0/1 mask images are detected): lower it for dim masks")
         )
     result = model.infer(contours, present, noise_variance=noise_variance, input_views=range(model.n_rig_views_))
     rig_names = list(model.rig_.names) if model.rig_ is not None else None

@@ -24,8 +24,8 @@ from typing import Sequence
 import numpy as np
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from silpose.model.persistence import save_model
-from silpose.model.provenance import manifest_sha256
+from silpose.model.persistence import is_model_file, save_model
+from silpose.model.provenance import check_split_hashes, manifest_sha256
 from silpose.model.selection import select as run_selection, validation_split
 from silpose.model.shape_model import (
     DEFAULT_N_COMPONENTS,
@@ -39,6 +39,7 @@ from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
 from silpose.shared.dataset import load_split, read_shard
 from silpose.shared.metrics import pose_error_cm
+from silpose.shared.output_dir import claim_files
 
 from .errors import TrainingError
 
@@ -66,6 +67,8 @@ def resolve_dataset(preset: str, data_root: Path) -> tuple[Path, str]:
     p = Path(preset)
     if p.is_dir():
         return p, p.resolve().name
+    if p.exists() or p.is_absolute() or "/" in preset or preset.startswith("."):  # a path, not a preset name
+        raise TrainingError(f"{p}: no such dataset folder" if not p.exists() else f"{p}: not a dataset folder")
     candidate = Path(data_root) / preset
     if candidate.is_dir():
         return candidate, preset
@@ -148,6 +151,9 @@ def run_training(
         raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
                             "then train the chosen hyperparameters with streaming")
     root, name = resolve_dataset(preset, data_root)
+    out = Path(out) if out is not None else Path("models") / f"{name}.npz"
+    claim_files(report_paths(out), "train", recognise=is_training_output)  # before any work
+    check_split_hashes(root, "train")
     if streaming:
         plan = DatasetShards.open(root, "train", executor=executor, workers=workers)
         split, metadata, rig = None, plan.metadata, plan.rig
@@ -219,7 +225,6 @@ def run_training(
         held_ll = model.score_samples(contours[held_idx], joints[held_idx])
         held_err = pose_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
 
-    out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     save_model(out, model)
     mix = model.mixture_
     report = {
@@ -228,7 +233,7 @@ def run_training(
         "n_fit": int(len(fit_idx)),
         "n_heldout": int(len(held_idx)),
         "mode": mode,
-        "hyperparameters": model.get_params(),
+        "hyperparameters": model.hyperparameters(),
         "em": {
             "n_iter": int(mix.n_iter_),
             "converged": bool(mix.converged_),
@@ -245,11 +250,30 @@ def run_training(
         "selection": None if selection is None else selection.to_dict(),
         "notes": notes,
     }
-    report_json = out.with_suffix(".report.json")
-    report_md = out.with_suffix(".report.md")
+    _, report_json, report_md = report_paths(out)
     write_text_atomic(report_json, json.dumps(report, indent=2))
     write_text_atomic(report_md, report_markdown(report, selection))
     return TrainingResult(out, report_md, report_json, report)
+
+
+def report_paths(model_path: Path) -> tuple[Path, Path, Path]:
+    """What ``silpose train`` writes for the model file ``model_path``: (model, report .json, report .md)."""
+    return model_path, model_path.with_suffix(".report.json"), model_path.with_suffix(".report.md")
+
+
+def is_training_output(path: Path) -> bool:
+    """True if ``path`` is a file ``silpose train`` wrote, which a new run may replace: a silpose model
+    file, or a training report (.report.json with the report's keys, .report.md with its title)."""
+    path = Path(path)
+    try:
+        if path.name.endswith(".report.json"):
+            doc = json.loads(path.read_text())
+            return isinstance(doc, dict) and {"model", "hyperparameters", "em", "heldout"} <= set(doc)
+        if path.name.endswith(".report.md"):
+            return path.read_text().startswith("# Training report: ")
+    except (OSError, ValueError):
+        return False
+    return is_model_file(path)
 
 
 def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,6 +4,9 @@
   root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``);
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
+
+:func:`claim_outputs` runs before any of them: it refuses to replace a file silpose did not write
+(:mod:`silpose.shared.output_dir`).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from silpose.shared.atomic import atomic_open, atomic_path, write_text_atomic
+from silpose.shared.output_dir import claim_files, claim_folder
 from silpose.shared.skeleton import JOINT_NAMES
 
 from .contours import STATUS_EMPTY, STATUS_NO_CAMERA, STATUS_NOT_MODELLED, STATUS_OK, STATUS_SMALL, STATUSES
@@ -27,6 +31,49 @@ def sibling(out: Path, suffix: str) -> Path:
     """``<out stem><suffix>`` next to the joints file ``out`` (e.g. ``j.parquet`` -> ``j.contours.npz``)."""
     out = Path(out)
     return out.with_name(out.name.rsplit(".", 1)[0] + suffix)
+
+
+def is_joints_file(path: Path) -> bool:
+    """True if ``path`` is a joints file written by :func:`write_joints` (Parquet with the ``silpose_infer``
+    metadata, or JSON with its ``units`` and ``joint_names``)."""
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".json":
+            doc = json.loads(path.read_text())
+            return isinstance(doc, dict) and doc.get("units") == UNITS and doc.get("joint_names") == list(JOINT_NAMES)
+        return b"silpose_infer" in (pq.read_schema(path).metadata or {})
+    except (OSError, ValueError, pa.ArrowException):
+        return False
+
+
+def is_infer_output(path: Path) -> bool:
+    """True if ``path`` is a file ``silpose infer`` wrote: a joints file, ``<stem>.contours.npz`` with the
+    arrays of :func:`write_contours`, or ``<stem>.segmentation.json`` of :func:`write_segmentation`."""
+    path = Path(path)
+    try:
+        if path.name.endswith(".contours.npz"):
+            with np.load(path, allow_pickle=False) as z:
+                return {"frames", "views", "contours_norm", "contours_px", "views_present"} <= set(z.files)
+        if path.name.endswith(".segmentation.json"):
+            doc = json.loads(path.read_text())
+            return isinstance(doc, dict) and {"frames_dir", "cameras", "statuses", "frames"} <= set(doc)
+    except (OSError, ValueError, EOFError, AttributeError, TypeError):  # AttributeError: a bare .npy array
+        return False
+    return is_joints_file(path)
+
+
+def claim_outputs(out: Path, *, contours: bool = False, segmentation: bool = False,
+                  overlay_dir: Path | None = None) -> None:
+    """Refuse (``OutputFolderError``, one line) unless ``silpose infer`` may write the joints file ``out``,
+    its ``.contours.npz`` / ``.segmentation.json`` siblings (when written) and the overlay folder: each file
+    is new or was written by silpose infer (:func:`is_infer_output`); the folder is new, empty or marked as
+    infer's (then created and marked). Writes nothing else."""
+    out = Path(out)
+    files = [out] + [sibling(out, suffix) for suffix, on in ((".contours.npz", contours),
+                                                             (".segmentation.json", segmentation)) if on]
+    claim_files(files, "infer", recognise=is_infer_output)
+    if overlay_dir is not None:
+        claim_folder(overlay_dir, "infer")
 
 
 def _view_names(result, rig_names) -> list[str]:

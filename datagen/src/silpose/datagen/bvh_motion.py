@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from silpose.shared.camera import WORKSPACE_HALF_SIZE
+from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 from silpose.shared.seeds import MOTION_STREAM
 
 from .clips import BVH_FIELDS, read_entry
@@ -58,18 +58,21 @@ class BvhMotion:
     fields = BVH_FIELDS
     stream = MOTION_STREAM
 
-    def __init__(self, clips: list[ClipSource], mirror: bool = False):
+    def __init__(self, clips: list[ClipSource], mirror: bool = False, workspace: Workspace = DEFAULT_WORKSPACE):
         if not clips:
             raise ValueError("BvhMotion needs at least one clip")
         self.clips = list(clips)
         self.mirror = bool(mirror)
+        self.workspace = workspace
         w = np.array([c.weight * len(c.used) for c in self.clips], np.float64)
         self._cum = np.cumsum(w) / w.sum()
 
     @classmethod
-    def from_config(cls, motion: dict) -> "BvhMotion":
-        """From the render workers' ``motion`` config (:meth:`clips.PreparedMotion.worker`)."""
-        return cls([ClipSource(c) for c in motion["clips"]], mirror=bool(motion.get("mirror", False)))
+    def from_config(cls, motion: dict, workspace: Workspace = DEFAULT_WORKSPACE) -> "BvhMotion":
+        """From the render workers' ``motion`` config (:meth:`clips.PreparedMotion.worker`), placing
+        people on ``workspace`` (the rig's)."""
+        return cls([ClipSource(c) for c in motion["clips"]], mirror=bool(motion.get("mirror", False)),
+                   workspace=workspace)
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
         """Clip, frame, mirror, heading and floor position (module docstring)."""
@@ -77,8 +80,9 @@ class BvhMotion:
         frame = int(self.clips[c].used[int(rng.integers(len(self.clips[c].used)))])
         coin = rng.random() < 0.5
         heading = float(rng.uniform(0.0, 2 * np.pi))
-        x = float(rng.uniform(-WORKSPACE_HALF_SIZE, WORKSPACE_HALF_SIZE))
-        y = float(rng.uniform(-WORKSPACE_HALF_SIZE, WORKSPACE_HALF_SIZE))
+        (x0, x1), (y0, y1) = self.workspace.bounds
+        x = float(rng.uniform(x0, x1))
+        y = float(rng.uniform(y0, y1))
         return {"clip": float(c), "frame": float(frame), "mirror": float(coin and self.mirror), "heading": heading,
                 "x": x, "y": y}
 

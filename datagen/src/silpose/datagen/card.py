@@ -13,13 +13,15 @@ from pathlib import Path
 import numpy as np
 
 from silpose.shared.atomic import write_text_atomic
-from silpose.shared.dataset import list_shards, load_split, read_metadata
+from silpose.shared.camera import Rig
+from silpose.shared.dataset import list_shards, load_split, read_metadata, rig_from_metadata
 from silpose.shared.dataset_schema import TENSOR_DTYPES
+from silpose.shared.rig_frame import Workspace
 
 from .manifest import read_manifest
 from .preview import PREVIEW_NAME
 from .subjects import describe_distribution
-from .walk import GAIT_FIELDS, GAIT_RANGES
+from .walk import GAIT_FIELDS, gait_ranges
 
 CARD = "README.md"
 
@@ -116,10 +118,29 @@ def _distribution_section(split: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _gait_section() -> str:
+def _rig_frame_section(rig: Rig) -> str:
+    """The rig's workspace and its calibration -> world transform, in words and numbers."""
+    ws, tr = rig.workspace, rig.transform
+    (x0, x1), (y0, y1) = ws.bounds
+    lines = [f"- **workspace** (walkers' pelvis positions, uniform): {ws.describe()}, i.e. x in "
+             f"[{x0:.3f}, {x1:.3f}] m, y in [{y0:.3f}, {y1:.3f}] m on the floor (z = 0)."]
+    if tr.is_identity:
+        lines.append("- **calibration frame**: the world frame itself (identity transform).")
+    else:
+        up = tr.up_in_calibration
+        lines.append(
+            "- **calibration frame -> world frame**: `X_world = scale * rotation @ X_calibration + offset` with "
+            f"scale {tr.scale:g} m per calibration unit, rotation {np.round(tr.rotation, 6).tolist()}, offset "
+            f"{np.round(tr.offset, 6).tolist()} m (world up is {np.round(up, 6).tolist()} in the calibration's "
+            "axes); the inverse gives joints in the lab's own frame (`Rig.transform.to_calibration`).")
+    return "\n".join(lines) + "\n"
+
+
+def _gait_section(workspace: Workspace) -> str:
     rows = ["| field | distribution | low | high |", "|---|---|---|---|"]
+    ranges = gait_ranges(workspace)
     for k in GAIT_FIELDS:
-        lo, hi = GAIT_RANGES[k]
+        lo, hi = ranges[k]
         rows.append(f"| {k} | uniform | {lo:.4g} | {hi:.4g} |")
     rows.append("\nSame for both splits; angles in radians, x and y in metres. A draw whose person is not fully "
                 "inside every image is redrawn (counted in `redraws`), so the kept positions are not exactly uniform.")
@@ -211,6 +232,7 @@ def write_card(root: str | Path) -> Path:
     manifest = read_manifest(root)
     splits = [s for s in manifest["counts"] if list_shards(root, s)]
     meta = read_metadata(list_shards(root, splits[0])[0])
+    rig = rig_from_metadata(meta)
     loaded = {s: load_split(root, s, columns=["subject", "gait", "contour_length", "area"]) for s in splits}
     first = loaded[splits[0]]
     subject, gait = list(first.subject), list(first.gait)
@@ -247,9 +269,10 @@ def write_card(root: str | Path) -> Path:
         "## Camera rig\n",
         "World->camera `x ~ K (R X + t)` (OpenCV axes); K, R, t of every camera are in the metadata.\n",
         _rig_table(meta), "",
+        _rig_frame_section(rig),
         "## Subjects and gait\n",
         *(["### motion-capture clips (both splits)\n", _motion_section(motion, loaded)] if motion else
-          ["### documented gait distribution (both splits)\n", _gait_section()]),
+          ["### documented gait distribution (both splits)\n", _gait_section(rig.workspace)]),
     ]
     for s in splits:
         parts += [f"### {s}: documented subject distribution\n", _distribution_section(s),

@@ -7,7 +7,7 @@ inside the commands, and bpy only ever inside spawned worker processes.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, List, Optional
+from typing import Annotated, Optional
 
 import typer
 
@@ -20,10 +20,9 @@ def gen(
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Worker processes (default: all cores).")] = None,
     executor: Annotated[str, typer.Option(help="local (spawn process pool) or ray.")] = "local",
     rig: Annotated[
-        Optional[List[Path]],
-        typer.Option("--rig", help="Rig JSON file, or OpenCV calibration files (repeat --rig, one per camera)."),
+        Optional[Path],
+        typer.Option("--rig", help="Rig file (rig.json from `silpose rig import`); replaces the config's [rig]."),
     ] = None,
-    rig_unit: Annotated[float, typer.Option(help="Metres per unit of the OpenCV files' translations (0.001 for mm).")] = 1.0,
     renderer: Annotated[Optional[str], typer.Option(help="Override the config: raster or blender.")] = None,
     blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,
     seed: Annotated[Optional[int], typer.Option(help="Override the config's dataset seed.")] = None,
@@ -36,30 +35,28 @@ def gen(
     """
     from silpose.shared.camera import RigError
     from silpose.shared.dataset import DatasetError
+    from silpose.shared.output_dir import OutputFolderError, claim_folder
 
     from .bvh_check import BvhError
     from .clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
     from .joint_maps import JointMapError
-    from .manifest import LockError
+    from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError
 
     overrides: dict = {"renderer": renderer, "blender_engine": blender_engine, "seed": seed}
-    if rig:
-        files = [str(p.expanduser().resolve()) for p in rig]
-        if len(files) == 1 and files[0].endswith(".json"):
-            overrides["rig"] = {"file": files[0]}
-        else:
-            overrides["rig"] = {"opencv": files, "unit": rig_unit}
+    if rig is not None:
+        overrides["rig"] = {"file": str(rig.expanduser().resolve())}
     try:
         config = load_config(preset, **overrides)
         target = out if out is not None else Path("data") / config.name
+        claim_folder(target, "gen", recognise=is_dataset_folder)
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
-    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, BvhError, ClipError,
-            JointMapError) as exc:
+    except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError,
+            BvhError, ClipError, JointMapError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)

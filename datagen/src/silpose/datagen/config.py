@@ -13,12 +13,18 @@ Keys (all validated; errors are one line naming the file and the field)::
     train = 64
     test = 16
     [rig]
-    preset = "default"          # or file = "rig.json", or opencv = ["cam0.yml", ...], unit = 0.001
+    preset = "default"          # or file = "rig.json" (written by `silpose rig import`)
+    [workspace]                 # optional: overrides the rig's workspace (metres, silpose's frame)
+    center = [0.0, 0.0]
+    size = [3.0, 3.0]
     [motion]                    # optional: poses from motion-capture clips (.motion_config)
     source = "bvh"              # "procedural" (default, the walk cycle) | "bvh"
     bvh = ["clips/*.bvh"]
 
-Relative rig and clip paths are resolved against the TOML file's folder. A ``[motion] source =
+Relative rig and clip paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
+workspace (the rig's, or ``[workspace]``); every camera must see it up to a tall person's head
+(``silpose.shared.rig_frame.PERSON_HEIGHT_M``). Calibration files of other tools are converted by
+``silpose rig import`` first (units, up axis, origin, automatic workspace). A ``[motion] source =
 "bvh"`` config must be prepared (:meth:`GenConfig.with_motion`, done by ``generate``: the clips are
 imported and checked) before its ``to_dict`` and ``worker_config`` exist; a procedural config's
 dicts are exactly those of a config without ``[motion]``.
@@ -33,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
+from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
 from .blender_scene import ENGINES
 from .clips import PreparedMotion, prepare_motion
@@ -41,9 +48,9 @@ from .renderers import MASK_RENDERERS
 
 SPLITS = ("train", "test")
 #: Height (m) up to which the workspace corners must be seen: a tall person's head top.
-WORKSPACE_CHECK_HEIGHT = 2.0
-_KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig", "frames",
-         "motion"}
+WORKSPACE_CHECK_HEIGHT = PERSON_HEIGHT_M
+_KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig",
+         "workspace", "frames", "motion"}
 #: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames.config`).
 _OTHER_SECTIONS = {"frames"}
 
@@ -81,6 +88,7 @@ class GenConfig:
     rig_spec: dict
     rig: Rig = field(repr=False)
     source: str = ""
+    workspace_spec: dict | None = None
     motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
     prepared: PreparedMotion | None = field(default=None, repr=False)
 
@@ -96,7 +104,8 @@ class GenConfig:
         return self.prepared
 
     def to_dict(self) -> dict:
-        """JSON-serialisable config, as stored in the dataset metadata and manifest."""
+        """JSON-serialisable config, as stored in the dataset metadata and manifest (``workspace``
+        only when the config has a ``[workspace]`` table, ``motion`` only for motion-capture clips)."""
         prepared = self._prepared()
         out = {
             "name": self.name,
@@ -109,6 +118,8 @@ class GenConfig:
             "splits": dict(self.splits),
             "rig_spec": dict(self.rig_spec),
         }
+        if self.workspace_spec is not None:
+            out["workspace"] = dict(self.workspace_spec)
         if prepared is not None:
             out["motion"] = prepared.metadata()
         return out
@@ -132,8 +143,8 @@ class GenConfig:
     def data_config(self) -> dict:
         """The part of the config the sample content depends on (not shard size or name)."""
         d = self.to_dict()
-        for k in ("name", "shard_size", "splits", "rig_spec"):
-            d.pop(k)
+        for k in ("name", "shard_size", "splits", "rig_spec", "workspace"):
+            d.pop(k, None)
         return d
 
 
@@ -190,8 +201,9 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     if unknown:
         raise ConfigError(f"{src}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(_KEYS))}")
     name = raw.get("name")
-    if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
-        raise ConfigError(f"{src}: field 'name' must be a non-empty string without spaces or slashes, got {name!r}")
+    if not isinstance(name, str) or not name or name in (".", "..") or any(c in name for c in "/\\ "):
+        raise ConfigError(f"{src}: field 'name' must be a folder name (not '.' or '..') without spaces or slashes, "
+                          f"got {name!r}")
     seed = _int(raw, "seed", src, 0, 2**63 - 1)
     renderer = _choice(raw, "renderer", src, MASK_RENDERERS)
     engine = _choice(raw, "blender_engine", src, ENGINES, default="workbench")
@@ -210,46 +222,70 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     rig_spec = raw.get("rig", {"preset": "default"})
     base = Path(source).parent if Path(source).suffix == ".toml" else Path.cwd()
     rig = build_rig(rig_spec, base, src)
+    workspace_spec = raw.get("workspace")
+    if workspace_spec is not None:
+        rig = rig.with_workspace(parse_workspace(workspace_spec, src))
+    check_rig(rig, src, workspace_from=None if workspace_spec is None else f"{src}: field 'workspace'")
     try:
         motion = motion_from_dict(raw.get("motion"), base, src)
     except MotionConfigError as exc:
         raise ConfigError(str(exc)) from None
     return GenConfig(name, seed, renderer, engine, shard_size, n_points, max_redraws, splits,
-                     _portable_rig_spec(rig_spec), rig, source, motion)
+                     _portable_rig_spec(rig_spec), rig, source,
+                     workspace_spec=None if workspace_spec is None else rig.workspace.to_dict(), motion=motion)
 
 
 def _portable_rig_spec(spec) -> dict:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dict(spec).items()}
 
 
+def parse_workspace(spec, src: str) -> Workspace:
+    """The ``[workspace]`` table: ``size = [x, y]`` metres and optional ``center = [x, y]`` metres."""
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{src}: field 'workspace' must be a table with size = [x, y] and center = [x, y] (metres)")
+    unknown = sorted(set(spec) - {"center", "size"})
+    if unknown:
+        raise ConfigError(f"{src}: field 'workspace.{unknown[0]}': unknown; known: center, size")
+    if "size" not in spec:
+        raise ConfigError(f"{src}: field 'workspace.size' missing ([x, y] metres)")
+    for key in ("center", "size"):
+        v = spec.get(key, [0.0, 0.0])
+        if not (isinstance(v, list) and len(v) == 2
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+            raise ConfigError(f"{src}: field 'workspace.{key}' must be two numbers [x, y] (metres), got {v!r}")
+    try:
+        return Workspace(spec.get("center", [0.0, 0.0]), spec["size"])
+    except ValueError as exc:
+        raise ConfigError(f"{src}: {exc}") from None
+
+
 def build_rig(spec, base: Path, src: str) -> Rig:
-    """The rig described by a ``[rig]`` table; checks it sees the workspace up to head height."""
+    """The rig described by a ``[rig]`` table (``preset = "default"`` or ``file = "rig.json"``).
+
+    Errors about a rig file name that file (``Rig.source``), not the config.
+    """
     if not isinstance(spec, dict):
         raise ConfigError(f"{src}: field 'rig' must be a table")
-    keys = set(spec) - {"unit"}
-    if len(keys) != 1 or not keys <= {"preset", "file", "opencv"}:
-        raise ConfigError(f"{src}: field 'rig' needs exactly one of preset, file, opencv (got {sorted(spec)})")
-    unit = spec.get("unit", 1.0)
-    if not isinstance(unit, (int, float)) or isinstance(unit, bool) or not unit > 0:
-        raise ConfigError(f"{src}: field 'rig.unit' must be a positive number, got {unit!r}")
+    if "opencv" in spec or "unit" in spec:
+        raise ConfigError(
+            f"{src}: field 'rig.{'opencv' if 'opencv' in spec else 'unit'}': calibration files are converted "
+            "once with `silpose rig import CALIB... --unit mm --out rig.json` (units, up axis, origin, "
+            "workspace); then use [rig] file = \"rig.json\""
+        )
+    if len(spec) != 1 or not set(spec) <= {"preset", "file"}:
+        raise ConfigError(f"{src}: field 'rig' needs exactly one of preset, file (got {sorted(spec)})")
+    if "preset" in spec:
+        if spec["preset"] != "default":
+            raise ConfigError(f"{src}: field 'rig.preset' must be 'default', got {spec['preset']!r}")
+        return default_rig()
+    path = _path(spec["file"], base, src, "rig.file")
+    if not path.is_file():
+        raise ConfigError(f"{src}: field 'rig.file': {path}: rig file not found")
     try:
-        if "preset" in spec:
-            if spec["preset"] != "default":
-                raise ConfigError(f"{src}: field 'rig.preset' must be 'default', got {spec['preset']!r}")
-            rig = default_rig()
-        elif "file" in spec:
-            rig = load_rig(_path(spec["file"], base, src, "rig.file"), unit=float(unit))
-        else:
-            files = spec["opencv"]
-            if isinstance(files, str):
-                files = [files]
-            if not isinstance(files, list) or not files:
-                raise ConfigError(f"{src}: field 'rig.opencv' must be a list of calibration files")
-            rig = load_rig([_path(f, base, src, "rig.opencv") for f in files], unit=float(unit))
+        rig = load_rig(path)
         rig.image_size  # all views share one image size (the mask tensor is K x H x W)
     except RigError as exc:
-        raise ConfigError(f"{src}: field 'rig': {exc}") from None
-    check_rig(rig, src)
+        raise ConfigError(str(exc)) from None
     return rig
 
 
@@ -257,21 +293,28 @@ def build_rig(spec, base: Path, src: str) -> Rig:
 MIN_PERSON_PX = 20.0
 
 
-def check_rig(rig: Rig, src: str) -> None:
+def check_rig(rig: Rig, src: str, workspace_from: str | None = None) -> None:
     """Raise ConfigError unless every camera sees the workspace from the floor to head height
-    and shows a 1.75 m person at the centre at least ``MIN_PERSON_PX`` pixels tall (a wrong
-    ``unit`` typically puts the cameras 1000 times too far or too close)."""
+    and shows a 1.75 m person at the workspace centre at least ``MIN_PERSON_PX`` pixels tall (a
+    wrong unit typically puts the cameras 1000 times too far or too close).
+
+    Errors name the rig's file (or ``src`` for the built-in rig); ``workspace_from`` (e.g.
+    ``"cfg.toml: field 'workspace'"``) prefixes them when the config overrides the workspace.
+    """
+    prefix = f"{workspace_from}: " if workspace_from else ("" if rig.source else f"{src}: field 'rig': ")
     try:
         rig.check_sees_workspace(height=WORKSPACE_CHECK_HEIGHT)
     except RigError as exc:
-        raise ConfigError(f"{src}: field 'rig': {exc}") from None
+        raise ConfigError(f"{prefix}{exc}") from None
+    cx, cy = rig.workspace.center
     for cam in rig:
-        feet, head = cam.project(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.75]]))
+        feet, head = cam.project(np.array([[cx, cy, 0.0], [cx, cy, 1.75]]))
         size = float(np.linalg.norm(head - feet))
         if size < MIN_PERSON_PX:
             raise ConfigError(
-                f"{src}: field 'rig': camera {cam.name!r} shows a 1.75 m person only {size:.2f} px tall "
-                f"(need {MIN_PERSON_PX:.0f}); check the distance unit (rig.unit)"
+                f"{prefix}{rig.where}: camera {cam.name!r} shows a 1.75 m person at the workspace centre only "
+                f"{size:.2f} px tall (need {MIN_PERSON_PX:.0f}); check the calibration's unit "
+                "(`silpose rig import --unit`)"
             )
 
 

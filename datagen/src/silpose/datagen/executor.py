@@ -14,7 +14,10 @@ from __future__ import annotations
 import importlib
 import multiprocessing
 import os
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Iterable, Iterator
 
@@ -62,6 +65,27 @@ def _run_task_star(args: tuple) -> tuple:
         return task, None, f"{type(exc).__name__}: {exc}"
 
 
+def ignore_interrupt() -> None:
+    """Pool initializer: a worker ignores SIGINT. Ctrl-C reaches the terminal's whole process group; only
+    the driver handles it (its command prints one line and the pool is terminated), so the workers do
+    not each print a KeyboardInterrupt traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextmanager
+def _interrupt_ignored_by_children():
+    """While the pool spawns its workers, ignore SIGINT here: an ignored signal stays ignored across
+    exec, so the children are immune from their first instruction (before ``ignore_interrupt`` runs)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def default_workers() -> int:
     """All cores this process may use."""
     try:
@@ -87,7 +111,8 @@ def run_local(
         return
     n = min(workers or default_workers(), len(tasks))
     ctx = multiprocessing.get_context("spawn")
-    pool = ctx.Pool(processes=n, maxtasksperchild=max_tasks_per_child)
+    with _interrupt_ignored_by_children():
+        pool = ctx.Pool(processes=n, maxtasksperchild=max_tasks_per_child, initializer=ignore_interrupt)
     try:
         pending = [(t, pool.apply_async(_run_task_star, ((t, target, config),))) for t in tasks]
         seen: dict[int, object] = {}

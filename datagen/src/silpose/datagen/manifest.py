@@ -14,6 +14,8 @@ import socket
 import time
 from pathlib import Path
 
+from silpose.shared.dataset import SHARD_RE, DatasetError, read_metadata
+
 MANIFEST = "manifest.json"
 LOCK = ".silpose-gen.lock"
 MANIFEST_VERSION = 1
@@ -39,6 +41,30 @@ def read_manifest(root: Path) -> dict:
         raise FileNotFoundError(f"{path}: manifest not found") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+
+
+def is_dataset_folder(root: Path) -> bool:
+    """True if ``root`` is recognisably a dataset written by ``silpose gen`` before output folders
+    carried the marker of :mod:`silpose.shared.output_dir`: its ``manifest.json`` is a silpose manifest,
+    or (an interrupted run) it holds only silpose shards, their temporaries and the lock file."""
+    root = Path(root)
+    try:
+        manifest = read_manifest(root)
+    except (FileNotFoundError, ValueError):
+        manifest = None
+    if isinstance(manifest, dict) and "manifest_version" in manifest and isinstance(manifest.get("shards"), list):
+        return True
+    entries = list(root.iterdir())
+    for p in entries:
+        if p.name == LOCK or (p.name.startswith(".") and p.name.endswith(".tmp") and SHARD_RE.match(p.name[1:].rsplit(".", 2)[0])):
+            continue
+        if not (SHARD_RE.match(p.name) and p.is_file()):
+            return False
+        try:
+            read_metadata(p)
+        except DatasetError:
+            return False
+    return bool(entries)
 
 
 class FolderLock:

@@ -20,6 +20,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 from silpose.shared.skeleton import JOINT_NAMES
 
 from .walk import GAIT_FIELDS, euler_matrix, joint_angles, posed_body, root_transform, sample_gait
@@ -64,14 +65,18 @@ class MotionSource(Protocol):
 
 
 class WalkMotion:
-    """The procedural walk cycle of :mod:`.walk` (parameters :data:`walk.GAIT_FIELDS`)."""
+    """The procedural walk cycle of :mod:`.walk` (parameters :data:`walk.GAIT_FIELDS`), walkers
+    placed anywhere in ``workspace`` (default: the built-in 3 m x 3 m square)."""
 
     fields = GAIT_FIELDS
     stream = None
 
+    def __init__(self, workspace: Workspace = DEFAULT_WORKSPACE):
+        self.workspace = workspace
+
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
-        """Gait parameters, uniform on ``walk.GAIT_RANGES``."""
-        return sample_gait(rng)
+        """Gait parameters, uniform on ``walk.gait_ranges(self.workspace)``."""
+        return sample_gait(rng, self.workspace)
 
     def pose(self, subject: dict[str, float], params: dict[str, float]) -> Pose:
         """The walk pose of ``subject`` at gait ``params``, feet on the floor."""
@@ -83,5 +88,5 @@ class WalkMotion:
         return Pose(rotations=rotations, root=root, joints=joints)
 
 
-#: The default motion source.
+#: The default motion source (on the built-in workspace; :func:`.scene.draw_scene` walks on the rig's).
 WALK = WalkMotion()

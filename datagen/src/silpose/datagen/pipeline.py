@@ -35,7 +35,9 @@ def plan_shards(config: GenConfig) -> list[ShardTask]:
 
 def dataset_metadata(config: GenConfig) -> dict:
     """The schema metadata of every shard of ``config``'s dataset (``silpose.shared.dataset.build_metadata``)."""
-    return build_metadata(config.rig.to_dict()["cameras"], config.to_dict(), config.n_points)
+    rig = config.rig.to_dict()  # transform / workspace only when they differ from the defaults
+    return build_metadata(rig["cameras"], config.to_dict(), config.n_points,
+                          rig_frame={k: rig[k] for k in ("transform", "workspace") if k in rig})
 
 
 def _check_records(records: list[dict], task: ShardTask) -> None:

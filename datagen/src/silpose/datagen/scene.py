@@ -23,7 +23,7 @@ import numpy as np
 from silpose.shared.camera import Rig
 from silpose.shared.seeds import SPLIT_CODE, derive_rng
 
-from .motion import WALK, MotionSource, Pose
+from .motion import WALK, MotionSource, Pose, WalkMotion
 from .subjects import joint_radius_array, sample_subject
 
 #: Pixels kept free between the person and the image border.
@@ -76,10 +76,15 @@ def draw_sample_parameters(
 
 
 def draw_scene(
-    seed: int, split: str, index: int, redraw: int, rig: Rig, motion: MotionSource = WALK,
+    seed: int, split: str, index: int, redraw: int, rig: Rig, motion: MotionSource | None = None,
     appearance: dict | None = None,
 ) -> SampleScene:
-    """The scene of draw ``redraw`` of sample ``index`` of ``split`` (a pure function of its arguments)."""
+    """The scene of draw ``redraw`` of sample ``index`` of ``split`` (a pure function of its arguments).
+
+    ``motion`` defaults to the walk on the rig's workspace (``WalkMotion(rig.workspace)``).
+    """
+    if motion is None:
+        motion = WalkMotion(rig.workspace)
     subject, params = draw_sample_parameters(seed, split, index, redraw, motion)
     return SampleScene(split=split, index=int(index), redraw=int(redraw), subject=subject, motion=params,
                        pose=motion.pose(subject, params), rig=rig, appearance=appearance)

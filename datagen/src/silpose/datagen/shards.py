@@ -89,7 +89,7 @@ def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
         meta = read_metadata(path)
     except DatasetError:
         return False  # unreadable or foreign: it will be rewritten
-    if meta["config"] != metadata["config"] or meta["cameras"] != metadata["cameras"]:
+    if any(meta.get(k) != metadata.get(k) for k in ("config", "cameras", "transform", "workspace")):
         raise GenerationError(
             f"{path}: field 'config' differs from this run's; the folder holds another dataset "
             "(choose another --out or delete it)"

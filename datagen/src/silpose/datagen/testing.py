@@ -142,6 +142,8 @@ def crashing_render_samples(config: dict, split: str, indices: list[int]) -> lis
 KILL_ENV = "SILPOSE_TEST_KILL_AT"
 #: ``slow_render_samples`` sleeps this many seconds per sample (a float).
 DELAY_ENV = "SILPOSE_TEST_RENDER_DELAY"
+#: ``slow_render_samples`` creates ``<this folder>/<worker pid>`` when it starts a shard (if set).
+STARTED_ENV = "SILPOSE_TEST_RENDER_STARTED"
 
 
 def killing_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
@@ -169,8 +171,11 @@ def killing_render_samples(config: dict, split: str, indices: list[int]) -> list
 
 
 def slow_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
-    """``synthetic_render_samples`` sleeping ``$SILPOSE_TEST_RENDER_DELAY`` s per sample (overlapping runs)."""
+    """``synthetic_render_samples`` sleeping ``$SILPOSE_TEST_RENDER_DELAY`` s per sample (overlapping runs);
+    announces each shard it starts in the folder ``$SILPOSE_TEST_RENDER_STARTED`` when that is set."""
     delay = float(os.environ.get(DELAY_ENV, "0.1"))
+    if os.environ.get(STARTED_ENV):
+        Path(os.environ[STARTED_ENV], str(os.getpid())).touch()
     records = []
     for i in indices:
         time.sleep(delay)

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from silpose.shared.camera import WORKSPACE_HALF_SIZE
+from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, N_JOINTS, PARENTS
 
 from .subjects import segment_lengths
@@ -57,9 +57,16 @@ GAIT_RANGES: dict[str, tuple[float, float]] = {
     "torso_lean": (np.deg2rad(0.0), np.deg2rad(6.0)),
     "pelvis_rotation": (np.deg2rad(2.0), np.deg2rad(6.0)),
     "heading": (0.0, 2 * np.pi),
-    "x": (-WORKSPACE_HALF_SIZE, WORKSPACE_HALF_SIZE),
-    "y": (-WORKSPACE_HALF_SIZE, WORKSPACE_HALF_SIZE),
+    "x": DEFAULT_WORKSPACE.bounds[0],  # the pelvis position: uniform on the rig's workspace
+    "y": DEFAULT_WORKSPACE.bounds[1],  # (these two: the built-in 3 m x 3 m square; see gait_ranges)
 }
+
+
+def gait_ranges(workspace: Workspace = DEFAULT_WORKSPACE) -> dict[str, tuple[float, float]]:
+    """:data:`GAIT_RANGES` with the pelvis position ``x``, ``y`` ranging over ``workspace``'s bounds."""
+    (x0, x1), (y0, y1) = workspace.bounds
+    return {**GAIT_RANGES, "x": (x0, x1), "y": (y0, y1)}
+
 
 STANCE_FRACTION = 0.6
 #: Anterior pelvic tilt (radians). Hip angles are measured against the pelvis, which tilts
@@ -120,9 +127,11 @@ def sagittal_angle(name: str, phase, amplitude: float = 1.0) -> np.ndarray:
     return np.deg2rad(val)
 
 
-def sample_gait(rng: np.random.Generator) -> dict[str, float]:
-    """Draw gait parameters (keys :data:`GAIT_FIELDS`, uniform on :data:`GAIT_RANGES`)."""
-    return {k: float(rng.uniform(*GAIT_RANGES[k])) for k in GAIT_FIELDS}
+def sample_gait(rng: np.random.Generator, workspace: Workspace = DEFAULT_WORKSPACE) -> dict[str, float]:
+    """Draw gait parameters (keys :data:`GAIT_FIELDS` in order, uniform on :func:`gait_ranges`, the
+    position anywhere in ``workspace``)."""
+    ranges = gait_ranges(workspace)
+    return {k: float(rng.uniform(*ranges[k])) for k in GAIT_FIELDS}
 
 
 def _euler(roll: float = 0.0, pitch: float = 0.0, yaw: float = 0.0) -> np.ndarray:
@@ -252,8 +261,9 @@ def skeleton_positions(subject: dict[str, float], gait: dict[str, float]) -> np.
     return J @ T[:3, :3].T + T[:3, 3]
 
 
-def describe_distribution() -> dict:
-    """The gait distribution of :func:`sample_gait` and the walk model, as plain data (dataset card)."""
+def describe_distribution(workspace: Workspace = DEFAULT_WORKSPACE) -> dict:
+    """The gait distribution of :func:`sample_gait` on ``workspace`` and the walk model, as plain data
+    (dataset card)."""
     units = {
         "phase": "cycle fraction (0 = left heel strike)",
         "stride": "amplitude multiplier (hip, ankle)",
@@ -269,7 +279,7 @@ def describe_distribution() -> dict:
     return {
         "fields": {
             k: {"distribution": "uniform", "low": float(lo), "high": float(hi), "unit": units[k]}
-            for k, (lo, hi) in GAIT_RANGES.items()
+            for k, (lo, hi) in gait_ranges(workspace).items()
         },
         "walk_model": {
             "form": "mean + K Fourier harmonics per sagittal angle, least-squares fit to normative knots",

@@ -6,17 +6,20 @@ model are imported inside the command so ``silpose --help`` stays fast.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import List, Optional
 
 import typer
+
+from silpose.shared.cli import fail
 
 
 def evaluate(
     preset_or_data_dir: str = typer.Argument("default", help="Preset name (reads data/<preset>/) or a dataset folder."),
     model: Optional[Path] = typer.Option(None, help="Model file (default: models/<name>.npz)."),
     out: Optional[Path] = typer.Option(None, help="Output folder (default: reports/<name>/)."),
-    n_test: Optional[int] = typer.Option(None, help="Use the first N test examples (default: all)."),
+    n_test: Optional[int] = typer.Option(None, min=1, help="Use the first N test examples (default: all)."),
     seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
     experiments: str = typer.Option("E1,E2,E3,E4,E5", help="Comma-separated subset of E1..E5."),
     jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1)."),
@@ -40,6 +43,8 @@ def evaluate(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from silpose.shared.output_dir import OutputFolderError, check_folder, claim_folder
+
     from .experiments import DEFAULT_SWEEP, EvalConfig
     from .noise import STANDARD_NOISE
     from .errors import EvalInputError
@@ -48,12 +53,16 @@ def evaluate(
 
     console = Console(stderr=True)
     given = Path(preset_or_data_dir)
-    if given.is_dir():
-        data_dir, name = given, given.name
+    if given.is_dir() or "/" in preset_or_data_dir:  # a folder (even a missing one), not a preset name
+        data_dir, name = given, given.resolve().name
     else:
         data_dir, name = Path("data") / preset_or_data_dir, preset_or_data_dir
     model = model or Path("models") / f"{name}.npz"
     out = out or Path("reports") / name
+    try:
+        check_folder(out, "eval", recognise=is_report_folder)  # refuse before any work; claimed below
+    except OutputFolderError as exc:
+        fail("eval", str(exc))
     exps = tuple(e.strip().upper() for e in experiments.split(",") if e.strip())
     bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5")]
     if bad:
@@ -83,6 +92,8 @@ def evaluate(
             (t, out / t.name, f"silpose evaluation — model {model.name} on {t.name}") for t in test_data]
         rows = []
         try:
+            if data_dir.is_dir() and model.is_file():  # else run_evaluation says what is missing, writing nothing
+                claim_folder(out, "eval", recognise=is_report_folder)
             for test_dir, run_out, title in runs:
                 ev, written = run_evaluation(data_dir, model, run_out, config, progress=on_step, title=title,
                                              frames_dir=False if (no_frames or test_dir is not None) else frames,
@@ -91,9 +102,19 @@ def evaluate(
                 for key, path in written.items():
                     console.print(f"  {path}")
                 rows.append((run_out.name if test_dir is not None else name, headline(ev.frame()), len(ev.data.test_ids)))
-        except EvalInputError as exc:
+        except (EvalInputError, OutputFolderError) as exc:
             progress.stop()
             typer.echo(f"error: {exc}", err=True)
             raise typer.Exit(code=2) from None
     if test_data:
         console.print(f"  {write_test_sets(out, model, rows)}")
+
+
+def is_report_folder(folder: Path) -> bool:
+    """True if ``folder`` holds an evaluation written by ``silpose eval`` before output folders carried
+    the marker of :mod:`silpose.shared.output_dir` (its ``headline.json`` with the run's settings)."""
+    try:
+        head = json.loads((Path(folder) / "headline.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(head, dict) and isinstance(head.get("settings"), dict) and (Path(folder) / "summary.md").is_file()

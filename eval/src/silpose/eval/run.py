@@ -187,7 +187,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "data": str(data_dir),
         "test_data": str(test_dir if test_dir is not None else data_dir),
         "model": str(model_path),
-        "model_hyperparameters": model.get_params(),
+        "model_hyperparameters": model.hyperparameters(),
         "n_train": int(len(data.train_joints)),
         "training_subset": train_note,
         "n_test": int(len(data.test_ids)),

@@ -36,7 +36,8 @@ class MPPCA(DensityMixin, BaseEstimator):
     Parameters
     ----------
     n_components : int, number of mixture components M (>= 1).
-    n_latent : int, latent dimension q of every component (1 <= q < n_features).
+    n_latent : int or None, latent dimension q of every component (1 <= q < n_features); None (the
+        default) = min(10, n_features - 1), so the defaults fit any data of two or more features.
     tol : float, EM stops when the mean log-likelihood per sample rises by less than ``tol``.
     max_iter : int, maximum EM iterations of a run (the winning run's short phase included).
     n_init : int, number of initialisations. Each gets a short EM run (5 iterations); the run with
@@ -64,13 +65,13 @@ class MPPCA(DensityMixin, BaseEstimator):
     converged_ (bool), n_iter_ (int, EM iterations of the winning run), lower_bound_ (float, mean
     log-likelihood per sample of the training data under the final parameters), lower_bounds_
     (list of n_iter_ floats, the same after each EM iteration of the winning run, non-decreasing),
-    n_features_in_, n_fit_samples_.
+    n_latent_ (int, the q used), n_features_in_, n_fit_samples_.
 
     ``fit(X)`` holds X in memory; ``fit_stream(shards)`` reads one shard at a time (out of core,
     optionally on Ray). Both run the same E-step/M-step code (``silpose.model._em``).
     """
 
-    def __init__(self, n_components=5, n_latent=10, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
+    def __init__(self, n_components=5, n_latent=None, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
                  reg_variance=1e-6, init_params=None, random_state=None, callback=None, verbose=0):
         self.n_components = n_components
         self.n_latent = n_latent
@@ -92,7 +93,8 @@ class MPPCA(DensityMixin, BaseEstimator):
                 raise ValueError(f"MPPCA: {name} must be an integer >= {lo}, got {v!r}")
 
         _int("n_components", 1)
-        _int("n_latent", 1)
+        if self.n_latent is not None:
+            _int("n_latent", 1)
         _int("max_iter", 1)
         _int("n_init", 1)
         for name in ("tol", "reg_variance"):
@@ -106,9 +108,16 @@ class MPPCA(DensityMixin, BaseEstimator):
         if n_samples < max(2, self.n_components):
             raise ValueError(f"MPPCA: n_samples = {n_samples} but at least max(2, n_components = "
                              f"{self.n_components}) samples are needed")
-        if self.n_latent >= n_features:
+        if self.n_latent is None and n_features < 2:
+            raise ValueError(f"MPPCA: n_features = {n_features}, but a mixture of PPCA needs at least 2 features "
+                             "(a latent dimension 1 <= q < n_features)")
+        if self.n_latent is not None and self.n_latent >= n_features:
             raise ValueError(f"MPPCA: n_latent = {self.n_latent} must be smaller than n_features = "
                              f"{n_features}")
+
+    def _latent_dim(self, n_features: int) -> int:
+        """The latent dimension q a fit on ``n_features`` features uses (``n_latent``, or its default)."""
+        return min(10, n_features - 1) if self.n_latent is None else int(self.n_latent)
 
     # ------------------------------------------------------------------ fitting
     def fit(self, X, y=None) -> "MPPCA":
@@ -143,6 +152,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         moments = _em.reduce_sum(source.map(_em.shard_moments))
         n, d = moments.n, moments.mean.shape[0]
         self._check_params(n, d)
+        self.n_latent_ = self._latent_dim(d)
         rng = np.random.default_rng(self.random_state)
         offset = moments.mean  # EM runs on x - mean: keeps the expanded ||x - mu||^2 precise
         data_var = moments.m2 / (n * d)  # mean per-feature variance
@@ -182,7 +192,7 @@ class MPPCA(DensityMixin, BaseEstimator):
 
     def _explicit_start(self, d: int) -> _em.Params:
         """``init_params`` validated against (M, d, q), as float64 copies (data coordinates)."""
-        m, q = int(self.n_components), int(self.n_latent)
+        m, q = int(self.n_components), self.n_latent_
         if self.n_init != 1:
             raise ValueError(f"MPPCA: init_params gives one start; n_init must be 1, got {self.n_init}")
         p = self.init_params
@@ -233,7 +243,7 @@ class MPPCA(DensityMixin, BaseEstimator):
     def _initial_params(self, X, rng, var_floor) -> _em.Params:
         """One initialisation from the rows X (n0, d): hard labels, closed-form PPCA per cluster."""
         n, d = X.shape
-        m, q = self.n_components, self.n_latent
+        m, q = self.n_components, self.n_latent_
         labels = self._initial_labels(X, rng)
         weights = np.empty(m)
         means = np.empty((m, d))

@@ -16,7 +16,7 @@ key                    dtype / shape    meaning
 
 Header: ``format`` (= "silpose-model"), ``format_version``, ``feature_layout``
 (FeatureLayout.to_dict), ``views``, ``joint_names``, ``n_rig_views``, ``rig`` (Rig.to_dict or
-null), ``hyperparameters`` (ShapeStructureModel.get_params), ``training`` (n_iter, converged,
+null), ``hyperparameters`` (ShapeStructureModel.hyperparameters), ``training`` (n_iter, converged,
 lower_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
 config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
 ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
@@ -82,7 +82,7 @@ def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
         "joint_names": list(JOINT_NAMES),
         "n_rig_views": int(model.n_rig_views_),
         "rig": None if rig is None else rig.to_dict(),
-        "hyperparameters": model.get_params(),
+        "hyperparameters": model.hyperparameters(),
         "training": {
             "n_iter": int(getattr(mix, "n_iter_", -1)),
             "converged": bool(getattr(mix, "converged_", False)),
@@ -224,6 +224,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     mix.weights_ = data["weights"]
     mix.means_ = data["means"]
     mix.components_ = data["components"]
+    mix.n_latent_ = int(data["components"].shape[-1])
     mix.noise_variance_ = data["noise_variance"]
     mix.lower_bounds_ = data["lower_bounds"]
     training = header.get("training", {})
@@ -241,3 +242,20 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     model.training_config_ = dict(header.get("training_config", {}) or {})
     model.header_ = header
     return model
+
+
+def is_model_file(path: str | Path) -> bool:
+    """True if ``path`` is an .npz archive whose header names the silpose model format (any format
+    version): a file ``silpose train`` may replace (``silpose.shared.output_dir.claim_files``)."""
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+        return False
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        return False
+    with z:
+        try:
+            header = json.loads(bytes(z["header"]).decode("utf-8")) if "header" in z.files else None
+        except (zipfile.BadZipFile, OSError, ValueError, EOFError):
+            return False
+    return isinstance(header, dict) and header.get("format") == FORMAT_NAME

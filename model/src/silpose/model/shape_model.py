@@ -15,6 +15,10 @@ conditioning of :mod:`silpose.model.conditioning` (the tests check it against de
 Fitting: :meth:`ShapeStructureModel.fit` on arrays in memory, :meth:`~ShapeStructureModel.fit_stream`
 out of core over a dataset's Parquet shards (:mod:`silpose.model.streaming`, locally or on Ray);
 both build the vectors with :func:`silpose.model.features.shape_vectors` and run the same EM.
+
+The model is a scikit-learn estimator: ``fit(X, y)`` with X the multi-view pixel contours (N, K, n, 2)
+and y the joints, ``predict(X)`` the joints, ``score(X, y)`` the negative mean joint error (cm), and
+``get_params`` / ``set_params``, so ``clone``, ``GridSearchCV`` and ``cross_val_score`` work on it.
 """
 
 from __future__ import annotations
@@ -24,7 +28,10 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.exceptions import NotFittedError
 
+from silpose.shared.metrics import pose_error_cm
 from silpose.shared.skeleton import N_JOINTS
 
 from .checks import check_contours, check_factors, check_present
@@ -93,8 +100,15 @@ class InferenceResult:
     views: tuple[int, ...] = field(default=())
 
 
-class ShapeStructureModel:
+class ModelNotFittedError(NotFittedError, RuntimeError):
+    """A ShapeStructureModel used before ``fit`` (scikit-learn's NotFittedError; a RuntimeError as before)."""
+
+
+class ShapeStructureModel(RegressorMixin, BaseEstimator):
     """Mixture-of-PPCA prior over multi-view contours + 3D joints, with Bayesian inference.
+
+    A scikit-learn estimator (module docstring): X = pixel contours (N, K, n, 2) of the rig's K views (NaN
+    rows mark absent views in ``predict``), y = joints (N, 19, 3) metres, or flattened (N, 57).
 
     Parameters (stored only; validated in ``fit``):
         n_components: mixture components M.
@@ -105,10 +119,13 @@ class ShapeStructureModel:
         joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
             the calibrated silhouettes, ``silpose.model.stature``; needs the rig), "metres" (the paper's
             raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
-        tol, max_iter, n_init, random_state, callback: passed to :class:`~silpose.model.mppca.MPPCA`.
+        tol, max_iter, n_init, random_state, callback, verbose: passed to :class:`~silpose.model.mppca.MPPCA`.
+        rig: the ``silpose.shared.camera.Rig`` of the K views, used when ``fit`` is not given one (so that
+            ``fit(X, y)`` alone, e.g. inside ``GridSearchCV``, can use the 'stature' joint frame).
 
     Fitted attributes: ``layout_`` (FeatureLayout), ``mixture_`` (fitted MPPCA), ``n_rig_views_``,
-    ``rig_`` (Rig or None), ``fit_time_`` (s), ``n_train_``.
+    ``rig_`` (Rig or None), ``fit_time_`` (s), ``n_train_``, ``flat_targets_`` (``fit`` got y as (N, 57):
+    ``predict`` returns that shape too).
     """
 
     def __init__(
@@ -126,6 +143,7 @@ class ShapeStructureModel:
         random_state: int | None = 0,
         callback: Callable | None = None,
         verbose: int = 0,
+        rig=None,
     ) -> None:
         self.n_components = n_components
         self.n_latent = n_latent
@@ -139,10 +157,20 @@ class ShapeStructureModel:
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
+        self.rig = rig
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False  # X is (N, K, n, 2) contours, not a table
+        tags.target_tags.required = True
+        tags.target_tags.multi_output = True
+        tags.target_tags.single_output = False
+        return tags
 
     # ------------------------------------------------------------------ fitting
-    def get_params(self) -> dict:
-        """Hyperparameters as a JSON-friendly dict (no callback)."""
+    def hyperparameters(self) -> dict:
+        """Hyperparameters as a JSON-friendly dict (no callback, verbose or rig): what model files, training
+        reports and evaluation settings record. ``get_params()`` is scikit-learn's (every constructor argument)."""
         return {
             "n_components": int(self.n_components),
             "n_latent": int(self.n_latent),
@@ -190,23 +218,24 @@ class ShapeStructureModel:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
         return shape_vectors(self.fitted_layout(), self.n_rig_views_, contours_px, joints, self.rig_)
 
-    def fit(self, contours_px: np.ndarray, joints: np.ndarray, rig=None, *,
+    def fit(self, X: np.ndarray, y: np.ndarray, rig=None, *,
             init_params: dict | None = None) -> "ShapeStructureModel":
         """Fit the prior.
 
         Args:
-            contours_px: (N, K, n, 2) contours in pixels for all K views of the rig (``views`` selects among them).
-            joints: (N, 19, 3) joint positions in metres (absolute or root-relative).
-            rig: optional ``silpose.shared.camera.Rig`` of the K views (kept for persistence and PNG inference).
+            X: contours_px, (N, K, n, 2) contours in pixels for all K views of the rig (``views`` selects among them).
+            y: joints, (N, 19, 3) joint positions in metres (absolute or root-relative), or flattened (N, 57).
+            rig: optional ``silpose.shared.camera.Rig`` of the K views (kept for persistence and PNG inference);
+                None = the ``rig`` parameter.
             init_params: optional explicit MPPCA start (see ``MPPCA(init_params=...)``; needs n_init = 1).
         Returns:
             self.
         """
         self._check_hyperparameters()
-        c = check_contours(contours_px, "contours_px")
-        j = np.asarray(joints, dtype=np.float64)
-        if j.ndim != 3 or j.shape[1:] != (N_JOINTS, 3):
-            raise ValueError(f"joints must have shape (N, {N_JOINTS}, 3), got {j.shape}")
+        rig = self.rig if rig is None else rig
+        c = check_contours(X, "contours_px")
+        j = _joints_array(y, "joints")
+        self.flat_targets_ = np.ndim(y) == 2
         if j.shape[0] != c.shape[0]:
             raise ValueError(f"contours_px has {c.shape[0]} samples but joints has {j.shape[0]}")
         if not np.all(np.isfinite(c)):
@@ -302,14 +331,31 @@ class ShapeStructureModel:
 
     # ------------------------------------------------------------------ scoring
     def fitted_layout(self) -> FeatureLayout:
-        """The shape-vector layout of a fitted model (``layout_``); RuntimeError when not fitted."""
+        """The shape-vector layout of a fitted model (``layout_``); :class:`ModelNotFittedError` when not fitted."""
         if not hasattr(self, "layout_"):
-            raise RuntimeError("ShapeStructureModel is not fitted: call fit() or load_model() first")
+            raise ModelNotFittedError("ShapeStructureModel is not fitted: call fit() or load_model() first")
         return self.layout_
 
     def score_samples(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """(N,) log density of the full shape+structure vectors (contours and joints observed)."""
         return self.mixture_.score_samples(self.features(contours_px, joints))
+
+    # ------------------------------------------------------------------ scikit-learn prediction
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Joints (N, 19, 3) metres, root-relative (the posterior mean of :meth:`infer`) from contours X
+        (N, K_in, n, 2) px, K_in = the rig's or the modelled views; a view whose contour holds NaN is absent.
+        Returns (N, 57) when the model was fitted on flattened joints."""
+        self.fitted_layout()
+        c = check_contours(X, "contours_px")
+        joints = self.infer(c, np.isfinite(c).all(axis=(2, 3))).joints
+        return joints.reshape(len(joints), -1) if getattr(self, "flat_targets_", False) else joints
+
+    def score(self, X: np.ndarray, y: np.ndarray, sample_weight: np.ndarray | None = None) -> float:
+        """Negative mean joint error, cm (higher is better): ``-mean pose_error_cm(predict(X), y)`` (the paper's
+        error, ``silpose.shared.metrics``), weighted by ``sample_weight`` (N,) when given."""
+        pred = self.predict(X).reshape(-1, N_JOINTS, 3)
+        err = pose_error_cm(pred, _joints_array(y, "y"))
+        return -float(np.average(err, weights=sample_weight))
 
     # ------------------------------------------------------------------ inference
     def infer(
@@ -494,3 +540,13 @@ class ShapeStructureModel:
         if len(set(input_views)) != len(input_views):
             raise ValueError(f"input_views has duplicates: {input_views}")
         return np.array([input_views.index(v) if v in input_views else -1 for v in layout.views])
+
+
+def _joints_array(y, name: str) -> np.ndarray:
+    """Joints as float64 (N, 19, 3) from (N, 19, 3) or flattened (N, 57); ValueError naming ``name`` otherwise."""
+    j = np.asarray(y, dtype=np.float64)
+    if j.ndim == 2 and j.shape[1] == 3 * N_JOINTS:
+        j = j.reshape(len(j), N_JOINTS, 3)
+    if j.ndim != 3 or j.shape[1:] != (N_JOINTS, 3):
+        raise ValueError(f"{name} must have shape (N, {N_JOINTS}, 3) or (N, {3 * N_JOINTS}), got {j.shape}")
+    return j

@@ -28,7 +28,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from silpose.shared.camera import Rig
-from silpose.shared.dataset import DatasetError, list_shards, read_metadata, read_shard, shard_name
+from silpose.shared.dataset import DatasetError, list_shards, read_metadata, read_shard, rig_from_metadata, shard_name
 
 from .features import FeatureLayout, shape_vectors
 from .shards import ShardSource, compose_rows
@@ -104,7 +104,7 @@ class DatasetShards(ShardSource):
     # ------------------------------------------------------------------ dataset facts
     @property
     def rig(self) -> Rig:
-        return Rig.from_dict({"cameras": self.metadata["cameras"]})
+        return rig_from_metadata(self.metadata)  # cameras, and the transform / workspace of an imported rig
 
     @property
     def n_rig_views(self) -> int:

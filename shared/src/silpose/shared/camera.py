@@ -1,25 +1,31 @@
 """Camera rigs in the OpenCV convention: JSON I/O, the default rig, rig files (docs/conventions.md,
-"Cameras" and "Default rig").
+"Cameras", "World frame" and "Default rig").
 
 World frame: metres, z up, floor at z = 0. Camera frame: x right, y down, z forward.
 Projection: ``x ~ K (R X + t)`` followed by OpenCV lens distortion (zeros for synthetic data).
 One camera is a :class:`Camera` (defined in :mod:`silpose.shared.pinhole`, re-exported here).
+
+A :class:`Rig` also carries where it lives (:mod:`silpose.shared.rig_frame`): the similarity from
+the calibration's own frame to silpose's (``transform``), the floor rectangle people walk in
+(``workspace``) and the file it came from (``source``, named by every error). ``silpose rig import``
+(``silpose.app.rig``) writes rig files from calibrations; this module reads and writes silpose's
+JSON only.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import numpy as np
 
-from .opencv_calibration import read_opencv_cameras
 from .pinhole import Camera, RigError
+from .rig_frame import Workspace, WorldTransform
 
 __all__ = [
-    "WORKSPACE_HALF_SIZE",
     "Camera",
     "RigError",
     "Rig",
@@ -28,25 +34,48 @@ __all__ = [
     "ring_rig",
     "default_rig",
     "load_rig",
+    "CONVENTION",
 ]
 
-WORKSPACE_HALF_SIZE = 1.5  # metres: the workspace is [-1.5, 1.5]^2 on the floor
+#: What silpose assumes about a rig's world frame, quoted by the errors that teach it.
+CONVENTION = "silpose assumes z up, metres, the floor at z = 0 and people walking inside the rig's workspace"
+#: Calibration file suffixes that ``silpose rig import`` reads (``load_rig`` refuses them with a hint).
+CALIBRATION_SUFFIXES = (".xml", ".yml", ".yaml", ".toml")
+_RIG_KEYS = {"cameras", "transform", "workspace", "source"}
 
 
 @dataclass(frozen=True, eq=False)
 class Rig:
-    """An ordered set of calibrated cameras (the views, in shape-vector order)."""
+    """An ordered set of calibrated cameras (the views, in shape-vector order) and where they live.
+
+    Attributes:
+        cameras: the cameras, in view order.
+        transform: calibration frame -> silpose frame similarity (identity for rigs made in silpose).
+        workspace: the floor rectangle where people walk (default: 3 m x 3 m centred at the origin).
+        source: the file(s) the rig was read or imported from ("" for built-in rigs); errors name it.
+    """
 
     cameras: tuple[Camera, ...]
+    transform: WorldTransform = field(default_factory=WorldTransform)
+    workspace: Workspace = field(default_factory=Workspace)
+    source: str = ""
 
     def __post_init__(self) -> None:
         cams = tuple(self.cameras)
         if not cams:
-            raise RigError("rig: no cameras")
+            raise RigError(f"{self.where}: no cameras")
         names = [c.name for c in cams]
         if len(set(names)) != len(names):
-            raise RigError(f"rig: camera names must be unique, got {names}")
+            raise RigError(f"{self.where}: camera names must be unique, got {names}")
+        if not isinstance(self.transform, WorldTransform) or not isinstance(self.workspace, Workspace):
+            raise RigError(f"{self.where}: transform/workspace must be WorldTransform/Workspace objects")
         object.__setattr__(self, "cameras", cams)
+        object.__setattr__(self, "source", str(self.source))
+
+    @property
+    def where(self) -> str:
+        """The name errors start with: the source file, or ``rig``."""
+        return self.source or "rig"
 
     def __len__(self) -> int:
         return len(self.cameras)
@@ -66,62 +95,94 @@ class Rig:
         """(width, height) shared by all cameras; raises if they differ."""
         sizes = {(c.width, c.height) for c in self.cameras}
         if len(sizes) != 1:
-            raise RigError(f"rig: cameras have different image sizes {sorted(sizes)}")
+            raise RigError(f"{self.where}: cameras have different image sizes {sorted(sizes)}")
         return sizes.pop()
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """World (..., 3) -> (n_cameras, ..., 2) pixels."""
         return np.stack([c.project(points) for c in self.cameras])
 
+    def with_workspace(self, workspace: Workspace) -> "Rig":
+        """The same rig with another workspace."""
+        return dataclasses.replace(self, workspace=workspace)
+
     def to_dict(self) -> dict:
-        return {"cameras": [c.to_dict() for c in self.cameras]}
+        """``{"cameras": [...]}`` plus ``transform``, ``workspace`` and ``source`` when they differ from
+        the defaults (identity, 3 m x 3 m centred, none), so the built-in rig's dict is unchanged."""
+        d: dict = {"cameras": [c.to_dict() for c in self.cameras]}
+        if not self.transform.is_identity:
+            d["transform"] = self.transform.to_dict()
+        if not self.workspace.is_default:
+            d["workspace"] = self.workspace.to_dict()
+        if self.source:
+            d["source"] = self.source
+        return d
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "rig") -> "Rig":
+    def from_dict(cls, d: dict, source: str | None = None) -> "Rig":
+        """A rig from :meth:`to_dict`'s dict; ``source`` names errors (default: the dict's own
+        ``source``). ``Rig.source`` is the dict's ``source`` (``load_rig`` sets the file it read)."""
+        where = source or (d.get("source") if isinstance(d, dict) and isinstance(d.get("source"), str) else "") or "rig"
         if not isinstance(d, dict) or not isinstance(d.get("cameras"), list):
-            raise RigError(f"{source}: expected an object with a 'cameras' list")
+            raise RigError(f"{where}: expected an object with a 'cameras' list")
+        unknown = sorted(map(str, set(d) - _RIG_KEYS))
+        if unknown:
+            raise RigError(f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(_RIG_KEYS))}")
         try:
             cams = []
             for i, c in enumerate(d["cameras"]):
                 if not isinstance(c, dict):
-                    raise RigError(f"{source}: camera entry {i} is a {type(c).__name__}, expected an object")
-                cams.append(Camera.from_dict(c, source))
-            return cls(tuple(cams))
+                    raise RigError(f"{where}: camera entry {i} is a {type(c).__name__}, expected an object")
+                cams.append(Camera.from_dict(c, where))
+            try:
+                transform = WorldTransform.from_dict(d["transform"]) if "transform" in d else WorldTransform()
+                workspace = Workspace.from_dict(d["workspace"]) if "workspace" in d else Workspace()
+            except ValueError as exc:
+                raise RigError(f"{where}: {exc}") from None
+            stored = d.get("source", "")
+            if not isinstance(stored, str):
+                raise RigError(f"{where}: field source: expected a string")
+            return cls(tuple(cams), transform, workspace, stored)
         except RigError as exc:  # Camera / Rig checks know the field, not the file
             msg = str(exc)
-            raise RigError(msg if msg.startswith(f"{source}: ") else f"{source}: {msg}") from None
+            raise RigError(msg if msg.startswith(f"{where}: ") else f"{where}: {msg}") from None
 
     @classmethod
-    def from_json(cls, text: str, source: str = "rig") -> "Rig":
+    def from_json(cls, text: str, source: str | None = None) -> "Rig":
         try:
             d = json.loads(text)
         except (json.JSONDecodeError, RecursionError) as exc:
-            raise RigError(f"{source}: not valid JSON ({type(exc).__name__}: {exc})") from None
+            raise RigError(f"{source or 'rig'}: not valid JSON ({type(exc).__name__}: {exc})") from None
         return cls.from_dict(d, source)
 
-    def check_sees_workspace(self, half_size: float = WORKSPACE_HALF_SIZE, height: float = 0.0) -> None:
-        """Raise RigError naming the camera if any corner of the workspace square is not seen.
+    def check_sees_workspace(self, height: float = 0.0, workspace: Workspace | None = None) -> None:
+        """Raise RigError unless every camera sees every corner of the workspace.
 
-        Checks the four floor corners (and, with ``height`` > 0, the corners at that height):
-        each must be in front of the camera and inside its image.
+        Checks the four floor corners of ``workspace`` (default: the rig's) and, with ``height`` > 0
+        metres, the four corners at that height: each must be in front of the camera and inside its
+        image. The one-line error names the rig's file, the camera, the corner and where it projects,
+        says what silpose assumes (:data:`CONVENTION`) and how to fix the frame.
         """
-        zs = [0.0] if height <= 0 else [0.0, height]
-        corners = np.array([[sx * half_size, sy * half_size, z] for sx in (-1, 1) for sy in (-1, 1) for z in zs])
+        ws = self.workspace if workspace is None else workspace
+        corners = np.concatenate([ws.corners(z) for z in ([0.0] if height <= 0 else [0.0, height])])
         for cam in self.cameras:
             depth = cam.to_camera(corners)[:, 2]
-            if np.any(depth <= 0):
-                raise RigError(f"camera {cam.name!r}: the workspace is (partly) behind the camera")
             px = cam.project(corners)
-            if not np.all(cam.in_image(px)):
-                bad = corners[~cam.in_image(px)][0]
-                raise RigError(
-                    f"camera {cam.name!r}: does not see the workspace corner {bad.round(2).tolist()} "
-                    f"(projects to {px[~cam.in_image(px)][0].round(1).tolist()} in a "
-                    f"{cam.width}x{cam.height} image)"
-                )
+            ok = (depth > 0) & cam.in_image(px)
+            if np.all(ok):
+                continue
+            i = int(np.flatnonzero(~ok)[0])
+            where = ("is behind the camera" if depth[i] <= 0 else
+                     f"projects to {px[i].round(1).tolist()} in a {cam.width}x{cam.height} image")
+            raise RigError(
+                f"{self.where}: camera {cam.name!r} does not see the workspace corner "
+                f"{corners[i].round(2).tolist()} m ({where}); {CONVENTION} ({ws.describe()}); "
+                "re-import the calibration with `silpose rig import` and the right --unit, --up, --origin "
+                "or --workspace, and look at it with `silpose rig show`"
+            )
 
 
 def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)):
@@ -194,27 +255,23 @@ def default_rig() -> Rig:
     return ring_rig(**DEFAULT_RIG_PARAMS)
 
 
-def load_rig(path: str | Path | Iterable[str | Path], unit: float = 1.0) -> Rig:
-    """Load a rig from a JSON file (``Rig.to_json``) or from OpenCV calibration files.
+def load_rig(path: str | Path) -> Rig:
+    """Load a rig file written by :meth:`Rig.to_json` (``silpose rig import`` writes them).
 
-    Args:
-        path: a ``.json`` rig file, or one or more OpenCV ``cv2.FileStorage`` files
-            (``.xml``, ``.yml``, ``.yaml``), one camera each, in view order.
-        unit: factor converting the OpenCV files' translation unit to metres (0.001 for mm).
+    Calibration files of other tools (OpenCV XML/YAML, EasyMocap, Pose2Sim/anipose TOML) are
+    refused with a hint: ``silpose rig import`` converts them (units, up axis, origin, workspace).
+    The rig's ``source`` is ``path``; every error names it.
     """
-    paths = [Path(path)] if isinstance(path, (str, Path)) else [Path(p) for p in path]
-    if not paths:
-        raise RigError("rig: no files given")
-    for p in paths:
-        if not p.is_file():
-            raise RigError(f"{p}: rig file not found")
-    if len(paths) == 1 and paths[0].suffix.lower() == ".json":
-        try:
-            text = paths[0].read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise RigError(f"{paths[0]}: cannot read the rig file as UTF-8 text ({exc})") from None
-        return Rig.from_json(text, source=str(paths[0]))
-    cams: list[Camera] = []
-    for p in paths:
-        cams.extend(read_opencv_cameras(p, unit=unit, default_name=f"cam{len(cams)}"))
-    return Rig(tuple(cams))
+    p = Path(path)
+    if not p.is_file():
+        raise RigError(f"{p}: rig file not found")
+    if p.suffix.lower() in CALIBRATION_SUFFIXES:
+        raise RigError(
+            f"{p}: a calibration file, not a silpose rig; convert it first with "
+            f"`silpose rig import {p} --out rig.json` (options --unit, --up, --origin, --image-size)"
+        )
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RigError(f"{p}: cannot read the rig file as UTF-8 text ({exc})") from None
+    return dataclasses.replace(Rig.from_json(text, source=str(p)), source=str(p))

@@ -1,7 +1,8 @@
 """The one ``silpose`` command, composed from the installed packages.
 
 Each package declares its subcommands as entry points in the group ``silpose.commands``
-(name = subcommand, value = a plain function with typer-annotated parameters). Loading them
+(name = subcommand, value = a plain function with typer-annotated parameters, or a ``typer.Typer``
+holding a group of subcommands, e.g. ``silpose rig import`` / ``silpose rig show``). Loading them
 imports only the packages' light ``cli`` modules: heavy work (bpy, sklearn) is imported inside
 the commands, so ``silpose --help`` stays fast and never touches Blender.
 """
@@ -33,7 +34,10 @@ def build_app() -> typer.Typer:
         except Exception as exc:  # a broken plugin must not take the whole CLI down
             print(f"silpose: cannot load command {ep.name!r} from {ep.value}: {exc}", file=sys.stderr)
             continue
-        app.command(name=ep.name)(func)
+        if isinstance(func, typer.Typer):  # a group of subcommands (e.g. ``silpose rig import``)
+            app.add_typer(func, name=ep.name)
+        else:
+            app.command(name=ep.name)(func)
     return app
 
 

@@ -29,6 +29,7 @@ from .dataset_schema import (
     build_metadata,
     column_shapes,
     per_view_fields,
+    rig_from_metadata,
 )
 from .dataset_writer import records_to_table, write_shard
 from .mask_png import decode_mask_into
@@ -43,6 +44,7 @@ __all__ = [
     "read_metadata",
     "read_shard",
     "records_to_table",
+    "rig_from_metadata",
     "shard_name",
     "write_shard",
 ]
@@ -322,7 +324,7 @@ def _assemble(parts: list[dict], meta: dict, files: list[Path], columns: list[st
         masks=cat("masks"),
         subject=cat_dict("subject"),
         gait=cat_dict("gait"),
-        rig=Rig.from_dict({"cameras": meta["cameras"]}),
+        rig=rig_from_metadata(meta),
         metadata=meta,
         files=list(files),
         extra={c: cat(c) for c in extra_names},

@@ -220,7 +220,14 @@ def hf_features(n_views: int, n_points: int, subject_fields: list[str], gait_fie
     return features
 
 
-def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_version: str | None = None) -> dict:
+#: Optional metadata fields: the rig's ``transform`` (calibration frame -> this dataset's world frame)
+#: and ``workspace`` (where walkers stand), written only for rigs that have them
+#: (``silpose.shared.rig_frame``); absent means identity and the 3 m x 3 m square centred at the origin.
+RIG_FRAME_METADATA = ("transform", "workspace")
+
+
+def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_version: str | None = None,
+                   rig_frame: dict | None = None) -> dict:
     """The ``silpose`` metadata document of a dataset.
 
     Args:
@@ -228,11 +235,21 @@ def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_v
         config: the generator configuration (JSON-serialisable).
         n_points: contour points per view.
         generator_version: defaults to the installed silpose-datagen version.
+        rig_frame: ``transform`` and/or ``workspace`` dicts of the rig (``Rig.to_dict()`` holds them only
+            when they differ from the defaults); stored as top-level fields of the same names.
     """
     if generator_version is None:
         generator_version = _installed_version(GENERATOR_NAME)
     conventions = dict(DEFAULT_CONVENTIONS)
+    extra = {k: v for k, v in (rig_frame or {}).items() if k in RIG_FRAME_METADATA}
+    if "workspace" in extra:
+        conventions["world_frame"] = "right-handed, metres, z up, floor at z = 0, workspace: metadata field 'workspace'"
+    if "transform" in extra:
+        conventions["calibration_frame"] = (
+            "metadata field 'transform' maps the rig's calibration frame to the world frame: "
+            "X_world = scale * rotation @ X_calibration + offset")
     return {
+        **extra,
         "format_version": FORMAT_VERSION,
         "generator": {"name": GENERATOR_NAME, "version": generator_version},
         "cameras": cameras,
@@ -270,8 +287,14 @@ def check_metadata(meta: dict, source: str) -> None:
     if list(meta["joint_names"]) != list(JOINT_NAMES):
         raise DatasetError(f"{source}: metadata field 'joint_names' differs from silpose's 19-joint skeleton")
     try:
-        Rig.from_dict({"cameras": meta["cameras"]}, source=f"{source}: metadata field 'cameras'")
+        rig_from_metadata(meta, source=f"{source}: metadata")
     except RigError as exc:
         raise DatasetError(str(exc)) from None
     if not isinstance(meta["n_points"], int) or meta["n_points"] < 3:
         raise DatasetError(f"{source}: metadata field 'n_points': expected an integer >= 3")
+
+
+def rig_from_metadata(meta: dict, source: str | None = None) -> Rig:
+    """The dataset's rig: its cameras plus the optional ``transform`` and ``workspace`` fields."""
+    d = {"cameras": meta["cameras"], **{k: meta[k] for k in RIG_FRAME_METADATA if k in meta}}
+    return Rig.from_dict(d, source=source)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-__all__ = ["Camera", "RigError", "finite_array"]
+__all__ = ["Camera", "RigError", "finite_array", "MAX_IMAGE_SIDE"]
 
 
 class RigError(ValueError):
@@ -33,6 +33,11 @@ def finite_array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise RigError(f"{what}: contains NaN or infinity")
     return arr
+
+
+#: Largest image width or height (px) a camera may have: 8K UHD (7680 x 4320) fits; a mask of a 4-view
+#: sample at the limit is 4 x 8192^2 B = 256 MiB (a typo such as 100000 x 80000 would ask for 30 GiB).
+MAX_IMAGE_SIDE = 8192
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,8 +77,8 @@ class Camera:
         object.__setattr__(self, "dist", dist)
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (self.width, self.height)):
             raise RigError(f"{what} fields width/height: must be integers")
-        if self.width <= 0 or self.height <= 0:
-            raise RigError(f"{what} fields width/height: must be positive, got {self.width}x{self.height}")
+        if not (0 < self.width <= MAX_IMAGE_SIDE and 0 < self.height <= MAX_IMAGE_SIDE):
+            raise RigError(f"{what} fields width/height: must be in 1..{MAX_IMAGE_SIDE} px, got {self.width}x{self.height}")
         object.__setattr__(self, "width", int(self.width))
         object.__setattr__(self, "height", int(self.height))
         if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-6) or np.linalg.det(self.R) < 0:

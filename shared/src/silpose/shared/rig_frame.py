@@ -19,7 +19,12 @@ import numpy as np
 
 from .pinhole import finite_array
 
-__all__ = ["WorldTransform", "Workspace", "DEFAULT_WORKSPACE"]
+__all__ = ["WorldTransform", "Workspace", "DEFAULT_WORKSPACE", "PERSON_HEIGHT_M"]
+
+#: Height (metres) of the tallest person a workspace must hold in view: the test split's tallest
+#: stature (1.98 m, ``silpose.datagen.subjects``) rounded up. Rig checks and the automatic workspace
+#: use it (a test keeps it above every configured stature).
+PERSON_HEIGHT_M = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,8 +45,11 @@ class WorldTransform:
         A = finite_array(self.rotation, (3, 3), "transform field rotation")
         if not np.allclose(A @ A.T, np.eye(3), atol=1e-6) or np.linalg.det(A) < 0:
             raise ValueError("transform field rotation: not a proper rotation matrix")
-        s = float(self.scale)
-        if not np.isfinite(s) or s <= 0:
+        try:
+            s = float(self.scale)
+        except (TypeError, ValueError):
+            s = float("nan")
+        if isinstance(self.scale, bool) or not np.isfinite(s) or s <= 0:
             raise ValueError(f"transform field scale: must be a positive number, got {self.scale!r}")
         object.__setattr__(self, "rotation", A)
         object.__setattr__(self, "scale", s)
@@ -73,6 +81,19 @@ class WorldTransform:
         R2 = R @ self.rotation.T
         return R2, self.scale * t - R2 @ self.offset
 
+    def followed_by(self, other: "WorldTransform") -> "WorldTransform":
+        """The transform applying ``self`` then ``other``: ``other.to_silpose(self.to_silpose(X))``.
+
+        ``s2 A2 (s1 A1 X + b1) + b2 = (s2 s1) (A2 A1) X + (s2 A2 b1 + b2)``.
+        """
+        return WorldTransform(other.rotation @ self.rotation, other.scale * self.scale,
+                              other.scale * (other.rotation @ self.offset) + other.offset)
+
+    @property
+    def up_in_calibration(self) -> np.ndarray:
+        """(3,) unit vector: silpose's up (+z) expressed in the calibration's axes (``A^T e_z``)."""
+        return self.rotation[2].copy()
+
     def to_dict(self) -> dict:
         return {"rotation": self.rotation.tolist(), "scale": self.scale, "offset": self.offset.tolist()}
 
@@ -80,6 +101,9 @@ class WorldTransform:
     def from_dict(cls, d: dict) -> "WorldTransform":
         if not isinstance(d, dict):
             raise ValueError("transform: expected an object with rotation, scale, offset")
+        unknown = sorted(set(d) - {"rotation", "scale", "offset"})
+        if unknown:
+            raise ValueError(f"transform: unknown field(s) {', '.join(map(str, unknown))}")
         return cls(d.get("rotation", np.eye(3)), d.get("scale", 1.0), d.get("offset", np.zeros(3)))
 
 
@@ -120,6 +144,16 @@ class Workspace:
         (x0, x1), (y0, y1) = self.bounds
         return (xy[..., 0] >= x0) & (xy[..., 0] <= x1) & (xy[..., 1] >= y0) & (xy[..., 1] <= y1)
 
+    def describe(self) -> str:
+        """One line, e.g. ``3.00 m x 3.00 m centred at (0.00, 0.00) m``."""
+        return (f"{self.size[0]:.2f} m x {self.size[1]:.2f} m centred at "
+                f"({self.center[0]:.2f}, {self.center[1]:.2f}) m")
+
+    @property
+    def is_default(self) -> bool:
+        """True for the built-in 3 m x 3 m square centred at the origin."""
+        return self.to_dict() == DEFAULT_WORKSPACE.to_dict()
+
     def to_dict(self) -> dict:
         return {"center": self.center.tolist(), "size": self.size.tolist()}
 
@@ -127,6 +161,9 @@ class Workspace:
     def from_dict(cls, d: dict) -> "Workspace":
         if not isinstance(d, dict) or "size" not in d:
             raise ValueError("workspace: expected an object with 'size' (and optionally 'center')")
+        unknown = sorted(set(d) - {"center", "size"})
+        if unknown:
+            raise ValueError(f"workspace: unknown field(s) {', '.join(map(str, unknown))}")
         return cls(d.get("center", np.zeros(2)), d["size"])
 
 

@@ -1,4 +1,4 @@
-"""``silpose infer``: joints (and every view's contour) from silhouettes or camera frames.
+"""``silpose infer``: joints (and every view's contour) from silhouettes, camera frames or recordings (``--videos``).
 
 Only light modules are imported at module level (typer, pathlib, typing); numpy, OpenCV, pyarrow
 and rich come with the work, imported inside the command (:mod:`silpose.app.inference`,
@@ -19,23 +19,36 @@ from ..errors import InputError
 
 def infer(
     model: Annotated[Path, typer.Argument(help="Model file written by silpose train (.npz).")],
-    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera silhouette PNG folders (omit with --frames).")] = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Joints file: .parquet, or .json.")] = Path("joints.parquet"),
+    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera silhouette PNG folders (omit with --frames or --videos).")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Joints file: .parquet, or .json (default joints.parquet); with --videos an output folder (default <DIR>.silpose/).")] = None,
     split: Annotated[str, typer.Option(help="Split to read when INPUT is a dataset folder.")] = "test",
-    save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz.")] = False,
+    save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz (with --videos: a contours_px column in joints.parquet).")] = False,
     noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² (default: the model's).")] = None,
-    threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground.")] = 127,
+    threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground (images holding only 0 and 1 are read as 0/1 masks).")] = 127,
     frames: Annotated[Optional[Path], typer.Option("--frames", help="Camera frames folder: background/<camera>/ and frames/<camera>/ (PNG/JPG folders or .mp4/.avi videos); segmented by background subtraction.")] = None,
     save_overlays: Annotated[bool, typer.Option("--save-overlays", help="With --frames: one PNG per frame (frames, silhouettes with reconstructed contours, inferred stick figure; paper Fig. 9) in <out stem>.overlays/.")] = False,
     overlay_dir: Annotated[Optional[Path], typer.Option(help="Folder of the --save-overlays figures (default <out stem>.overlays/).")] = None,
     min_area: Annotated[int, typer.Option(min=1, help="With --frames: a silhouette whose largest blob has fewer pixels is a missing view.")] = 50,
-    progress: Annotated[bool, typer.Option(help="Show a progress bar (--frames).")] = True,
+    progress: Annotated[bool, typer.Option(help="Show a progress bar (--frames, --videos).")] = True,
+    videos: Annotated[Optional[Path], typer.Option("--videos", help="A recording: one video (or frame folder) per camera named as in the rig (or mapped in DIR/cameras.toml), several people; writes joints in the room, overlay videos and a floor plan to the --out folder.")] = None,
+    masks: Annotated[bool, typer.Option("--masks", help="With --videos: the videos are foreground masks (lossy codecs are fine).")] = False,
+    background_frames: Annotated[Optional[int], typer.Option("--background-frames", min=2, help="With --videos (colour): learn each camera's background from its first N frames (the empty room).")] = None,
+    background: Annotated[Optional[Path], typer.Option("--background", help="With --videos (colour): a folder of empty-room clips, one per camera, named like the videos.")] = None,
+    offsets: Annotated[Optional[str], typer.Option("--offsets", help="With --videos: per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
+    overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
+    video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
 ) -> None:
-    """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or camera frames.
+    """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
 
     INPUT is either a dataset folder (its --split is read) or a folder with one subfolder per
     camera, named as in the model's rig, holding silhouette PNGs; frames are matched by file name,
     and a missing camera folder, a missing file or an empty mask is a missing view.
+
+    With --videos DIR (instead of INPUT): a recording of several people, one video per camera (mask videos
+    with --masks, or colour videos with --background DIR / --background-frames N). People are found on the
+    floor, tracked into stable ids, and each person's joints inferred from the views where their silhouette
+    is theirs alone, placed in the room and written in silpose's frame and in the calibration's; --out is
+    a folder: joints.parquet, joints.csv, overlays/<camera>.mp4, floorplan.png, summary.json.
 
     With --frames DIR (instead of INPUT), DIR holds background/<camera>/ (empty-scene frames) and
     frames/<camera>/ (same file names in every camera folder), or <camera>.mp4/.avi videos; each
@@ -48,19 +61,32 @@ def infer(
     from silpose.shared.dataset import DatasetError
 
     from ..inference import run_inference
+    from ..writers import claim_outputs, sibling
 
-    if (input is None) == (frames is None):
-        fail("infer", "give either INPUT (silhouettes or a dataset) or --frames DIR (camera frames), not both"
-              if input is not None else "give INPUT (silhouettes or a dataset) or --frames DIR (camera frames)")
+    given = [name for name, v in (("INPUT", input), ("--frames", frames), ("--videos", videos)) if v is not None]
+    if len(given) != 1:
+        fail("infer", "give one of INPUT (silhouettes or a dataset), --frames DIR (camera frames) or --videos DIR "
+                      "(a recording)" + (f", not {' and '.join(given)}" if given else ""))
     if save_overlays and frames is None:
         fail("infer", "--save-overlays needs --frames")
+    video_only = {"--masks": masks, "--background-frames": background_frames is not None,
+                  "--background": background is not None, "--offsets": offsets is not None}
+    if videos is None and any(video_only.values()):
+        fail("infer", f"{next(k for k, v in video_only.items() if v)} needs --videos")
     try:
-        if frames is not None:
-            summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
-                                    noise_variance, progress)
+        if videos is not None:
+            summary = infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays,
+                                   video_min_area, noise_variance, progress, save_contours)
         else:
-            summary = run_inference(model, input, out=out, split=split, save_contours=save_contours,
-                                    noise_variance=noise_variance, threshold=threshold)
+            out = out or Path("joints.parquet")
+            claim_outputs(out, contours=save_contours, segmentation=frames is not None,
+                          overlay_dir=(overlay_dir or sibling(out, ".overlays")) if save_overlays else None)
+            if frames is not None:
+                summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
+                                       noise_variance, progress)
+            else:
+                summary = run_inference(model, input, out=out, split=split, save_contours=save_contours,
+                                        noise_variance=noise_variance, threshold=threshold)
     except (InputError, DatasetError, ModelFileError, ValueError) as exc:
         fail("infer", str(exc))
     except KeyboardInterrupt:
@@ -82,3 +108,34 @@ def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, 
         return run_frames_inference(model, frames, out=out, save_contours=save_contours, save_overlays=save_overlays,
                                     overlay_dir=overlay_dir, min_area=min_area, noise_variance=noise_variance,
                                     progress=lambda done, total: bar.update(task, completed=done, total=total))
+
+
+def infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays, min_area, noise_variance,
+                 progress, contours=False) -> str:
+    """``silpose infer --videos``: :func:`~silpose.app.recordings.pipeline.run_recording` with a progress bar
+    (frames/s) and warnings on stderr."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from silpose.shared.output_dir import claim_folder
+
+    from ..recordings.pipeline import RecordingOptions, run_recording
+
+    console = Console(stderr=True)
+    out = claim_folder(out if out is not None else Path(f"{Path(videos).name}.silpose"), "infer")
+    options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
+                               offsets=offsets, overlays=overlays, min_area=min_area, noise_variance=noise_variance,
+                               contours=contours)
+    with Progress(TextColumn("[bold]recording"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(), console=console,
+                  disable=not progress, transient=True) as bar:
+        task = bar.add_task("frames", total=None, rate="-")
+
+        def update(done: int, total: int) -> None:
+            elapsed = bar.tasks[0].elapsed or 0.0
+            bar.update(task, completed=done, total=total if total >= 0 else None,
+                       rate=f"{done / elapsed:.0f}" if elapsed > 0 else "-")
+
+        summary = run_recording(model, videos, out, options, progress=update,
+                                warn=lambda w: console.print(f"silpose infer: warning: {w}"))
+    return summary.text()

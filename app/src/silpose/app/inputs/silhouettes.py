@@ -6,7 +6,8 @@ Layout::
 
 Frames are matched by file name across cameras. A missing camera folder, a frame file absent from
 one camera's folder, or an empty mask (no foreground pixel) is a missing view for that frame; the
-model marginalises it. Foreground = grey value > ``threshold``.
+model marginalises it. Foreground = grey value > ``threshold``, except in a 0/1 image (every pixel 0
+or 1, the dataset's own mask encoding saved as PNG), where foreground = 1 (:func:`foreground`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,14 @@ import numpy as np
 
 from ..contours import STATUS_OK, view_contour
 from ..errors import InferenceInputError
+
+
+def foreground(img: np.ndarray, threshold: int) -> np.ndarray:
+    """(H, W) bool foreground of a grey silhouette image (H, W) uint8: ``img > threshold``, or ``img == 1``
+    when the image holds only 0 and 1 (a 0/1 mask; no 8-bit silhouette is that dark)."""
+    if img.max(initial=0) <= 1:
+        return img == 1
+    return img > threshold
 
 
 def read_png_input(model, folder: Path, threshold: int = 127):
@@ -56,7 +65,7 @@ def read_png_input(model, folder: Path, threshold: int = 127):
                 raise InferenceInputError(
                     f"{path}: image is {img.shape[1]}x{img.shape[0]}, camera {cam_name!r} is {cam.width}x{cam.height}"
                 )
-            points, status, _ = view_contour(img > threshold, n_pts)
+            points, status, _ = view_contour(foreground(img, threshold), n_pts)
             if status == STATUS_OK:
                 contours[i, k] = points
                 present[i, k] = True

@@ -9,6 +9,7 @@ Layout (the contract with the end-to-end path; ``<camera>`` = the rig camera's n
                                          record i = test sample i of ``silpose gen``
     <dir>/README.md                      the card
     <dir>/.silpose-frames.json           the configuration of the run (for resume checks)
+    <dir>/.silpose-output.json           the output marker (silpose.shared.output_dir), written first
 
 Atomicity: the dataset is built in ``<parent>/.<name>.partial/`` and renamed to ``<dir>`` when
 complete, so ``<dir>`` is either absent or whole. Every file is written under a temporary name
@@ -31,9 +32,11 @@ import numpy as np
 from silpose.shared.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
 from silpose.shared.camera_noise import add_camera_noise, noise_rng
 from silpose.shared.dataset import write_shard
+from silpose.shared.output_dir import MARKER, claim_folder
 
 from ..config import GenConfig
 from ..executor import ShardTask
+from ..manifest import LOCK
 from ..pipeline import dataset_metadata
 from ..shards import locked_folder, plan_split, run_tasks, shard_is_complete
 from .card import write_frames_card
@@ -71,11 +74,18 @@ def _identity(config: GenConfig, fcfg: FramesConfig) -> dict:
             "frames": fcfg.to_dict()}
 
 
-def _read_identity(root: Path) -> dict | None:
+def read_identity(root: Path) -> dict | None:
+    """The run configuration recorded in ``root/.silpose-frames.json`` (IDENTITY), or None."""
     try:
         return json.loads((root / IDENTITY).read_text())
     except (OSError, json.JSONDecodeError):
         return None
+
+
+def _is_partial_frames(work: Path) -> bool:
+    """An unfinished frames folder of a run from before output markers: it has the IDENTITY file, or
+    only the lock (killed before writing anything)."""
+    return read_identity(work) is not None or all(p.name == LOCK for p in work.iterdir())
 
 
 def _task_done(work: Path, task: ShardTask, cams: list[str], fcfg: FramesConfig, metadata: dict) -> bool:
@@ -132,18 +142,19 @@ def generate_frames(
     if out.exists():
         if out.is_dir() and not any(out.iterdir()):
             out.rmdir()
-        elif _read_identity(out) == identity:
+        elif read_identity(out) == identity:
             return {"out": str(out), "already_complete": True, "images_written": 0, "seconds": 0.0,
                     "image_seconds": [], "tasks_rendered": 0, "tasks_skipped": len(plan_tasks(fcfg))}
         else:
-            what = "another frames dataset" if _read_identity(out) is not None else "files that are not this frames dataset"
+            what = "another frames dataset" if read_identity(out) is not None else "files that are not this frames dataset"
             raise FramesError(f"{out}: exists and holds {what}; choose another --out or delete it")
     work = out.parent / f".{out.name}.partial"
     cams = list(config.rig.names)
     metadata = dataset_metadata(config)
+    claim_folder(work, "gen-frames", recognise=_is_partial_frames)  # before the cleanup of temporaries
     with locked_folder(work, recursive=True) as lock:
-        found = _read_identity(work)
-        if found is None and any(p.name != lock.path.name for p in work.iterdir()):
+        found = read_identity(work)
+        if found is None and any(p.name not in (lock.path.name, MARKER) for p in work.iterdir()):
             raise FramesError(f"{work}: unfinished folder without {IDENTITY}; delete it and rerun")
         if found is not None and found != identity:
             raise FramesError(f"{work}: unfinished run of another configuration (field 'frames' or 'config' "

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from silpose.shared.camera import WORKSPACE_HALF_SIZE, Rig
+from silpose.shared.camera import Rig
 from silpose.shared.seeds import APPEARANCE_STREAM, SPLIT_CODE, derive_rng
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 
@@ -20,9 +20,17 @@ from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS
 #: resume a folder rendered from another scene).
 SCENE_VERSION = 4
 
-#: Volume a person can occupy (metres): the workspace square grown by an arm's reach, up to 2.1 m.
-PERSON_VOLUME_HALF = WORKSPACE_HALF_SIZE + 0.4
+#: Volume a person can occupy (metres): the rig's workspace grown by an arm's reach
+#: (``PERSON_VOLUME_MARGIN``), from the floor up to ``PERSON_VOLUME_TOP``.
+PERSON_VOLUME_MARGIN = 0.4
 PERSON_VOLUME_TOP = 2.1
+
+
+def person_volume(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (3,), hi (3,)) metres: the box a person of ``rig``'s workspace can occupy."""
+    (x0, x1), (y0, y1) = rig.workspace.bounds
+    m = PERSON_VOLUME_MARGIN
+    return np.array([x0 - m, y0 - m, 0.0]), np.array([x1 + m, y1 + m, PERSON_VOLUME_TOP])
 
 #: Garment names; index = Blender material index of the body mesh.
 PARTS = ("shirt", "trousers", "skin", "hair", "shoes")
@@ -165,10 +173,9 @@ def occludes(points: np.ndarray, rig: Rig) -> bool:
     """True if any point lies between some camera and the person volume (it could hide the person).
 
     A point P hides part of the volume from camera C when the ray from C through P, continued
-    beyond P, enters the volume box ``[-PERSON_VOLUME_HALF, +]^2 x [0, PERSON_VOLUME_TOP]`` (slab test).
+    beyond P, enters the volume box :func:`person_volume` (slab test).
     """
-    lo = np.array([-PERSON_VOLUME_HALF, -PERSON_VOLUME_HALF, 0.0])
-    hi = np.array([PERSON_VOLUME_HALF, PERSON_VOLUME_HALF, PERSON_VOLUME_TOP])
+    lo, hi = person_volume(rig)
     for cam in rig:
         d = points - cam.center
         with np.errstate(divide="ignore", invalid="ignore"):

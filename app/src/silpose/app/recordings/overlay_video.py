@@ -1,0 +1,142 @@
+"""One overlay video per camera: what the recording saw and what silpose inferred, frame by frame.
+
+``<out>/overlays/<camera>.mp4`` (MPEG-4 part 2, the recording's frame rate), the camera's image size.
+Each frame shows, over the dimmed mask (or colour frame):
+
+- every person's own silhouette (their blob, when the view was used), tinted and outlined in the person's
+  colour;
+- the model's reconstructed contour of that view, white (dashed grey where the view was missing:
+  merged, cut by the border or not seen, projected from the inferred body, :mod:`.placement`);
+- the inferred skeleton projected into the camera, in the person's colour;
+- the person's id at the head (``?`` while a track is not yet a person), with the view's status when
+  the view was not used; the frame number and camera name at the top left.
+
+The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` and moved into
+``<out>/overlays/`` when the run ends (OpenCV picks the container from the file suffix, so the
+``.<name>.<pid>.tmp`` names of :mod:`silpose.shared.atomic` would not work).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from silpose.shared.skeleton import BONES
+
+from .views import VIEW_OK
+
+#: BGR colours of persons 1, 2, ... (cycled); tentative tracks are grey
+PALETTE = ((60, 180, 255), (255, 140, 60), (90, 220, 90), (200, 90, 230), (60, 230, 230), (230, 200, 90))
+GREY = (150, 150, 150)
+FOURCC = "mp4v"
+
+
+def person_colour(person: int) -> tuple[int, int, int]:
+    return PALETTE[(person - 1) % len(PALETTE)] if person > 0 else GREY
+
+
+def _poly(img, pts, colour, thickness=1, dashed=False) -> None:
+    p = np.asarray(pts, float)
+    if p.ndim != 2 or not np.all(np.isfinite(p)):
+        return
+    q = np.round(p * 16).astype(np.int32)
+    if not dashed:
+        cv2.polylines(img, [q], True, colour, thickness, cv2.LINE_AA, shift=4)
+        return
+    for i in range(0, len(q), 4):  # every other pair of segments
+        seg = q[i : i + 3]
+        if len(seg) >= 2:
+            cv2.polylines(img, [seg], False, colour, thickness, cv2.LINE_AA, shift=4)
+
+
+def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str, frame: int, people: list[dict]) -> np.ndarray:
+    """One overlay frame (H, W, 3) uint8 BGR.
+
+    background: (H, W) {0, 1} mask or (H, W, 3) BGR frame, or None (black, ``size`` = (W, H)). people: one dict per person seen
+    in this step: ``person`` (id, 0 = tentative), ``status`` (this view's), ``outline`` ((n, 2) px or None),
+    ``recon`` ((n, 2) px or None), ``joints_px`` ((19, 2) px or None), ``anchor_px`` ((2,) px: where the
+    label goes when there are no joints, e.g. the projected top of the person's column).
+    """
+    if background is None:
+        img = np.zeros((size[1], size[0], 3), np.uint8)
+    elif background.ndim == 2:
+        img = cv2.cvtColor((background * np.uint8(70)).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+    else:
+        img = (background * 0.6).astype(np.uint8)
+    tint = img.copy()
+    for p in people:
+        if p.get("outline") is not None and np.all(np.isfinite(p["outline"])):
+            cv2.fillPoly(tint, [np.round(p["outline"]).astype(np.int32)], person_colour(p["person"]))
+    img = cv2.addWeighted(img, 0.6, tint, 0.4, 0.0)
+    placed: list[tuple[int, int]] = []
+    for p in people:
+        col = person_colour(p["person"])
+        ok = p["status"] == VIEW_OK
+        if p.get("outline") is not None:
+            _poly(img, p["outline"], col, 1)
+        if p.get("recon") is not None:
+            _poly(img, p["recon"], (255, 255, 255) if ok else (170, 170, 170), 1, dashed=not ok)
+        j = p.get("joints_px")
+        if j is not None and np.all(np.isfinite(j)):
+            q = np.round(j * 16).astype(np.int32)
+            for a, b in BONES:
+                cv2.line(img, tuple(q[a]), tuple(q[b]), col, 2, cv2.LINE_AA, shift=4)
+            top = j[:, 1].argmin()
+            anchor = (int(j[top, 0]) - 10, max(int(j[top, 1]) - 12, 14))
+        elif p.get("anchor_px") is not None and np.all(np.isfinite(p["anchor_px"])):
+            anchor = (int(p["anchor_px"][0]) - 10, max(int(p["anchor_px"][1]), 14))
+        else:
+            continue
+        label = f"#{p['person']}" if p["person"] > 0 else "?"
+        if not ok:
+            label += f" {p['status']}"
+        while any(abs(anchor[0] - a) < 90 and abs(anchor[1] - b) < 14 for a, b in placed):  # labels must not overlap
+            anchor = (anchor[0], anchor[1] - 15)
+        placed.append(anchor)
+        cv2.putText(img, label, anchor, cv2.FONT_HERSHEY_SIMPLEX, 0.5, col, 1, cv2.LINE_AA)
+    cv2.putText(img, f"{camera}  frame {frame}", (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (230, 230, 230), 1, cv2.LINE_AA)
+    return img
+
+
+class OverlayVideos:
+    """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` per frame,
+    ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops them."""
+
+    def __init__(self, out: Path, cameras, sizes: dict, fps: float):
+        self.final = Path(out) / "overlays"
+        self.tmp = Path(out) / f".overlays.{os.getpid()}.tmp"
+        shutil.rmtree(self.tmp, ignore_errors=True)
+        self.tmp.mkdir(parents=True)
+        self.writers = {}
+        for cam in cameras:
+            path = self.tmp / f"{cam}.mp4"
+            w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps if fps > 0 else 25.0, sizes[cam])
+            if not w.isOpened():
+                self.abort()
+                raise OSError(f"{path}: OpenCV cannot write {FOURCC} video")
+            self.writers[cam] = w
+        self.n_frames = 0
+
+    def write(self, camera: str, image: np.ndarray) -> None:
+        self.writers[camera].write(image)
+
+    def close(self) -> list[Path]:
+        for w in self.writers.values():
+            w.release()
+        self.final.mkdir(parents=True, exist_ok=True)
+        out = []
+        for cam in self.writers:
+            dst = self.final / f"{cam}.mp4"
+            os.replace(self.tmp / f"{cam}.mp4", dst)
+            out.append(dst)
+        shutil.rmtree(self.tmp, ignore_errors=True)
+        return out
+
+    def abort(self) -> None:
+        for w in self.writers.values():
+            w.release()
+        shutil.rmtree(self.tmp, ignore_errors=True)

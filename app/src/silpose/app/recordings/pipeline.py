@@ -1,0 +1,469 @@
+"""``silpose infer MODEL --videos DIR``: per-camera videos of several people -> each person's joints in the room.
+
+Per time step (the steps are processed in chunks of ``chunk``; nothing grows with the recording's length
+except a few numbers per person and step for the floor plan):
+
+1. every camera's next frame is decoded and turned into a mask (:mod:`.sources`, :mod:`.silhouettes`) and
+   its connected components found (:mod:`.blobs`) -- per camera, in a thread pool (OpenCV releases the GIL);
+2. people are found on the floor by the occupancy grid of all masks (:mod:`.floor`) and linked into
+   tracks (:mod:`.tracking`);
+3. per person and camera, the blob that is theirs alone, or the reason there is none (:mod:`.views`);
+   their contours (:func:`silpose.shared.contours.extract_contour` on the blob);
+then per chunk:
+4. the model infers every detected person's root-relative joints from their usable views, missing views
+   marginalised (:func:`silpose.app.inference.infer_rows`, the path ``infer --frames`` uses); a person with
+   no usable view gets no joints;
+5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`); joints
+   are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
+6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
+
+Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count), and BLAS
+is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
+threads competing with the camera threads cost more than they give (measured on this 2-core machine
+under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1).
+
+Rows of a track are held back until the track is a person (``min_hits`` detections): a detection that never
+becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
+rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
+(an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from silpose.model.persistence import load_model
+from silpose.shared.atomic import write_json_atomic
+from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
+
+from ..errors import RecordingError
+from ..inference import infer_rows
+from .blobs import Blobs, blob_contour, find_blobs
+from .floor import FloorGrid
+from .floorplan import write_floorplan
+from .overlay_video import OverlayVideos, draw_frame
+from .placement import place_contours, place_roots
+from .room import rig_room
+from .silhouettes import MaskBinariser, background_from_clips, background_from_first_frames
+from .sources import CameraReader, open_recording, parse_offsets
+from .tracking import Track, Tracker
+from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
+                    assign_views)
+from .writers import STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
+
+#: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
+DEFAULT_MIN_AREA_PX = 150
+
+
+@dataclass
+class RecordingOptions:
+    """Options of :func:`run_recording` (``silpose infer --videos``).
+
+    masks: the videos are foreground masks (else colour, segmented against ``background`` clips or the
+    first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
+    overlay videos; noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
+    per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
+    that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
+    (:class:`~silpose.app.recordings.tracking.Tracker`; max_misses None: half a second of frames).
+    contours: also write every view's reconstructed contour (``contours_px``) to joints.parquet.
+    """
+
+    masks: bool = False
+    background: Path | None = None
+    background_frames: int | None = None
+    offsets: str | None = None
+    min_area: int = DEFAULT_MIN_AREA_PX
+    overlays: bool = True
+    noise_variance: float | None = None
+    chunk: int = 16
+    threads: int | None = None
+    max_steps: int | None = None
+    segment_params: dict | None = None
+    min_hits: int = 3
+    max_misses: int | None = None
+    contours: bool = False
+
+
+@dataclass
+class RecordingSummary:
+    """What a run did. files: written paths; counts: rows per status; views_hist: person-frames on the floor
+    by number of usable views (index = views); camera_status: {camera: {status: frames}}; timings: seconds per
+    stage; n_steps, n_persons, warnings."""
+
+    out: Path
+    files: list[Path]
+    n_steps: int
+    n_persons: int
+    counts: dict
+    views_hist: list[int]
+    camera_status: dict
+    timings: dict
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def steps_per_second(self) -> float:
+        total = self.timings.get("total", 0.0)
+        return self.n_steps / total if total > 0 else float("nan")
+
+    def text(self) -> str:
+        on_floor = sum(self.views_hist)
+        frac = [sum(self.views_hist[k:]) / on_floor if on_floor else float("nan") for k in range(len(self.views_hist))]
+        lines = [f"{self.out}: {self.n_persons} person(s) over {self.n_steps} frames; "
+                 + ", ".join(f"{n} rows {s}" for s, n in self.counts.items() if n)]
+        if on_floor:
+            lines.append("person-frames with >= 1/2/3/4 usable views: " + " / ".join(f"{100 * f:.0f} %" for f in frac[1:5]))
+        lines += [f"wrote {p}" for p in self.files]
+        lines.append(f"{self.steps_per_second:.1f} time steps/s; seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.timings.items()))
+        return "\n".join(lines)
+
+
+@dataclass
+class _Seen:
+    """One camera at one step: background (mask or frame) for the overlay, blobs, camera status (or None)."""
+
+    background: np.ndarray | None
+    blobs: Blobs | None
+    status: str | None
+    mask: np.ndarray | None = None
+
+
+class _Camera:
+    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread)."""
+
+    def __init__(self, reader: CameraReader, silhouettes, min_area: int, keep_frame: bool):
+        self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
+        self.ended = False
+
+    def step(self) -> _Seen:
+        if self.ended:
+            return _Seen(None, None, VIEW_ENDED)
+        img = self.reader.read()
+        if img is None:
+            self.ended = True
+            return _Seen(None, None, VIEW_ENDED)
+        mask = self.silhouettes(self.reader.source.camera, img)
+        blobs = find_blobs(mask, self.min_area)
+        return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask)
+
+
+@dataclass
+class _Person:
+    """A person (track) at one step, before inference."""
+
+    step: int
+    track: Track
+    floor: np.ndarray  # (2,) or NaN
+    status: list  # (K,) view statuses
+    contours: np.ndarray  # (K, n, 2) px, NaN where not used
+
+
+def _default_threads(n_cameras: int) -> int:
+    return max(0, min(n_cameras, os.cpu_count() or 1))
+
+
+def run_recording(model, videos, out, options: RecordingOptions | None = None, *,
+                  progress: Callable[[int, int], None] | None = None, warn: Callable[[str], None] | None = None,
+                  model_path: str = "") -> RecordingSummary:
+    """Everything ``silpose infer MODEL --videos DIR --out OUT`` does (module docstring).
+
+    Args:
+        model: a fitted ShapeStructureModel with a rig, or the path of a model file.
+        videos: the videos folder (:mod:`.sources`). out: output folder (created).
+        options: :class:`RecordingOptions`. progress: called with (steps done, total or -1).
+        warn: called with each warning line when it is found (also in the summary).
+    """
+    t_start = time.perf_counter()
+    opt = options or RecordingOptions()
+    if isinstance(model, (str, Path)):
+        model_path = model_path or str(model)
+        model = load_model(Path(model))
+    if getattr(model, "rig_", None) is None:
+        raise RecordingError("the model file stores no rig, so videos cannot be matched to cameras")
+    if opt.masks and (opt.background is not None or opt.background_frames is not None):
+        raise RecordingError("--masks: mask videos need no background (--background / --background-frames)")
+    if not opt.masks and (opt.background is None) == (opt.background_frames is None):
+        raise RecordingError("colour videos need a background: give --background DIR (empty-room clips) or "
+                             "--background-frames N (the first N frames show the empty room), or --masks for mask videos")
+    if opt.chunk < 1 or opt.min_area < 1:
+        raise RecordingError("chunk and min_area must be >= 1")
+    rig = model.rig_
+    names = list(rig.names)
+    transform, workspace = rig_room(rig)
+    recording = open_recording(videos, rig, parse_offsets(opt.offsets, names))
+    warnings = list(recording.warnings)
+    for w in warnings:
+        if warn:
+            warn(w)
+    start = 0
+    if opt.masks:
+        silhouettes = MaskBinariser()
+    elif opt.background is not None:
+        silhouettes = background_from_clips(Path(opt.background), rig, list(recording.sources), opt.segment_params)
+    else:
+        silhouettes = background_from_first_frames(recording.sources, int(opt.background_frames), opt.segment_params)
+        start = int(opt.background_frames)
+    total = recording.n_steps - start if recording.n_steps >= 0 else -1
+    if recording.n_steps >= 0 and total <= 0:
+        raise RecordingError(f"{videos}: no frames left after the {start} background frames")
+    if opt.max_steps is not None:
+        total = opt.max_steps if total < 0 else min(total, opt.max_steps)
+    # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
+    first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
+
+    lay = model.fitted_layout()
+    modelled = [names[v] for v in lay.views]
+    n_pts = lay.n_points
+    grid = FloorGrid(list(rig), workspace.bounds)
+    fps = recording.fps
+    tracker = Tracker(min_hits=opt.min_hits,
+                      max_misses=opt.max_misses if opt.max_misses is not None else max(3, int(round(0.5 * (fps or 25.0)))))
+    lag = tracker.min_hits * (tracker.max_misses + 1)
+    cams = {c: _Camera(CameraReader(s, silhouettes.grey, start), silhouettes, opt.min_area, keep_frame=not opt.masks)
+            for c, s in recording.sources.items()}
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "model": model_path, "videos": str(videos), "units": "metres (silpose frame: z up, floor z = 0); "
+        "joints_calibration in the calibration's units", "joint_names": list(JOINT_NAMES), "cameras": names,
+        "views": modelled, "fps": fps, "first_frame": first_frame, "transform": transform.to_dict(),
+        "workspace": workspace.to_dict(), "view_statuses": list(VIEW_STATUSES),
+    }
+    writer = RecordingWriter(out / "joints.parquet", out / "joints.csv", names, modelled, n_pts, fps, meta,
+                             contours=opt.contours)
+    overlays = None
+    timings = dict.fromkeys(("cameras", "floor", "views", "infer", "place", "write", "overlays"), 0.0)
+    camera_status = {c: dict.fromkeys(VIEW_STATUSES, 0) for c in names}
+    views_hist = [0] * (len(modelled) + 1)
+    floor_tracks: dict[int, list] = {}
+    pending: list[tuple[int, PersonRows, list[Track], np.ndarray]] = []
+    threads = _default_threads(len(cams)) if opt.threads is None else int(opt.threads)
+    pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
+    cam_list = list(cams.values())
+    stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
+    step = 0
+    blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
+    try:
+        if opt.overlays:
+            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in rig}, fps)
+        done = False
+        while not done:
+            seen_chunk: list[dict[str, _Seen]] = []
+            people: list[_Person] = []
+            while len(seen_chunk) < opt.chunk:
+                if total >= 0 and step >= total:
+                    done = True
+                    break
+                t0 = time.perf_counter()
+                seen = dict(zip(cams, stepper()))
+                timings["cameras"] += time.perf_counter() - t0
+                if any(s.status == VIEW_ENDED for s in seen.values()):
+                    ended = [c for c, s in seen.items() if s.status == VIEW_ENDED]
+                    early = step < total if total >= 0 else len(ended) < len(seen)  # unknown length: unequal ends
+                    if early:
+                        msg = f"{', '.join(recording.sources[c].path.name for c in ended)} ended after {step} frames"
+                        warnings.append(msg + (f" (expected {total})" if total >= 0 else "") + ": stopping there")
+                        if warn:
+                            warn(warnings[-1])
+                    done = True
+                    break
+                people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings, pool.map if pool else map)
+                seen_chunk.append(seen)
+                for c in names:
+                    s = seen.get(c)
+                    st = VIEW_NO_VIDEO if s is None else (s.status or VIEW_OK)
+                    camera_status[c][st] += 1
+                step += 1
+                if progress:
+                    progress(step, total)
+            if not seen_chunk:
+                break
+            rows, world = _infer_chunk(model, people, rig, names, modelled, transform, opt.noise_variance, first_frame,
+                                       timings)
+            pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
+            if overlays is not None:
+                t0 = time.perf_counter()
+                _draw_chunk(overlays, rig, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
+                            first_frame)
+                timings["overlays"] += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            pending = _emit(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
+            timings["write"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        _emit(pending, writer, step, views_hist, floor_tracks, final=True)
+        writer.close()
+        files = [out / "joints.parquet", out / "joints.csv"]
+        if overlays is not None:
+            files += overlays.close()
+            overlays = None
+        timings["write"] += time.perf_counter() - t0
+    except BaseException:
+        writer.abort()
+        if overlays is not None:
+            overlays.abort()
+        raise
+    finally:
+        blas.restore_original_limits()
+        if pool:
+            pool.shutdown()
+        for c in cams.values():
+            c.reader.close()
+    tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
+    n_persons = len(tracks)
+    if n_persons == 0:
+        warnings.append("nobody was found on the floor in any frame: joints.parquet has no rows")
+    files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
+                                 f"{Path(videos)}: {n_persons} person(s), {step} frames"))
+    timings["total"] = time.perf_counter() - t_start
+    summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
+    write_json_atomic(out / "summary.json", {
+        "frames": step, "persons": n_persons, "rows": writer.counts, "views_hist": views_hist,
+        "camera_status": camera_status, "timings_s": timings, "steps_per_second": summary.steps_per_second,
+        "warnings": warnings, "files": [str(p) for p in files],
+    })
+    summary.files.append(out / "summary.json")
+    return summary
+
+
+def _camera_views(cam, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
+    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) px, NaN where unused).
+    Runs in a worker thread (OpenCV's labelling and contour tracing release the GIL)."""
+    P = len(positions)
+    cont = np.full((P, n_pts, 2), np.nan)
+    if s is None:
+        return [VIEW_NO_VIDEO] * P, cont
+    if s.blobs is None or s.blobs.empty:
+        return [s.status or VIEW_EMPTY] * P, cont
+    labels, status = assign_views(cam, s.blobs, positions)
+    for d in range(P):
+        if status[d] == VIEW_OK:
+            pts = blob_contour(s.blobs, labels[d], n_pts)
+            if pts is None:
+                status[d] = VIEW_EMPTY
+            else:
+                cont[d] = pts
+    return status, cont
+
+
+def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
+                 mapper=map) -> list[_Person]:
+    """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step."""
+    t0 = time.perf_counter()
+    masks = []
+    for c in names:
+        s = seen.get(c)
+        masks.append(None if s is None or s.blobs is None or s.blobs.empty else s.mask)
+    det = grid.locate(masks)
+    links = tracker.update(step, det.positions)
+    timings["floor"] += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), det.positions, n_pts), range(len(names))))
+    out = []
+    for track, d in links:
+        if d < 0:
+            out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
+                               np.full((len(names), n_pts, 2), np.nan)))
+        else:
+            out.append(_Person(step, track, det.positions[d].copy(), [st[d] for st, _ in per_cam],
+                               np.stack([c[d] for _, c in per_cam])))
+    timings["views"] += time.perf_counter() - t0
+    return out
+
+
+def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, noise_variance, first_frame, timings):
+    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3)."""
+    R, K = len(people), len(names)
+    lay = model.fitted_layout()
+    V, n_pts = len(lay.views), lay.n_points
+    nan = lambda *s: np.full((R,) + s, np.nan)  # noqa: E731
+    joints, std, root = nan(N_JOINTS, 3), nan(N_JOINTS, 3), nan(3)
+    contours, logm = nan(V, n_pts, 2), nan()
+    status = np.array([STATUS_NOT_DETECTED] * R, dtype=object)
+    view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
+    is_modelled = np.array([c in modelled for c in names])
+    view_status[:, ~is_modelled] = np.where(view_status[:, ~is_modelled] == VIEW_OK, VIEW_NOT_MODELLED,
+                                            view_status[:, ~is_modelled])
+    used = view_status == VIEW_OK
+    detected = np.array([np.all(np.isfinite(p.floor)) for p in people], bool)
+    status[detected] = STATUS_NO_VIEW
+    rows = np.flatnonzero(detected & used.any(axis=1))
+    if len(rows):
+        t0 = time.perf_counter()
+        c = np.stack([people[i].contours for i in rows])
+        res = infer_rows(model, c, used[rows], noise_variance)
+        timings["infer"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        cams = [rig[v] for v in res.views]
+        floor = np.stack([people[i].floor for i in rows])
+        r = place_roots(res.joints, res.centroid, res.views_present, cams, floor)
+        joints[rows] = res.joints + r[:, None]
+        std[rows] = res.joint_std
+        root[rows] = r
+        contours[rows] = place_contours(res, r, cams)
+        logm[rows] = res.log_marginal
+        status[rows] = STATUS_OK
+        timings["place"] += time.perf_counter() - t0
+    floor = np.stack([p.floor for p in people]) if R else np.zeros((0, 2))
+    rows_out = PersonRows(
+        frame=np.array([p.step for p in people], np.int64) + first_frame, person=np.zeros(R, np.int32),
+        status=status, floor=floor, view_status=view_status, views_used=used, log_marginal=logm, joints=joints,
+        joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,
+        root_calibration=transform.to_calibration(root), contours=contours)
+    return rows_out, joints
+
+
+def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_tracks, final: bool):
+    """Write the held-back chunks whose steps are all <= ``cutoff`` (all of them when ``final``): rows of
+    tracks that became persons, minus not-detected rows after a track's last detection. Returns the rest."""
+    keep = []
+    for last, rows, tracks, steps in pending:
+        if not final and last > cutoff:
+            keep.append((last, rows, tracks, steps))
+            continue
+        person = np.array([t.person for t in tracks], np.int32)
+        bridged = np.array([t.last > s for t, s in zip(tracks, steps)], bool)  # detected again after this step
+        ok = (person > 0) & ((rows.status != STATUS_NOT_DETECTED) | bridged)
+        if not ok.any():
+            continue
+        out = rows.take(np.flatnonzero(ok))
+        out.person = person[ok]
+        writer.write(out)
+        for i in np.flatnonzero(out.status != STATUS_NOT_DETECTED):
+            views_hist[int(out.views_used[i].sum())] += 1
+            xy = out.root[i, :2] if np.all(np.isfinite(out.root[i])) else out.floor[i]
+            floor_tracks.setdefault(int(out.person[i]), []).append((out.frame[i], xy[0], xy[1]))
+    return keep
+
+
+def _draw_chunk(overlays: OverlayVideos, rig, names, modelled, step0: int, seen_chunk, people, rows: PersonRows, world,
+                first_frame: int) -> None:
+    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`)."""
+    by_step: dict[int, list[int]] = {}
+    for i, p in enumerate(people):
+        if np.all(np.isfinite(p.floor)):
+            by_step.setdefault(p.step, []).append(i)
+    for j, seen in enumerate(seen_chunk):
+        step = step0 + j
+        idx = by_step.get(step, [])
+        for k, c in enumerate(names):
+            cam = rig[k]
+            s = seen.get(c)
+            items = []
+            for i in idx:
+                p = people[i]
+                outline = p.contours[k] if np.all(np.isfinite(p.contours[k])) else None
+                recon = rows.contours[i, modelled.index(c)] if c in modelled else None
+                jp = cam.project(world[i]) if np.all(np.isfinite(world[i])) else None
+                top = cam.project(np.array([p.floor[0], p.floor[1], 2.0]))
+                items.append({"person": p.track.person, "status": rows.view_status[i, k], "outline": outline,
+                              "recon": recon, "joints_px": jp, "anchor_px": top})
+            overlays.write(c, draw_frame(None if s is None else s.background, (cam.width, cam.height), c,
+                                         step + first_frame, items))

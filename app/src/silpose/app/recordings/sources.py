@@ -1,0 +1,271 @@
+"""A recording's input: one video (or image folder) per camera, matched to the rig, synchronised by index, streamed.
+
+Layout of ``silpose infer MODEL --videos DIR``::
+
+    DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig, or
+    DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order)
+    DIR/cameras.toml                               optional: [cameras] <camera> = "<file or folder>"
+
+With ``cameras.toml`` only the mapped entries are read (paths relative to DIR); without it every video's
+file stem must be a rig camera name (sub-folders not named after a camera are ignored). A rig camera with
+no video is a missing view in every frame (a warning); no video at all is an error.
+
+Checks before any frame is processed, each a one-line :class:`~silpose.app.errors.RecordingError` naming
+the file: the video opens and decodes a first frame; its frame size is the rig camera's; all videos have
+one frame rate (1 % tolerance; frames are synchronised by index, so different rates would pair frames
+shot at different times). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
+the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
+camera has a frame to the end of the shortest video (videos of unequal length: a warning). A video that
+ends earlier than its header said stops the run there with a warning, never mid-way with an error.
+
+Decoding: OpenCV's FFmpeg backend (``cv2.VideoCapture``), one frame at a time, so memory does not grow
+with the recording's length. Why not PyAV: OpenCV already ships FFmpeg in the wheel the workspace uses
+(no new dependency), decodes a 644x486 frame in ~1.3 ms here (MPEG-4 part 2; about PyAV's speed, both
+call libavcodec), and the only thing PyAV would add -- direct access to the decoder's luma plane, saving
+one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchmarks/recordings.py``).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import RecordingError
+from ..inputs.images import IMAGE_SUFFIXES
+
+#: video file suffixes read as cameras (case-insensitive)
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
+#: optional camera -> file mapping inside the videos folder
+MAPPING_FILE = "cameras.toml"
+#: relative frame-rate difference tolerated between cameras
+FPS_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class CameraSource:
+    """One camera's video or frame folder, probed.
+
+    camera: rig camera name; path: the file or folder; fps: frames per second (0 when unknown: image
+    folders, or a header without it); n_frames: frames the header (or folder) reports, -1 when unknown;
+    width, height: frame size, px; skip: frames skipped at the start (offsets).
+    """
+
+    camera: str
+    path: Path
+    fps: float
+    n_frames: int
+    width: int
+    height: int
+    skip: int = 0
+    images: tuple[Path, ...] | None = None
+
+    @property
+    def is_video(self) -> bool:
+        return self.images is None
+
+
+@dataclass
+class Recording:
+    """The synchronised cameras of a recording.
+
+    sources: {camera: CameraSource} in rig order, cameras with a video; missing: rig cameras without;
+    n_steps: time steps (frames every camera has; -1 when a header does not say); fps: frames per
+    second (0 when unknown); warnings: one line each.
+    """
+
+    root: Path
+    sources: dict[str, CameraSource]
+    missing: tuple[str, ...]
+    n_steps: int
+    fps: float
+    warnings: list[str] = field(default_factory=list)
+
+
+def parse_offsets(text: str | None, cameras) -> dict[str, int]:
+    """``"cam1=3,cam2=-1"`` -> {camera: frames}; unknown cameras and malformed items are one-line errors."""
+    out: dict[str, int] = {}
+    if not text:
+        return out
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        try:
+            n = int(value)
+        except ValueError:
+            n = None
+        if not sep or n is None:
+            raise RecordingError(f"--offsets: {item!r} is not <camera>=<integer frames>")
+        if name not in cameras:
+            raise RecordingError(f"--offsets: camera {name!r} is not in the rig (cameras {list(cameras)})")
+        out[name] = n
+    return out
+
+
+def _entries(folder: Path, cameras: tuple[str, ...]) -> dict[str, Path]:
+    mapping = folder / MAPPING_FILE
+    if mapping.is_file():
+        try:
+            doc = tomllib.loads(mapping.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise RecordingError(f"{mapping}: not valid TOML ({exc})") from None
+        table = doc.get("cameras")
+        if not isinstance(table, dict) or not table:
+            raise RecordingError(f"{mapping}: field 'cameras' must be a table <camera> = \"<video file>\"")
+        out = {}
+        for cam, rel in table.items():
+            if cam not in cameras:
+                raise RecordingError(f"{mapping}: field 'cameras.{cam}': not a rig camera (cameras {list(cameras)})")
+            if not isinstance(rel, str):
+                raise RecordingError(f"{mapping}: field 'cameras.{cam}' must be a file name (string)")
+            p = folder / rel
+            if not p.exists():
+                raise RecordingError(f"{mapping}: field 'cameras.{cam}': {p} does not exist")
+            out[cam] = p
+        return out
+    out: dict[str, Path] = {}
+    for p in sorted(folder.iterdir()):
+        if p.name.startswith("."):
+            continue
+        if p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES:
+            if p.stem not in cameras:
+                raise RecordingError(
+                    f"{p}: {p.stem!r} is not a rig camera (cameras {list(cameras)}); rename the video or map it in "
+                    f"{folder / MAPPING_FILE}")
+        elif not (p.is_dir() and p.name in cameras):
+            continue
+        if p.stem in out:
+            raise RecordingError(f"{p}: camera {p.stem!r} has both {out[p.stem].name} and {p.name}")
+        out[p.stem] = p
+    return out
+
+
+def _probe(camera: str, path: Path) -> CameraSource:
+    """Open, check the first frame decodes, read size / rate / count."""
+    if path.is_dir():
+        images = tuple(sorted(q for q in path.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES))
+        if not images:
+            raise RecordingError(f"{path}: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} frames in this camera folder")
+        img = cv2.imread(str(images[0]), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise RecordingError(f"{images[0]}: cannot read this image (corrupt or not an image)")
+        return CameraSource(camera, path, 0.0, len(images), img.shape[1], img.shape[0], images=images)
+    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    try:
+        if not cap.isOpened():
+            raise RecordingError(f"{path}: OpenCV (FFmpeg) cannot open this video (corrupt, or not a video)")
+        ok, img = cap.read()
+        if not ok or img is None:
+            raise RecordingError(f"{path}: the video has no decodable frame (empty or corrupt)")
+        fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    finally:
+        cap.release()
+    return CameraSource(camera, path, fps if np.isfinite(fps) and fps > 0 else 0.0, count if count > 0 else -1,
+                        img.shape[1], img.shape[0])
+
+
+def open_recording(folder, rig, offsets: dict[str, int] | None = None) -> Recording:
+    """Match, probe and synchronise the videos of ``folder`` for ``rig`` (module docstring)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RecordingError(f"{folder}: videos folder not found")
+    cameras = tuple(rig.names)
+    entries = _entries(folder, cameras)
+    if not entries:
+        raise RecordingError(
+            f"{folder}: no video named as a rig camera ({', '.join(c + '.mp4' for c in cameras)}, or a "
+            f"{MAPPING_FILE} mapping)")
+    warnings = []
+    sources = {}
+    for cam in cameras:
+        if cam not in entries:
+            continue
+        src = _probe(cam, entries[cam])
+        want = rig[cameras.index(cam)]
+        if (src.width, src.height) != (want.width, want.height):
+            raise RecordingError(
+                f"{src.path}: frames are {src.width}x{src.height} (WxH), camera {cam!r} of the rig is "
+                f"{want.width}x{want.height}: resize the video or use the calibration of this resolution")
+        sources[cam] = src
+    missing = tuple(c for c in cameras if c not in sources)
+    if missing:
+        warnings.append(f"no video for camera(s) {', '.join(missing)}: a missing view in every frame")
+    rates = {c: s.fps for c, s in sources.items() if s.fps > 0}
+    fps = 0.0
+    if rates:
+        lo, hi = min(rates.values()), max(rates.values())
+        if hi > lo * (1 + FPS_TOLERANCE):
+            desc = ", ".join(f"{sources[c].path.name} {r:g} fps" for c, r in rates.items())
+            raise RecordingError(
+                f"{folder}: the videos' frame rates differ ({desc}); frames are synchronised by index, so "
+                f"re-encode them to one rate")
+        fps = float(np.median(list(rates.values())))
+        unknown = [c for c, s in sources.items() if s.fps == 0 and s.is_video]
+        if unknown:
+            warnings.append(f"no frame rate in {', '.join(sources[c].path.name for c in unknown)}: assuming {fps:g} fps")
+    offsets = dict(offsets or {})
+    base = min([0] + [offsets.get(c, 0) for c in sources])
+    for c, s in sources.items():
+        sources[c] = CameraSource(s.camera, s.path, s.fps, s.n_frames, s.width, s.height, offsets.get(c, 0) - base, s.images)
+    lengths = {c: s.n_frames - s.skip for c, s in sources.items() if s.n_frames >= 0}
+    for c, n in lengths.items():
+        if n <= 0:
+            raise RecordingError(f"{sources[c].path}: has {sources[c].n_frames} frames, fewer than its offset {sources[c].skip}")
+    n_steps = min(lengths.values()) if len(lengths) == len(sources) else -1
+    if len(set(lengths.values())) > 1:
+        short = min(lengths, key=lengths.get)
+        warnings.append(
+            "videos of unequal length (" + ", ".join(f"{sources[c].path.name} {n}" for c, n in lengths.items())
+            + f" frames after offsets): stopping at the shortest, {sources[short].path.name}")
+    return Recording(folder, sources, missing, n_steps, fps, warnings)
+
+
+class CameraReader:
+    """Streams one camera's frames: :meth:`read` gives the next one, or None at the end.
+
+    grey: (H, W) uint8 frames (masks), else (H, W, 3) uint8 BGR. A video opens at construction and
+    skips ``source.skip`` frames (offsets) plus ``start`` frames.
+    """
+
+    def __init__(self, source: CameraSource, grey: bool, start: int = 0):
+        self.source = source
+        self.grey = grey
+        self.index = source.skip + int(start)
+        self.cap = None
+        if source.is_video:
+            self.cap = cv2.VideoCapture(str(source.path), cv2.CAP_FFMPEG)
+            if not self.cap.isOpened():
+                raise RecordingError(f"{source.path}: OpenCV (FFmpeg) cannot open this video")
+            for _ in range(self.index):
+                if not self.cap.grab():
+                    break
+
+    def read(self) -> np.ndarray | None:
+        if self.cap is not None:
+            ok, img = self.cap.read()
+            if not ok or img is None:
+                return None
+        else:
+            if self.index >= len(self.source.images):
+                return None
+            img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_COLOR)
+            if img is None:  # a corrupt frame ends the camera, like a video that stops decoding
+                return None
+            if (img.shape[1], img.shape[0]) != (self.source.width, self.source.height):
+                return None
+        self.index += 1
+        if self.grey and img.ndim == 3:
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        return img
+
+    def close(self) -> None:
+        if self.cap is not None:
+            self.cap.release()
+            self.cap = None

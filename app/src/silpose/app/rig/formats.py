@@ -1,0 +1,114 @@
+"""Which calibration format a file is in, and reading several files into one list of cameras.
+
+======================  ==========================================  ==========================
+format                  files                                       reader
+======================  ==========================================  ==========================
+``opencv``              ``*.xml`` / ``*.yml`` / ``*.yaml``           :func:`.opencv.read_opencv`
+``easymocap``           ``intri.yml`` + ``extri.yml``               :func:`.easymocap.read_easymocap`
+``pose2sim``            ``*.toml`` (Pose2Sim, anipose)              :func:`.pose2sim.read_pose2sim`
+``silpose``             ``rig.json`` (``silpose rig import``)         :func:`silpose.shared.camera.load_rig`
+======================  ==========================================  ==========================
+
+``auto`` picks by name and suffix: ``intri*.yml`` / ``extri*.yml`` -> easymocap, ``.toml`` ->
+pose2sim, ``.json`` -> silpose, other FileStorage suffixes -> opencv.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from silpose.shared.camera import Rig, RigError, load_rig
+
+from .calibration import CalibratedCamera
+from .easymocap import easymocap_pair, is_easymocap, read_easymocap
+from .opencv import read_opencv
+from .pose2sim import read_pose2sim
+
+__all__ = ["FORMATS", "detect_format", "read_calibrations", "Calibrations"]
+
+FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "silpose")
+_OPENCV_SUFFIXES = (".xml", ".yml", ".yaml")
+
+
+def detect_format(path: str | Path) -> str:
+    """The format of one file by its name (module docstring); RigError if none fits."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if is_easymocap(p):
+        return "easymocap"
+    if suffix == ".toml":
+        return "pose2sim"
+    if suffix == ".json":
+        return "silpose"
+    if suffix in _OPENCV_SUFFIXES:
+        return "opencv"
+    raise RigError(f"{p}: unknown calibration format (suffix {suffix or 'none'}); silpose reads OpenCV .xml/.yml/.yaml, "
+                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml and silpose rig .json (or pass --format)")
+
+
+class Calibrations:
+    """The cameras read from the files, with the format used and, for a silpose rig file, that rig."""
+
+    def __init__(self, cameras: list[CalibratedCamera], formats: list[str], rig: Rig | None, sources: list[str],
+                 notes: list[str] | None = None):
+        self.cameras = cameras
+        self.formats = formats
+        self.rig = rig
+        self.sources = sources
+        self.notes = notes or []
+
+
+def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
+    """Every camera of ``paths`` (one or more files), in file order then camera order.
+
+    Camera names come from the files (never renumbered) and must be unique across them.
+    """
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise RigError("rig import: no calibration files given")
+    if fmt not in FORMATS:
+        raise RigError(f"--format: must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    for p in paths:
+        if not p.is_file():
+            raise RigError(f"{p}: calibration file not found")
+    cams: list[CalibratedCamera] = []
+    formats: list[str] = []
+    sources: list[str] = []
+    rig = None
+    notes: list[str] = []
+    seen_pairs: set[tuple[str, str]] = set()
+    for p in paths:
+        kind = detect_format(p) if fmt == "auto" else fmt
+        formats.append(kind)
+        if kind == "silpose":
+            if len(paths) > 1:
+                raise RigError(f"{p}: a silpose rig file is imported on its own, not with other calibration files")
+            rig = load_rig(p)
+            cams = [CalibratedCamera(c.name, c.K, c.dist, c.R, c.t, (c.width, c.height), str(p), f"cameras[{i}].")
+                    for i, c in enumerate(rig)]
+            sources.append(str(p))
+            continue
+        if kind == "easymocap":
+            pair = tuple(str(q) for q in easymocap_pair(p))
+            if pair in seen_pairs:
+                continue
+            seen_pairs.add(pair)
+            skipped: list[str] = []
+            got = read_easymocap(p, skipped)
+            sources += list(pair)
+            if skipped:
+                notes.append(f"{pair[0]}: camera(s) {', '.join(skipped)} have intrinsics but no extrinsics in "
+                             f"{pair[1]}; left out")
+        elif kind == "pose2sim":
+            got = read_pose2sim(p)
+            sources.append(str(p))
+        else:
+            got = read_opencv(p)
+            sources.append(str(p))
+        for c in got:
+            twin = next((o for o in cams if o.name == c.name), None)
+            if twin is not None:
+                raise RigError(f"{c.source}: camera name {c.name!r} is also a camera of {twin.source}; names must be "
+                               "unique (a camera is named by its name field, its section, or its file's stem)")
+        cams.extend(got)
+    return Calibrations(cams, formats, rig, sources, notes)

@@ -1,0 +1,243 @@
+"""Recordings (``silpose infer --videos``): time steps per second, memory over a 10x longer video, accuracy.
+
+Section ``recordings`` of ``python -m benchmarks.run``. Inputs, made in a temporary folder (not timed):
+the lab recording of :mod:`silpose.datagen.lab` (two walkers crossing in front of four 644x486 cameras
+on one wall, ``n_frames`` frames, lossy mask videos) and a model of the lab rig (``model``, or trained on
+``train`` walkers rendered for the lab rig with the real generator and trainer). The long recording
+plays the mask videos ``repeat`` times, forwards then backwards (so the walkers never jump), re-encoded.
+
+Rows:
+
+- ``run``: one per measured run, each in its own Python subprocess: steps, wall seconds and time steps
+  per second, CPU seconds per step (all threads; the machine is shared, so wall time is the noisier
+  figure), per-stage shares, the process's baseline RSS (after imports and the model) and peak RSS
+  (``ru_maxrss``). Runs: 1x and ``repeat`` x without overlays, 1x single-threaded, 1x with overlay videos.
+- ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
+  person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
+  inferred from clean per-person masks.
+- ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
+  blobs' foot points through each camera's floor homography (:func:`foot_points`, the alternative): per
+  frame, detections paired with the true pelvis (Hungarian, 0.5 m gate): recall, false detections, error.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from . import subproc
+
+TINY_TRAIN, TINY_MODEL = 120, {"n_components": 2, "n_latent": 8, "max_iter": 30, "n_init": 1}
+MODEL = {"n_components": 5, "n_latent": 20, "max_iter": 100, "n_init": 1}
+
+
+def _train(folder: Path, n_train: int, n_points: int, hyper: dict) -> Path:
+    from silpose.app.training import run_training
+    from silpose.datagen.config import load_config
+    from silpose.datagen.lab import lab_rig
+    from silpose.datagen.pipeline import generate
+
+    (folder / "lab_rig.json").write_text(lab_rig().to_json())
+    (folder / "lab.toml").write_text(
+        f'name = "lab"\nseed = 0\nrenderer = "raster"\nshard_size = 100\nn_points = {n_points}\nmax_redraws = 50\n'
+        f'[splits]\ntrain = {n_train}\ntest = 0\n[rig]\nfile = "lab_rig.json"\n')
+    generate(load_config(folder / "lab.toml"), folder / "data", workers=2, progress=False)
+    out = folder / "lab.npz"
+    run_training(str(folder / "data"), out=out, progress=False, **hyper)
+    return out
+
+
+def _ping_pong(src: Path, dst: Path, repeat: int) -> int:
+    """Write ``dst/<camera>.mp4``: each of ``src``'s mask videos played ``repeat`` times, forwards then
+    backwards. Returns the frame count."""
+    import cv2
+    import numpy as np
+
+    dst.mkdir(parents=True, exist_ok=True)
+    n = 0
+    for video in sorted(src.glob("*.mp4")):
+        cap = cv2.VideoCapture(str(video))
+        fps = cap.get(cv2.CAP_PROP_FPS)
+        frames = []
+        while True:
+            ok, img = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY))
+        cap.release()
+        h, w = frames[0].shape
+        wr = cv2.VideoWriter(str(dst / video.name), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h), isColor=False)
+        order = [i if r % 2 == 0 else len(frames) - 1 - i for r in range(repeat) for i in range(len(frames))]
+        for i in order:
+            wr.write(np.ascontiguousarray(frames[i]))
+        wr.release()
+        n = len(order)
+    return n
+
+
+def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None) -> dict:
+    """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
+    import resource
+    import time
+
+    import psutil
+
+    from silpose.app.recordings.pipeline import RecordingOptions, run_recording
+    from silpose.model.persistence import load_model
+
+    m = load_model(model)
+    import matplotlib.pyplot  # noqa: F401  (the floor plan's import, before the baseline)
+
+    baseline = psutil.Process().memory_info().rss
+    cpu0, t0 = time.process_time(), time.perf_counter()
+    s = run_recording(m, videos, out, RecordingOptions(masks=True, overlays=overlays, threads=threads))
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    mb = 2.0**-20
+    stages = {k: v for k, v in s.timings.items() if k != "total"}
+    busy = sum(stages.values()) or 1.0
+    return {"steps": s.n_steps, "persons": s.n_persons, "wall_s": wall, "steps_per_s": s.n_steps / wall,
+            "cpu_ms_per_step": 1000 * cpu / s.n_steps, "steps_per_cpu_s": s.n_steps / cpu,
+            **{f"share_{k}": v / busy for k, v in stages.items()},
+            "baseline_mb": baseline * mb, "peak_mb": peak * mb, "run_mb": (peak - baseline) * mb}
+
+
+def foot_points(masks, rig, min_area: int, cluster_m: float = 0.5):
+    """People on the floor from foot points (the alternative to the occupancy grid): every usable blob not
+    touching the border gives the floor point under its lowest row at its centroid's column (the pixel's
+    ray met with z = 0, i.e. the camera's floor homography); points of different cameras within
+    ``cluster_m`` are one person (greedy, strongest cluster first), kept when two cameras or more agree.
+    Returns (D, 2) metres."""
+    import numpy as np
+
+    from silpose.app.recordings.blobs import find_blobs
+
+    pts, cams = [], []
+    for k, (cam, m) in enumerate(zip(rig, masks)):
+        b = find_blobs(m, min_area)
+        for lab in np.flatnonzero(b.usable & ~b.touches_border):
+            x, y, w, h = b.bbox[lab]
+            u = np.array([b.centroid[lab, 0], y + h - 1, 1.0])
+            d = cam.R.T @ np.linalg.solve(cam.K, u)
+            c = cam.center
+            if d[2] >= 0:
+                continue
+            pts.append((c - c[2] / d[2] * d)[:2])
+            cams.append(k)
+    pts, cams = np.array(pts).reshape(-1, 2), np.array(cams)
+    left = np.ones(len(pts), bool)
+    out = []
+    while left.any():
+        idx = np.flatnonzero(left)
+        near = np.linalg.norm(pts[idx, None] - pts[None, idx], axis=2) <= cluster_m
+        best = int(np.argmax(near.sum(axis=1)))
+        members = idx[near[best]]
+        # one point per camera: the nearest to the seed
+        chosen = {}
+        for i in members:
+            if cams[i] not in chosen or np.linalg.norm(pts[i] - pts[idx[best]]) < np.linalg.norm(pts[chosen[cams[i]]] - pts[idx[best]]):
+                chosen[cams[i]] = i
+        sel = np.array(list(chosen.values()))
+        if len(sel) >= 2:
+            out.append(pts[sel].mean(axis=0))
+        left[sel if len(sel) >= 2 else idx[best:best + 1]] = False
+    return np.array(out).reshape(-1, 2)
+
+
+def _floor_rows(lab: Path, rig) -> list[dict]:
+    """The two floor methods on every frame of the recording (decoded and binarised once)."""
+    import time
+
+    import cv2
+    import numpy as np
+    from scipy.optimize import linear_sum_assignment
+
+    from silpose.app.recordings.floor import FloorGrid
+    from silpose.app.recordings.pipeline import DEFAULT_MIN_AREA_PX
+    from silpose.app.recordings.silhouettes import binarise
+    from silpose.shared.rig_frame import DEFAULT_WORKSPACE
+
+    truth = np.load(lab / "truth.npz")["joints"][:, :, 0, :2]
+    masks = []
+    for cam in rig:
+        cap = cv2.VideoCapture(str(lab / "masks" / f"{cam.name}.mp4"))
+        frames = []
+        while True:
+            ok, img = cap.read()
+            if not ok:
+                break
+            frames.append(binarise(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)))
+        masks.append(frames)
+    grid = FloorGrid(list(rig), DEFAULT_WORKSPACE.bounds)
+    methods = {"occupancy grid": lambda ms: grid.locate(ms).positions,
+               "foot points": lambda ms: foot_points(ms, rig, DEFAULT_MIN_AREA_PX)}
+    rows = []
+    for name, fn in methods.items():
+        found = false = 0
+        errs, seconds = [], 0.0
+        for f in range(len(truth)):
+            t0 = time.perf_counter()
+            det = fn([masks[k][f] for k in range(len(rig))])
+            seconds += time.perf_counter() - t0
+            cost = np.linalg.norm(det[:, None] - truth[f][None], axis=2) if len(det) else np.zeros((0, len(truth[f])))
+            r, c = linear_sum_assignment(cost) if len(det) else ([], [])
+            ok = [i for i, j in zip(r, c) if cost[i, j] <= 0.5]
+            found += len(ok)
+            false += len(det) - len(ok)
+            errs += [cost[i, j] for i, j in zip(r, c) if cost[i, j] <= 0.5]
+        total = truth.shape[0] * truth.shape[1]
+        rows.append({"name": "floor", "method": name, "person_frames": total, "recall": found / total,
+                     "false_detections": false, "error_cm": 100 * float(np.mean(errs)) if errs else float("nan"),
+                     "error_max_cm": 100 * float(np.max(errs)) if errs else float("nan"),
+                     "ms_per_frame": 1000 * seconds / len(truth)})
+    return rows
+
+
+def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int = 200, model: str | None = None,
+        threads: int | None = None) -> list[dict]:
+    """Make the inputs, measure (module docstring). ``model``: a model file of the lab rig (None: train one on
+    ``train`` walkers, the full-size hyperparameters when ``train`` >= 400, else tiny ones)."""
+    import numpy as np
+
+    from silpose.datagen.lab import make_lab_recording, unpack_masks
+    from silpose.eval.recordings import clean_reference, read_rows, score_reference, score_rows
+    from silpose.model.persistence import load_model
+
+    with tempfile.TemporaryDirectory(prefix="silpose-bench-recordings-") as tmp:
+        tmp = Path(tmp)
+        lab = make_lab_recording(tmp / "lab", n_frames=n_frames)
+        if model is None:
+            (tmp / "train").mkdir()
+            model = str(_train(tmp / "train", train, n_points, MODEL if train >= 400 else TINY_MODEL))
+        long_frames = _ping_pong(lab / "masks", tmp / "long", repeat)
+        rows = []
+        for label, videos, overlays, thr in (("1x", lab / "masks", False, threads), (f"{repeat}x", tmp / "long", False, threads),
+                                            ("1x single-threaded", lab / "masks", False, 0),
+                                            ("1x with overlays", lab / "masks", True, threads)):
+            out = tmp / f"out-{len(rows)}"
+            res = subproc.call(__name__, "measure", dict(model=model, videos=str(videos), out=str(out),
+                                                          overlays=overlays, threads=thr))
+            if res.error:
+                raise RuntimeError(f"recordings: run {label} failed ({res.error})")
+            rows.append({"name": "run", "run": label, **res.value})
+            if label == "1x":
+                first = out
+        big = next(r for r in rows if r["run"] == f"{repeat}x")
+        one = rows[0]
+        big["peak_mb_vs_1x"] = big["peak_mb"] / one["peak_mb"]
+        big["steps_vs_1x"] = big["steps"] / one["steps"]
+        assert big["steps"] == long_frames
+        truth = np.load(lab / "truth.npz")
+        sc = score_rows(read_rows(first / "joints.parquet"), truth["joints"])
+        ref = score_reference(clean_reference(load_model(model), unpack_masks(truth)), truth["joints"])
+        rows.append({"name": "accuracy", "input": "recording (lossy mask videos)", "frames": n_frames,
+                     "persons": sc["persons"], "identity_switches": sc["identity_switches"],
+                     "person_frames": sc["person_frames"], "paired": sc["paired"], "with_joints": sc["with_joints"],
+                     "false_rows": sc["false_rows"],
+                     **{f"views_ge_{k}": v for k, v in sc["views_at_least"].items()},
+                     "root_cm": sc["root_error_cm"], "world_cm": sc["world_error_cm"], "relative_cm": sc["relative_error_cm"]})
+        rows.append({"name": "accuracy", "input": "clean per-person masks, every view", "frames": n_frames,
+                     "with_joints": ref["with_joints"], "root_cm": ref["root_error_cm"], "world_cm": ref["world_error_cm"],
+                     "relative_cm": ref["relative_error_cm"]})
+        rows += _floor_rows(lab, load_model(model).rig_)
+    return rows

@@ -1,0 +1,229 @@
+"""The recordings workflow's parts: binarising lossy masks, blobs, the floor grid, view assignment, tracking,
+placement and the writers (silpose.app.recordings)."""
+
+import cv2
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from silpose.app.recordings.blobs import blob_contour, find_blobs
+from silpose.app.recordings.floor import FloorGrid
+from silpose.app.recordings.placement import body_point, place_contours, place_roots, root_height
+from silpose.app.recordings.silhouettes import binarise
+from silpose.app.recordings.tracking import Tracker
+from silpose.app.recordings.views import VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK, assign_views
+from silpose.app.recordings.writers import PersonRows, RecordingWriter
+from silpose.datagen.lab import lossy
+from silpose.shared.contours import extract_contour
+from silpose.shared.rig_frame import DEFAULT_WORKSPACE
+from silpose.shared.skeleton import JOINT_NAMES
+
+
+def _iou(a, b):
+    a, b = a.astype(bool), b.astype(bool)
+    return (a & b).sum() / (a | b).sum()
+
+
+def test_binarise_recovers_lossy_encoded_masks(rig, tools, tmp_path):
+    """Our own lossy masks: JPEG q15 then mp4v (what the lab recording writes), and q5 blurred."""
+    clean = tools.cylinder_masks(rig, [(-0.8, -0.5), (0.6, 0.8)])[1]
+    for quality, blur in ((15, 0), (5, 1.0)):
+        src = cv2.GaussianBlur(clean, (0, 0), blur) if blur else clean
+        tools.write_video(tmp_path / "m.mp4", np.stack([lossy(src, quality)] * 3))
+        cap = cv2.VideoCapture(str(tmp_path / "m.mp4"))
+        grey = cv2.cvtColor(cap.read()[1], cv2.COLOR_BGR2GRAY)
+        cap.release()
+        assert ((grey > 20) & (grey < 235)).sum() > 200  # really smeared
+        mask = binarise(grey)
+        assert set(np.unique(mask)) <= {0, 1}
+        assert _iou(mask, clean) > 0.985
+        assert cv2.connectedComponents(mask)[0] == cv2.connectedComponents((clean > 0).view(np.uint8))[0]
+        assert cv2.connectedComponents((grey > 40).view(np.uint8))[0] >= cv2.connectedComponents(mask)[0]
+
+
+def test_find_blobs_labels_the_foreground_box_like_a_full_frame_labelling(rig, tools):
+    m = (tools.cylinder_masks(rig, [(-0.8, -0.5), (0.6, 0.8)])[2] > 0).view(np.uint8).copy()
+    m[5:9, 300:303] = 1  # speckle
+    m[200:260, 0:6] = 1  # a blob on the border
+    b = find_blobs(m, min_area=50)
+    n, ref, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+    assert len(b.area) == n and sorted(b.area[1:]) == sorted(stats[1:, 4])
+    ys, xs = np.nonzero(np.ones_like(m))
+    lab = b.label_at(np.stack([xs, ys], 1)).reshape(m.shape)
+    assert ((lab > 0) == (ref > 0)).all()  # same foreground, one label per component
+    pairs = {(int(a), int(c)) for a, c in zip(lab[m > 0], ref[m > 0])}
+    assert len(pairs) == n - 1
+    assert b.usable.sum() == 3 and b.touches_border[1:].sum() == 1 and not b.usable[0]
+    big = int(np.argmax(np.where(b.usable & ~b.touches_border, b.area, 0)))
+    pts = blob_contour(b, big, 50)
+    x, y, w, h = b.bbox[big]
+    assert pts.shape == (50, 2) and pts[:, 0].min() >= x - 1 and pts[:, 1].max() <= y + h
+    assert find_blobs(np.zeros_like(m), 50).empty
+
+
+def test_floor_grid_finds_people_at_their_positions(rig, tools):
+    grid = FloorGrid(list(rig), DEFAULT_WORKSPACE.bounds)
+    where = np.array([[-0.9, -0.4], [0.7, 0.9], [0.1, 0.1]])
+    masks = [(m > 0).view(np.uint8) for m in tools.cylinder_masks(rig, where)]
+    det = grid.locate(masks)
+    assert len(det.positions) == 3
+    d = np.linalg.norm(det.positions[:, None] - where[None], axis=2)
+    assert d.min(axis=1).max() < 0.06 and sorted(d.argmin(axis=1)) == [0, 1, 2]
+    # a camera whose mask is all black says nothing; a blob seen by one camera alone is nobody
+    masks[3] = None
+    speck = np.zeros_like(masks[0])
+    speck[100:200, 50:90] = 1
+    assert len(grid.locate(masks).positions) == 3
+    assert len(grid.locate([speck, None, None, None]).positions) == 0
+    # hidden from one camera (cam1 lost the first person): the strict map misses them, the tolerant one not
+    full = [(m > 0).view(np.uint8) for m in tools.cylinder_masks(rig, where)]
+    full[1] = (tools.cylinder_masks(rig, where[1:])[1] > 0).view(np.uint8)
+    assert len(grid.detect(grid.occupancy(full)[0]).positions) == 2
+    det = grid.locate(full)
+    assert len(det.positions) == 3 and np.linalg.norm(det.positions - where[0], axis=1).min() < 0.08
+
+
+def test_views_ok_merged_border_not_seen(rig, tools):
+    cam = rig[1]
+    a, b = np.array([-0.3, -0.8]), np.array([-0.15, 0.9])  # b behind a for cam1: their images overlap
+    c = np.array([1.3, 0.0])
+    m = (tools.cylinder_masks(rig, [a, b, c])[1] > 0).view(np.uint8)
+    labels, status = assign_views(cam, find_blobs(m, 50), np.stack([a, b, c]))
+    assert status == [VIEW_MERGED, VIEW_MERGED, VIEW_OK] and labels[0] == labels[1] != labels[2]
+    # a blob bigger than a person's cylinder (someone undetected next to them) is not theirs alone
+    m2 = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8).copy()
+    x, y = np.round(cam.project(np.r_[c, 1.0])).astype(int)
+    m2[y - 10 : y + 10, x : x + 160] = 1
+    assert assign_views(cam, find_blobs(m2, 50), c[None])[1] == [VIEW_MERGED]
+    m3 = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8)
+    assert assign_views(cam, find_blobs(np.zeros_like(m), 50), c[None])[1] == [VIEW_EMPTY]
+    assert assign_views(cam, find_blobs(m3, 50), np.array([[-1.2, 1.2]]))[1] == [VIEW_NOT_SEEN]
+
+
+def test_border_blob_is_not_used(rig):
+    cam = rig[0]
+    xy = np.array([[0.2, 0.3]])
+    px = cam.project(np.array([[0.2, 0.3, 1.1]]))[0]
+    m = np.zeros((cam.height, cam.width), np.uint8)
+    m[int(px[1]) - 60: cam.height, int(px[0]) - 15: int(px[0]) + 15] = 1  # runs off the bottom edge
+    assert assign_views(cam, find_blobs(m, 50), xy)[1] == [VIEW_BORDER]
+
+
+def test_tracker_keeps_ids_through_a_crossing_and_drops_a_one_frame_ghost():
+    tr = Tracker(gate=0.6, max_misses=3, min_hits=3)
+    seen = {}
+    for step in range(40):
+        a = np.array([-1.5 + 0.075 * step, -0.25])
+        b = np.array([1.5 - 0.075 * step, 0.25])
+        det = [b, a] if step % 2 else [a, b]
+        if step == 10:
+            det.append(np.array([0.0, 1.4]))  # a ghost, one frame
+        if step in (19, 20):
+            det = [0.5 * (a + b)]  # the two merge into one detection for two frames
+        for t, d in tr.update(step, np.array(det)):
+            if t.person and d >= 0:
+                seen.setdefault(t.person, []).append(np.array(det)[d])
+    assert sorted(seen) == [1, 2] and tr.n_persons == 2
+    for person, pos in seen.items():
+        x = np.array(pos)[:, 0]
+        direction = np.sign(np.diff(x))
+        assert (direction == direction[0]).mean() > 0.95  # each id keeps walking one way: no swap
+    tr2 = Tracker(max_misses=2, min_hits=2)
+    for step in range(3):
+        tr2.update(step, np.array([[0.0, 0.0]]))
+    for step in range(3, 7):
+        tr2.update(step, np.zeros((0, 2)))
+    out = tr2.update(7, np.array([[0.0, 0.0]]))
+    assert tr2.n_persons == 1 and out[0][0].person == 0  # reappearing after the track ended: a new track
+
+
+def _body(rng):
+    """(19, 3) root-relative joints of an upright, slightly random body."""
+    j = np.zeros((19, 3))
+    j[:, 2] = np.linspace(0.8, -0.95, 19)
+    j[:, :2] = rng.normal(0, 0.1, (19, 2))
+    j[0] = 0
+    return j
+
+
+def test_place_roots_recovers_the_root_from_consistent_views(rig):
+    rng = np.random.default_rng(0)
+    n = 6
+    joints = np.stack([_body(rng) for _ in range(n)])
+    truth = np.c_[rng.uniform(-1, 1, (n, 2)), root_height(joints)]
+    cams = list(rig)
+    cen = np.stack([cam.project(truth + body_point(joints)) for cam in cams], axis=1)  # (n, K, 2)
+    one_view = np.eye(4, dtype=bool)[[0, 1, 2, 3, 1, 2]]
+    for present in (np.ones((n, 4), bool), one_view):  # a prior at the truth: the views agree, nothing moves
+        r = place_roots(joints, cen, present, cams, truth[:, :2])
+        assert np.allclose(r, truth, atol=1e-6)
+    prior = truth[:, :2] + rng.normal(0, 0.15, (n, 2))
+    prior_err = np.linalg.norm(prior - truth[:, :2], axis=1)
+    for present, gain in ((np.ones((n, 4), bool), 4), (one_view, 1.5)):  # a prior ~15 cm off: the views pull it back
+        r = place_roots(joints, cen, present, cams, prior)
+        assert np.allclose(r[:, 2], truth[:, 2])
+        err = np.linalg.norm(r[:, :2] - truth[:, :2], axis=1)
+        assert err.mean() < prior_err.mean() / gain
+
+
+def test_place_contours_maps_missing_views_with_the_observed_metric_scale(rig):
+    from silpose.model.shape_model import InferenceResult
+
+    rng = np.random.default_rng(1)
+    joints = _body(rng)[None]
+    root = np.array([[0.3, 0.2, root_height(joints)[0]]])
+    X = root + body_point(joints)
+    cams = list(rig)
+    depth = np.array([cam.to_camera(X)[0, 2] for cam in cams])
+    rho = 0.5
+    scale = rho * cams[0].K[0, 0] / depth
+    norm = rng.normal(0, 1, (1, 4, 30, 2))
+    cen = np.stack([cam.project(X)[0] for cam in cams])
+    present = np.array([[True, True, False, True]])
+    px = norm * scale[None, :, None, None] + cen[None, :, None, :]
+    px[~present] = np.nan
+    res = InferenceResult(joints=joints, joints_best=joints, joint_std=joints, contours_norm=norm, contours_px=px,
+                          centroid=np.where(present[..., None], cen[None], np.nan), scale=np.where(present, scale, np.nan),
+                          views_present=present, responsibilities=np.ones((1, 1)), log_marginal=np.zeros(1),
+                          views=(0, 1, 2, 3))
+    out = place_contours(res, root, cams)
+    expect = norm[0, 2] * scale[2] + cen[2]
+    assert np.allclose(out[0, 2], expect) and np.allclose(out[0, [0, 1, 3]], px[0, [0, 1, 3]])
+
+
+def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monkeypatch):
+    from silpose.app.recordings import writers
+
+    monkeypatch.setattr(writers, "ROW_GROUP", 3)
+    R, K, V, n = 3, 4, 4, 5
+    rows = PersonRows(frame=np.arange(R), person=np.array([1, 2, 1]), status=np.array(["ok", "no usable view", "ok"], object),
+                      floor=np.zeros((R, 2)), view_status=np.full((R, K), "ok", object), views_used=np.ones((R, K), bool),
+                      log_marginal=np.array([1.0, np.nan, 2.0]), joints=np.arange(R * 57.0).reshape(R, 19, 3),
+                      joints_calibration=np.ones((R, 19, 3)), joint_std=np.zeros((R, 19, 3)), root=np.ones((R, 3)),
+                      root_calibration=np.ones((R, 3)), contours=np.zeros((R, V, n, 2)))
+    cams = [f"cam{k}" for k in range(K)]
+    w = RecordingWriter(tmp_path / "j.parquet", tmp_path / "j.csv", cams, cams, n, 25.0, {"a": 1}, contours=True)
+    w.write(rows)
+    w.write(rows.take([0]))
+    assert not (tmp_path / "j.parquet").exists()  # only under a temporary name until closed
+    w.close()
+    assert pq.ParquetFile(tmp_path / "j.parquet").num_row_groups == 2  # 3 rows, then the last one at close
+    t = pq.read_table(tmp_path / "j.parquet")
+    assert t.num_rows == 4 and t.column("time").to_pylist()[:3] == [0.0, 0.04, 0.08]
+    j = np.array(t.column("joints").to_pylist(), float)
+    assert j.shape == (4, 19, 3) and np.array_equal(j[:3], rows.joints)
+    assert np.array(t.column("contours_px").to_pylist()).shape == (4, V, n, 2)
+    import csv
+
+    with open(tmp_path / "j.csv", newline="") as f:
+        lines = list(csv.reader(f))
+    header = lines[0]
+    assert len(lines) == 5 and header[:4] == ["frame", "time", "person", "status"]
+    assert lines[1][header.index("views")] == "cam0,cam1,cam2,cam3"
+    assert float(lines[1][header.index(f"{JOINT_NAMES[1]}_x")]) == rows.joints[0, 1, 0]
+    assert all(len(r) == len(header) for r in lines)
+    w2 = RecordingWriter(tmp_path / "k.parquet", tmp_path / "k.csv", cams, cams, n, 25.0, {})
+    assert "contours_px" not in w2.schema.names
+    w2.write(rows)
+    w2.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["j.csv", "j.parquet"]

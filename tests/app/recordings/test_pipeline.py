@@ -1,0 +1,163 @@
+"""``silpose infer MODEL --videos DIR``: outputs, statuses and bad input, on cylinder "people" (no Blender).
+
+The model is a tiny one fitted on stick figures of the lab rig (its joints are meaningless): these tests
+check what the workflow finds, writes and refuses, not the poses (``test_lab.py`` does).
+"""
+
+import json
+
+import cv2
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from silpose.app.recordings.pipeline import RecordingOptions, run_recording
+from silpose.shared.cli import build_app
+
+
+def _invoke(*args):
+    return CliRunner().invoke(build_app(), [str(a) for a in args])
+
+
+def _rows(out):
+    t = pq.read_table(out / "joints.parquet")
+    return t, {c: t.column(c).to_pylist() for c in ("frame", "person", "status", "n_views", "view_status")}
+
+
+def test_cli_writes_joints_overlays_floorplan(tiny_model_file, two_cylinders, tmp_path):
+    out = tmp_path / "out"
+    res = _invoke("infer", tiny_model_file, "--videos", two_cylinders, "--masks", "--out", out, "--no-progress",
+                  "--contours")
+    assert res.exit_code == 0, res.output
+    assert "2 person(s) over 20 frames" in res.output
+    for name in ("joints.parquet", "joints.csv", "floorplan.png", "summary.json", "overlays/cam0.mp4", "overlays/cam3.mp4"):
+        assert (out / name).is_file(), name
+    assert not list(out.glob(".*.tmp"))  # no temporary files left (the output-folder marker stays)
+    t, r = _rows(out)
+    assert set(r["person"]) == {1, 2} and len(t) == 40 and set(r["status"]) <= {"ok", "no usable view"}
+    assert r["status"].count("ok") >= 32  # no view only while they cross in front of every camera
+    assert sorted(r["frame"]) == sorted(list(range(20)) * 2)
+    meta = json.loads(t.schema.metadata[b"silpose_recording"])
+    assert meta["cameras"] == ["cam0", "cam1", "cam2", "cam3"] and meta["fps"] == pytest.approx(25.0)
+    joints = np.array(t.column("joints").to_pylist())
+    root = np.array(t.column("root").to_pylist())
+    ok = np.array(r["status"]) == "ok"
+    assert np.isfinite(joints[ok]).all() and np.isnan(joints[~ok]).all()  # never joints from nothing
+    assert np.allclose(joints[ok, 0], root[ok], atol=1e-5)  # pelvis = root, in the room
+    contours = np.array(t.column("contours_px").to_pylist())
+    merged = np.array(r["view_status"]) == "merged"
+    assert contours.shape == (40, 4, 40, 2) and merged[ok].any()
+    assert np.isfinite(contours[ok]).all()  # every view's contour in pixels, the missing (merged) ones projected
+    floor = np.c_[t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()]
+    assert np.linalg.norm(root[ok, :2] - floor[ok], axis=1).max() < 0.5
+    cap = cv2.VideoCapture(str(out / "overlays" / "cam1.mp4"))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 20 and int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)) == 644
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["persons"] == 2 and summary["frames"] == 20 and summary["rows"]["ok"] == r["status"].count("ok")
+
+
+def test_ids_follow_each_cylinder(tiny_model, two_cylinders, tmp_path):
+    s = run_recording(tiny_model, two_cylinders, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    t, r = _rows(tmp_path / "o")
+    y = t.column("floor_y").to_numpy()
+    for person in (1, 2):
+        ys = y[np.array(r["person"]) == person]
+        assert np.ptp(ys) < 0.2  # one id keeps to one walker's line (y -0.6 or 0.7)
+    assert s.n_persons == 2 and sum(s.views_hist) == 40 and s.views_hist[4] > 0
+
+
+def test_missing_camera_black_frames_and_a_blob_in_one_camera(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    track = tools.walk((-1.0, -0.5), (1.0, -0.5), 12)
+    frames = np.stack([tools.cylinder_masks(rig, [p]) for p in track], 1)  # (K, 12, H, W)
+    frames[2, :, 100:160, 40:70] = 255  # a blob only cam2 sees: nobody on the floor, nobody's view
+    frames[1, 5] = 0  # an all-black frame in cam1
+    videos.mkdir()
+    for k in range(3):  # no video for cam3
+        tools.write_video(videos / f"cam{k}.mp4", frames[k])
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    assert s.n_persons == 1 and any("cam3" in w for w in s.warnings)
+    t, r = _rows(tmp_path / "o")
+    vs = np.array(r["view_status"])
+    assert (vs[:, 3] == "no video").all() and (vs[:, [0, 2]] == "ok").all()
+    assert list(vs[:, 1]) == ["ok"] * 5 + ["empty mask"] + ["ok"] * 6
+    assert r["n_views"] == [3] * 5 + [2] + [3] * 6 and set(r["status"]) == {"ok"}
+    assert s.camera_status["cam3"]["no video"] == 12 and s.camera_status["cam1"]["empty mask"] == 1
+
+
+def test_nobody_anywhere_writes_no_rows(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    videos.mkdir()
+    for cam in rig:
+        tools.write_video(videos / f"{cam.name}.mp4", np.zeros((6, 486, 644), np.uint8))
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    t, _ = _rows(tmp_path / "o")
+    assert len(t) == 0 and s.n_persons == 0 and s.camera_status["cam0"]["empty mask"] == 6
+    assert any("nobody" in w for w in s.warnings)
+
+
+def test_a_detection_that_never_becomes_a_person_leaves_no_rows(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    videos.mkdir()
+    frames = np.zeros((len(rig), 10, 486, 644), np.uint8)
+    frames[:, 4] = tools.cylinder_masks(rig, [(0.2, 0.1)])  # someone in one frame only
+    for k, cam in enumerate(rig):
+        tools.write_video(videos / f"{cam.name}.mp4", frames[k])
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    assert s.n_persons == 0 and _rows(tmp_path / "o")[0].num_rows == 0
+
+
+def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, tmp_path):
+    from silpose.segment.composite import background_frames, composite_frame, room
+
+    videos = tmp_path / "v"
+    videos.mkdir()
+    where = tools.walk((-0.8, 0.2), (0.8, 0.2), 8)
+    for k, cam in enumerate(rig):
+        size = (cam.width, cam.height)
+        clean = room(k, size)
+        people = [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]
+        tools.write_video(videos / f"{cam.name}.mp4", np.concatenate([background_frames(k, size, 6), np.stack(people)]))
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(background_frames=6, overlays=False))
+    t, r = _rows(tmp_path / "o")
+    assert s.n_persons == 1 and s.n_steps == 8 and min(r["frame"]) >= 6  # frames keep the video's numbering
+    floor = np.c_[t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()]
+    truth = where[np.array(r["frame"]) - 6]
+    assert np.linalg.norm(floor - truth, axis=1).max() < 0.1
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--masks", "--background-frames", "5"], "mask videos need no background"),
+    ([], "colour videos need a background"),
+    (["--masks", "--offsets", "camZ=1"], "camera 'camZ' is not in the rig"),
+])
+def test_bad_options_are_one_line_errors(tiny_model_file, two_cylinders, tmp_path, args, message):
+    res = _invoke("infer", tiny_model_file, "--videos", two_cylinders, *args, "--out", tmp_path / "o", "--no-progress")
+    assert res.exit_code != 0 and message in res.output
+    assert res.output.strip().count("\n") == 0 and "Traceback" not in res.output
+
+
+def test_videos_excludes_other_inputs(tiny_model_file, two_cylinders, tmp_path):
+    res = _invoke("infer", tiny_model_file, tmp_path, "--videos", two_cylinders, "--masks")
+    assert res.exit_code != 0 and "not INPUT and --videos" in res.output
+    res = _invoke("infer", tiny_model_file, tmp_path, "--masks")
+    assert res.exit_code != 0 and "--masks needs --videos" in res.output
+
+
+def test_a_video_shorter_than_its_header_stops_the_run_with_a_warning(rig, tiny_model, tools, tmp_path, monkeypatch):
+    from silpose.app.recordings import sources
+
+    videos = tmp_path / "v"
+    tools.write_mask_videos(videos, rig, [tools.walk((-0.5, 0.0), (0.5, 0.0), 10)])
+    real = sources.CameraReader.read
+
+    def read(self):  # cam1 stops decoding after 6 frames (a truncated file)
+        if self.source.camera == "cam1" and self.index >= 6:
+            return None
+        return real(self)
+
+    monkeypatch.setattr(sources.CameraReader, "read", read)
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=True))
+    assert s.n_steps == 6 and any("cam1.mp4 ended after 6 frames (expected 10)" in w for w in s.warnings)
+    assert (tmp_path / "o" / "joints.parquet").is_file() and (tmp_path / "o" / "overlays" / "cam0.mp4").is_file()

@@ -1,0 +1,99 @@
+"""The videos folder: matching, probing, synchronising and streaming (silpose.app.recordings.sources)."""
+
+import numpy as np
+import pytest
+
+from silpose.app.errors import RecordingError
+from silpose.app.recordings.sources import CameraReader, open_recording, parse_offsets
+
+
+def _numbered(n, h=486, w=644, value=0):
+    """n grey frames whose top-left 16x16 block encodes the frame index (x 8 grey levels)."""
+    f = np.full((n, h, w), value, np.uint8)
+    for i in range(n):
+        f[i, :16, :16] = 8 * i
+    return f
+
+
+def _frame_index(img):
+    return int(round(float(img[4:12, 4:12].mean()) / 8))
+
+
+def test_parse_offsets():
+    assert parse_offsets("cam1=3, cam2=-1", ["cam0", "cam1", "cam2"]) == {"cam1": 3, "cam2": -1}
+    assert parse_offsets(None, ["cam0"]) == {}
+    with pytest.raises(RecordingError, match="camera 'cam9' is not in the rig"):
+        parse_offsets("cam9=1", ["cam0"])
+    with pytest.raises(RecordingError, match="not <camera>=<integer frames>"):
+        parse_offsets("cam0=x", ["cam0"])
+
+
+def test_matches_videos_to_cameras_and_warns_for_a_missing_one(rig, tools, tmp_path):
+    for cam in ("cam0", "cam1", "cam3"):
+        tools.write_video(tmp_path / f"{cam}.mp4", _numbered(5))
+    (tmp_path / "notes").mkdir()  # other folders are ignored
+    rec = open_recording(tmp_path, rig)
+    assert list(rec.sources) == ["cam0", "cam1", "cam3"] and rec.missing == ("cam2",)
+    assert rec.n_steps == 5 and rec.fps == pytest.approx(25.0)
+    assert any("cam2" in w and "missing view" in w for w in rec.warnings)
+
+
+def test_offsets_shift_frames_and_unequal_lengths_stop_at_the_shortest(rig, tools, tmp_path):
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(12))
+    tools.write_video(tmp_path / "cam1.mp4", _numbered(10))
+    rec = open_recording(tmp_path, rig, {"cam1": -2})  # cam1's frame i - 2 is cam0's frame i
+    assert rec.sources["cam0"].skip == 2 and rec.sources["cam1"].skip == 0
+    assert rec.n_steps == 10  # cam0: 12 - 2, cam1: 10
+    r0, r1 = CameraReader(rec.sources["cam0"], grey=True), CameraReader(rec.sources["cam1"], grey=True)
+    first = [(_frame_index(r0.read()), _frame_index(r1.read())) for _ in range(3)]
+    assert first == [(2, 0), (3, 1), (4, 2)]
+    r0.close(), r1.close()
+    tools.write_video(tmp_path / "cam2.mp4", _numbered(7))
+    rec = open_recording(tmp_path, rig)
+    assert rec.n_steps == 7 and any("unequal length" in w and "cam2.mp4" in w for w in rec.warnings)
+
+
+def test_mapping_file_names_the_videos(rig, tools, tmp_path):
+    tools.write_video(tmp_path / "left.mp4", _numbered(4))
+    (tmp_path / "cameras.toml").write_text('[cameras]\ncam2 = "left.mp4"\n')
+    rec = open_recording(tmp_path, rig)
+    assert list(rec.sources) == ["cam2"] and rec.sources["cam2"].path.name == "left.mp4"
+    (tmp_path / "cameras.toml").write_text('[cameras]\ncamX = "left.mp4"\n')
+    with pytest.raises(RecordingError, match=r"cameras.toml: field 'cameras.camX': not a rig camera"):
+        open_recording(tmp_path, rig)
+
+
+def test_image_folders_are_cameras_too(rig, tmp_path):
+    import cv2
+
+    (tmp_path / "cam1").mkdir()
+    for i, f in enumerate(_numbered(3)):
+        cv2.imwrite(str(tmp_path / "cam1" / f"{i:04d}.png"), f)
+    rec = open_recording(tmp_path, rig)
+    r = CameraReader(rec.sources["cam1"], grey=True)
+    assert [_frame_index(r.read()) for _ in range(3)] == [0, 1, 2] and r.read() is None
+
+
+@pytest.mark.parametrize("case, pattern", [
+    ("unknown", r"stranger.mp4: 'stranger' is not a rig camera"),
+    ("garbage", r"cam0.mp4: OpenCV \(FFmpeg\) cannot open this video|cam0.mp4: the video has no decodable frame"),
+    ("empty", r"cam0.mp4: OpenCV \(FFmpeg\) cannot open this video|cam0.mp4: the video has no decodable frame"),
+    ("size", r"cam0.mp4: frames are 320x240 \(WxH\), camera 'cam0' of the rig is 644x486"),
+    ("fps", r"frame rates differ \(cam0.mp4 25 fps, cam1.mp4 30 fps\)"),
+    ("none", r"no video named as a rig camera"),
+])
+def test_bad_folders_are_one_line_errors(rig, tools, tmp_path, case, pattern):
+    if case == "unknown":
+        tools.write_video(tmp_path / "stranger.mp4", _numbered(2))
+    elif case == "garbage":
+        (tmp_path / "cam0.mp4").write_bytes(b"this is not a video" * 100)
+    elif case == "empty":
+        (tmp_path / "cam0.mp4").write_bytes(b"")
+    elif case == "size":
+        tools.write_video(tmp_path / "cam0.mp4", _numbered(2, 240, 320))
+    elif case == "fps":
+        tools.write_video(tmp_path / "cam0.mp4", _numbered(2), fps=25)
+        tools.write_video(tmp_path / "cam1.mp4", _numbered(2), fps=30)
+    with pytest.raises(RecordingError, match=pattern) as err:
+        open_recording(tmp_path, rig)
+    assert "\n" not in str(err.value)

@@ -1,0 +1,126 @@
+"""``silpose train`` / ``silpose infer`` input checks of issue 13 (each failed before its fix):
+
+- ``silpose train /no/such/dir`` says the folder does not exist (it said "no dataset folder for preset");
+- ``silpose train`` checks the train shards against the manifest's sha256, as ``silpose validate``
+  does (a shard with an edited footer trained silently);
+- 0/1 silhouette PNGs (the dataset's own mask encoding) are read as masks by ``silpose infer`` (it said
+  "no usable silhouette"), and an all-dark mask folder's error points at ``--threshold``.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from silpose.datagen.config import load_config
+from silpose.datagen.pipeline import generate
+from silpose.datagen.testing import SYNTH_RENDER, tiny_config_toml
+from silpose.model.persistence import load_model
+from silpose.shared.cli import build_app
+from silpose.shared.dataset import load_split
+from silpose.shared.skeleton import JOINT_NAMES
+
+
+def silpose(*args):
+    res = CliRunner().invoke(build_app(), [str(a) for a in args])
+    return res.exit_code, res.output
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    """A dataset written by the generation pipeline (stand-in renderer): its manifest hashes every shard."""
+    tmp = tmp_path_factory.mktemp("generated")
+    (tmp / "tiny.toml").write_text(tiny_config_toml(train=40, test=6, shard_size=20))
+    generate(load_config(tmp / "tiny.toml"), tmp / "ds", workers=1, render=SYNTH_RENDER, progress=False)
+    return tmp / "ds"
+
+
+@pytest.fixture(scope="module")
+def model(generated, tmp_path_factory):
+    out = tmp_path_factory.mktemp("model") / "m.npz"
+    code, output = silpose("train", generated, "--out", out, "-M", "2", "-q", "3", "--n-init", "1", "--max-iter", "20",
+                           "--no-progress")
+    assert code == 0, output
+    return out
+
+
+def test_train_names_a_missing_dataset_folder(tmp_path):
+    code, output = silpose("train", tmp_path / "no" / "such" / "dir", "--out", tmp_path / "m.npz")
+    assert code == 2
+    assert f"{tmp_path / 'no' / 'such' / 'dir'}: no such dataset folder" in output and "preset" not in output
+    (tmp_path / "file.txt").write_text("x")
+    code, output = silpose("train", tmp_path / "file.txt", "--out", tmp_path / "m.npz")
+    assert code == 2 and "file.txt: not a dataset folder" in output
+    code, output = silpose("train", "no-such-preset", "--data-root", tmp_path)  # a name: still about the preset
+    assert code == 2 and "no dataset folder for preset 'no-such-preset'" in output
+
+
+def test_train_refuses_a_shard_whose_footer_was_edited(generated, tmp_path):
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(generated, ds)
+    shard = ds / "train-00001-of-00002.parquet"
+    raw = shard.read_bytes()
+    assert raw.count(b"parquet-cpp-arrow") == 1
+    shard.write_bytes(raw.replace(b"parquet-cpp-arrow", b"parquet-CPP-arrow"))  # the footer's created_by
+    assert pq.read_metadata(shard).created_by.startswith("parquet-CPP-arrow")  # still a readable shard
+    assert len(load_split(ds, "train")) == 40  # every reader accepts it ...
+    code, output = silpose("validate", ds)
+    assert code == 1 and "sha256 differs" in output  # ... validate catches it ...
+    out = tmp_path / "m.npz"
+    code, output = silpose("train", ds, "--out", out, "-M", "2", "-q", "3", "--n-init", "1", "--no-progress")
+    assert code == 2 and f"{shard}: sha256 differs from" in output  # ... and so does train, before fitting
+    assert not out.exists()
+    for streaming in ("--streaming",):
+        code, output = silpose("train", ds, "--out", out, "-M", "2", "-q", "3", "--n-init", "1", "--no-progress", streaming)
+        assert code == 2 and "sha256 differs" in output
+
+
+def test_train_refuses_a_shard_not_in_the_manifest(generated, tmp_path):
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(generated, ds)
+    (ds / "train-00001-of-00002.parquet").rename(ds / "train-00000-of-00001.parquet")
+    (ds / "train-00000-of-00002.parquet").unlink()
+    code, output = silpose("train", ds, "--out", tmp_path / "m.npz", "-M", "2", "-q", "3", "--n-init", "1",
+                           "--no-progress")
+    assert code == 2 and "train-00000-of-00001.parquet: not listed in" in output
+
+
+def _write_masks(folder, masks, names, scale):
+    for k, name in enumerate(names):
+        (folder / name).mkdir(parents=True)
+        for i in range(len(masks)):
+            cv2.imwrite(str(folder / name / f"f{i:02d}.png"), (masks[i, k] * scale).astype(np.uint8))
+
+
+def _joints(path):
+    table = pq.read_table(path).to_pandas()
+    return np.stack([table[[f"{j}_x", f"{j}_y", f"{j}_z"]].to_numpy() for j in JOINT_NAMES], axis=1)
+
+
+def test_infer_reads_0_1_mask_pngs_like_0_255_ones(generated, model, tmp_path):
+    test = load_split(generated, "test", with_masks=True)
+    names = load_model(model).rig_.names
+    assert set(np.unique(test.masks)) == {0, 1}  # the dataset's encoding
+    _write_masks(tmp_path / "ones", test.masks, names, 1)
+    _write_masks(tmp_path / "bytes", test.masks, names, 255)
+    for src in ("ones", "bytes"):
+        code, output = silpose("infer", model, tmp_path / src, "--out", tmp_path / f"{src}.parquet")
+        assert code == 0, output
+    np.testing.assert_array_equal(_joints(tmp_path / "ones.parquet"), _joints(tmp_path / "bytes.parquet"))
+    assert np.isfinite(_joints(tmp_path / "ones.parquet")).all()
+
+
+def test_infer_points_at_threshold_when_masks_are_too_dark(generated, model, tmp_path):
+    test = load_split(generated, "test", with_masks=True)
+    _write_masks(tmp_path / "dim", test.masks, load_model(model).rig_.names, 100)  # 0/100 masks, threshold 127
+    code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet")
+    assert code == 2 and "no usable silhouette" in output and "--threshold" in output
+    code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet", "--threshold", "50")
+    assert code == 0, output

@@ -1,0 +1,52 @@
+"""The recordings benchmark's helpers: the foot-point floor method it compares against, and the
+ping-pong long video (the full section renders and trains, so it runs in ``just bench`` only)."""
+
+import cv2
+import numpy as np
+
+from silpose.datagen.lab import lab_rig
+
+
+def _cylinders(rig, where, radius=0.2, height=1.7):
+    w, h = rig.image_size
+    out = np.zeros((len(rig), h, w), np.uint8)
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    for k, cam in enumerate(rig):
+        for x, y in where:
+            ring = np.stack([x + radius * np.cos(ang), y + radius * np.sin(ang)], 1)
+            px = cam.project(np.concatenate([np.c_[ring, np.zeros(24)], np.c_[ring, np.full(24, height)]]))
+            cv2.fillConvexPoly(out[k], np.round(cv2.convexHull(px.astype(np.float32))).astype(np.int32), 1)
+    return out
+
+
+def test_foot_points_find_separate_people_and_lose_merged_ones():
+    from benchmarks.recordings import foot_points
+
+    rig = lab_rig()
+    apart = np.array([[-1.0, -0.5], [0.9, 0.8]])
+    det = foot_points(list(_cylinders(rig, apart)), rig, 150)
+    assert len(det) == 2
+    err = np.linalg.norm(det[:, None] - apart[None], axis=2).min(axis=1)
+    assert (err > 0.1).all() and (err < 0.25).all()  # the lowest pixel is the front of the base, ~radius off
+    behind = np.array([[0.0, -0.15], [0.0, 0.15]])  # one behind the other: their blobs merge in every camera
+    assert len(foot_points(list(_cylinders(rig, behind)), rig, 150)) == 1
+
+
+def test_ping_pong_plays_forwards_then_backwards(tmp_path):
+    from benchmarks.recordings import _ping_pong
+
+    src = tmp_path / "src"
+    src.mkdir()
+    w = cv2.VideoWriter(str(src / "cam0.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), 25, (64, 48), isColor=False)
+    for i in range(4):
+        w.write(np.full((48, 64), 40 * i + 20, np.uint8))
+    w.release()
+    assert _ping_pong(src, tmp_path / "long", 3) == 12
+    cap = cv2.VideoCapture(str(tmp_path / "long" / "cam0.mp4"))
+    levels = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        levels.append(int(round((img.mean() - 20) / 40)))
+    assert levels == [0, 1, 2, 3, 3, 2, 1, 0, 0, 1, 2, 3]
