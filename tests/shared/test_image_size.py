@@ -46,5 +46,6 @@ def test_a_rig_file_with_huge_images_is_refused_by_the_loader_and_by_gen(tmp_pat
                                            "--no-progress"])
     assert res.exit_code == 2
     line = [l for l in res.output.splitlines() if l.startswith("silpose gen: error:")]
-    assert len(line) == 1 and "field 'rig'" in line[0] and f"1..{MAX_IMAGE_SIDE} px" in line[0]
+    # the error names the rig file it came from (issue 10) and the limit
+    assert len(line) == 1 and "big.json" in line[0] and f"1..{MAX_IMAGE_SIDE} px" in line[0]
     assert not (tmp_path / "ds").exists()
