@@ -3,7 +3,9 @@
 Each track predicts its position at the new time step with a constant velocity (exponentially smoothed,
 ``smoothing``); the detections of the step are assigned to the predictions by the Hungarian algorithm
 (``scipy.optimize.linear_sum_assignment``) on the floor distance, pairs farther than ``gate`` metres
-apart being forbidden. An unassigned detection starts a tentative track; a track becomes a person (a
+apart being forbidden. An unassigned detection starts a tentative track (when the caller allows it: the
+pipeline lets only detections whose feet are seen start one, :func:`silpose.app.recordings.views.grounded`,
+and only those count toward a tentative track's hits); a track becomes a person (a
 public id 1, 2, ... in order of confirmation) once it has ``min_hits`` detections; a track missed for more
 than ``max_misses`` consecutive steps ends (a tentative one is dropped: a person who never really
 appeared leaves no rows). A person reappearing after their track ended gets a new id.
@@ -46,10 +48,13 @@ class Tracker:
         self.n_persons = 0
         self.ended: list[Track] = []
 
-    def update(self, step: int, positions: np.ndarray) -> list[tuple[Track, int]]:
+    def update(self, step: int, positions: np.ndarray, can_start: np.ndarray | None = None) -> list[tuple[Track, int]]:
         """Link the detections ``positions`` (D, 2) of ``step``; returns (track, detection index or -1) for
-        every live track (tentative ones included)."""
+        every live track (tentative ones included). ``can_start`` (D,) bool: which unassigned detections may
+        start a track or count toward a tentative track's ``min_hits`` (None: all)."""
         positions = np.asarray(positions, float).reshape(-1, 2)
+        if can_start is None:
+            can_start = np.ones(len(positions), bool)
         live = self.tracks
         assigned = -np.ones(len(live), int)
         if live and len(positions):
@@ -67,7 +72,8 @@ class Tracker:
                 dt = step - t.last
                 v = (positions[d] - t.position) / max(dt, 1)
                 t.velocity = v if t.hits == 1 else self.smoothing * v + (1 - self.smoothing) * t.velocity
-                t.position, t.last, t.misses, t.hits = positions[d].copy(), step, 0, t.hits + 1
+                t.position, t.last, t.misses = positions[d].copy(), step, 0
+                t.hits += 1 if (t.person or can_start[d]) else 0
                 if not t.person and t.hits >= self.min_hits:
                     self.n_persons += 1
                     t.person = self.n_persons
@@ -79,7 +85,7 @@ class Tracker:
             keep.append(t)
             out.append((t, int(d)))
         for d in range(len(positions)):
-            if d not in used:
+            if d not in used and can_start[d]:
                 self.n_keys += 1
                 t = Track(self.n_keys, positions[d].copy(), last=step)
                 if self.min_hits <= 1:
