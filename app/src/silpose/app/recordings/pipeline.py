@@ -368,7 +368,8 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
         masks.append(s.mask if ok else None)
         blobs.append(s.blobs if ok else None)
     det = grid.locate(masks)
-    feet = [grounded(rig[k], b, det.positions) for k, b in enumerate(blobs) if b is not None]
+    seen_by = [k for k, b in enumerate(blobs) if b is not None]
+    feet = list(mapper(lambda k: grounded(rig[k], blobs[k], det.positions), seen_by))
     links = tracker.update(step, det.positions, np.any(feet, axis=0) if feet else None)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
