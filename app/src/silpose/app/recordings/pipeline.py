@@ -369,8 +369,13 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
         blobs.append(s.blobs if ok else None)
     det = grid.locate(masks)
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
-    feet = list(mapper(lambda k: grounded(rig[k], blobs[k], det.positions), seen_by))
-    links = tracker.update(step, det.positions, np.any(feet, axis=0) if feet else None)
+
+    def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
+        xy = det.positions[idx]
+        return np.any(list(mapper(lambda k: grounded(rig[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
+            np.zeros(len(idx), bool)
+
+    links = tracker.update(step, det.positions, feet_seen)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
     taken = [d for _, d in links if d >= 0]
