@@ -4,7 +4,6 @@ placement and the writers (silpose.app.recordings)."""
 import cv2
 import numpy as np
 import pyarrow.parquet as pq
-import pytest
 
 from silpose.app.recordings.blobs import blob_contour, find_blobs
 from silpose.app.recordings.floor import FloorGrid
@@ -14,7 +13,6 @@ from silpose.app.recordings.tracking import Tracker
 from silpose.app.recordings.views import VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK, assign_views
 from silpose.app.recordings.writers import PersonRows, RecordingWriter
 from silpose.datagen.lab import lossy
-from silpose.shared.contours import extract_contour
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE
 from silpose.shared.skeleton import JOINT_NAMES
 

@@ -30,7 +30,6 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
