@@ -11,7 +11,8 @@ Rows:
 - ``run``: one per measured run, each in its own Python subprocess: steps, wall seconds and time steps
   per second, CPU seconds per step (all threads; the machine is shared, so wall time is the noisier
   figure), per-stage shares, the process's baseline RSS (after imports and the model) and peak RSS
-  (``ru_maxrss``). Runs: 1x and ``repeat`` x without overlays, 1x single-threaded, 1x with overlay videos.
+  (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
+  child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays, 1x single-threaded, 1x with overlay videos.
 - ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
@@ -75,9 +76,22 @@ def _ping_pong(src: Path, dst: Path, repeat: int) -> int:
     return n
 
 
+def peak_rss_bytes() -> int:
+    """This process's peak resident set size: ``VmHWM`` (Linux), else ``ru_maxrss``."""
+    import resource
+
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
-    import resource
     import time
 
     import psutil
@@ -92,7 +106,7 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     cpu0, t0 = time.process_time(), time.perf_counter()
     s = run_recording(m, videos, out, RecordingOptions(masks=True, overlays=overlays, threads=threads))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = peak_rss_bytes()
     mb = 2.0**-20
     stages = {k: v for k, v in s.timings.items() if k != "total"}
     busy = sum(stages.values()) or 1.0

@@ -4,7 +4,6 @@ placement and the writers (silpose.app.recordings)."""
 import cv2
 import numpy as np
 import pyarrow.parquet as pq
-import pytest
 
 from silpose.app.recordings.blobs import blob_contour, find_blobs
 from silpose.app.recordings.floor import FloorGrid
@@ -14,7 +13,6 @@ from silpose.app.recordings.tracking import Tracker
 from silpose.app.recordings.views import VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK, assign_views
 from silpose.app.recordings.writers import PersonRows, RecordingWriter
 from silpose.datagen.lab import lossy
-from silpose.shared.contours import extract_contour
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE
 from silpose.shared.skeleton import JOINT_NAMES
 
@@ -227,3 +225,29 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
     w2.write(rows)
     w2.abort()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["j.csv", "j.parquet"]
+
+
+def test_grounded_tells_a_person_from_a_point_behind_them(rig, tools):
+    from silpose.app.recordings.views import grounded
+
+    person = np.array([0.3, -0.6])
+    cam = rig[1]
+    ray = person - cam.center[:2]
+    ghost = person + 1.0 * ray / np.linalg.norm(ray)  # 1 m farther along cam1's line of sight
+    m = (tools.cylinder_masks(rig, [person])[1] > 0).view(np.uint8)
+    b = find_blobs(m, 50)
+    torso = np.round(cam.project(np.r_[ghost, 1.1])).astype(int)
+    assert b.label_at(torso) > 0  # its torso falls on the person's blob
+    assert grounded(cam, b, np.stack([person, ghost])).tolist() == [True, False]
+    assert grounded(cam, find_blobs(np.zeros_like(m), 50), person[None]).tolist() == [False]
+
+
+def test_tracker_starts_and_confirms_tracks_only_from_allowed_detections():
+    tr = Tracker(min_hits=2)
+    p = np.array([[0.0, 0.0]])
+    assert tr.update(0, p, np.array([False])) == []  # may not start a track
+    tr.update(1, p, np.array([True]))
+    tr.update(2, p, np.array([False]))  # continues the tentative track, does not count as a hit
+    assert tr.n_persons == 0
+    tr.update(3, p, np.array([True]))
+    assert tr.n_persons == 1

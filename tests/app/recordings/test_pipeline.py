@@ -161,3 +161,22 @@ def test_a_video_shorter_than_its_header_stops_the_run_with_a_warning(rig, tiny_
     s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=True))
     assert s.n_steps == 6 and any("cam1.mp4 ended after 6 frames (expected 10)" in w for w in s.warnings)
     assert (tmp_path / "o" / "joints.parquet").is_file() and (tmp_path / "o" / "overlays" / "cam0.mp4").is_file()
+
+
+def test_offsets_synchronise_a_camera_that_started_late(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    videos.mkdir()
+    track = tools.walk((-0.8, 0.0), (0.8, 0.0), 10)
+    frames = np.stack([tools.cylinder_masks(rig, [p]) for p in track], 1)  # (K, 10, H, W)
+    for k, cam in enumerate(rig):
+        f = frames[k]
+        if cam.name == "cam1":  # two black frames first: cam1's frame i + 2 is the others' frame i
+            f = np.concatenate([np.zeros((2,) + f.shape[1:], np.uint8), f])
+        tools.write_video(videos / f"{cam.name}.mp4", f)
+    plain = run_recording(tiny_model, videos, tmp_path / "a", RecordingOptions(masks=True, overlays=False))
+    shifted = run_recording(tiny_model, videos, tmp_path / "b", RecordingOptions(masks=True, overlays=False,
+                                                                                  offsets="cam1=2"))
+    assert plain.camera_status["cam1"]["empty mask"] == 2 and shifted.camera_status["cam1"]["empty mask"] == 0
+    assert shifted.n_steps == 10 and shifted.views_hist[4] == 10
+    t = pq.read_table(tmp_path / "b" / "joints.parquet")
+    assert t.column("frame").to_pylist() == list(range(10))

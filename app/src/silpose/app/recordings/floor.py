@@ -21,13 +21,14 @@ in all 75 (2.9 cm from the pelvis on average); without the blanking the tolerant
 tolerant map alone merges the two people in 4 frames of the crossing, which is why it only supplements).
 
 Why a visual hull and not the blobs' foot points through each camera's floor homography: measured on
-the lab recording (two walkers crossing in front of four cameras on one wall, 75 frames, lossy mask
-videos; ``benchmarks/recordings.py``, section ``recordings``), the occupancy grid found both people in
-all 75 frames, 2.5 cm from the true pelvis on average (10.6 cm at worst), in ~1 ms per frame. Foot
-points need a blob per person per camera, which a crossing takes away -- merged blobs give one foot
-point for two people, so whole frames lose a person -- and the lowest silhouette point is the forward
-foot, up to half a stride from the body; a visual hull uses merged blobs as they are (both people are
-foreground) and the torso column is centred on the body.
+the lab recording (two walkers crossing three times in front of four cameras on one wall, 150 frames,
+lossy mask videos; ``benchmarks/recordings.py``, rows ``floor``), the occupancy grid found both people in
+every frame (300 of 300 person-frames, no false detection) 2.6 cm from the true pelvis on average (13.9 cm
+at worst); foot points found 93 % of them, 17.4 cm off on average. Foot points need a blob per person and
+camera, which a crossing takes away -- merged blobs give one foot point for two people -- and the lowest
+silhouette pixel is the front of the nearer foot, up to half a stride and a foot from the body's axis; a
+visual hull uses merged blobs as they are (both people are foreground) and the torso column is centred on
+the body. Its cost, ~1-4 ms per frame here, is a gather of 5 pixels per cell and camera.
 """
 
 from __future__ import annotations

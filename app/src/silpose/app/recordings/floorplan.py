@@ -46,12 +46,14 @@ def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, w
         origin = transform.to_silpose(np.zeros(3))
         axes = transform.to_silpose(np.diag([1.0, 1.0, 0.0]) / transform.scale) - origin  # 1 m along calib x, y
         for vec, name in zip(axes[:2], ("x", "y")):
-            ax.annotate("", xy=(origin[0] + 0.5 * vec[0], origin[1] + 0.5 * vec[1]), xytext=(origin[0], origin[1]),
+            ax.annotate("", xy=(origin[0] + 0.6 * vec[0], origin[1] + 0.6 * vec[1]), xytext=(origin[0], origin[1]),
                         arrowprops=dict(arrowstyle="->", color="tab:red", lw=1.2))
-            ax.text(origin[0] + 0.75 * vec[0], origin[1] + 0.75 * vec[1], f"calib {name}", color="tab:red",
-                    fontsize=7, ha="center", va="center")
+            ax.text(origin[0] + 0.65 * vec[0], origin[1] + 0.65 * vec[1] - (0.12 if abs(vec[1]) > abs(vec[0]) else 0),
+                    f"calib {name}", color="tab:red", fontsize=7,
+                    ha="left" if abs(vec[0]) > abs(vec[1]) else "center", va="center" if abs(vec[0]) > abs(vec[1]) else "top")
         ax.plot(origin[0], origin[1], "o", color="tab:red", ms=4)
-        ax.text(origin[0], origin[1], "  calibration origin", color="tab:red", fontsize=7, va="bottom")
+        ax.annotate("calibration origin", (origin[0], origin[1]), textcoords="offset points", xytext=(-6, 8),
+                    color="tab:red", fontsize=7, ha="center")
         pts.append(origin[None, :2])
     for person, tr in sorted(tracks.items()):
         if not len(tr):
@@ -59,7 +61,8 @@ def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, w
         col = np.array(person_colour(person)[::-1]) / 255.0
         ax.plot(tr[:, 1], tr[:, 2], "-", color=col, lw=1.5)
         ax.plot(tr[0, 1], tr[0, 2], "o", color=col, ms=6)
-        ax.text(tr[-1, 1], tr[-1, 2], f" #{person}", color=col, fontsize=10, weight="bold", va="center")
+        ax.annotate(f"#{person}", (tr[-1, 1], tr[-1, 2]), textcoords="offset points", xytext=(6, 8), color=col,
+                    fontsize=10, weight="bold", bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8))
         pts.append(tr[:, 1:3])
     allp = np.vstack(pts)
     lo, hi = allp.min(0) - 0.6, allp.max(0) + 0.6

@@ -30,7 +30,6 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -57,7 +56,7 @@ from .silhouettes import MaskBinariser, background_from_clips, background_from_f
 from .sources import CameraReader, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
-                    assign_views)
+                    assign_views, grounded)
 from .writers import STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
@@ -321,7 +320,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     if n_persons == 0:
         warnings.append("nobody was found on the floor in any frame: joints.parquet has no rows")
     files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
-                                 f"{Path(videos)}: {n_persons} person(s), {step} frames"))
+                                 f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
     timings["total"] = time.perf_counter() - t_start
     summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
     write_json_atomic(out / "summary.json", {
@@ -355,25 +354,41 @@ def _camera_views(cam, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tu
 
 def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
                  mapper=map) -> list[_Person]:
-    """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step."""
+    """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
+
+    Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
+    no track takes are dropped before the views are assigned, so a ghost never makes a real person's blob
+    look shared."""
     t0 = time.perf_counter()
-    masks = []
+    masks, blobs = [], []
     for c in names:
         s = seen.get(c)
-        masks.append(None if s is None or s.blobs is None or s.blobs.empty else s.mask)
+        ok = s is not None and s.blobs is not None and not s.blobs.empty
+        masks.append(s.mask if ok else None)
+        blobs.append(s.blobs if ok else None)
     det = grid.locate(masks)
-    links = tracker.update(step, det.positions)
+    seen_by = [k for k, b in enumerate(blobs) if b is not None]
+
+    def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
+        xy = det.positions[idx]
+        return np.any(list(mapper(lambda k: grounded(rig[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
+            np.zeros(len(idx), bool)
+
+    links = tracker.update(step, det.positions, feet_seen)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), det.positions, n_pts), range(len(names))))
+    taken = [d for _, d in links if d >= 0]
+    where = det.positions[taken]
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), where, n_pts), range(len(names))))
     out = []
     for track, d in links:
         if d < 0:
             out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
                                np.full((len(names), n_pts, 2), np.nan)))
         else:
-            out.append(_Person(step, track, det.positions[d].copy(), [st[d] for st, _ in per_cam],
-                               np.stack([c[d] for _, c in per_cam])))
+            i = taken.index(d)
+            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _ in per_cam],
+                               np.stack([c[i] for _, c in per_cam])))
     timings["views"] += time.perf_counter() - t0
     return out
 

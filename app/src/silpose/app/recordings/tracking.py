@@ -3,7 +3,9 @@
 Each track predicts its position at the new time step with a constant velocity (exponentially smoothed,
 ``smoothing``); the detections of the step are assigned to the predictions by the Hungarian algorithm
 (``scipy.optimize.linear_sum_assignment``) on the floor distance, pairs farther than ``gate`` metres
-apart being forbidden. An unassigned detection starts a tentative track; a track becomes a person (a
+apart being forbidden. An unassigned detection starts a tentative track (when the caller allows it: the
+pipeline lets only detections whose feet are seen start one, :func:`silpose.app.recordings.views.grounded`,
+and only those count toward a tentative track's hits); a track becomes a person (a
 public id 1, 2, ... in order of confirmation) once it has ``min_hits`` detections; a track missed for more
 than ``max_misses`` consecutive steps ends (a tentative one is dropped: a person who never really
 appeared leaves no rows). A person reappearing after their track ended gets a new id.
@@ -12,6 +14,7 @@ appeared leaves no rows). A person reappearing after their track ended gets a ne
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -46,9 +49,14 @@ class Tracker:
         self.n_persons = 0
         self.ended: list[Track] = []
 
-    def update(self, step: int, positions: np.ndarray) -> list[tuple[Track, int]]:
+    def update(self, step: int, positions: np.ndarray,
+               can_start: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[Track, int]]:
         """Link the detections ``positions`` (D, 2) of ``step``; returns (track, detection index or -1) for
-        every live track (tentative ones included)."""
+        every live track (tentative ones included).
+
+        ``can_start``: which detections may start a track or count toward a tentative track's ``min_hits``:
+        (D,) bool, or a function of detection indices (I,) -> (I,) bool, asked only about the detections not
+        taken by a person's track (so the test costs nothing once everybody is tracked); None: all."""
         positions = np.asarray(positions, float).reshape(-1, 2)
         live = self.tracks
         assigned = -np.ones(len(live), int)
@@ -60,6 +68,14 @@ class Tracker:
             ok = cost[rows, cols] < _FORBIDDEN
             assigned[rows[ok]] = cols[ok]
         used = set(assigned[assigned >= 0].tolist())
+        allowed = np.ones(len(positions), bool)
+        if can_start is not None:
+            ask = np.array(sorted(set(range(len(positions))) - {int(d) for t, d in zip(live, assigned) if t.person and d >= 0}),
+                           int)
+            if callable(can_start):
+                allowed[ask] = np.asarray(can_start(ask), bool) if len(ask) else allowed[ask]
+            else:
+                allowed = np.asarray(can_start, bool)
         out: list[tuple[Track, int]] = []
         keep: list[Track] = []
         for t, d in zip(live, assigned):
@@ -67,7 +83,8 @@ class Tracker:
                 dt = step - t.last
                 v = (positions[d] - t.position) / max(dt, 1)
                 t.velocity = v if t.hits == 1 else self.smoothing * v + (1 - self.smoothing) * t.velocity
-                t.position, t.last, t.misses, t.hits = positions[d].copy(), step, 0, t.hits + 1
+                t.position, t.last, t.misses = positions[d].copy(), step, 0
+                t.hits += 1 if (t.person or allowed[d]) else 0
                 if not t.person and t.hits >= self.min_hits:
                     self.n_persons += 1
                     t.person = self.n_persons
@@ -79,7 +96,7 @@ class Tracker:
             keep.append(t)
             out.append((t, int(d)))
         for d in range(len(positions)):
-            if d not in used:
+            if d not in used and allowed[d]:
                 self.n_keys += 1
                 t = Track(self.n_keys, positions[d].copy(), last=step)
                 if self.min_hits <= 1:

@@ -11,7 +11,15 @@ the person's silhouette only when (status :data:`VIEW_OK`):
   :data:`BODY_HEIGHT_M` standing at the person's position (else :data:`VIEW_MERGED` too: the blob
   also holds something the floor grid did not find, e.g. a person outside the workspace).
 
-Otherwise the view is missing for that person (the model marginalises it). Statuses for the camera as
+Otherwise the view is missing for that person (the model marginalises it).
+
+:func:`grounded` tells real people from the floor grid's ghosts (with cameras on one wall, the rays
+through two people also cross behind and between them): a person's blob ends, below their torso, at
+their own feet -- within :data:`FOOT_TOLERANCE_M` of where the floor point projects -- in every camera
+where nobody nearer hides their feet; a ghost's torso column lies on someone else's blob, which ends at
+that someone's feet, nearer or farther. Measured on the lab recording with four walkers (one frame in
+three): 85 % of the real detections were grounded in at least one camera, 29 % of the ghosts; with two
+walkers, 99 % of the real ones. The pipeline lets only grounded detections start a track. Statuses for the camera as
 a whole: :data:`VIEW_NO_VIDEO`, :data:`VIEW_ENDED` (the video stopped), :data:`VIEW_EMPTY` (no
 foreground at all, e.g. an all-black mask), :data:`VIEW_NOT_SEEN` (the column falls on no usable blob),
 :data:`VIEW_NOT_MODELLED` (a camera the model was not trained on).
@@ -41,6 +49,10 @@ BODY_RADIUS_M = 0.6
 BODY_HEIGHT_M = 2.2
 #: pixels of slack around the cylinder's box
 BOX_SLACK_PX = 4.0
+#: metres: a blob ends at a person's feet within this distance of their floor point (:func:`grounded`)
+FOOT_TOLERANCE_M = 0.2
+#: metres: half-width of the image band below the torso searched for the feet
+FOOT_BAND_M = 0.15
 
 _RING = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                   np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], axis=1)
@@ -56,6 +68,49 @@ def body_box(cam, xy: np.ndarray) -> np.ndarray:
     return np.concatenate([px.min(axis=1) - BOX_SLACK_PX, px.max(axis=1) + BOX_SLACK_PX], axis=1)
 
 
+def _column_labels(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
+    """(P, h) usable blob labels (0: none) under the torso columns of people at floor points ``xy`` (P, 2)."""
+    hz = np.asarray(COLUMN_HEIGHTS)
+    P = len(xy)
+    pts = np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (P, len(hz), 1))], -1)
+    lab = blobs.label_at(np.round(cam.project(pts)).astype(int))
+    return np.where(blobs.usable[lab], lab, 0)
+
+
+def _main_label(lab_row: np.ndarray) -> int:
+    hits = lab_row[lab_row > 0]
+    if not hits.size:
+        return 0
+    values, counts = np.unique(hits, return_counts=True)
+    return int(values[np.argmax(counts)])
+
+
+def grounded(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
+    """(P,) bool: the blob under each person's torso ends at their feet in this camera (module docstring)."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    out = np.zeros(len(xy), bool)
+    if blobs.empty or not len(xy):
+        return out
+    lab = _column_labels(cam, blobs, xy)
+    feet = np.c_[xy, np.zeros(len(xy))]
+    foot_px = cam.project(feet)
+    depth = cam.to_camera(feet)[:, 2]
+    ox, oy = blobs.origin
+    h, w = blobs.labels.shape
+    for p in range(len(xy)):
+        b = _main_label(lab[p])
+        if b == 0 or depth[p] <= 0:
+            continue
+        f = cam.K[0, 0] / depth[p]
+        u = int(round(foot_px[p, 0])) - ox
+        half = max(2, int(round(FOOT_BAND_M * f)))
+        band = blobs.labels[:, max(0, u - half) : max(0, min(w, u + half + 1))]
+        rows = np.flatnonzero((band == b).any(axis=1))
+        if rows.size:
+            out[p] = abs(rows[-1] + oy - foot_px[p, 1]) <= FOOT_TOLERANCE_M * f
+    return out
+
+
 def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """The blob of each of P people at floor points ``xy`` (P, 2) in one camera.
 
@@ -65,17 +120,8 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
     P = len(xy)
     if blobs.empty:
         return np.zeros(P, int), [VIEW_EMPTY] * P
-    hz = np.asarray(COLUMN_HEIGHTS)
-    pts = np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (P, len(hz), 1))], -1)
-    px = np.round(cam.project(pts)).astype(int)  # (P, h, 2)
-    lab = blobs.label_at(px)
-    lab = np.where(blobs.usable[lab], lab, 0)
-    mine = np.zeros(P, int)
-    for p in range(P):
-        hits = lab[p][lab[p] > 0]
-        if hits.size:
-            values, counts = np.unique(hits, return_counts=True)
-            mine[p] = values[np.argmax(counts)]
+    lab = _column_labels(cam, blobs, xy)
+    mine = np.array([_main_label(row) for row in lab], int)
     # every blob any person's column touches is claimed by that person
     claims: dict[int, set] = {}
     for p in range(P):
