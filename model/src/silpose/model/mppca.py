@@ -51,6 +51,12 @@ class MPPCA(DensityMixin, BaseEstimator):
     init_params : None or dict with ``weights`` (M,), ``means`` (M, d), ``components`` (M, d, q) and
         ``noise_variance`` (M,): start EM from these parameters (data coordinates) instead of
         ``init``; needs n_init = 1. Used to compare fits on the same initialisation.
+    noise_dof : bool, after EM multiply each component's noise variance by n_i / (n_i - 1 - q), the
+        degrees of freedom its mean and subspace used (:func:`silpose.model._ppca.dof_noise_factor`): the
+        maximum-likelihood sigma_i^2 is the residual left by a q-dimensional subspace fitted to the same
+        n_i rows, biased low by (n_i - 1 - q) / n_i, which makes every training row far likelier under
+        its own component than a new row (train vs held-out log-likelihood). EM itself stays maximum
+        likelihood.
     random_state : None, int or numpy Generator; every random draw comes from
         ``numpy.random.default_rng(random_state)``.
     callback : callable(iteration: int, lower_bound: float) or None, called after each EM
@@ -62,16 +68,20 @@ class MPPCA(DensityMixin, BaseEstimator):
     -----------------
     weights_ (M,), means_ (M, d), components_ (M, d, q) the W matrices, noise_variance_ (M,),
     converged_ (bool), n_iter_ (int, EM iterations of the winning run), lower_bound_ (float, mean
-    log-likelihood per sample of the training data under the final parameters), lower_bounds_
-    (list of n_iter_ floats, the same after each EM iteration of the winning run, non-decreasing),
-    n_features_in_, n_fit_samples_.
+    log-likelihood per sample of the training data under the final parameters, after the noise_dof
+    correction when on), lower_bounds_ (list of n_iter_ floats, the same after each EM iteration of
+    the winning run before any correction, non-decreasing), initial_bound_ (float, the same under the
+    winning run's starting parameters; ``lower_bounds_[-1] - initial_bound_`` is what EM gained),
+    noise_dof_factor_ ((M,) factors applied to the noise variances, ones when noise_dof is off),
+    n_underdetermined_ (components with n_i <= q + 1 rows, whose noise variance cannot be estimated:
+    they get the largest corrected variance of the others), n_features_in_, n_fit_samples_.
 
     ``fit(X)`` holds X in memory; ``fit_stream(shards)`` reads one shard at a time (out of core,
     optionally on Ray). Both run the same E-step/M-step code (``silpose.model._em``).
     """
 
     def __init__(self, n_components=5, n_latent=10, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
-                 reg_variance=1e-6, init_params=None, random_state=None, callback=None, verbose=0):
+                 reg_variance=1e-6, init_params=None, noise_dof=False, random_state=None, callback=None, verbose=0):
         self.n_components = n_components
         self.n_latent = n_latent
         self.tol = tol
@@ -80,6 +90,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         self.init = init
         self.reg_variance = reg_variance
         self.init_params = init_params
+        self.noise_dof = noise_dof
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
@@ -166,13 +177,26 @@ class MPPCA(DensityMixin, BaseEstimator):
         self._iterate(src, best, self.max_iter, var_floor, k_best)
         del runs
         p = best["params"]
+        self.noise_dof_factor_ = np.ones(p.weights.shape[0])
+        self.n_underdetermined_ = 0
+        self.lower_bound_ = best["bounds"][-1]
+        if self.noise_dof:
+            factor, under = _ppca.dof_noise_factor(p.weights * n, d, p.components.shape[2])
+            s2 = p.noise_variance * factor
+            if under.any():
+                s2[under] = s2[~under].max() if (~under).any() else max(data_var, var_floor)
+            self.noise_dof_factor_ = s2 / p.noise_variance
+            self.n_underdetermined_ = int(under.sum())
+            p = _em.Params(p.weights, p.means, p.components, s2)
+            stats = _em.reduce_sum(src.map(_em.shard_stats, p))  # the training log-likelihood of the final parameters
+            self.lower_bound_ = stats.loglik / stats.n
         self.weights_ = p.weights
         self.means_ = p.means + offset
         self.components_ = p.components
         self.noise_variance_ = p.noise_variance
         self.converged_ = best["converged"]
         self.n_iter_ = len(best["bounds"])
-        self.lower_bound_ = best["bounds"][-1]
+        self.initial_bound_ = best["initial"]
         self.lower_bounds_ = list(best["bounds"])
         self.n_fit_samples_ = int(n)
         if not self.converged_:
@@ -251,7 +275,8 @@ class MPPCA(DensityMixin, BaseEstimator):
     def _start(src: ShardSource, params: _em.Params) -> dict:
         """A run at ``params``: its first pass (E-step log-likelihood and M-step sums)."""
         stats = _em.reduce_sum(src.map(_em.shard_stats, params))
-        return dict(params=params, stats=stats, prev=stats.loglik / stats.n, bounds=[], converged=False)
+        ll = stats.loglik / stats.n
+        return dict(params=params, stats=stats, prev=ll, initial=ll, bounds=[], converged=False)
 
     def _iterate(self, src: ShardSource, run: dict, until: int, var_floor: float, run_idx: int) -> None:
         """Advance one run (dict from ``_start``) in place until ``until`` iterations in total or

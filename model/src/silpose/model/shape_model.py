@@ -105,6 +105,9 @@ class ShapeStructureModel:
         joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
             the calibrated silhouettes, ``silpose.model.stature``; needs the rig), "metres" (the paper's
             raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
+        noise_dof: correct the components' noise variances for the degrees of freedom their fit used
+            (``MPPCA(noise_dof=True)``): the maximum-likelihood ones are biased low when a component has few
+            rows for its q (the train / held-out log-likelihood gap of issue 12); the joints hardly change.
         tol, max_iter, n_init, random_state, callback: passed to :class:`~silpose.model.mppca.MPPCA`.
 
     Fitted attributes: ``layout_`` (FeatureLayout), ``mixture_`` (fitted MPPCA), ``n_rig_views_``,
@@ -120,6 +123,7 @@ class ShapeStructureModel:
         views: Sequence[int] | None = None,
         noise_variance: float = DEFAULT_NOISE_VARIANCE,
         joint_frame: str | None = None,
+        noise_dof: bool = True,
         tol: float = 1e-4,
         max_iter: int = 200,
         n_init: int = 3,
@@ -133,6 +137,7 @@ class ShapeStructureModel:
         self.views = views
         self.noise_variance = noise_variance
         self.joint_frame = joint_frame
+        self.noise_dof = noise_dof
         self.tol = tol
         self.max_iter = max_iter
         self.n_init = n_init
@@ -150,6 +155,7 @@ class ShapeStructureModel:
             "views": None if self.views is None else [int(v) for v in self.views],
             "noise_variance": float(self.noise_variance),
             "joint_frame": self.joint_frame,
+            "noise_dof": bool(self.noise_dof),
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
             "n_init": int(self.n_init),
@@ -181,6 +187,7 @@ class ShapeStructureModel:
             max_iter=int(self.max_iter),
             n_init=int(self.n_init),
             init_params=init_params,
+            noise_dof=bool(self.noise_dof),
             random_state=self.random_state,
             callback=self.callback,
             verbose=self.verbose,
