@@ -1,9 +1,15 @@
 """The work behind ``silpose train``: load a split, optionally select hyperparameters, fit, report.
 
 A held-out part of the train split (``heldout`` fraction, seeded) is kept out of the fit and
-scored: mean log-likelihood per sample of the full shape+structure vectors, and the mean joint
-error (cm) inferring joints from all modelled views. The saved model is the one fitted on the
-remaining part of train.
+scored: mean log-likelihood per sample of the full shape+structure vectors (beside the same on the
+fitted rows, both for structure weight 1: ``silpose.model.selection.unit_weight_loglik``), and the
+mean joint error (cm) inferring joints from all modelled views and from each view alone. The
+saved model is the one fitted on the remaining part of train. The report says whether EM moved
+from its k-means start ("real EM", ``silpose.model.selection.is_real_em``) and how many rows each
+component has per latent dimension.
+
+``roughness`` (``silpose train --roughness PX``) adds ragged-outline copies of the fitted rows
+(``silpose.model.augment``), a training augmentation for imperfect segmentations.
 
 With ``streaming`` (``silpose train --streaming``) or ``executor="ray"`` the split is never loaded
 whole: EM streams over its Parquet shards (``silpose.model.streaming``) and the held-out part is
@@ -24,9 +30,11 @@ from typing import Sequence
 import numpy as np
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from silpose.model.augment import Roughness, augment_rows
 from silpose.model.persistence import save_model
 from silpose.model.provenance import manifest_sha256
-from silpose.model.selection import select as run_selection, validation_split
+from silpose.model.selection import is_real_em, unit_weight_loglik, validation_split, view_errors
+from silpose.model.selection import select as run_selection
 from silpose.model.shape_model import (
     DEFAULT_N_COMPONENTS,
     DEFAULT_N_LATENT,
@@ -34,6 +42,11 @@ from silpose.model.shape_model import (
     DEFAULT_STRUCTURE_WEIGHT,
     ShapeStructureModel,
 )
+
+#: ``silpose train``'s EM settings: a run stops when the mean log-likelihood gains less than TOL nats
+#: per sample in an iteration (for d ~ 1,657 features, ~1e-6 nats per feature).
+DEFAULT_TOL = 1e-3
+DEFAULT_MAX_ITER = 200
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
@@ -55,8 +68,9 @@ class TrainingResult:
         return (
             f"{self.model_path}: M={r['hyperparameters']['n_components']} q={r['hyperparameters']['n_latent']} "
             f"w={r['hyperparameters']['structure_weight']:g} on {r['n_fit']} samples, "
-            f"{r['em']['n_iter']} EM iterations in {r['em']['fit_time_s']:.1f} s; held-out log-likelihood "
-            f"{r['heldout']['mean_loglik']:.1f}/sample, joint error {r['heldout']['joint_error_cm']:.2f} cm "
+            f"{r['em']['n_iter']} EM iterations ({'real EM' if r['em']['real_em'] else 'EM did not move'}) in "
+            f"{r['em']['fit_time_s']:.1f} s; log-likelihood train {r['em']['train_loglik']:.1f} / held-out "
+            f"{r['heldout']['mean_loglik']:.1f} per sample, held-out joint error {r['heldout']['joint_error_cm']:.2f} cm "
             f"({r['n_heldout']} samples); report {self.report_md}"
         )
 
@@ -123,9 +137,9 @@ def run_training(
     structure_weight: float | None = None,
     noise_variance: float | None = None,
     views: Sequence[int] | None = None,
-    max_iter: int = 200,
+    max_iter: int = DEFAULT_MAX_ITER,
     n_init: int = 3,
-    tol: float = 1e-4,
+    tol: float = DEFAULT_TOL,
     seed: int = 0,
     heldout: float = 0.1,
     data_root: Path = Path("data"),
@@ -134,6 +148,7 @@ def run_training(
     streaming: bool = False,
     executor: str = "local",
     workers: int | None = None,
+    roughness: Roughness | None = None,
 ) -> TrainingResult:
     """Fit on ``<dataset>/train`` minus a held-out part; write the model and its report. See module doc.
 
@@ -147,6 +162,8 @@ def run_training(
     if streaming and select:
         raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
                             "then train the chosen hyperparameters with streaming")
+    if streaming and roughness is not None:
+        raise TrainingError("--roughness augments the rows in memory; run it without --streaming / --executor ray")
     root, name = resolve_dataset(preset, data_root)
     if streaming:
         plan = DatasetShards.open(root, "train", executor=executor, workers=workers)
@@ -174,9 +191,11 @@ def run_training(
         print(f"model selection on {len(fit_idx)} training samples ...", flush=True)
         selection = run_selection(
             contours[fit_idx], joints[fit_idx], grid={**(grid or {}), **user}, views=views, seed=seed,
-            max_iter=min(max_iter, 100), tol=tol, rig=rig,
+            max_iter=min(max_iter, 100), tol=tol, rig=rig, roughness=roughness,
             progress=(lambda i, k, row: print(f"  fit {i}/{k}: q={row['n_latent']} M={row['n_components']} "
-                                              f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm",
+                                              f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm, "
+                                              f"1 view {row['val_error_1view_cm']:.2f} cm, held-out log-lik "
+                                              f"{row['val_loglik']:.1f}, {'real EM' if row['real_em'] else 'EM frozen'}",
                                               flush=True)) if progress else None,
         )
         print(selection.to_markdown())
@@ -204,7 +223,11 @@ def run_training(
         if streaming:
             model.fit_stream(root, "train", rows=fit_idx, executor=executor, workers=workers)
         else:
-            model.fit(contours[fit_idx], joints[fit_idx], rig=rig)
+            c_fit, j_fit = contours[fit_idx], joints[fit_idx]
+            if roughness is not None:
+                c_fit, j_fit = augment_rows(c_fit, j_fit, roughness, seed, fit_idx)
+            model.fit(c_fit, j_fit, rig=rig)
+            del c_fit, j_fit
         wall = time.perf_counter() - t0
     model.callback = None
     model.dataset_info_ = _dataset_info(root, name, metadata, n, len(fit_idx), len(held_idx))
@@ -212,16 +235,20 @@ def run_training(
             "n_shards": len(plan.paths) if streaming else None}
     model.training_config_ = {"command": "silpose train", "heldout_fraction": heldout, "seed": seed,
                               "select": bool(select), "selection_best": None if selection is None else selection.best,
-                              "mode": mode}
+                              "mode": mode, "roughness": None if roughness is None else roughness.to_dict()}
+    held_1view = float("nan")
     if streaming:
         held_ll, held_err = _heldout_streaming(model, plan, held_idx)
     else:
         held_ll = model.score_samples(contours[held_idx], joints[held_idx])
         held_err = pose_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
+        held_1view = view_errors(model, np.asarray(contours[held_idx], np.float64), joints[held_idx])["one"]
 
     out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     save_model(out, model)
     mix = model.mixture_
+    q = int(model.n_latent)
+    rows_per_comp = mix.weights_ * mix.n_fit_samples_
     report = {
         "model": str(out),
         "dataset": model.dataset_info_,
@@ -232,17 +259,30 @@ def run_training(
         "em": {
             "n_iter": int(mix.n_iter_),
             "converged": bool(mix.converged_),
+            "real_em": is_real_em(mix, tol),
+            "initial_loglik": float(mix.initial_bound_),
+            "em_gain": float(mix.lower_bounds_[-1] - mix.initial_bound_),
             "mean_loglik": float(mix.lower_bound_),
+            "train_loglik": float(unit_weight_loglik(model, mix.lower_bound_)),
             "loglik_curve": [float(v) for v in mix.lower_bounds_],
             "all_segments": em.curves,
             "fit_time_s": float(wall),
+            "n_fit_rows": int(mix.n_fit_samples_),
+            "rows_per_component": {"min": float(rows_per_comp.min()), "median": float(np.median(rows_per_comp)),
+                                   "max": float(rows_per_comp.max())},
+            "rows_per_component_per_latent_min": float(rows_per_comp.min() / q),
+            "noise_dof_factor": {"min": float(mix.noise_dof_factor_.min()), "median": float(np.median(mix.noise_dof_factor_)),
+                                 "max": float(mix.noise_dof_factor_.max())},
+            "n_underdetermined_components": int(mix.n_underdetermined_),
         },
         "heldout": {
-            "mean_loglik": float(np.mean(held_ll)),
+            "mean_loglik": float(np.mean(unit_weight_loglik(model, held_ll))),
             "joint_error_cm": float(np.mean(held_err)),
             "joint_error_median_cm": float(np.median(held_err)),
+            "joint_error_1view_cm": float(held_1view),
         },
         "selection": None if selection is None else selection.to_dict(),
+        "roughness": None if roughness is None else roughness.to_dict(),
         "notes": notes,
     }
     report_json = out.with_suffix(".report.json")
@@ -298,10 +338,19 @@ def report_markdown(r: dict, selection) -> str:
         f"best of {hp['n_init']} runs, {em['fit_time_s']:.1f} s in total"
         + (f"; streamed over {r['mode']['n_shards']} shards ({r['mode']['executor']})" if r.get("mode", {}).get("streaming")
            else "; in memory"),
-        f"- training mean log-likelihood: {em['mean_loglik']:.2f} nats/sample",
-        f"- held-out mean log-likelihood: {held['mean_loglik']:.2f} nats/sample",
-        f"- held-out joint error (all views observed): mean {held['joint_error_cm']:.2f} cm, "
-        f"median {held['joint_error_median_cm']:.2f} cm",
+        f"- EM moved from its k-means start: {'yes' if em['real_em'] else 'NO'} (log-likelihood {em['initial_loglik']:.2f} "
+        f"-> {curve[-1]:.2f} nats/sample, gain {em['em_gain']:.3g}); rows per component {em['rows_per_component']['min']:.0f}"
+        f"-{em['rows_per_component']['max']:.0f} (at least {em['rows_per_component_per_latent_min']:.1f} per latent dimension)"
+        + ("" if em["real_em"] else "; a fit whose EM never moves is its k-means partition with one PCA per cluster"),
+        f"- noise variances corrected for degrees of freedom (x{em['noise_dof_factor']['min']:.2f}-"
+        f"{em['noise_dof_factor']['max']:.2f}, {em['n_underdetermined_components']} components underdetermined)"
+        if hp.get("noise_dof") else "- noise variances: maximum likelihood (no degrees-of-freedom correction)",
+        f"- log-likelihood per sample (structure weight 1): training {em['train_loglik']:.1f}, held-out "
+        f"{held['mean_loglik']:.1f} nats (gap {em['train_loglik'] - held['mean_loglik']:.1f})",
+        f"- held-out joint error: all views observed mean {held['joint_error_cm']:.2f} cm, "
+        f"median {held['joint_error_median_cm']:.2f} cm; one view observed (mean over views) "
+        f"{held.get('joint_error_1view_cm', float('nan')):.2f} cm",
+        *([f"- training augmentation: ragged outlines {r['roughness']}"] if r.get("roughness") else []),
         *[f"- note: {n}" for n in r.get("notes", [])],
         "",
         "## Log-likelihood curve (kept run, nats/sample)",
@@ -313,6 +362,11 @@ def report_markdown(r: dict, selection) -> str:
     shown_idx = idx if len(curve) <= 12 else idx[:6] + idx[-6:]
     lines += [f"| {i} | {v:.4f} |" for i, v in zip(shown_idx, shown)]
     if selection is not None:
+        how = selection.extra.get("choice", {})
         lines += ["", f"## Model selection ({selection.n_train} fit / {selection.n_val} validation samples)", "",
+                  "Score: mean of the validation joint error given every view and given each view alone (ragged "
+                  "validation outlines); log-likelihoods per sample for structure weight 1. Chosen among "
+                  f"{how.get('pool', 'the fits')}: not dominated in (score, held-out log-likelihood), score within "
+                  f"{100 * how.get('error_tolerance', 0):.0f} % of the best, then the fewest parameters.", "",
                   selection.to_markdown()]
     return "\n".join(lines) + "\n"
