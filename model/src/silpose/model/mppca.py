@@ -28,6 +28,7 @@ from .shards import ArrayShards, ShardSource, split_global_rows
 _SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
 _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
 DEFAULT_INIT_ROWS = 5000  # fit_stream: rows of the initialisation subsample
+_FIT_BLOCK = 4096  # fit: rows per block of the in-memory EM passes (bounds the per-pass temporaries)
 
 
 class MPPCA(DensityMixin, BaseEstimator):
@@ -125,10 +126,12 @@ class MPPCA(DensityMixin, BaseEstimator):
     def fit(self, X, y=None) -> "MPPCA":
         """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self.
 
-        The in-memory fit is the streaming EM (``fit_stream``) on one shard holding every row.
+        The in-memory fit is the streaming EM (``fit_stream``) over X's rows in blocks of 4,096 (views of X,
+        centred block by block in each pass), so besides X only one block's temporaries are held.
         """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        return self._fit_source(ArrayShards([X], materialise=True).checked(), init_rows=None)
+        blocks = [X[i:i + _FIT_BLOCK] for i in range(0, X.shape[0], _FIT_BLOCK)]  # views, no copies
+        return self._fit_source(ArrayShards(blocks).checked(), init_rows=None)
 
     def fit_stream(self, shards, init_rows: int = DEFAULT_INIT_ROWS) -> "MPPCA":
         """Fit by EM, reading the data one shard at a time (out of core). Returns self.
