@@ -68,7 +68,7 @@ def test_train_writes_model_and_report(trained, dataset):
     train = model.score_samples(data.contours[fit_idx], data.joints[fit_idx]).mean() + 57 * np.log(w)
     assert report["heldout"]["mean_loglik"] == pytest.approx(held, rel=1e-9)
     assert report["em"]["train_loglik"] == pytest.approx(train, rel=1e-6)
-    assert report["em"]["real_em"] == (report["em"]["n_iter"] > 1 and report["em"]["em_gain"] > 1e-3)
+    assert report["em"]["real_em"] == (report["em"]["n_iter"] > 1 and report["em"]["em_gain"] > report["hyperparameters"]["tol"])
     md = out.with_suffix(".report.md").read_text()
     assert "EM moved from its k-means start" in md and f"held-out {report['heldout']['mean_loglik']:.1f}" in md
     assert "| iteration |" in md
@@ -185,16 +185,27 @@ def test_roughness_adds_ragged_copies_of_the_fitted_rows(dataset, tmp_path):
     assert res.exit_code == 2 and "--roughness" in res.output
 
 
-def test_default_q_is_lowered_for_a_small_dataset(dataset, tmp_path):
+def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):
+    """With fewer than MIN_ROWS_PER_LATENT samples per component per latent dimension EM cannot move from
+    its start: the trainer lowers M (to at least 10), then q; what the user fixes stays."""
+    from silpose.app.training import MIN_ROWS_PER_LATENT, supported_size
     from silpose.model.shape_model import DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT
 
+    assert MIN_ROWS_PER_LATENT == 6
+    assert supported_size(18000, 20, 40) == (20, 40) and supported_size(4800, 20, 40) == (20, 40)
+    assert supported_size(1800, 20, 40) == (10, 30)  # the default preset: 1,800 / (6 * 10) = 30
+    assert supported_size(1800, 20, 40, fixed_q=True) == (7, 40)
+    assert supported_size(1800, 20, 40, fixed_m=True) == (20, 15)
+    assert supported_size(100, 2, 4, fixed_m=True, fixed_q=True) == (2, 4)
     out = tmp_path / "small.npz"
     res = _invoke("train", dataset, "--n-init", "1", "--max-iter", "10", "--no-progress", "--out", out)
     assert res.exit_code == 0, res.output
-    q = 72 // (2 * DEFAULT_N_COMPONENTS)
-    assert q < DEFAULT_N_LATENT and f"lowered from the default {DEFAULT_N_LATENT} to {q}" in res.output
-    assert read_header(out)["hyperparameters"]["n_latent"] == q
-    assert "note: n_latent lowered" in out.with_suffix(".report.md").read_text()
+    m, q = supported_size(72, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT)
+    assert (m, q) == (10, 1)
+    assert f"lowered from the defaults {DEFAULT_N_COMPONENTS}, {DEFAULT_N_LATENT} to {m}, {q}" in res.output
+    hp = read_header(out)["hyperparameters"]
+    assert (hp["n_components"], hp["n_latent"]) == (m, q)
+    assert "note: M, q lowered" in out.with_suffix(".report.md").read_text()
 
 
 def test_header_records_training_config_and_generator_config(trained):

@@ -168,7 +168,8 @@ class MPPCA(DensityMixin, BaseEstimator):
         if self.init_params is not None:
             starts = [self._explicit_start(d).shifted(offset)]
         else:
-            X0 = self._init_rows(src, init_rows, rng)
+            # in memory (no row limit) the start reads the rows block by block, never a second copy of X
+            X0 = _SourceRows(src) if init_rows is None else _ArrayRows(self._init_rows(src, init_rows, rng))
             starts = [self._initial_params(X0, rng, var_floor) for _ in range(self.n_init)]
             del X0
         runs = [self._start(src, p) for p in starts]
@@ -242,24 +243,25 @@ class MPPCA(DensityMixin, BaseEstimator):
         parts = list(src.map(_em.take_rows))
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
-    def _initial_labels(self, X, rng) -> np.ndarray:
+    def _initial_labels(self, X: "_ArrayRows | _SourceRows", rng) -> np.ndarray:
         """Hard initial assignment (N,): k-means fitted on at most _KMEANS_ROWS random rows (then
         every row goes to its nearest centre), or nearest of M random rows for init="random"."""
-        n, m = X.shape[0], self.n_components
+        n, m = X.n, self.n_components
         if m == 1:
             return np.zeros(n, dtype=np.intp)
         if self.init == "kmeans":
-            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else slice(None)
-            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X[rows])
+            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else np.arange(n)
+            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X.take(rows))
             centres = km.cluster_centers_
         else:
-            centres = X[rng.choice(n, size=m, replace=False)]
-        d2 = -2.0 * X @ centres.T + np.einsum("ij,ij->i", centres, centres)[None, :]  # + ||x||^2, row constant
-        return np.argmin(d2, axis=1)
+            centres = X.take(rng.choice(n, size=m, replace=False))
+        c2 = np.einsum("ij,ij->i", centres, centres)[None, :]
+        # -2 x.c + ||c||^2 (+ ||x||^2, a row constant), block by block
+        return np.concatenate([np.argmin(-2.0 * B @ centres.T + c2, axis=1) for B in X.blocks()])
 
-    def _initial_params(self, X, rng, var_floor) -> _em.Params:
-        """One initialisation from the rows X (n0, d): hard labels, closed-form PPCA per cluster."""
-        n, d = X.shape
+    def _initial_params(self, X: "_ArrayRows | _SourceRows", rng, var_floor) -> _em.Params:
+        """One initialisation from the rows X (n0 rows): hard labels, closed-form PPCA per cluster."""
+        n, d = X.n, X.d
         m, q = self.n_components, self.n_latent
         labels = self._initial_labels(X, rng)
         weights = np.empty(m)
@@ -267,11 +269,13 @@ class MPPCA(DensityMixin, BaseEstimator):
         comps = np.empty((m, d, q))
         s2 = np.empty(m)
         for i in range(m):
-            members = X[labels == i]
-            if members.shape[0] == 0:  # empty cluster: restart it on one random sample
-                members = X[rng.integers(n)][None, :]
+            idx = np.flatnonzero(labels == i)
+            if idx.size == 0:  # empty cluster: restart it on one random sample
+                idx = np.array([rng.integers(n)])
+            members = X.take(idx)
             weights[i] = members.shape[0] / n
             means[i], comps[i], s2[i] = _ppca.ppca_closed_form(members, q, var_floor, rng)
+            del members
         return _em.Params(weights / weights.sum(), means, comps, s2)
 
     @staticmethod
@@ -373,6 +377,42 @@ class MPPCA(DensityMixin, BaseEstimator):
         """Akaike information criterion on X (N, d): -2 log L + 2 k (lower is better)."""
         X = self._validate_predict(X)
         return float(-2.0 * self.score(X) * X.shape[0] + 2 * self.n_parameters())
+
+
+class _ArrayRows:
+    """The initialisation's rows held as one (n, d) array."""
+
+    def __init__(self, X: np.ndarray):
+        self.X, (self.n, self.d) = X, X.shape
+
+    def take(self, idx) -> np.ndarray:
+        """Rows ``idx`` (in that order), a copy."""
+        return self.X[np.asarray(idx)]
+
+    def blocks(self):
+        yield self.X
+
+
+class _SourceRows:
+    """The initialisation's rows read from a ShardSource block by block (the in-memory fit's centred
+    blocks), so the start never holds a second copy of the data; ``take`` gathers only the rows asked."""
+
+    def __init__(self, src: ShardSource):
+        self.src, self.counts = src, src.shard_rows()
+        self.n, self.d = int(sum(self.counts)), int(src.n_features)
+
+    def take(self, idx) -> np.ndarray:
+        """Rows ``idx`` (global indices, in that order), a copy."""
+        idx = np.asarray(idx, dtype=np.int64)
+        order = np.argsort(idx, kind="stable")
+        parts = list(self.src.select(split_global_rows(idx[order], self.counts)).map(_em.take_rows))
+        rows = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        out = np.empty_like(rows)
+        out[order] = rows
+        return out
+
+    def blocks(self):
+        yield from self.src.map(_em.take_rows)
 
 
 __all__ = ["MPPCA"]

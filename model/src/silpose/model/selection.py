@@ -188,7 +188,7 @@ def select(
     seed: int = 0,
     n_init: int = 1,
     max_iter: int = 100,
-    tol: float = 1e-3,
+    tol: float = 0.1,
     rig=None,
     roughness: Roughness | None = None,
     noise_dof: bool = True,

@@ -27,9 +27,9 @@ def train(
     noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² at inference (normalised units²).")] = None,
     views: Annotated[Optional[str], typer.Option(help="Views to model, comma-separated rig indices (default: all).")] = None,
     max_iter: Annotated[int, typer.Option(min=1, help="EM iterations per run at most.")] = 200,
-    n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 3,
+    n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 1,
     tol: Annotated[float, typer.Option(help="EM stops when the mean log-likelihood gains less than this "
-                                       "(nats per sample per iteration).")] = 1e-3,  # app.training.DEFAULT_TOL
+                                       "(nats per sample per iteration).")] = 0.1,  # app.training.DEFAULT_TOL
     seed: Annotated[int, typer.Option(help="Seed of the k-means starts and the held-out/validation splits.")] = 0,
     heldout: Annotated[float, typer.Option(help="Fraction of train held out for the held-out log-likelihood.")] = 0.1,
     data_root: Annotated[Path, typer.Option(help="Folder holding the presets' datasets.")] = Path("data"),
