@@ -44,7 +44,7 @@ from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 from .augment import Roughness, augment_rows, roughen_contours
 from .shape_model import ShapeStructureModel
 
-#: The default grid (16 fits, 3 s^2 each): around the region the 2026-11 selections on the `default`
+#: The default grid (12 fits, 3 s^2 each): around the region the 2026-11 selections on the `default`
 #: preset found best (see the defaults in shape_model.py).
 DEFAULT_GRID: dict[str, tuple] = {
     "n_latent": (20, 30, 40),
