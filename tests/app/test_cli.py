@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
 from silpose.model.persistence import load_model, read_header
-from silpose.model.augment import Roughness, roughen_contours
+from silpose.model.augment import Roughness, augment_rows, roughen_contours
 from silpose.model.selection import DEFAULT_GRID, validation_split
 from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
@@ -65,7 +65,10 @@ def test_train_writes_model_and_report(trained, dataset):
     fit_idx, held_idx = validation_split(80, 0.1, 0)
     w = model.structure_weight
     held = model.score_samples(data.contours[held_idx], data.joints[held_idx]).mean() + 57 * np.log(w)
-    train = model.score_samples(data.contours[fit_idx], data.joints[fit_idx]).mean() + 57 * np.log(w)
+    # the fitted rows: the clean samples plus one ragged copy each (roughness "auto" below 5,000 samples)
+    assert report["roughness"] == Roughness().to_dict() and report["em"]["n_fit_rows"] == 2 * 72
+    c_rows, j_rows = augment_rows(data.contours[fit_idx], data.joints[fit_idx], Roughness(), 0, fit_idx)
+    train = model.score_samples(c_rows, j_rows).mean() + 57 * np.log(w)
     assert report["heldout"]["mean_loglik"] == pytest.approx(held, rel=1e-9)
     assert report["em"]["train_loglik"] == pytest.approx(train, rel=1e-6)
     assert report["em"]["real_em"] == (report["em"]["n_iter"] > 1 and report["em"]["em_gain"] > report["hyperparameters"]["tol"])

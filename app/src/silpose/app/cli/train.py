@@ -40,9 +40,10 @@ def train(
                                           "or 'ray' (one Ray task per shard; implies --streaming; uses the running Ray "
                                           "instance or RAY_ADDRESS, else starts a local one).")] = "local",
     workers: Annotated[Optional[int], typer.Option(min=1, help="CPUs of the local Ray instance if one is started (default: all cores).")] = None,
-    roughness: Annotated[float, typer.Option(min=0.0, help="Training augmentation: ragged-outline copies of the training "
-                                             "contours like real segmentation, this many px of normal wander (0 = off; "
-                                             "silpose.model.augment).")] = 0.0,
+    roughness: Annotated[Optional[float], typer.Option(min=0.0, help="Training augmentation: ragged-outline copies of the "
+                                             "training contours like real segmentation, this many px of normal wander "
+                                             "(0 = off; silpose.model.augment). Default: 1 px, one copy, when at most "
+                                             "5,000 samples are fitted; off above.")] = None,
     roughness_copies: Annotated[int, typer.Option(min=0, help="Ragged copies added per training sample "
                                                   "(0 = replace each sample by one).")] = 1,
 ) -> None:
@@ -74,7 +75,9 @@ def train(
             structure_weight=structure_weight, noise_variance=noise_variance, views=view_tuple,
             max_iter=max_iter, n_init=n_init, tol=tol, seed=seed, heldout=heldout, data_root=data_root,
             progress=progress, streaming=streaming, executor=executor, workers=workers,
-            roughness=Roughness(amplitude_px=roughness, copies=roughness_copies) if roughness > 0 else None,
+            roughness=("auto" if roughness is None and roughness_copies == 1 else
+                       Roughness(amplitude_px=1.0 if roughness is None else roughness, copies=roughness_copies)
+                       if roughness is None or roughness > 0 else None),
         )
     except (InputError, DatasetError, ModelFileError, StreamingError, ValueError) as exc:
         fail("train", str(exc))
