@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
 from silpose.model.persistence import load_model, read_header
-from silpose.model.selection import DEFAULT_GRID
+from silpose.model.augment import Roughness, augment_rows, roughen_contours
+from silpose.model.selection import DEFAULT_GRID, validation_split
 from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split, write_shard
@@ -53,13 +54,27 @@ def _invoke(*args):
 
 def test_train_writes_model_and_report(trained, dataset):
     out, output = trained
-    assert "held-out log-likelihood" in output
+    assert "log-likelihood train" in output and "held-out" in output
     report = json.loads(out.with_suffix(".report.json").read_text())
     assert report["n_fit"] == 72 and report["n_heldout"] == 8
     assert report["em"]["n_iter"] == len(report["em"]["loglik_curve"]) >= 1
     assert np.isfinite(report["heldout"]["mean_loglik"]) and report["heldout"]["joint_error_cm"] > 0
+    # train vs held-out log-likelihood, both per sample for structure weight 1, recomputed from the model
+    model = load_model(out)
+    data = load_split(dataset, "train")
+    fit_idx, held_idx = validation_split(80, 0.1, 0)
+    w = model.structure_weight
+    held = model.score_samples(data.contours[held_idx], data.joints[held_idx]).mean() + 57 * np.log(w)
+    # the fitted rows: the clean samples plus one ragged copy each (roughness "auto" below 5,000 samples)
+    assert report["roughness"] == Roughness().to_dict() and report["em"]["n_fit_rows"] == 2 * 72
+    c_rows, j_rows = augment_rows(data.contours[fit_idx], data.joints[fit_idx], Roughness(), 0, fit_idx)
+    train = model.score_samples(c_rows, j_rows).mean() + 57 * np.log(w)
+    assert report["heldout"]["mean_loglik"] == pytest.approx(held, rel=1e-9)
+    assert report["em"]["train_loglik"] == pytest.approx(train, rel=1e-6)
+    assert report["em"]["real_em"] == (report["em"]["n_iter"] > 1 and report["em"]["em_gain"] > report["hyperparameters"]["tol"])
     md = out.with_suffix(".report.md").read_text()
-    assert "held-out mean log-likelihood" in md and "| iteration |" in md
+    assert "EM moved from its k-means start" in md and f"held-out {report['heldout']['mean_loglik']:.1f}" in md
+    assert "| iteration |" in md
     header = read_header(out)
     import hashlib
     assert header["dataset"]["manifest_sha256"] == hashlib.sha256((dataset / "manifest.json").read_bytes()).hexdigest()
@@ -150,16 +165,50 @@ def test_train_errors_and_select(dataset, tmp_path):
     assert "Model selection" in out.with_suffix(".report.md").read_text()
 
 
-def test_default_q_is_lowered_for_a_small_dataset(dataset, tmp_path):
+def test_roughness_adds_ragged_copies_of_the_fitted_rows(dataset, tmp_path):
+    out = tmp_path / "rough.npz"
+    res = _invoke("train", dataset, "-M", "1", "-q", "3", "--n-init", "1", "--max-iter", "5", "--no-progress",
+                  "--roughness", "0.5", "--roughness-copies", "2", "--out", out)
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.with_suffix(".report.json").read_text())
+    assert report["n_fit"] == 72 and report["em"]["n_fit_rows"] == 3 * 72
+    assert report["roughness"]["amplitude_px"] == 0.5 and report["roughness"]["copies"] == 2
+    assert read_header(out)["training_config"]["roughness"]["copies"] == 2
+    # the same model by hand: clean rows, then copies from streams seed + 0 and seed + 1 (sample ids = row indices)
+    data = load_split(dataset, "train")
+    fit_idx, _ = validation_split(80, 0.1, 0)
+    c = np.asarray(data.contours[fit_idx], np.float64)
+    spec = Roughness(amplitude_px=0.5, copies=2)
+    rows = np.concatenate([c, roughen_contours(c, spec, 0, fit_idx), roughen_contours(c, spec, 1, fit_idx)])
+    model = load_model(out)
+    ref = type(model)(**{k: v for k, v in model.get_params().items()}).fit(
+        rows, np.concatenate([data.joints[fit_idx]] * 3), rig=data.rig)
+    np.testing.assert_allclose(ref.mixture_.means_, model.mixture_.means_, rtol=1e-9, atol=1e-9)
+    res = _invoke("train", dataset, "--roughness", "1", "--streaming", "--out", tmp_path / "s.npz")
+    assert res.exit_code == 2 and "--roughness" in res.output
+
+
+def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):
+    """With fewer than MIN_ROWS_PER_LATENT samples per component per latent dimension EM cannot move from
+    its start: the trainer lowers M (to at least 10), then q; what the user fixes stays."""
+    from silpose.app.training import MIN_ROWS_PER_LATENT, supported_size
     from silpose.model.shape_model import DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT
 
+    assert MIN_ROWS_PER_LATENT == 6
+    assert supported_size(18000, 20, 40) == (20, 40) and supported_size(4800, 20, 40) == (20, 40)
+    assert supported_size(1800, 20, 40) == (10, 30)  # the default preset: 1,800 / (6 * 10) = 30
+    assert supported_size(1800, 20, 40, fixed_q=True) == (7, 40)
+    assert supported_size(1800, 20, 40, fixed_m=True) == (20, 15)
+    assert supported_size(100, 2, 4, fixed_m=True, fixed_q=True) == (2, 4)
     out = tmp_path / "small.npz"
     res = _invoke("train", dataset, "--n-init", "1", "--max-iter", "10", "--no-progress", "--out", out)
     assert res.exit_code == 0, res.output
-    q = 72 // (2 * DEFAULT_N_COMPONENTS)
-    assert q < DEFAULT_N_LATENT and f"lowered from the default {DEFAULT_N_LATENT} to {q}" in res.output
-    assert read_header(out)["hyperparameters"]["n_latent"] == q
-    assert "note: n_latent lowered" in out.with_suffix(".report.md").read_text()
+    m, q = supported_size(72, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT)
+    assert (m, q) == (10, 1)
+    assert f"lowered from the defaults {DEFAULT_N_COMPONENTS}, {DEFAULT_N_LATENT} to {m}, {q}" in res.output
+    hp = read_header(out)["hyperparameters"]
+    assert (hp["n_components"], hp["n_latent"]) == (m, q)
+    assert "note: M, q lowered" in out.with_suffix(".report.md").read_text()
 
 
 def test_header_records_training_config_and_generator_config(trained):

@@ -71,8 +71,20 @@ def test_summary_and_headline_show_figures_recomputed_from_the_rows(evaluated):
     e1 = df[df.experiment == "E1"]
     single, multi = e1[e1.training == "single-view"].pose_cm.mean(), e1[e1.training == "multi-view"].pose_cm.mean()
     better = 100.0 * (1.0 - multi / single)
-    assert f"| pose (mean) | {better:.1f} % | 24 % |" in lines
+    per_view = e1[e1.training == "single-view, equal q per view"].pose_cm.mean()
+    better_pv = 100.0 * (1.0 - multi / per_view)
+    assert f"| pose (mean) | {better:.1f} % | {better_pv:.1f} % | 24 % |" in lines
     assert head["e1"]["pose_improvement_pct"] == pytest.approx(better, rel=1e-12)
+    assert head["e1_equal_q_per_view"]["pose_improvement_pct"] == pytest.approx(better_pv, rel=1e-12)
+    # the headline table: mask-level noise with every view given, as a multiple of the clean error
+    e3 = df[(df.experiment == "E3") & (df.method == "mppca") & (df.input_views == "0123")]
+    clean = e3[e3.noise == "clean"].pose_cm.mean()
+    for noise, v in head["pose_mean_cm_by_noise_all_views"].items():
+        assert v["mppca"] == pytest.approx(e3[e3.noise == noise].pose_cm.mean(), rel=1e-12)
+        assert v["x_clean"] == pytest.approx(v["mppca"] / clean, rel=1e-12)
+    mask = [k for k in head["pose_mean_cm_by_noise_all_views"] if k.startswith("mask")]
+    assert mask and all(any(line.startswith(f"| 4 views, noise '{k}' |") for line in lines) for k in mask)
+    assert lines.index("## Headline") < lines.index(next(x for x in lines if x.startswith("## E1")))
     chance = df[(df.experiment == "E4") & (df.method == "chance")].pose_cm
     assert f"| chance (random training pose) | – | {_quartet(chance)} | 29 |" in lines
     assert head["chance_cm"]["mean"] == pytest.approx(chance.mean(), rel=1e-12)
@@ -85,7 +97,7 @@ def test_row_counts_match_the_protocol(evaluated):
     df = pd.read_parquet(out / "results.parquet")
     n = len(load_split(root, "test"))
     counts = df.groupby("experiment").size().to_dict()
-    assert counts["E1"] == 4 * n + n
+    assert counts["E1"] == 2 * 4 * n + n  # single-view models at equal q and at q / K, and the 4-view model
     assert counts["E2"] == 15 * n
     assert counts["E3"] == 4 * (2 + 2) * n  # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge)
     assert counts["E4"] == n + 2 * 15 * n
@@ -112,6 +124,16 @@ def test_numbers_recompute_independently(evaluated):
     pred = ChanceBaseline(random_state=0).fit(train.joints).predict(len(test))
     np.testing.assert_allclose(chance.pose_cm, metrics.pose_error_cm(pred, test.joints), rtol=1e-9)
     assert df[df.experiment == "E1"].pose_cm.notna().all()
+    # E1 at equal capacity per view: single-view model k has q / K latent dimensions, refitted here
+    e1 = df[(df.experiment == "E1") & (df.training == "single-view, equal q per view") & (df.trained_views == "2")]
+    params = dict(model.get_params(), views=(2,), n_latent=max(1, round(model.n_latent / 4)))
+    fitted_on = train  # the stick model was fitted on every training sample (no held-out part)
+    sv = ShapeStructureModel(**params).fit(fitted_on.contours, fitted_on.joints, rig=fitted_on.rig)
+    only2 = np.zeros((len(test), 4), bool)
+    only2[:, 2] = True
+    pred = sv.infer(noisy, views_present=only2, centroid=test.centroid, scale=test.scale).joints
+    np.testing.assert_allclose(e1.set_index("sample_id").loc[test.sample_id].pose_cm,
+                               metrics.pose_error_cm(pred, test.joints), rtol=1e-6)
 
 
 def test_clear_errors_when_data_or_model_missing(tmp_path, stick_dataset):

@@ -19,6 +19,9 @@ def test_subset_reproduces_the_trainers_fit(stick_dataset, tmp_path):
     data = load_data(stick_dataset, None, with_masks=False)
     n_all = len(data.train_joints)
     note = match_training_subset(data, model)
-    assert len(data.train_joints) == model.dataset_info_["n_fit"] < n_all, note
+    # the trainer's ragged-copy augmentation (roughness "auto": one copy per sample) is reproduced too
+    copies = model.training_config_["roughness"]["copies"]
+    assert copies == 1 and "ragged copy" in note
+    assert len(data.train_joints) == (1 + copies) * model.dataset_info_["n_fit"] and model.dataset_info_["n_fit"] < n_all
     refit = ShapeStructureModel(**model.get_params()).fit(data.train_contours, data.train_joints, rig=data.rig)
     np.testing.assert_allclose(refit.mixture_.means_, model.mixture_.means_, rtol=1e-6, atol=1e-9)

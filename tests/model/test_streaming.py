@@ -137,8 +137,9 @@ def test_streaming_holds_one_shard_of_features(dataset, start_params, monkeypatc
     monkeypatch.setattr(streaming, "load_shard_features", spy)
     monkeypatch.setattr("silpose.shared.dataset.load_split", no_load_split)
     _model(max_iter=3).fit_stream(dataset, "train", init_params=start_params)
-    # passes: moments, first E-step, 3 iterations -> 5 passes x 4 shards
-    assert len(calls) == 5 * len(SHARD_ROWS)
+    # passes: moments, first E-step, 3 iterations, the log-likelihood under the dof-corrected noise
+    # variances (noise_dof, the default) -> 6 passes x 4 shards
+    assert len(calls) == 6 * len(SHARD_ROWS)
     assert all(n_alive == 0 for n_alive, _, _ in calls)
     assert max(rows for _, _, rows in calls) == max(SHARD_ROWS)
 

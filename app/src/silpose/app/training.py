@@ -1,9 +1,15 @@
 """The work behind ``silpose train``: load a split, optionally select hyperparameters, fit, report.
 
 A held-out part of the train split (``heldout`` fraction, seeded) is kept out of the fit and
-scored: mean log-likelihood per sample of the full shape+structure vectors, and the mean joint
-error (cm) inferring joints from all modelled views. The saved model is the one fitted on the
-remaining part of train.
+scored: mean log-likelihood per sample of the full shape+structure vectors (beside the same on the
+fitted rows, both for structure weight 1: ``silpose.model.selection.unit_weight_loglik``), and the
+mean joint error (cm) inferring joints from all modelled views and from each view alone. The
+saved model is the one fitted on the remaining part of train. The report says whether EM moved
+from its k-means start ("real EM", ``silpose.model.selection.is_real_em``) and how many rows each
+component has per latent dimension.
+
+``roughness`` (``silpose train --roughness PX``) adds ragged-outline copies of the fitted rows
+(``silpose.model.augment``), a training augmentation for imperfect segmentations.
 
 With ``streaming`` (``silpose train --streaming``) or ``executor="ray"`` the split is never loaded
 whole: EM streams over its Parquet shards (``silpose.model.streaming``) and the held-out part is
@@ -22,11 +28,14 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+import pyarrow as pa
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from silpose.model.augment import Roughness, augment_rows
 from silpose.model.persistence import is_model_file, save_model
 from silpose.model.provenance import check_split_hashes, manifest_sha256
-from silpose.model.selection import select as run_selection, validation_split
+from silpose.model.selection import is_real_em, unit_weight_loglik, validation_split, view_errors
+from silpose.model.selection import select as run_selection
 from silpose.model.shape_model import (
     DEFAULT_N_COMPONENTS,
     DEFAULT_N_LATENT,
@@ -34,6 +43,30 @@ from silpose.model.shape_model import (
     DEFAULT_STRUCTURE_WEIGHT,
     ShapeStructureModel,
 )
+
+#: Samples per component per latent dimension below which EM does not move from its k-means start
+#: (every row is far likelier under its own component; docs/conventions.md, "Model"). Measured on the
+#: default preset (1,440-1,800 fitted samples): EM froze at 2.3-4.5 samples per component per latent
+#: dimension (M 10-20, q 30-40 but M 20 q 20 moved at 4.5) and moved at 6 and above.
+MIN_ROWS_PER_LATENT = 6
+#: The smallest M :func:`supported_size` lowers the default to before lowering q.
+MIN_DEFAULT_COMPONENTS = 10
+
+#: ``roughness="auto"`` (the default) adds one ragged copy of every fitted sample (1 px, ``Roughness()``) when
+#: at most this many samples are fitted, and none above (the copies double the features in memory: the
+#: paper preset's fit would pass 1 GB). Measured on the default preset (M 10, q 30, standard test noise):
+#: 4 views 3.83 -> 3.69 cm, 1 view 10.40 -> 9.60 cm; replacing the samples by ragged ones (copies 0) gains nothing.
+AUTO_ROUGHNESS_MAX_SAMPLES = 5000
+
+#: ``silpose train``'s EM settings: a run stops when the mean log-likelihood gains less than DEFAULT_TOL
+#: nats per sample in an iteration (6e-5 nats per feature for d = 1,657). Measured on the paper preset
+#: (18,000 samples, M 20, q 40): EM gains 14, 3.5, 1.5 nats in its first iterations and < 0.1 from the
+#: 10th on, while the held-out joint error (2.58 cm) and log-likelihood (2,789 nats) stop changing after
+#: the 2nd; the former tol of 1e-4 ran 200 iterations without converging. One start (n_init 1): with
+#: hard responsibilities the em-EM restarts cost 15 iterations and kept the same start in our runs.
+DEFAULT_TOL = 0.1
+DEFAULT_MAX_ITER = 200
+DEFAULT_N_INIT = 1
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
@@ -56,10 +89,29 @@ class TrainingResult:
         return (
             f"{self.model_path}: M={r['hyperparameters']['n_components']} q={r['hyperparameters']['n_latent']} "
             f"w={r['hyperparameters']['structure_weight']:g} on {r['n_fit']} samples, "
-            f"{r['em']['n_iter']} EM iterations in {r['em']['fit_time_s']:.1f} s; held-out log-likelihood "
-            f"{r['heldout']['mean_loglik']:.1f}/sample, joint error {r['heldout']['joint_error_cm']:.2f} cm "
+            f"{r['em']['n_iter']} EM iterations ({'real EM' if r['em']['real_em'] else 'EM did not move'}) in "
+            f"{r['em']['fit_time_s']:.1f} s; log-likelihood train {r['em']['train_loglik']:.1f} / held-out "
+            f"{r['heldout']['mean_loglik']:.1f} per sample, held-out joint error {r['heldout']['joint_error_cm']:.2f} cm "
             f"({r['n_heldout']} samples); report {self.report_md}"
         )
+
+
+def supported_size(n_fit: int, m: int, q: int, *, fixed_m: bool = False, fixed_q: bool = False) -> tuple[int, int]:
+    """(M, q) the ``n_fit`` fitted samples support: ``n_fit >= MIN_ROWS_PER_LATENT * M * q``.
+
+    Lowers what the user did not fix: M first (not below ``MIN_DEFAULT_COMPONENTS``), then q (>= 1);
+    both fixed: unchanged. The default preset's 1,800 samples give M 10, q 30 (what model selection
+    chose among the fits whose EM moved); the paper preset's 18,000 keep M 20, q 40.
+    """
+    r = MIN_ROWS_PER_LATENT
+    if n_fit >= r * m * q:
+        return m, q
+    if not fixed_m:
+        supported = n_fit // (r * q)
+        m = max(1, supported) if fixed_q else min(m, max(MIN_DEFAULT_COMPONENTS, supported))
+    if not fixed_q and n_fit < r * m * q:
+        q = max(1, n_fit // (r * m))
+    return m, q
 
 
 def resolve_dataset(preset: str, data_root: Path) -> tuple[Path, str]:
@@ -126,9 +178,9 @@ def run_training(
     structure_weight: float | None = None,
     noise_variance: float | None = None,
     views: Sequence[int] | None = None,
-    max_iter: int = 200,
-    n_init: int = 3,
-    tol: float = 1e-4,
+    max_iter: int = DEFAULT_MAX_ITER,
+    n_init: int = DEFAULT_N_INIT,
+    tol: float = DEFAULT_TOL,
     seed: int = 0,
     heldout: float = 0.1,
     data_root: Path = Path("data"),
@@ -137,9 +189,12 @@ def run_training(
     streaming: bool = False,
     executor: str = "local",
     workers: int | None = None,
+    roughness: Roughness | None | str = "auto",
 ) -> TrainingResult:
     """Fit on ``<dataset>/train`` minus a held-out part; write the model and its report. See module doc.
 
+    ``roughness``: a :class:`~silpose.model.augment.Roughness`, None (off) or ``"auto"`` (one ragged copy per
+    sample up to ``AUTO_ROUGHNESS_MAX_SAMPLES`` fitted samples, off above and when streaming).
     ``streaming`` fits out of core (EM streams over the train shards, ``ShapeStructureModel.fit_stream``)
     and scores the held-out part shard by shard; ``executor="ray"`` (implies streaming) runs each
     shard's EM task on Ray with ``workers`` CPUs when it starts a local Ray instance.
@@ -150,6 +205,10 @@ def run_training(
     if streaming and select:
         raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
                             "then train the chosen hyperparameters with streaming")
+    if roughness == "auto":
+        roughness = None if streaming else "auto"
+    elif streaming and roughness is not None:
+        raise TrainingError("--roughness augments the rows in memory; run it without --streaming / --executor ray")
     root, name = resolve_dataset(preset, data_root)
     out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     claim_files(report_paths(out), "train", recognise=is_training_output)  # before any work
@@ -159,13 +218,17 @@ def run_training(
         split, metadata, rig = None, plan.metadata, plan.rig
         n, n_views, n_points = sum(plan.shard_rows()), plan.n_rig_views, plan.n_points
     else:
-        split = load_split(root, "train", columns=["joints", "contours", "contour_centroid", "contour_scale"])
+        split = load_split(root, "train", columns=["joints", "contours"])
+        pa.default_memory_pool().release_unused()  # the Parquet reader's buffers (~200 MB on the paper preset)
         metadata, rig = split.metadata, split.rig
         n, n_views, n_points = len(split), split.contours.shape[1], split.contours.shape[2]
     if n < 4:
         raise TrainingError(f"{root}: the train split has {n} samples; at least 4 are needed")
     fit_idx, held_idx = validation_split(n, heldout, seed)
+    if roughness == "auto":
+        roughness = Roughness() if len(fit_idx) <= AUTO_ROUGHNESS_MAX_SAMPLES else None
     contours, joints = (None, None) if split is None else (split.contours, split.joints)
+    del split
     hp = {
         "n_components": DEFAULT_N_COMPONENTS if n_components is None else n_components,
         "n_latent": DEFAULT_N_LATENT if n_latent is None else n_latent,
@@ -180,25 +243,33 @@ def run_training(
         print(f"model selection on {len(fit_idx)} training samples ...", flush=True)
         selection = run_selection(
             contours[fit_idx], joints[fit_idx], grid={**(grid or {}), **user}, views=views, seed=seed,
-            max_iter=min(max_iter, 100), tol=tol, rig=rig,
+            max_iter=min(max_iter, 100), tol=tol, rig=rig, roughness=roughness,
             progress=(lambda i, k, row: print(f"  fit {i}/{k}: q={row['n_latent']} M={row['n_components']} "
-                                              f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm",
+                                              f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm, "
+                                              f"1 view {row['val_error_1view_cm']:.2f} cm, held-out log-lik "
+                                              f"{row['val_loglik']:.1f}, {'real EM' if row['real_em'] else 'EM frozen'}",
                                               flush=True)) if progress else None,
         )
         print(selection.to_markdown())
         hp = {k: selection.best[k] for k in hp}
     notes = []
-    if n_latent is None and not select:
-        q_data = max(1, len(fit_idx) // (2 * int(hp["n_components"])))
-        if q_data < hp["n_latent"]:  # a small dataset (e.g. smoke) cannot support the default q
-            notes.append(f"n_latent lowered from the default {hp['n_latent']} to {q_data} "
-                         f"(= fitted samples / (2 M)) for this small dataset")
-            hp["n_latent"] = q_data
+    if not select:
+        m_fit, q_fit = supported_size(len(fit_idx), int(hp["n_components"]), int(hp["n_latent"]),
+                                      fixed_m=n_components is not None, fixed_q=n_latent is not None)
+        if (m_fit, q_fit) != (hp["n_components"], hp["n_latent"]):  # a small dataset cannot support the defaults
+            notes.append(f"M, q lowered from the defaults {hp['n_components']}, {hp['n_latent']} to {m_fit}, {q_fit} "
+                         f"for {len(fit_idx)} fitted samples: EM needs >= {MIN_ROWS_PER_LATENT} samples per component "
+                         f"per latent dimension to move from its k-means start")
+            hp["n_components"], hp["n_latent"] = m_fit, q_fit
     max_q = min(len(fit_idx) - 1, n_points * 2 * (len(views) if views else n_views))
     if hp["n_latent"] >= max_q:
         raise TrainingError(f"n_latent = {hp['n_latent']} is too large for {len(fit_idx)} training samples (< {max_q})")
     for note in notes:
         print(f"note: {note}", flush=True)
+    if not streaming:  # keep only the two parts, not the whole split, while EM runs
+        c_held, j_held = contours[held_idx], joints[held_idx]
+        c_fit, j_fit = contours[fit_idx], joints[fit_idx]
+        del contours, joints
 
     with EMProgress(progress, max_iter, n_init) as em:
         model = ShapeStructureModel(
@@ -210,7 +281,10 @@ def run_training(
         if streaming:
             model.fit_stream(root, "train", rows=fit_idx, executor=executor, workers=workers)
         else:
-            model.fit(contours[fit_idx], joints[fit_idx], rig=rig)
+            if roughness is not None:
+                c_fit, j_fit = augment_rows(c_fit, j_fit, roughness, seed, fit_idx)
+            model.fit(c_fit, j_fit, rig=rig)
+            del c_fit, j_fit
         wall = time.perf_counter() - t0
     model.callback = None
     model.dataset_info_ = _dataset_info(root, name, metadata, n, len(fit_idx), len(held_idx))
@@ -218,15 +292,19 @@ def run_training(
             "n_shards": len(plan.paths) if streaming else None}
     model.training_config_ = {"command": "silpose train", "heldout_fraction": heldout, "seed": seed,
                               "select": bool(select), "selection_best": None if selection is None else selection.best,
-                              "mode": mode}
+                              "mode": mode, "roughness": None if roughness is None else roughness.to_dict()}
+    held_1view = float("nan")
     if streaming:
         held_ll, held_err = _heldout_streaming(model, plan, held_idx)
     else:
-        held_ll = model.score_samples(contours[held_idx], joints[held_idx])
-        held_err = pose_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
+        held_ll = model.score_samples(c_held, j_held)
+        held_err = pose_error_cm(model.infer(c_held).joints, j_held)
+        held_1view = view_errors(model, np.asarray(c_held, np.float64), j_held)["one"]
 
     save_model(out, model)
     mix = model.mixture_
+    q = int(model.n_latent)
+    rows_per_comp = mix.weights_ * mix.n_fit_samples_
     report = {
         "model": str(out),
         "dataset": model.dataset_info_,
@@ -237,17 +315,30 @@ def run_training(
         "em": {
             "n_iter": int(mix.n_iter_),
             "converged": bool(mix.converged_),
+            "real_em": is_real_em(mix, tol),
+            "initial_loglik": float(mix.initial_bound_),
+            "em_gain": float(mix.lower_bounds_[-1] - mix.initial_bound_),
             "mean_loglik": float(mix.lower_bound_),
+            "train_loglik": float(unit_weight_loglik(model, mix.lower_bound_)),
             "loglik_curve": [float(v) for v in mix.lower_bounds_],
             "all_segments": em.curves,
             "fit_time_s": float(wall),
+            "n_fit_rows": int(mix.n_fit_samples_),
+            "rows_per_component": {"min": float(rows_per_comp.min()), "median": float(np.median(rows_per_comp)),
+                                   "max": float(rows_per_comp.max())},
+            "rows_per_component_per_latent_min": float(rows_per_comp.min() / q),
+            "noise_dof_factor": {"min": float(mix.noise_dof_factor_.min()), "median": float(np.median(mix.noise_dof_factor_)),
+                                 "max": float(mix.noise_dof_factor_.max())},
+            "n_underdetermined_components": int(mix.n_underdetermined_),
         },
         "heldout": {
-            "mean_loglik": float(np.mean(held_ll)),
+            "mean_loglik": float(np.mean(unit_weight_loglik(model, held_ll))),
             "joint_error_cm": float(np.mean(held_err)),
             "joint_error_median_cm": float(np.median(held_err)),
+            "joint_error_1view_cm": float(held_1view),
         },
         "selection": None if selection is None else selection.to_dict(),
+        "roughness": None if roughness is None else roughness.to_dict(),
         "notes": notes,
     }
     _, report_json, report_md = report_paths(out)
@@ -322,10 +413,19 @@ def report_markdown(r: dict, selection) -> str:
         f"best of {hp['n_init']} runs, {em['fit_time_s']:.1f} s in total"
         + (f"; streamed over {r['mode']['n_shards']} shards ({r['mode']['executor']})" if r.get("mode", {}).get("streaming")
            else "; in memory"),
-        f"- training mean log-likelihood: {em['mean_loglik']:.2f} nats/sample",
-        f"- held-out mean log-likelihood: {held['mean_loglik']:.2f} nats/sample",
-        f"- held-out joint error (all views observed): mean {held['joint_error_cm']:.2f} cm, "
-        f"median {held['joint_error_median_cm']:.2f} cm",
+        f"- EM moved from its k-means start: {'yes' if em['real_em'] else 'NO'} (log-likelihood {em['initial_loglik']:.2f} "
+        f"-> {curve[-1]:.2f} nats/sample, gain {em['em_gain']:.3g}); rows per component {em['rows_per_component']['min']:.0f}"
+        f"-{em['rows_per_component']['max']:.0f} (at least {em['rows_per_component_per_latent_min']:.1f} per latent dimension)"
+        + ("" if em["real_em"] else "; a fit whose EM never moves is its k-means partition with one PCA per cluster"),
+        f"- noise variances corrected for degrees of freedom (x{em['noise_dof_factor']['min']:.2f}-"
+        f"{em['noise_dof_factor']['max']:.2f}, {em['n_underdetermined_components']} components underdetermined)"
+        if hp.get("noise_dof") else "- noise variances: maximum likelihood (no degrees-of-freedom correction)",
+        f"- log-likelihood per sample (structure weight 1): training {em['train_loglik']:.1f}, held-out "
+        f"{held['mean_loglik']:.1f} nats (gap {em['train_loglik'] - held['mean_loglik']:.1f})",
+        f"- held-out joint error: all views observed mean {held['joint_error_cm']:.2f} cm, "
+        f"median {held['joint_error_median_cm']:.2f} cm; one view observed (mean over views) "
+        f"{held.get('joint_error_1view_cm', float('nan')):.2f} cm",
+        *([f"- training augmentation: ragged outlines {r['roughness']}"] if r.get("roughness") else []),
         *[f"- note: {n}" for n in r.get("notes", [])],
         "",
         "## Log-likelihood curve (kept run, nats/sample)",
@@ -337,6 +437,11 @@ def report_markdown(r: dict, selection) -> str:
     shown_idx = idx if len(curve) <= 12 else idx[:6] + idx[-6:]
     lines += [f"| {i} | {v:.4f} |" for i, v in zip(shown_idx, shown)]
     if selection is not None:
+        how = selection.extra.get("choice", {})
         lines += ["", f"## Model selection ({selection.n_train} fit / {selection.n_val} validation samples)", "",
+                  "Score: mean of the validation joint error given every view and given each view alone (ragged "
+                  "validation outlines); log-likelihoods per sample for structure weight 1. Chosen among "
+                  f"{how.get('pool', 'the fits')}: not dominated in (score, held-out log-likelihood), score within "
+                  f"{100 * how.get('error_tolerance', 0):.0f} % of the best, then the fewest parameters.", "",
                   selection.to_markdown()]
     return "\n".join(lines) + "\n"

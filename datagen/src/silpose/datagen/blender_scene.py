@@ -113,16 +113,31 @@ def setup_scene(rig: Rig, engine: str = "workbench", antialias: bool = False) ->
 
 
 def _extra_vertices(subject: dict, rest: np.ndarray, radii: dict) -> list[tuple[np.ndarray, float, int, dict]]:
-    """Clothing/hair vertices: (rest position, radius, parent vertex index, {bone: weight})."""
+    """Clothing/hair vertices: (rest position, radius, parent vertex index, {bone: weight}).
+
+    Parent indices < N_JOINTS are joints; larger ones are earlier extra vertices. A skirt, dress or
+    coat is a cone from its top (the pelvis, or the mid-torso ``spine`` joint for a coat) to its hem
+    (radius ``skirt_flare``); a curved one (``skirt_curve`` != 0) gets a vertex half-way down whose
+    radius is the straight cone's there plus ``skirt_curve``. Hems follow the thighs.
+    """
     L = segment_lengths(subject)
     extra = []
     if subject["skirt_length"] > 0:
         pelvis = rest[JOINT_INDEX["pelvis"]]
         hem = pelvis - np.array([0.0, 0.0, subject["skirt_length"] * (L["thigh"] + L["shank"])])
-        extra.append((hem, float(subject["skirt_flare"]), JOINT_INDEX["pelvis"], {"l_knee": 0.5, "r_knee": 0.5}))
+        thighs = {"l_knee": 0.5, "r_knee": 0.5}
+        top = JOINT_INDEX["spine"] if subject["skirt_top"] >= 0.5 else JOINT_INDEX["pelvis"]
+        flare = float(subject["skirt_flare"])
+        if subject["skirt_curve"] != 0:
+            r_top = radii[JOINT_NAMES[top]]
+            mid = 0.5 * (rest[top] + hem)
+            r_mid = max(0.5 * (r_top + flare) + float(subject["skirt_curve"]), 0.02)
+            extra.append((mid, r_mid, top, thighs))
+            top = N_JOINTS + len(extra) - 1
+        extra.append((hem, flare, top, thighs))
     if subject["hair_length"] > 0:
         head = rest[JOINT_INDEX["head"]]
-        tip = head + np.array([-0.6 * radii["head"], 0.0, -float(subject["hair_length"])])
+        tip = head + np.array([-float(subject["hair_back"]) * radii["head"], 0.0, -float(subject["hair_length"])])
         extra.append((tip, 0.6 * radii["head"], JOINT_INDEX["head"], {"head_top": 1.0}))
     return extra
 

@@ -18,6 +18,7 @@ from silpose.shared.dataset import list_shards, load_split, read_metadata, rig_f
 from silpose.shared.dataset_schema import TENSOR_DTYPES
 from silpose.shared.rig_frame import Workspace
 
+from .characters import measured_comparison, side_by_side
 from .manifest import read_manifest
 from .preview import PREVIEW_NAME
 from .subjects import describe_distribution
@@ -274,6 +275,10 @@ def write_card(root: str | Path) -> Path:
         *(["### motion-capture clips (both splits)\n", _motion_section(motion, loaded)] if motion else
           ["### documented gait distribution (both splits)\n", _gait_section(rig.workspace)]),
     ]
+    if "train" in loaded and "test" in loaded:
+        parts += ["### train vs test characters (documented)\n", side_by_side(),
+                  "### train vs test characters (measured)\n",
+                  measured_comparison(loaded["train"].subject, loaded["test"].subject)]
     for s in splits:
         parts += [f"### {s}: documented subject distribution\n", _distribution_section(s),
                   f"### {s}: measured subject parameters\n", _measured_table(loaded[s].subject), "",

@@ -9,11 +9,14 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
 (clean) factors. Pose errors are root-relative cm (:mod:`silpose.shared.metrics`).
 
 - **E1** single-view vs multi-view training (paper Fig. 5). For each view k a model with
-  ``views=(k,)`` (the 4-view model's hyperparameters) is fitted on the same training split and given
-  the noisy contour of view k; the 4-view model is given the noisy contours of all 4 views of the
-  same examples. Pose: mean over (example, k) of the single-view models vs mean over examples of
-  the 4-view model. Contours: single-view model k's error in view k vs the 4-view model's error in
-  view k. For reference E2's rows hold the 4-view model given view k alone.
+  ``views=(k,)`` is fitted on the same training split and given the noisy contour of view k; the
+  4-view model is given the noisy contours of all 4 views of the same examples. Two capacities,
+  labelled in ``training``: ``"single-view"`` has the 4-view model's hyperparameters (equal q, so
+  K times the latent dimensions per view), ``"single-view, equal q per view"`` has q / K latent
+  dimensions (rounded, >= 1; the 4-view model's share per view), the rest equal. Pose: mean over
+  (example, k) of the single-view models vs mean over examples of the 4-view model. Contours:
+  single-view model k's error in view k vs the 4-view model's error in view k. For reference E2's
+  rows hold the 4-view model given view k alone.
 - **E2** the 4-view model given every non-empty subset of views: 4; 3 (each view left out in
   turn); 2 and 1 (all combinations) — every subset on every example, so all combinations are
   covered equally (paper Fig. 8).
@@ -44,7 +47,10 @@ from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_pro
 from .baselines import ChanceBaseline, ViewSubsetRegressor
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
-__all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "view_subsets", "views_label"]
+__all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "E1_PER_VIEW", "view_subsets", "views_label"]
+
+#: E1's ``training`` label of the single-view models with the 4-view model's latent dimensions per view (q / K).
+E1_PER_VIEW = "single-view, equal q per view"
 
 #: E3: the noise settings swept by default (magnitudes in px; see silpose.eval.noise).
 DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
@@ -239,19 +245,28 @@ class Evaluation:
             out[f"chamfer_v{k}"] = one[:, k]
         return out
 
-    def single_view_model(self, k: int):
-        """The model trained on view k alone (fitted on first use with the 4-view model's hyperparameters)."""
-        if k not in self.single_view_models:
+    def single_view_model(self, k: int, per_view: bool = False):
+        """The model trained on view k alone, fitted on first use with the 4-view model's hyperparameters;
+        ``per_view``: with q / K latent dimensions instead of q (cached under the key ``(k, "per_view")``)."""
+        key = (int(k), "per_view") if per_view else k
+        if key not in self.single_view_models:
             params = dict(self.model.get_params())
             params["views"] = (int(k),)
+            if per_view:
+                params["n_latent"] = self.per_view_latent()
             with warnings.catch_warnings(record=True) as caught:  # keep the progress display clean
                 warnings.simplefilter("always")
-                self.single_view_models[k] = ShapeStructureModel(**params).fit(
+                self.single_view_models[key] = ShapeStructureModel(**params).fit(
                     self.data.train_contours, self.data.train_joints, rig=self.data.rig
                 )
             for w in caught:
-                self.notes.append(f"E1 single-view model {k}: {w.category.__name__}: {w.message}")
-        return self.single_view_models[k]
+                self.notes.append(f"E1 single-view model {k}{' (q/K)' if per_view else ''}: "
+                                  f"{w.category.__name__}: {w.message}")
+        return self.single_view_models[key]
+
+    def per_view_latent(self) -> int:
+        """q / K (rounded, >= 1): the 4-view model's latent dimensions per modelled view."""
+        return max(1, int(round(int(self.model.n_latent) / len(self.model.layout_.views))))
 
     def regressor(self, kind: str, views: Sequence[int]):
         """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached)."""
@@ -293,16 +308,17 @@ class Evaluation:
         K = self.data.n_views
         all_views = tuple(range(K))
         noisy = self.noisy(self.config.noise)
-        total = 2 * K + 1
-        for k in range(K):
-            self._tick(f"E1: fitting the view-{k} model", k, total)
-            self.single_view_model(k)
-        for k in range(K):
-            self._tick(f"E1: single-view model {k}", K + k, total)
-            s = self.score_model(self.single_view_model(k), noisy, (k,))
-            self._add(dict(experiment="E1", method="mppca", training="single-view", trained_views=str(k),
-                           input_views=str(k), n_input_views=1, noise=self.config.noise.label), **s)
-        self._tick("E1: multi-view model", 2 * K, total)
+        total = 4 * K + 1
+        for i, (per_view, label) in enumerate(((False, "single-view"), (True, E1_PER_VIEW))):
+            for k in range(K):
+                self._tick(f"E1: fitting the view-{k} model{' (q/K)' if per_view else ''}", 2 * i * K + k, total)
+                self.single_view_model(k, per_view)
+            for k in range(K):
+                self._tick(f"E1: single-view model {k}{' (q/K)' if per_view else ''}", (2 * i + 1) * K + k, total)
+                s = self.score_model(self.single_view_model(k, per_view), noisy, (k,))
+                self._add(dict(experiment="E1", method="mppca", training=label, trained_views=str(k),
+                               input_views=str(k), n_input_views=1, noise=self.config.noise.label), **s)
+        self._tick("E1: multi-view model", 4 * K, total)
         s = self.score_model(self.model, noisy, all_views)
         self._add(dict(experiment="E1", method="mppca", training="multi-view", trained_views=views_label(all_views),
                        input_views=views_label(all_views), n_input_views=K, noise=self.config.noise.label), **s)

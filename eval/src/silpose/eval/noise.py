@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass, replace
 import cv2
 import numpy as np
 
-from silpose.shared.contours import EmptyMaskError, extract_contour, signed_area
+from silpose.shared.contours import EmptyMaskError, extract_contour, outward_normals
 from silpose.shared.seeds import derive_rng, stream_code
 
 __all__ = [
@@ -152,26 +152,6 @@ def jitter_points(points: np.ndarray, magnitude: float, rng: np.random.Generator
     else:
         raise ValueError(f"distribution must be 'fixed' or 'gaussian', got {distribution!r}")
     return p + d
-
-
-def outward_normals(points: np.ndarray) -> np.ndarray:
-    """Unit outward normals of closed contours.
-
-    The tangent is the central difference ``t_i = p_{i+1} - p_{i-1}``; the normal
-    ``(t_y, -t_x) / |t|`` points outward for a positive shoelace area and is flipped otherwise.
-
-    Args:
-        points: (..., n, 2) px.
-    Returns:
-        (..., n, 2) unit vectors (zero where the tangent vanishes).
-    """
-    p = np.asarray(points, dtype=np.float64)
-    t = np.roll(p, -1, axis=-2) - np.roll(p, 1, axis=-2)
-    nrm = np.stack([t[..., 1], -t[..., 0]], axis=-1)
-    length = np.linalg.norm(nrm, axis=-1, keepdims=True)
-    nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
-    sign = np.where(signed_area(p) >= 0, 1.0, -1.0)
-    return nrm * sign[..., None, None]
 
 
 def normal_patches(points: np.ndarray, n_patches: int, patch_length: int, depth: float,

@@ -14,6 +14,7 @@ import numpy as np
 
 from silpose.shared.atomic import atomic_path
 
+from .experiments import E1_PER_VIEW
 from .report import e1_comparison
 from .tables import select
 
@@ -70,12 +71,14 @@ def plot_e1(df, path) -> Path | None:
     if e1.empty:
         return None
     c = e1_comparison(df)
+    pv = c.get("equal_q_per_view")
+    labels = ["single-view\ntraining\n(equal q)"] + (["single-view\ntraining\n(q / K)"] if pv else []) + ["multi-view\ntraining"]
+    pose = [select(e1, training="single-view")["pose_cm"]] + ([select(e1, training=E1_PER_VIEW)["pose_cm"]] if pv else [])
+    chamfer = [c["_sv_chamfer"]] + ([pv["_sv_chamfer"]] if pv else [])
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(8, 4))
-    paper_boxplot(axes[0], [select(e1, training="single-view")["pose_cm"], select(e1, training="multi-view")["pose_cm"]],
-                  ["single-view\ntraining", "multi-view\ntraining"], "pose error (cm)", "Pose")
-    paper_boxplot(axes[1], [c["_sv_chamfer"], c["_mv_chamfer"]], ["single-view\ntraining", "multi-view\ntraining"],
-                  "Chamfer distance true→recon (px)", "Contours")
+    fig, axes = plt.subplots(1, 2, figsize=(9 if pv else 8, 4))
+    paper_boxplot(axes[0], pose + [select(e1, training="multi-view")["pose_cm"]], labels, "pose error (cm)", "Pose")
+    paper_boxplot(axes[1], chamfer + [c["_mv_chamfer"]], labels, "Chamfer distance true→recon (px)", "Contours")
     fig.suptitle("E1: training on single vs multiple views (cf. paper Fig. 5)")
     return save_figure(fig, path)
 

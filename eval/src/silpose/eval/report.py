@@ -12,9 +12,10 @@ import json
 
 import numpy as np
 
+from .experiments import E1_PER_VIEW
 from .tables import QUARTILE_HEADERS, fmt, fmt_stats, markdown_table, select, stats
 
-__all__ = ["PAPER", "stats", "e1_comparison", "headline", "pct_per_px", "markdown_summary"]
+__all__ = ["PAPER", "stats", "e1_comparison", "noise_comparison", "headline", "pct_per_px", "markdown_summary"]
 
 #: The paper's figures (Grauman et al. 2003, §6).
 PAPER = {
@@ -31,12 +32,19 @@ def _pct_better(multi: float, single: float) -> float:
     return float(100.0 * (1.0 - multi / single)) if single and np.isfinite(single) else float("nan")
 
 
-def e1_comparison(df) -> dict:
-    """E1 means: pose (pooled over views) and per-view contours, single- vs multi-view training."""
+def e1_comparison(df, single: str = "single-view") -> dict:
+    """E1 means: pose (pooled over views) and per-view contours, single- vs multi-view training.
+
+    ``single``: the single-view models' ``training`` label: ``"single-view"`` (equal q, the keys at the
+    top level) or :data:`~silpose.eval.experiments.E1_PER_VIEW` (q / K latent dimensions per view; with
+    the default label its comparison is nested under ``"equal_q_per_view"`` when those rows exist).
+    """
     e1 = select(df, experiment="E1")
     if e1.empty:
         return {}
-    sv = select(e1, training="single-view")
+    sv = select(e1, training=single)
+    if sv.empty:
+        return {}
     mv = select(e1, training="multi-view")
     views = sorted(int(v) for v in sv["trained_views"].unique())
     sv_c = np.concatenate([select(sv, trained_views=str(k))[f"chamfer_v{k}"].to_numpy() for k in views])
@@ -57,6 +65,10 @@ def e1_comparison(df) -> dict:
     out["pose_improvement_pct"] = _pct_better(out["multi_view_pose_cm"], out["single_view_pose_cm"])
     out["contour_improvement_pct"] = _pct_better(out["multi_view_chamfer_px"], out["single_view_chamfer_px"])
     out["_sv_chamfer"], out["_mv_chamfer"] = sv_c, mv_c
+    if single == "single-view":
+        per_view = e1_comparison(df, E1_PER_VIEW)
+        if per_view:
+            out["equal_q_per_view"] = per_view
     return out
 
 
@@ -70,7 +82,14 @@ def headline(df) -> dict:
         h["chamfer_sym_px_by_n_views"] = {int(n): stats(g["chamfer_sym_px"])["mean"] for n, g in e2.groupby("n_input_views")}
     e1 = e1_comparison(df)
     if e1:
-        h["e1"] = {k: v for k, v in e1.items() if not k.startswith("_")}
+        h["e1"] = {k: v for k, v in e1.items() if not k.startswith("_") and k != "equal_q_per_view"}
+        h["e1"]["capacity"] = "equal q (the single-view models have the 4-view model's q)"
+        if "equal_q_per_view" in e1:
+            h["e1_equal_q_per_view"] = {k: v for k, v in e1["equal_q_per_view"].items() if not k.startswith("_")}
+            h["e1_equal_q_per_view"]["capacity"] = "equal latent dimensions per view (single-view q = q / K)"
+    by_noise = noise_comparison(df)
+    if by_noise:
+        h["pose_mean_cm_by_noise_all_views"] = by_noise
     e4 = select(df, experiment="E4")
     if not e4.empty:
         h["chance_cm"] = stats(select(e4, method="chance")["pose_cm"])
@@ -91,6 +110,50 @@ def headline(df) -> dict:
     return h
 
 
+def noise_comparison(df) -> dict:
+    """E3 with every view given: {noise label: {"mppca", "knn", "ridge": mean pose cm, "x_clean": MPPCA
+    mean / its clean mean}} in the sweep's order (empty without E3 rows)."""
+    e3 = select(df, experiment="E3")
+    if e3.empty:
+        return {}
+    all_views = "".join(str(k) for k in range(int(e3["n_input_views"].max())))
+    e3 = select(e3, input_views=all_views)
+    out: dict = {}
+    for noise in dict.fromkeys(e3["noise"]):
+        g = select(e3, noise=noise)
+        out[noise] = {m: float(select(g, method=m)["pose_cm"].mean()) for m in ("mppca", "knn", "ridge")
+                      if len(select(g, method=m))}
+    clean = out.get("clean", {}).get("mppca")
+    for v in out.values():
+        if "mppca" in v:
+            v["x_clean"] = v["mppca"] / clean if clean else float("nan")
+    return out
+
+
+def _headline_md(df) -> list[str]:
+    """The headline table: pose error by number of views (standard noise) and by noise kind (all views)."""
+    h = headline(df)
+    rows = []
+    paper = {4: f"{PAPER['pose_4_views_cm']:.0f}", 1: f"{PAPER['pose_1_view_cm']:.0f}"}
+    for n, st in sorted(h.get("pose_cm_by_n_views", {}).items(), key=lambda t: -t[0]):
+        knn = h.get("pose_mean_cm_by_method_and_n_views", {}).get(n, {}).get("knn", float("nan"))
+        rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–", fmt(knn),
+                     paper.get(n, "–")])
+    n_all = max(h.get("pose_cm_by_n_views", {0: None}))
+    for noise, v in h.get("pose_mean_cm_by_noise_all_views", {}).items():
+        if noise == "clean" or noise.startswith("mask") or noise == "standard":
+            rows.append([f"{n_all or 'all'} views, noise '{noise}'", fmt(v.get("mppca", float("nan"))),
+                         f"{fmt(v.get('x_clean', float('nan')))}×", fmt(v.get("knn", float("nan"))), "–"])
+    if "chance_cm" in h:
+        rows.append(["chance (random training pose)", fmt(h["chance_cm"]["mean"]), "–", "–", f"{PAPER['chance_cm']:.0f}"])
+    if not rows:
+        return []
+    return ["## Headline", "",
+            "Mean pose error (cm). 'standard' contour noise: E2's inputs; 'mask mild'/'mask strong' corrupt the "
+            "silhouette (holes, blobs, a shadow) and re-extract the contour (E3, every view given).", "",
+            markdown_table(["condition", "MPPCA (cm)", "× clean", "kNN (cm)", "paper (cm)"], rows), ""]
+
+
 def _e1_md(df) -> list[str]:
     e1 = select(df, experiment="E1")
     if e1.empty:
@@ -103,6 +166,10 @@ def _e1_md(df) -> list[str]:
         rows.append([training, tv, tv, str(len(g)), fmt_stats(stats(g["pose_cm"])), fmt_stats(stats(ch)), fmt(stats(g["pose_pa_cm"])["mean"])])
     rows.append(["single-view (all views pooled)", "k", "k", str(len(select(e1, training="single-view"))),
                  fmt_stats(stats(select(e1, training="single-view")["pose_cm"])), fmt_stats(stats(c["_sv_chamfer"])), ""])
+    pv = c.get("equal_q_per_view")
+    if pv:
+        rows.append([f"{E1_PER_VIEW} (all views pooled)", "k", "k", str(len(select(e1, training=E1_PER_VIEW))),
+                     fmt_stats(stats(select(e1, training=E1_PER_VIEW)["pose_cm"])), fmt_stats(stats(pv["_sv_chamfer"])), ""])
     e2 = select(df, experiment="E2")
     one = [(int(k), select(e2, input_views=k)) for k in sorted(select(e1, training="single-view")["trained_views"].unique())]
     if not e2.empty and all(len(g) for _, g in one):
@@ -117,10 +184,16 @@ def _e1_md(df) -> list[str]:
            "single-view models' input (view k alone), separating the effect of training from that of the input.", "",
            markdown_table(["training", "trained views", "input views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS],
                    *[f"Chamfer {h} (px)" for h in QUARTILE_HEADERS], "PA pose mean (cm, extra)"], rows), "",
-           markdown_table(["multi-view improvement", "ours", "paper"], [
-               ["pose (mean)", f"{fmt(c['pose_improvement_pct'], 1)} %", f"{PAPER['multi_view_pose_improvement_pct']:.0f} %"],
-               ["contours (mean Chamfer)", f"{fmt(c['contour_improvement_pct'], 1)} %", f"{PAPER['multi_view_contour_improvement_pct']:.0f} %"],
-           ]), ""]
+           markdown_table(["multi-view improvement", "ours, equal q", "ours, equal q per view", "paper"], [
+               ["pose (mean)", f"{fmt(c['pose_improvement_pct'], 1)} %",
+                f"{fmt(pv['pose_improvement_pct'], 1)} %" if pv else "–", f"{PAPER['multi_view_pose_improvement_pct']:.0f} %"],
+               ["contours (mean Chamfer)", f"{fmt(c['contour_improvement_pct'], 1)} %",
+                f"{fmt(pv['contour_improvement_pct'], 1)} %" if pv else "–",
+                f"{PAPER['multi_view_contour_improvement_pct']:.0f} %"],
+           ]), "",
+           "Capacity: 'equal q' gives each single-view model the 4-view model's latent dimension q (so K times its "
+           "latent dimensions per view); 'equal q per view' gives it q / K (the 4-view model's share per view). "
+           "The paper does not say which it used.", ""]
     return out
 
 
@@ -208,7 +281,7 @@ def markdown_summary(df, settings: dict, title: str, figures: list[str] | None =
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "
              "one-sided Chamfer distance D(true clean contour -> reconstruction), px (paper eq. 5), via an exact "
              "Euclidean distance transform; missing views are placed with their true normalisation.", ""]
-    parts += _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df)
+    parts += _headline_md(df) + _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df)
     if figures:
         parts += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     if notes:

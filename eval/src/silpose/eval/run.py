@@ -18,6 +18,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from silpose.model.augment import Roughness, augment_rows
 from silpose.model.persistence import load_model
 from silpose.model.selection import validation_split
 from silpose.shared.atomic import atomic_path, write_text_atomic
@@ -75,13 +76,20 @@ def match_training_subset(data: EvalData, model) -> str:
     if int(info.get("n_samples", -1)) != n:
         return (f"the model's training record ({info.get('n_samples')} samples) does not match this train split ({n}); "
                 f"single-view models and baselines use all {n} samples")
-    fit_idx, _ = validation_split(n, n_held / n, int(model.random_state or 0))
+    seed = int(model.random_state or 0)
+    fit_idx, _ = validation_split(n, n_held / n, seed)
     if len(fit_idx) != n_fit:
         return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
     data.train_contours = data.train_contours[fit_idx]
     data.train_joints = data.train_joints[fit_idx]
+    rough = (getattr(model, "training_config_", None) or {}).get("roughness")
+    extra = ""
+    if rough:  # the trainer's ragged copies (silpose.model.augment), reproduced row for row
+        data.train_contours, data.train_joints = augment_rows(data.train_contours, data.train_joints,
+                                                              Roughness(**rough), seed, fit_idx)
+        extra = f", plus the trainer's {int(rough['copies'])} ragged cop{'y' if rough['copies'] == 1 else 'ies'} of each"
     return (f"single-view models, baselines and chance use the same {n_fit} training samples as the 4-view model "
-            f"(the trainer's {n_held} held-out samples reproduced and excluded)")
+            f"(the trainer's {n_held} held-out samples reproduced and excluded{extra})")
 
 
 def _jsonable(x):

@@ -210,3 +210,25 @@ def ppca_closed_form(X: np.ndarray, q: int, var_floor: float, rng: np.random.Gen
     W = np.zeros((d, q))
     W[:, :k] = U * np.sqrt(np.clip(lam_q - s2, 0.0, None))
     return mean, W, s2
+
+
+def dof_noise_factor(counts: np.ndarray, d: int, q: int) -> tuple[np.ndarray, np.ndarray]:
+    """Degrees-of-freedom correction of maximum-likelihood PPCA noise variances.
+
+    The ML estimate (T&B 1999 eq. C.23 / the closed form eq. 8) is RSS_i / (n_i (d - q)), the residual
+    sum of squares outside a q-dimensional subspace fitted to the same n_i rows. Under isotropic noise
+    sigma^2, E[RSS_i] = sigma^2 (d - q)(n_i - 1 - q): the mean takes one degree of freedom per residual
+    dimension, and the fitted subspace (q (d - q) free parameters, a point of the Grassmannian) absorbs
+    q more. The unbiased variance is therefore RSS_i / ((d - q)(n_i - 1 - q)), i.e. the ML one times
+
+        factor_i = n_i / (n_i - 1 - q)
+
+    (about 1.8 for n_i = 90 rows and q = 40; -> 1 for n_i >> q). Args: counts (M,) responsibility sums
+    n_i, d features, q latent dimensions. Returns (factor (M,) >= 1, underdetermined (M,) bool): a
+    component with n_i <= q + 1 rows has no degrees of freedom left (factor 1, flagged).
+    """
+    n = np.asarray(counts, dtype=np.float64)
+    under = n <= q + 1
+    factor = np.ones_like(n)
+    factor[~under] = n[~under] / (n[~under] - 1.0 - q)
+    return factor, under

@@ -28,6 +28,7 @@ from .shards import ArrayShards, ShardSource, split_global_rows
 _SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
 _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
 DEFAULT_INIT_ROWS = 5000  # fit_stream: rows of the initialisation subsample
+_FIT_BLOCK = 4096  # fit: rows per block of the in-memory EM passes (bounds the per-pass temporaries)
 
 
 class MPPCA(DensityMixin, BaseEstimator):
@@ -52,6 +53,12 @@ class MPPCA(DensityMixin, BaseEstimator):
     init_params : None or dict with ``weights`` (M,), ``means`` (M, d), ``components`` (M, d, q) and
         ``noise_variance`` (M,): start EM from these parameters (data coordinates) instead of
         ``init``; needs n_init = 1. Used to compare fits on the same initialisation.
+    noise_dof : bool, after EM multiply each component's noise variance by n_i / (n_i - 1 - q), the
+        degrees of freedom its mean and subspace used (:func:`silpose.model._ppca.dof_noise_factor`): the
+        maximum-likelihood sigma_i^2 is the residual left by a q-dimensional subspace fitted to the same
+        n_i rows, biased low by (n_i - 1 - q) / n_i, which makes every training row far likelier under
+        its own component than a new row (train vs held-out log-likelihood). EM itself stays maximum
+        likelihood.
     random_state : None, int or numpy Generator; every random draw comes from
         ``numpy.random.default_rng(random_state)``.
     callback : callable(iteration: int, lower_bound: float) or None, called after each EM
@@ -63,16 +70,20 @@ class MPPCA(DensityMixin, BaseEstimator):
     -----------------
     weights_ (M,), means_ (M, d), components_ (M, d, q) the W matrices, noise_variance_ (M,),
     converged_ (bool), n_iter_ (int, EM iterations of the winning run), lower_bound_ (float, mean
-    log-likelihood per sample of the training data under the final parameters), lower_bounds_
-    (list of n_iter_ floats, the same after each EM iteration of the winning run, non-decreasing),
-    n_latent_ (int, the q used), n_features_in_, n_fit_samples_.
+    log-likelihood per sample of the training data under the final parameters, after the noise_dof
+    correction when on), lower_bounds_ (list of n_iter_ floats, the same after each EM iteration of
+    the winning run before any correction, non-decreasing), initial_bound_ (float, the same under the
+    winning run's starting parameters; ``lower_bounds_[-1] - initial_bound_`` is what EM gained),
+    noise_dof_factor_ ((M,) factors applied to the noise variances, ones when noise_dof is off),
+    n_underdetermined_ (components with n_i <= q + 1 rows, whose noise variance cannot be estimated:
+    they get the largest corrected variance of the others), n_features_in_, n_fit_samples_.
 
     ``fit(X)`` holds X in memory; ``fit_stream(shards)`` reads one shard at a time (out of core,
     optionally on Ray). Both run the same E-step/M-step code (``silpose.model._em``).
     """
 
     def __init__(self, n_components=5, n_latent=None, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
-                 reg_variance=1e-6, init_params=None, random_state=None, callback=None, verbose=0):
+                 reg_variance=1e-6, init_params=None, noise_dof=False, random_state=None, callback=None, verbose=0):
         self.n_components = n_components
         self.n_latent = n_latent
         self.tol = tol
@@ -81,6 +92,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         self.init = init
         self.reg_variance = reg_variance
         self.init_params = init_params
+        self.noise_dof = noise_dof
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
@@ -123,10 +135,12 @@ class MPPCA(DensityMixin, BaseEstimator):
     def fit(self, X, y=None) -> "MPPCA":
         """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self.
 
-        The in-memory fit is the streaming EM (``fit_stream``) on one shard holding every row.
+        The in-memory fit is the streaming EM (``fit_stream``) over X's rows in blocks of 4,096 (views of X,
+        centred block by block in each pass), so besides X only one block's temporaries are held.
         """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        return self._fit_source(ArrayShards([X], materialise=True).checked(), init_rows=None)
+        blocks = [X[i:i + _FIT_BLOCK] for i in range(0, X.shape[0], _FIT_BLOCK)]  # views, no copies
+        return self._fit_source(ArrayShards(blocks).checked(), init_rows=None)
 
     def fit_stream(self, shards, init_rows: int = DEFAULT_INIT_ROWS) -> "MPPCA":
         """Fit by EM, reading the data one shard at a time (out of core). Returns self.
@@ -164,7 +178,8 @@ class MPPCA(DensityMixin, BaseEstimator):
         if self.init_params is not None:
             starts = [self._explicit_start(d).shifted(offset)]
         else:
-            X0 = self._init_rows(src, init_rows, rng)
+            # in memory (no row limit) the start reads the rows block by block, never a second copy of X
+            X0 = _SourceRows(src) if init_rows is None else _ArrayRows(self._init_rows(src, init_rows, rng))
             starts = [self._initial_params(X0, rng, var_floor) for _ in range(self.n_init)]
             del X0
         runs = [self._start(src, p) for p in starts]
@@ -176,13 +191,26 @@ class MPPCA(DensityMixin, BaseEstimator):
         self._iterate(src, best, self.max_iter, var_floor, k_best)
         del runs
         p = best["params"]
+        self.noise_dof_factor_ = np.ones(p.weights.shape[0])
+        self.n_underdetermined_ = 0
+        self.lower_bound_ = best["bounds"][-1]
+        if self.noise_dof:
+            factor, under = _ppca.dof_noise_factor(p.weights * n, d, p.components.shape[2])
+            s2 = p.noise_variance * factor
+            if under.any():
+                s2[under] = s2[~under].max() if (~under).any() else max(data_var, var_floor)
+            self.noise_dof_factor_ = s2 / p.noise_variance
+            self.n_underdetermined_ = int(under.sum())
+            p = _em.Params(p.weights, p.means, p.components, s2)
+            stats = _em.reduce_sum(src.map(_em.shard_stats, p))  # the training log-likelihood of the final parameters
+            self.lower_bound_ = stats.loglik / stats.n
         self.weights_ = p.weights
         self.means_ = p.means + offset
         self.components_ = p.components
         self.noise_variance_ = p.noise_variance
         self.converged_ = best["converged"]
         self.n_iter_ = len(best["bounds"])
-        self.lower_bound_ = best["bounds"][-1]
+        self.initial_bound_ = best["initial"]
         self.lower_bounds_ = list(best["bounds"])
         self.n_fit_samples_ = int(n)
         if not self.converged_:
@@ -225,24 +253,25 @@ class MPPCA(DensityMixin, BaseEstimator):
         parts = list(src.map(_em.take_rows))
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
-    def _initial_labels(self, X, rng) -> np.ndarray:
+    def _initial_labels(self, X: "_ArrayRows | _SourceRows", rng) -> np.ndarray:
         """Hard initial assignment (N,): k-means fitted on at most _KMEANS_ROWS random rows (then
         every row goes to its nearest centre), or nearest of M random rows for init="random"."""
-        n, m = X.shape[0], self.n_components
+        n, m = X.n, self.n_components
         if m == 1:
             return np.zeros(n, dtype=np.intp)
         if self.init == "kmeans":
-            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else slice(None)
-            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X[rows])
+            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else np.arange(n)
+            km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X.take(rows))
             centres = km.cluster_centers_
         else:
-            centres = X[rng.choice(n, size=m, replace=False)]
-        d2 = -2.0 * X @ centres.T + np.einsum("ij,ij->i", centres, centres)[None, :]  # + ||x||^2, row constant
-        return np.argmin(d2, axis=1)
+            centres = X.take(rng.choice(n, size=m, replace=False))
+        c2 = np.einsum("ij,ij->i", centres, centres)[None, :]
+        # -2 x.c + ||c||^2 (+ ||x||^2, a row constant), block by block
+        return np.concatenate([np.argmin(-2.0 * B @ centres.T + c2, axis=1) for B in X.blocks()])
 
-    def _initial_params(self, X, rng, var_floor) -> _em.Params:
-        """One initialisation from the rows X (n0, d): hard labels, closed-form PPCA per cluster."""
-        n, d = X.shape
+    def _initial_params(self, X: "_ArrayRows | _SourceRows", rng, var_floor) -> _em.Params:
+        """One initialisation from the rows X (n0 rows): hard labels, closed-form PPCA per cluster."""
+        n, d = X.n, X.d
         m, q = self.n_components, self.n_latent_
         labels = self._initial_labels(X, rng)
         weights = np.empty(m)
@@ -250,18 +279,21 @@ class MPPCA(DensityMixin, BaseEstimator):
         comps = np.empty((m, d, q))
         s2 = np.empty(m)
         for i in range(m):
-            members = X[labels == i]
-            if members.shape[0] == 0:  # empty cluster: restart it on one random sample
-                members = X[rng.integers(n)][None, :]
+            idx = np.flatnonzero(labels == i)
+            if idx.size == 0:  # empty cluster: restart it on one random sample
+                idx = np.array([rng.integers(n)])
+            members = X.take(idx)
             weights[i] = members.shape[0] / n
             means[i], comps[i], s2[i] = _ppca.ppca_closed_form(members, q, var_floor, rng)
+            del members
         return _em.Params(weights / weights.sum(), means, comps, s2)
 
     @staticmethod
     def _start(src: ShardSource, params: _em.Params) -> dict:
         """A run at ``params``: its first pass (E-step log-likelihood and M-step sums)."""
         stats = _em.reduce_sum(src.map(_em.shard_stats, params))
-        return dict(params=params, stats=stats, prev=stats.loglik / stats.n, bounds=[], converged=False)
+        ll = stats.loglik / stats.n
+        return dict(params=params, stats=stats, prev=ll, initial=ll, bounds=[], converged=False)
 
     def _iterate(self, src: ShardSource, run: dict, until: int, var_floor: float, run_idx: int) -> None:
         """Advance one run (dict from ``_start``) in place until ``until`` iterations in total or
@@ -355,6 +387,42 @@ class MPPCA(DensityMixin, BaseEstimator):
         """Akaike information criterion on X (N, d): -2 log L + 2 k (lower is better)."""
         X = self._validate_predict(X)
         return float(-2.0 * self.score(X) * X.shape[0] + 2 * self.n_parameters())
+
+
+class _ArrayRows:
+    """The initialisation's rows held as one (n, d) array."""
+
+    def __init__(self, X: np.ndarray):
+        self.X, (self.n, self.d) = X, X.shape
+
+    def take(self, idx) -> np.ndarray:
+        """Rows ``idx`` (in that order), a copy."""
+        return self.X[np.asarray(idx)]
+
+    def blocks(self):
+        yield self.X
+
+
+class _SourceRows:
+    """The initialisation's rows read from a ShardSource block by block (the in-memory fit's centred
+    blocks), so the start never holds a second copy of the data; ``take`` gathers only the rows asked."""
+
+    def __init__(self, src: ShardSource):
+        self.src, self.counts = src, src.shard_rows()
+        self.n, self.d = int(sum(self.counts)), int(src.n_features)
+
+    def take(self, idx) -> np.ndarray:
+        """Rows ``idx`` (global indices, in that order), a copy."""
+        idx = np.asarray(idx, dtype=np.int64)
+        order = np.argsort(idx, kind="stable")
+        parts = list(self.src.select(split_global_rows(idx[order], self.counts)).map(_em.take_rows))
+        rows = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        out = np.empty_like(rows)
+        out[order] = rows
+        return out
+
+    def blocks(self):
+        yield from self.src.map(_em.take_rows)
 
 
 __all__ = ["MPPCA"]

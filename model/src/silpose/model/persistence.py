@@ -17,7 +17,7 @@ key                    dtype / shape    meaning
 Header: ``format`` (= "silpose-model"), ``format_version``, ``feature_layout``
 (FeatureLayout.to_dict), ``views``, ``joint_names``, ``n_rig_views``, ``rig`` (Rig.to_dict or
 null), ``hyperparameters`` (ShapeStructureModel.hyperparameters), ``training`` (n_iter, converged,
-lower_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
+lower_bound, initial_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
 config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
 ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
 dtype, shape and bytes, in sorted key order) which :func:`load_model` verifies.
@@ -87,6 +87,7 @@ def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
             "n_iter": int(getattr(mix, "n_iter_", -1)),
             "converged": bool(getattr(mix, "converged_", False)),
             "lower_bound": float(getattr(mix, "lower_bound_", float("nan"))),
+            "initial_bound": float(getattr(mix, "initial_bound_", float("nan"))),
             "fit_time_s": float(getattr(model, "fit_time_", float("nan"))),
             "n_train": int(getattr(model, "n_train_", -1)),
         },
@@ -201,6 +202,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
             views=None if hp.get("views") is None else tuple(hp["views"]),
             noise_variance=float(hp["noise_variance"]),
             joint_frame=hp.get("joint_frame"),
+            noise_dof=bool(hp.get("noise_dof", False)),
             tol=float(hp.get("tol", 1e-4)),
             max_iter=int(hp.get("max_iter", 200)),
             n_init=int(hp.get("n_init", 3)),
@@ -231,6 +233,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     mix.n_iter_ = int(training.get("n_iter", -1))
     mix.converged_ = bool(training.get("converged", False))
     mix.lower_bound_ = float(training.get("lower_bound", float("nan")))
+    mix.initial_bound_ = float(training.get("initial_bound", float("nan")))
     mix.n_features_in_ = layout.dim
     model.layout_ = layout
     model.mixture_ = mix

@@ -43,30 +43,24 @@ from .shards import split_global_rows
 from .stature import REFERENCE_STATURE, estimate_stature
 from .streaming import DatasetShards
 
-# Defaults, from model selection on validation joint error (silpose.model.selection), measured
-# 2026-11-22 on the `default` preset (2,000 train samples, raster renderer, seed 0; generated with
-# `silpose gen default --out /tmp/silpose-data/default`, manifest sha256 164ffa96...): the first
-# 1,800 of train as `silpose train` uses them, 20 % of those as validation, all 4 views observed.
-# Commands: `silpose train default --select` (grid q 10/20/30 x M 3/5 x w 1/3/10 x s2 0..0.01: best at
-# the grid's edge, q 30, M 5, w 10, s2 0.01: 5.69 cm), then two wider grids through
-# `silpose.model.selection.select` (q 30/40/60/90, M 5/8, w 10/30/100, s2 0.003..0.1):
-#   M 8, q 60, w 30, s2 0.03: 3.74 cm (best overall); M 5, q 60, w 30, s2 0.03: 4.15 cm;
-#   M 5, q 90, w 100, s2 0.03: 4.01 cm; M 5, q 40, w 30, s2 0.1: 4.38 cm; M 5, q 30, w 30, s2 0.1: 4.62 cm.
-# That chose M = 5, q = 60, w = 30, s2 = 0.03 for the metres joint frame, scored with 4 views only.
-# Re-measured after the 'stature' joint frame (silpose.model.stature) became the default, scoring 4 views,
-# each single view and views 0+2 (so the missing-view use counts), on the first 80 % of the default
-# preset's train split (seeded permutation, `validation_split(2000, 0.2, seed=0)`; n_init 2), clean
-# validation contours, mean joint error cm at s2 = 0.03 (4 views / mean of 1 view / views 0+2):
-#   M 5  q 60 w 30: 2.91 / 8.94 / 4.18     M 10 q 40 w 30: 2.16 / 6.27 / 2.71
-#   M 20 q 30 w 30: 2.36 / 6.00 / 2.47     M 20 q 40 w 30: 2.17 / 5.52 / 2.61
-#   M 30 q 40 w 30: 2.19 / 5.36 / 2.35     M 20 q 60 w 30: 2.12 / 5.42 / 2.57    M 20 q 40 w 100: 2.23 / 6.12 / 2.68
-# (s2 0.01 scored lower on these clean contours and 0.1 higher; 0.03 is kept for noisy input.)
-# Chosen: M = 20, q = 40, w = 30, s2 = 0.03 -- within 0.2 cm of the best everywhere at 2/3 the
-# inference cost of q = 60. The MPPCA estimator itself keeps the paper's M = 5 default.
+# Defaults. History: chosen 2026-11-22 by validation joint error on the `default` preset (M 20, q 40, w 30,
+# s2 0.03 in the stature joint frame; grids in git history). Re-measured 2026-11-30 (issue 12) after the
+# training walkers were dressed like the test's (silpose.datagen.subjects) with `silpose train --select`
+# (silpose.model.selection: score = mean of the validation joint error given all views and given one view,
+# ragged validation outlines; held-out log-likelihood; only fits whose EM moves) on the default preset's
+# 1,440 fit / 360 validation samples with --roughness 1, q 20/30/40 x M 5/10/15/20 x s2 0.01/0.03/0.1, w 30:
+#   EM moves only with >= ~5 samples per component per latent dimension; the best such fit is M 10, q 30,
+#   s2 0.03 (val 3.92 cm all views / 9.60 cm one view); frozen fits score better (M 15, q 40: 3.47 / 8.46)
+#   but are their k-means partition with one PCA per cluster.
+# On the paper preset (18,000 fitted samples) M 20, q 40 moves (14, 3.5, 1.5 nats in its first iterations;
+# held-out 2.58 cm, 2,789 nats/sample). So the defaults stay M 20, q 40, w 30, s2 0.03 and `silpose train`
+# lowers M (to 10), then q, for smaller data (silpose.app.training.supported_size: >= 6 samples per
+# component per latent dimension), which gives M 10, q 30 on the default preset -- the selection's choice.
 DEFAULT_N_COMPONENTS = 20
 DEFAULT_N_LATENT = 40
 DEFAULT_STRUCTURE_WEIGHT = 30.0
 DEFAULT_NOISE_VARIANCE = 0.03
+_FEATURE_BLOCK = 4096  # rows per block of features()
 
 
 @dataclass
@@ -119,6 +113,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
             the calibrated silhouettes, ``silpose.model.stature``; needs the rig), "metres" (the paper's
             raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
+        noise_dof: correct the components' noise variances for the degrees of freedom their fit used
+            (``MPPCA(noise_dof=True)``): the maximum-likelihood ones are biased low when a component has few
+            rows for its q (the train / held-out log-likelihood gap of issue 12); the joints hardly change.
         tol, max_iter, n_init, random_state, callback, verbose: passed to :class:`~silpose.model.mppca.MPPCA`.
         rig: the ``silpose.shared.camera.Rig`` of the K views, used when ``fit`` is not given one (so that
             ``fit(X, y)`` alone, e.g. inside ``GridSearchCV``, can use the 'stature' joint frame).
@@ -137,6 +134,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         views: Sequence[int] | None = None,
         noise_variance: float = DEFAULT_NOISE_VARIANCE,
         joint_frame: str | None = None,
+        noise_dof: bool = True,
         tol: float = 1e-4,
         max_iter: int = 200,
         n_init: int = 3,
@@ -151,6 +149,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         self.views = views
         self.noise_variance = noise_variance
         self.joint_frame = joint_frame
+        self.noise_dof = noise_dof
         self.tol = tol
         self.max_iter = max_iter
         self.n_init = n_init
@@ -178,6 +177,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             "views": None if self.views is None else [int(v) for v in self.views],
             "noise_variance": float(self.noise_variance),
             "joint_frame": self.joint_frame,
+            "noise_dof": bool(self.noise_dof),
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
             "n_init": int(self.n_init),
@@ -209,14 +209,26 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             max_iter=int(self.max_iter),
             n_init=int(self.n_init),
             init_params=init_params,
+            noise_dof=bool(self.noise_dof),
             random_state=self.random_state,
             callback=self.callback,
             verbose=self.verbose,
         )
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
-        """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3)."""
-        return shape_vectors(self.fitted_layout(), self.n_rig_views_, contours_px, joints, self.rig_)
+        """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3).
+
+        Built in blocks of rows (every step is row-wise) so the float64 temporaries of the normalisation
+        are bounded by a block, whatever N."""
+        layout = self.fitted_layout()
+        n = len(contours_px)
+        if n <= _FEATURE_BLOCK:
+            return shape_vectors(layout, self.n_rig_views_, contours_px, joints, self.rig_)
+        out = np.empty((n, layout.dim))
+        for start in range(0, n, _FEATURE_BLOCK):
+            sl = slice(start, start + _FEATURE_BLOCK)
+            out[sl] = shape_vectors(layout, self.n_rig_views_, contours_px[sl], joints[sl], self.rig_)
+        return out
 
     def fit(self, X: np.ndarray, y: np.ndarray, rig=None, *,
             init_params: dict | None = None) -> "ShapeStructureModel":
@@ -233,7 +245,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         """
         self._check_hyperparameters()
         rig = self.rig if rig is None else rig
-        c = check_contours(X, "contours_px")
+        raw = np.asarray(X)
+        # float32 input is checked as is and converted block by block in features(), never as a whole
+        c = raw if raw.dtype == np.float32 and raw.ndim == 4 else check_contours(raw, "contours_px")
         j = _joints_array(y, "joints")
         self.flat_targets_ = np.ndim(y) == 2
         if j.shape[0] != c.shape[0]:
@@ -254,6 +268,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         self.n_rig_views_ = n_rig
         self.rig_ = rig
         X = self.features(c, j)
+        del c, j, raw  # the inputs' copies are not needed during EM
         t0 = time.perf_counter()
         self.mixture_ = self._make_mixture(init_params).fit(X)
         self.fit_time_ = time.perf_counter() - t0

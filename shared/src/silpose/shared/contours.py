@@ -36,6 +36,7 @@ __all__ = [
     "denormalise",
     "draw_contour",
     "signed_area",
+    "outward_normals",
     "resample_closed",
     "N_POINTS",
 ]
@@ -81,6 +82,26 @@ def signed_area(points: np.ndarray) -> np.ndarray:
     x, y = p[..., 0], p[..., 1]
     xn, yn = np.roll(x, -1, axis=-1), np.roll(y, -1, axis=-1)
     return 0.5 * np.sum(x * yn - xn * y, axis=-1)
+
+
+def outward_normals(points: np.ndarray) -> np.ndarray:
+    """Unit outward normals of closed contours.
+
+    The tangent is the central difference ``t_i = p_{i+1} - p_{i-1}``; the normal
+    ``(t_y, -t_x) / |t|`` points outward for a positive shoelace area and is flipped otherwise.
+
+    Args:
+        points: (..., n, 2) px.
+    Returns:
+        (..., n, 2) unit vectors (zero where the tangent vanishes).
+    """
+    p = np.asarray(points, dtype=np.float64)
+    t = np.roll(p, -1, axis=-2) - np.roll(p, 1, axis=-2)
+    nrm = np.stack([t[..., 1], -t[..., 0]], axis=-1)
+    length = np.linalg.norm(nrm, axis=-1, keepdims=True)
+    nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
+    sign = np.where(signed_area(p) >= 0, 1.0, -1.0)
+    return nrm * sign[..., None, None]
 
 
 def _as_mask(mask: np.ndarray) -> np.ndarray:

@@ -27,8 +27,9 @@ def train(
     noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² at inference (normalised units²).")] = None,
     views: Annotated[Optional[str], typer.Option(help="Views to model, comma-separated rig indices (default: all).")] = None,
     max_iter: Annotated[int, typer.Option(min=1, help="EM iterations per run at most.")] = 200,
-    n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 3,
-    tol: Annotated[float, typer.Option(help="EM stops when the mean log-likelihood gains less than this.")] = 1e-4,
+    n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 1,
+    tol: Annotated[float, typer.Option(help="EM stops when the mean log-likelihood gains less than this "
+                                       "(nats per sample per iteration).")] = 0.1,  # app.training.DEFAULT_TOL
     seed: Annotated[int, typer.Option(help="Seed of the k-means starts and the held-out/validation splits.")] = 0,
     heldout: Annotated[float, typer.Option(help="Fraction of train held out for the held-out log-likelihood.")] = 0.1,
     data_root: Annotated[Path, typer.Option(help="Folder holding the presets' datasets.")] = Path("data"),
@@ -39,6 +40,12 @@ def train(
                                           "or 'ray' (one Ray task per shard; implies --streaming; uses the running Ray "
                                           "instance or RAY_ADDRESS, else starts a local one).")] = "local",
     workers: Annotated[Optional[int], typer.Option(min=1, help="CPUs of the local Ray instance if one is started (default: all cores).")] = None,
+    roughness: Annotated[Optional[float], typer.Option(min=0.0, help="Training augmentation: ragged-outline copies of the "
+                                             "training contours like real segmentation, this many px of normal wander "
+                                             "(0 = off; silpose.model.augment). Default: 1 px, one copy, when at most "
+                                             "5,000 samples are fitted; off above.")] = None,
+    roughness_copies: Annotated[int, typer.Option(min=0, help="Ragged copies added per training sample "
+                                                  "(0 = replace each sample by one).")] = 1,
 ) -> None:
     """Fit the shape+structure model (mixture of PPCA over contours + joints) on a dataset's train split.
 
@@ -51,6 +58,7 @@ def train(
     on Ray, one task per shard); the k-means + PPCA start is then fitted on at most 5,000 rows
     drawn across the shards (all rows if there are fewer, which gives the in-memory start).
     """
+    from silpose.model.augment import Roughness
     from silpose.model.persistence import ModelFileError
     from silpose.model.streaming import StreamingError
     from silpose.shared.dataset import DatasetError
@@ -67,6 +75,9 @@ def train(
             structure_weight=structure_weight, noise_variance=noise_variance, views=view_tuple,
             max_iter=max_iter, n_init=n_init, tol=tol, seed=seed, heldout=heldout, data_root=data_root,
             progress=progress, streaming=streaming, executor=executor, workers=workers,
+            roughness=("auto" if roughness is None and roughness_copies == 1 else
+                       Roughness(amplitude_px=1.0 if roughness is None else roughness, copies=roughness_copies)
+                       if roughness is None or roughness > 0 else None),
         )
     except (InputError, DatasetError, ModelFileError, StreamingError, ValueError) as exc:
         fail("train", str(exc))
