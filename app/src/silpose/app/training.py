@@ -214,10 +214,12 @@ def run_training(
                               "select": bool(select), "selection_best": None if selection is None else selection.best,
                               "mode": mode}
     if streaming:
-        held_ll, held_err = _heldout_streaming(model, plan, held_idx)
+        held_ll, held_err, held_contours = _heldout_streaming(model, plan, held_idx)
     else:
-        held_ll = model.score_samples(contours[held_idx], joints[held_idx])
-        held_err = pose_error_cm(model.infer(contours[held_idx]).joints, joints[held_idx])
+        held_contours = contours[held_idx]
+        held_ll = model.score_samples(held_contours, joints[held_idx])
+        held_err = pose_error_cm(model.infer(held_contours).joints, joints[held_idx])
+    model.calibrate_plausibility(held_contours, seed=seed)  # stored in the model file (silpose.model.plausibility)
 
     out = Path(out) if out is not None else Path("models") / f"{name}.npz"
     save_model(out, model)
@@ -252,9 +254,10 @@ def run_training(
     return TrainingResult(out, report_md, report_json, report)
 
 
-def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(log-likelihood (H,), joint error cm (H,)) of the held-out rows, reading one shard at a time."""
-    lls, errs = [], []
+def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(log-likelihood (H,), joint error cm (H,), contours (H, K, n, 2) px) of the held-out rows, reading one
+    shard at a time."""
+    lls, errs, conts = [], [], []
     for path, rows in zip(plan.paths, split_global_rows(np.asarray(held_idx), plan.shard_rows())):
         if rows.size == 0:
             continue
@@ -263,7 +266,8 @@ def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, n
         del shard
         lls.append(model.score_samples(c, j))
         errs.append(pose_error_cm(model.infer(c).joints, j))
-    return np.concatenate(lls), np.concatenate(errs)
+        conts.append(np.asarray(c, dtype=np.float64))
+    return np.concatenate(lls), np.concatenate(errs), np.concatenate(conts)
 
 
 def _dataset_info(root: Path, name: str, metadata: dict, n_samples: int, n_fit: int, n_held: int) -> dict:
