@@ -20,14 +20,17 @@ from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split
 
 ARTEFACTS = ("results.parquet", "headline.json", "summary.md", "e1_single_vs_multi.png", "e2_missing_views.png",
-             "e3_noise.png", "e4_baselines.png", "e5_single_view.png", "e5_missing_view.png")
+             "e3_noise.png", "e4_baselines.png", "e5_single_view.png", "e5_missing_view.png", "e6_robust_mask.png",
+             "e6_garbage.png")
 
 
 @pytest.fixture(scope="module")
 def evaluated(stick_dataset, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("eval")
+    train = load_split(stick_dataset, "train")
     model = ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=30, tol=1e-3, random_state=0).fit_dataset(
-        load_split(stick_dataset, "train"))
+        train)
+    model.calibrate_plausibility(train.contours[:20])  # as silpose train does with its held-out part
     save_model(tmp / "m.npz", model)
     out = tmp / "report"
     res = CliRunner().invoke(build_app(), ["eval", str(stick_dataset), "--model", str(tmp / "m.npz"),
@@ -87,7 +90,11 @@ def test_row_counts_match_the_protocol(evaluated):
     counts = df.groupby("experiment").size().to_dict()
     assert counts["E1"] == 4 * n + n
     assert counts["E2"] == 15 * n
-    assert counts["E3"] == 4 * (2 + 2) * n  # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge)
+    # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge), plus E6's robust MPPCA rows (2 inputs) for the
+    # settings of silpose.eval.inference_eval.ROBUST_SPECS in the sweep (clean, mask strong) and the standard noise
+    assert counts["E3"] == 4 * (2 + 2) * n + 3 * 2 * n
+    robust = df[(df.experiment == "E3") & (df.method == "mppca robust")]
+    assert sorted(robust.noise.unique()) == ["clean", "mask strong", "standard"]
     assert counts["E4"] == n + 2 * 15 * n
     e2 = df[df.experiment == "E2"]
     assert sorted(e2.groupby("n_input_views").input_views.nunique().to_dict().items()) == [(1, 4), (2, 6), (3, 4), (4, 1)]
@@ -120,3 +127,27 @@ def test_clear_errors_when_data_or_model_missing(tmp_path, stick_dataset):
     assert res.exit_code == 2 and "just gen" in res.output
     res = runner.invoke(build_app(), ["eval", str(stick_dataset), "--model", str(tmp_path / "none.npz")])
     assert res.exit_code == 2 and "just train" in res.output
+
+
+def test_e6_tables_recompute_independently(evaluated):
+    root, model_path, out = evaluated
+    e6 = json.loads((out / "headline.json").read_text())["e6"]
+    assert "## E6" in (out / "summary.md").read_text()
+    test = load_split(root, "test")
+    model = load_model(model_path)
+    noisy = apply_noise(STANDARD_NOISE, test.contours, test.sample_id, seed=0)
+    res = model.infer(noisy, hypotheses=3)
+    # heading recomputed by hand: forward = (a_y, -a_x) of the hip + shoulder axis a (left side minus right)
+    def facing(j):
+        a = (j[..., 11, :] - j[..., 15, :]) + (j[..., 5, :] - j[..., 8, :])
+        return np.arctan2(-a[..., 0], a[..., 1])
+    diff = np.abs((facing(res.hypotheses.best_joints) - facing(test.joints) + np.pi) % (2 * np.pi) - np.pi)
+    row = next(r for r in e6["flips"] if r["condition"] == "4 views, standard")
+    assert row["single_answer_flips_pct"] == pytest.approx(100 * np.mean(diff > np.pi / 2))
+    assert row["best_of_3_pose_cm"] <= row["single_answer_pose_cm"] + 1e-9  # the oracle cannot be worse
+    untangled = [r for r in e6["self_intersection"] if r["untangled_pct"] is not None]
+    assert untangled and all(r["untangled_pct"] == 0.0 for r in untangled)
+    garbage = {g["kind"]: g for g in e6["plausibility"]["garbage"]}
+    assert garbage["all-black"]["no_silhouette_pct"] == 100.0 and garbage["all-black"]["flagged_pct"] == 100.0
+    assert garbage["all-white"]["flagged_pct"] == 100.0
+    assert len(e6["missing_view"]) == 4 and all(r["nearest_neighbour_px"] > 0 for r in e6["missing_view"])

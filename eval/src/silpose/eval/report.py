@@ -201,14 +201,16 @@ def _e4_md(df) -> list[str]:
     return out
 
 
-def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None) -> str:
-    """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings."""
+def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None,
+                     sections: list[str] | None = None) -> str:
+    """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings; ``sections``
+    (Markdown lines, e.g. E6's) go after E4."""
     parts = [f"# {title}", "",
              "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment "
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "
              "one-sided Chamfer distance D(true clean contour -> reconstruction), px (paper eq. 5), via an exact "
              "Euclidean distance transform; missing views are placed with their true normalisation.", ""]
-    parts += _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df)
+    parts += _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df) + list(sections or [])
     if figures:
         parts += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     if notes:
