@@ -123,6 +123,28 @@ def test_infer_png_folders_with_missing_views(trained, dataset, tmp_path):
     assert list(table["n_views_present"]) == [3, 3, 2, 3, 3, 3]
 
 
+def test_infer_flags_garbage_frames_with_a_status_and_a_warning(trained, dataset, tmp_path):
+    model_path, _ = trained
+    model = load_model(model_path)
+    test = load_split(dataset, "test", with_masks=True)
+    folder = tmp_path / "garbage"
+    h, w = test.masks.shape[2:]
+    for k, name in enumerate(model.rig_.names):
+        (folder / name).mkdir(parents=True)
+        cv2.imwrite(str(folder / name / "a_person.png"), test.masks[0, k] * 255)
+        cv2.imwrite(str(folder / name / "b_white.png"), np.full((h, w), 255, np.uint8))
+        cv2.imwrite(str(folder / name / "c_black.png"), np.zeros((h, w), np.uint8))
+    out = tmp_path / "g.parquet"
+    res = _invoke("infer", model_path, folder, "--out", out)
+    assert res.exit_code == 0, res.output
+    table = pq.read_table(out).to_pandas()
+    assert list(table["status"]) == ["ok", "implausible", "no silhouette"]
+    assert table["plausibility"][1] < model.plausibility_.flag_percentile < table["plausibility"][0]
+    assert np.isnan(table["l_wrist_x"][2]) and table["n_views_present"][2] == 0
+    assert "warning: 1 of 3 frame(s) implausible" in res.stderr and "first: b_white" in res.stderr
+    assert "warning: 1 of 3 frame(s) no usable silhouette" in res.stderr
+
+
 def test_infer_errors(trained, dataset, tmp_path):
     model_path, _ = trained
     res = _invoke("infer", tmp_path / "nope.npz", dataset)
