@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from silpose.model.conditioning import Conditioner, MixtureParams
-from silpose.model.robust import RobustSettings, point_weights, snap_correspondences
+from silpose.model.robust import NOISE_LEVELS, RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
 from silpose.shared.skeleton import root_relative
@@ -95,3 +95,34 @@ def test_robust_inference_with_a_missing_view(fitted):
     c[:, 2] = np.nan
     res = model.infer(c, present, robust=RobustSettings(iterations=3, window=2))
     assert np.all(res.robust_weights[:, 2] == 0) and np.isfinite(res.joints).all()
+
+
+def test_frame_noise_variance_follows_the_residual_scale():
+    rng = np.random.default_rng(1)
+    rec = rng.normal(size=(3, 2, 50, 2))
+    sigma = np.array([0.001, 0.05, 0.3])  # per coordinate, normalised units
+    obs = rec + rng.normal(size=rec.shape) * sigma[:, None, None, None]
+    present = np.ones((3, 2), bool)
+    s2 = frame_noise_variance(obs, rec, present, 0.01, noise_scale=10.0)
+    assert s2[0] == 0.01  # never below the model's s^2
+    assert list(s2) == sorted(s2) and set(s2) <= set(0.01 * NOISE_LEVELS)
+    # the level nearest (log scale) to 10 sigma^2, sigma estimated from the median residual
+    for i in (1, 2):
+        r = np.linalg.norm(obs[i] - rec[i], axis=-1)
+        want = 10 * (1.4826 * np.median(r)) ** 2 / 2
+        assert s2[i] == (0.01 * NOISE_LEVELS)[np.argmin(np.abs(np.log(0.01 * NOISE_LEVELS) - np.log(want)))]
+    # an absent view does not count
+    obs[2, 1] = rec[2, 1] + 100.0
+    present[2, 1] = False
+    assert frame_noise_variance(obs, rec, present, 0.01)[2] == s2[2]
+
+
+def test_adaptive_noise_is_reported_and_can_be_switched_off(fitted):
+    model, contours, _ = fitted
+    bad = contours.copy()
+    bad[:10] += np.random.default_rng(0).normal(0, 4.0, size=bad[:10].shape)  # heavy jitter on 10 frames
+    res = model.infer(bad, robust=True)
+    assert res.noise_variance.shape == (len(bad),) and np.all(res.noise_variance >= model.noise_variance)
+    assert res.noise_variance[:10].min() > np.median(res.noise_variance[10:])
+    fixed = model.infer(bad, robust=RobustSettings(noise_scale=None))
+    assert fixed.noise_variance is None

@@ -30,7 +30,7 @@ from .writers import sibling, write_contours, write_joints
 
 _ARRAY_FIELDS = ("joints", "joints_best", "joint_std", "contours_norm", "contours_px", "centroid", "scale",
                  "views_present", "responsibilities", "log_marginal")
-_OPTIONAL_FIELDS = ("plausibility", "implausible", "robust_weights", "log_marginal_robust")
+_OPTIONAL_FIELDS = ("plausibility", "implausible", "robust_weights", "log_marginal_robust", "noise_variance")
 
 #: frame statuses written by ``silpose infer`` (column ``status``)
 FRAME_OK = "ok"
@@ -83,7 +83,7 @@ def nan_result(model: ShapeStructureModel, n: int, options: InferOptions | None 
     if cal is not None and cal.applies_to(s2):
         res.plausibility, res.implausible = nan(), np.zeros(n, dtype=bool)
     if options.robust:
-        res.robust_weights, res.log_marginal_robust = np.zeros((n, k, p)), nan()
+        res.robust_weights, res.log_marginal_robust, res.noise_variance = np.zeros((n, k, p)), nan(), nan()
     if options.hypotheses > 0:
         kh = int(options.hypotheses)
         res.hypotheses = Hypotheses(nan(kh, N_JOINTS, 3), np.zeros((n, kh)), np.full((n, kh), -1, dtype=np.intp),

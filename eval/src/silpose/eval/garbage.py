@@ -12,9 +12,9 @@ real input (``silpose.shared.contours.extract_contour``: the outer boundary of t
   drawn independently in each view;
 - ``box``: a 3D box (0.3-0.7 m wide and deep, 1.4-1.9 m tall) standing at a random point of the
   workspace, projected through the rig (so the views agree like a real object's would);
-- ``two people merged``: the masks of two test walkers, the second moved in every view so that the
-  two silhouettes overlap by 3 px at their sides (one blob: what background subtraction gives for
-  two people walking side by side).
+- ``two people merged``: the masks of two test walkers, the second moved beside the first (feet
+  level) in every view just far enough that the two form one blob (:func:`merge_side_by_side`: what
+  background subtraction gives for two people walking side by side, touching).
 
 Draws come from ``derive_rng(seed, stream_code("garbage"), kind index)`` (``silpose.shared.seeds``).
 """
@@ -27,7 +27,7 @@ import numpy as np
 from silpose.shared.contours import EmptyMaskError, extract_contour
 from silpose.shared.seeds import derive_rng, stream_code
 
-__all__ = ["GARBAGE_KINDS", "garbage_masks", "masks_to_contours"]
+__all__ = ["GARBAGE_KINDS", "garbage_masks", "merge_side_by_side", "masks_to_contours"]
 
 GARBAGE_KINDS = ("all-white", "all-black", "noise", "rectangle", "box", "two people merged")
 
@@ -74,16 +74,34 @@ def garbage_masks(kind: str, n: int, rig, seed: int = 0, person_masks: np.ndarra
                 raise ValueError("garbage kind 'two people merged' needs person_masks with at least 2 walkers")
             a_idx, b_idx = rng.choice(len(person_masks), size=2, replace=False)
             for v in range(k):
-                a = np.asarray(person_masks[a_idx, v]) > 0
-                b = np.asarray(person_masks[b_idx, v]) > 0
-                xa, xb = np.flatnonzero(a.any(axis=0)), np.flatnonzero(b.any(axis=0))
-                ya, yb = np.flatnonzero(a.any(axis=1)), np.flatnonzero(b.any(axis=1))
-                dx, dy = int(xa.max() - xb.min() - 3), int(ya.max() - yb.max())  # side by side, feet level
-                moved = np.zeros_like(b)
-                src = b[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
-                moved[max(0, dy) : max(0, dy) + src.shape[0], max(0, dx) : max(0, dx) + src.shape[1]] = src
-                out[i, v] = a | moved
+                out[i, v] = merge_side_by_side(np.asarray(person_masks[a_idx, v]) > 0,
+                                               np.asarray(person_masks[b_idx, v]) > 0)
     return out
+
+
+def _shifted(mask: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """``mask`` moved by (dx, dy) px, pixels moved off the image dropped."""
+    h, w = mask.shape
+    out = np.zeros_like(mask)
+    src = mask[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
+    out[max(0, dy) : max(0, dy) + src.shape[0], max(0, dx) : max(0, dx) + src.shape[1]] = src
+    return out
+
+
+def merge_side_by_side(a: np.ndarray, b: np.ndarray, min_share: float = 0.95) -> np.ndarray:
+    """(H, W) bool union of two person masks, ``b`` moved beside ``a`` (feet level) just far enough
+    into it that the union is one blob: its largest 8-connected blob holds >= ``min_share`` of the pixels."""
+    xa, xb = np.flatnonzero(a.any(axis=0)), np.flatnonzero(b.any(axis=0))
+    ya, yb = np.flatnonzero(a.any(axis=1)), np.flatnonzero(b.any(axis=1))
+    dy = int(ya.max() - yb.max())
+    start = int(xa.max() - xb.min())  # b's left edge on a's right edge
+    union = a | _shifted(b, start, dy)
+    for dx in range(start, start - len(xb) - 1, -1):
+        union = a | _shifted(b, dx, dy)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(union.astype(np.uint8), connectivity=8)
+        if n > 1 and stats[1:, cv2.CC_STAT_AREA].max() >= min_share * union.sum():
+            break
+    return union
 
 
 def masks_to_contours(masks: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,7 @@
 Each figure states how its example was chosen (never the best case silently):
 
 - ``e6_flip_resolved.png``: among the test examples (4 views, standard noise) whose most probable
-  hypothesis is flipped and whose single answer (the view-subset consensus) is not, the one with the
+  hypothesis is flipped and whose single answer (the vote of the view pairs) is not, the one with the
   median pose-error gain. Row 1: the noisy inputs over the true clean contours; row 2: the floor plane
   seen from above (true skeleton, the flipped top-1 hypothesis, the chosen one; arrows = facing) and
   the three skeletons in 3D.
@@ -11,9 +11,9 @@ Each figure states how its example was chosen (never the best case silently):
   gain of robust over Gaussian inference. Per view: the corrupted input, its points that robust
   inference down-weighted below 0.5, the Gaussian and the robust reconstructions over the true clean
   contour; below, the skeletons.
-- ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.garbage``), every view's
-  mask with its contour and the model's reconstruction, titled with the plausibility percentile and
-  whether ``silpose infer`` flags it.
+- ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.garbage``: two people
+  merged, a box, an all-white frame), every view's mask with its contour and the model's
+  reconstruction, titled with the plausibility percentile and whether ``silpose infer`` flags it.
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def flip_figure(ev, path: Path) -> Path | None:
     p = hyp.probability[i]
     fig.suptitle(f"A flip resolved: sample {int(d.test_ids[i])}, 4 views, {ev.config.noise.label} noise. Top-1 hypothesis "
                  f"(p = {p[0]:.3g}) faces the wrong way: {pose_error_cm(top1[i:i + 1], truth[i:i + 1])[0]:.1f} cm; the "
-                 f"view-subset consensus picks hypothesis {int(hyp.chosen[i]) + 1} (p = {p[hyp.chosen[i]]:.3g}): "
+                 f"vote of the view pairs picks hypothesis {int(hyp.chosen[i]) + 1} (p = {p[hyp.chosen[i]]:.3g}): "
                  f"{pose_error_cm(chosen[i:i + 1], truth[i:i + 1])[0]:.1f} cm.\n{ok.size} of {len(truth)} examples are "
                  f"resolved this way; shown: the median gain among them.", fontsize=8)
     return save_figure(fig, path)
@@ -165,6 +165,7 @@ def garbage_figure(ev, path: Path) -> Path | None:
     K = ev.data.n_views
     plt = pyplot()
     fig, axes = plt.subplots(len(kinds), K, figsize=(2.4 * K, 2.9 * len(kinds)), squeeze=False)
+    missed = []
     for r, kind in enumerate(kinds):
         masks, contours, present = examples[kind]
         res = ev.model.infer(contours, present) if present.any() else None
@@ -176,15 +177,22 @@ def garbage_figure(ev, path: Path) -> Path | None:
             if present[0, k]:
                 ax.plot(*_closed(contours[0, k]).T, "-", color="tab:blue", lw=1.0, label="input contour")
                 ax.plot(*_closed(res.contours_px[0, k]).T, "-", color="tab:red", lw=1.0, label="reconstruction")
+            h, w = masks.shape[2:]
+            ax.set_xlim(-0.5, w - 0.5)
+            ax.set_ylim(h - 0.5, -0.5)
             ax.set_xticks([])
             ax.set_yticks([])
             if k == 0:
                 ax.set_ylabel(kind, fontsize=8)
         axes[r, 0].set_title(f"{kind}: plausibility {pct:.1f} percentile -> {'FLAGGED' if flagged else 'not flagged'}",
                              fontsize=8, loc="left")
+        if not flagged:
+            missed.append(kind)
     axes[0, 0].legend(loc="lower left", fontsize=6)
-    fig.suptitle("Inputs that are not a person: the first input of each kind (silpose.eval.garbage), all views; "
-                 "the model still reconstructs a walker, the plausibility check flags the frame.", fontsize=8)
+    fig.suptitle("Inputs that are not a person: the first input of each kind (silpose.eval.garbage), all views, with the "
+                 "model's reconstruction (it always draws a walker).\nEach row: the plausibility percentile and whether "
+                 "silpose infer flags the frame (below the model's threshold); "
+                 + (f"not flagged: {', '.join(missed)}." if missed else "every one shown is flagged."), fontsize=8)
     return save_figure(fig, path)
 
 

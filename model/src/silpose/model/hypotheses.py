@@ -1,5 +1,5 @@
 """Top-K pose hypotheses from the mixture's components, facing direction and flips, and the choice
-among hypotheses: a view-subset consensus for one frame, a Viterbi path for a sequence.
+among hypotheses: a vote of the view pairs for one frame, a Viterbi path for a sequence.
 
 The posterior of the shape+structure model is a mixture (``silpose.model.conditioning``): given
 the observed views, component i proposes the conditional mean ``E[s | a, i]`` of the joints with
@@ -196,7 +196,7 @@ def consensus_choice(hyp: Hypotheses, vote_headings: np.ndarray) -> np.ndarray:
 
     Args:
         hyp: the hypotheses of N frames.
-        vote_headings: (N, V) radians, one heading per view-subset posterior (NaN = no vote).
+        vote_headings: (N, V) radians, one heading per posterior given a subset of the views (silpose infer: each pair) (NaN = no vote).
     A hypothesis agrees with a vote when their headings differ by at most 90 deg. Per frame, the
     hypotheses with the most agreeing votes are candidates and the most probable of them is chosen;
     frames without votes keep slot 0.

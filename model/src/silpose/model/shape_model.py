@@ -34,7 +34,7 @@ from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
 from .mppca import DEFAULT_INIT_ROWS, MPPCA
 from .plausibility import PlausibilityCalibration, view_subsets
 from .provenance import manifest_sha256
-from .robust import RobustSettings, point_weights, snap_correspondences
+from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 from .untangle import untangle as untangle_contours
 from .shards import split_global_rows
 from .stature import REFERENCE_STATURE, estimate_stature
@@ -89,6 +89,8 @@ class InferenceResult:
         hypotheses: the top-K hypotheses (``infer(hypotheses=K)``), else None.
         robust_weights: (N, K, n) final per-point weights of robust inference (0 for absent views), else None.
         log_marginal_robust: (N,) log density of the last robust pass's pseudo-observations, else None.
+        noise_variance: (N,) observation noise s^2 each frame was conditioned with by robust inference's
+            adaptive noise (``silpose.model.robust``), else None (the model's or the given s^2).
     """
 
     joints: np.ndarray
@@ -107,6 +109,7 @@ class InferenceResult:
     hypotheses: Hypotheses | None = None
     robust_weights: np.ndarray | None = None
     log_marginal_robust: np.ndarray | None = None
+    noise_variance: np.ndarray | None = None
 
 
 class ShapeStructureModel:
@@ -392,18 +395,24 @@ class ShapeStructureModel:
         res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=hypotheses > 0)
         if settings is not None:
             observed_lm = res.log_marginal
+            if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
+                with np.errstate(invalid="ignore", over="ignore"):
+                    norm_obs = normalise_contours(c_mod)[0]
+                s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
+                res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+            else:
+                s2_rows = s2
             for _ in range(int(settings.iterations)):
                 matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
                 u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
                 pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
                                   c_mod)
-                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2, components=hypotheses > 0)
+                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+            if settings.noise_scale is not None:
+                res.noise_variance = s2_rows
             res.log_marginal_robust = res.log_marginal
             res.log_marginal = observed_lm
             res.robust_weights = u
-            c_final = pseudo
-        else:
-            c_final = c_mod
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
             res.plausibility = cal.percentile(res.log_marginal, present)
@@ -462,11 +471,12 @@ class ShapeStructureModel:
         return present, c_mod, cen_true, sc_true
 
     def _infer_prepared(self, c_mod: np.ndarray, present: np.ndarray, cen_true: np.ndarray, sc_true: np.ndarray,
-                        s2: float, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
-        """Normalise, condition (one Conditioner per present-view pattern) and assemble the result.
+                        s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
+        """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
 
-        Inputs in the model's view order (:meth:`_prepare`). With ``components`` also returns each
-        component's conditional mean of the joints (N, M, 19, 3) metres, else None.
+        Inputs in the model's view order (:meth:`_prepare`); ``s2`` a float or (N,) one noise variance per
+        frame (robust inference). With ``components`` also returns each component's conditional mean of the
+        joints (N, M, 19, 3) metres, else None.
         """
         layout = self.fitted_layout()
         n, kmod = present.shape
@@ -488,15 +498,23 @@ class ShapeStructureModel:
         d = layout.dim
         M = int(self.mixture_.weights_.shape[0])
         flat = norm.reshape(n, -1)
-        if all_present or n == 1:
+        per_row = np.ndim(s2) > 0
+        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
+            levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
+            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
+            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
+            inverse = inverse.reshape(-1)
+        elif all_present or n == 1:
             patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
         else:
             patterns, inverse = np.unique(present, axis=0, return_inverse=True)
             inverse = inverse.reshape(-1)
+        if not per_row:
+            group_s2 = np.full(len(patterns), float(s2))
         cmeans = None
         if len(patterns) == 1:  # the common case: no fancy-index copies
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self._conditioner(patterns[0], s2)(x_obs, return_components=components)
+            post = self._conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
             mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
                                            post.responsibilities, post.log_marginal)
             cmeans = post.component_means
@@ -511,7 +529,7 @@ class ShapeStructureModel:
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self._conditioner(pattern, s2)(x_obs, return_components=components)
+                post = self._conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal
                 if components:
