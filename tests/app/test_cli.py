@@ -89,17 +89,25 @@ def test_infer_dataset_parquet_and_json_match_the_api(trained, dataset, tmp_path
     table = pq.read_table(out).to_pandas()
     model = load_model(model_path)
     test = load_split(dataset, "test")
-    ref = model.infer(test.contours)
+    # silpose infer: robust inference, top-3 hypotheses, the view-pair consensus, untangled contours
+    ref = model.infer(test.contours, hypotheses=3, robust=True, untangle=True)
     got = np.stack([table[[f"{j}_x", f"{j}_y", f"{j}_z"]].to_numpy() for j in JOINT_NAMES], axis=1)
-    np.testing.assert_array_equal(got, ref.joints.astype(np.float32))
+    np.testing.assert_array_equal(got, ref.hypotheses.best_joints.astype(np.float32))
     assert list(table["sample_id"]) == list(test.sample_id)
+    assert list(table["hypothesis"]) == list(ref.hypotheses.chosen + 1)
+    np.testing.assert_array_equal(table["hyp1_probability"], ref.hypotheses.probability[:, 0])
+    # the model file carries its plausibility calibration; genuine frames are not flagged
+    np.testing.assert_array_equal(table["plausibility"], ref.plausibility.astype(np.float32))
+    assert list(table["status"]) == ["implausible" if f else "ok" for f in ref.implausible]
     with np.load(tmp_path / "j.contours.npz", allow_pickle=False) as z:
         np.testing.assert_array_equal(z["contours_norm"], ref.contours_norm)
         assert z["frames"].shape == (6,)
-    res = _invoke("infer", model_path, dataset, "--out", tmp_path / "j.json")
+    res = _invoke("infer", model_path, dataset, "--out", tmp_path / "j.json", "--no-robust")
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "j.json").read_text())
-    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), ref.joints, atol=1e-6)
+    plain = model.infer(test.contours, hypotheses=3)
+    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), plain.hypotheses.best_joints, atol=1e-6)
+    assert [len(f["hypotheses"]) for f in doc["frames"]] == list((plain.hypotheses.component >= 0).sum(axis=1))
 
 
 def test_infer_png_folders_with_missing_views(trained, dataset, tmp_path):
@@ -123,10 +131,33 @@ def test_infer_png_folders_with_missing_views(trained, dataset, tmp_path):
     present = np.ones((6, 4), bool)
     present[:, 3] = False
     present[2, 1] = False
-    ref = model.infer(test.contours, present)  # the dataset's contours come from the same masks
+    # the dataset's contours come from the same masks
+    ref = model.infer(test.contours, present, hypotheses=3, robust=True, untangle=True)
     got = np.stack([table[[f"{j}_x", f"{j}_y", f"{j}_z"]].to_numpy() for j in JOINT_NAMES], axis=1)
-    np.testing.assert_allclose(got, ref.joints, atol=1e-5)
+    np.testing.assert_allclose(got, ref.hypotheses.best_joints, atol=1e-5)
     assert list(table["n_views_present"]) == [3, 3, 2, 3, 3, 3]
+
+
+def test_infer_flags_garbage_frames_with_a_status_and_a_warning(trained, dataset, tmp_path):
+    model_path, _ = trained
+    model = load_model(model_path)
+    test = load_split(dataset, "test", with_masks=True)
+    folder = tmp_path / "garbage"
+    h, w = test.masks.shape[2:]
+    for k, name in enumerate(model.rig_.names):
+        (folder / name).mkdir(parents=True)
+        cv2.imwrite(str(folder / name / "a_person.png"), test.masks[0, k] * 255)
+        cv2.imwrite(str(folder / name / "b_white.png"), np.full((h, w), 255, np.uint8))
+        cv2.imwrite(str(folder / name / "c_black.png"), np.zeros((h, w), np.uint8))
+    out = tmp_path / "g.parquet"
+    res = _invoke("infer", model_path, folder, "--out", out)
+    assert res.exit_code == 0, res.output
+    table = pq.read_table(out).to_pandas()
+    assert list(table["status"]) == ["ok", "implausible", "no silhouette"]
+    assert table["plausibility"][1] < model.plausibility_.flag_percentile < table["plausibility"][0]
+    assert np.isnan(table["l_wrist_x"][2]) and table["n_views_present"][2] == 0
+    assert "warning: 1 of 3 frame(s) implausible" in res.stderr and "first: b_white" in res.stderr
+    assert "warning: 1 of 3 frame(s) no usable silhouette" in res.stderr
 
 
 def test_infer_errors(trained, dataset, tmp_path):

@@ -121,6 +121,6 @@ def test_infer_points_at_threshold_when_masks_are_too_dark(generated, model, tmp
     test = load_split(generated, "test", with_masks=True)
     _write_masks(tmp_path / "dim", test.masks, load_model(model).rig_.names, 100)  # 0/100 masks, threshold 127
     code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet")
-    assert code == 2 and "no usable silhouette" in output and "--threshold" in output
+    assert code == 2 and "usable silhouette" in output and "--threshold" in output
     code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet", "--threshold", "50")
     assert code == 0, output

@@ -20,14 +20,17 @@ from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split
 
 ARTEFACTS = ("results.parquet", "headline.json", "summary.md", "e1_single_vs_multi.png", "e2_missing_views.png",
-             "e3_noise.png", "e4_baselines.png", "e5_single_view.png", "e5_missing_view.png")
+             "e3_noise.png", "e4_baselines.png", "e5_single_view.png", "e5_missing_view.png", "e6_robust_mask.png",
+             "e6_garbage.png")
 
 
 @pytest.fixture(scope="module")
 def evaluated(stick_dataset, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("eval")
+    train = load_split(stick_dataset, "train")
     model = ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=30, tol=1e-3, random_state=0).fit_dataset(
-        load_split(stick_dataset, "train"))
+        train)
+    model.calibrate_plausibility(train.contours[:20])  # as silpose train does with its held-out part
     save_model(tmp / "m.npz", model)
     out = tmp / "report"
     res = CliRunner().invoke(build_app(), ["eval", str(stick_dataset), "--model", str(tmp / "m.npz"),
@@ -77,11 +80,14 @@ def test_summary_and_headline_show_figures_recomputed_from_the_rows(evaluated):
     assert head["e1"]["pose_improvement_pct"] == pytest.approx(better, rel=1e-12)
     assert head["e1_equal_q_per_view"]["pose_improvement_pct"] == pytest.approx(better_pv, rel=1e-12)
     # the headline table: mask-level noise with every view given, as a multiple of the clean error
-    e3 = df[(df.experiment == "E3") & (df.method == "mppca") & (df.input_views == "0123")]
-    clean = e3[e3.noise == "clean"].pose_cm.mean()
-    for noise, v in head["pose_mean_cm_by_noise_all_views"].items():
-        assert v["mppca"] == pytest.approx(e3[e3.noise == noise].pose_cm.mean(), rel=1e-12)
-        assert v["x_clean"] == pytest.approx(v["mppca"] / clean, rel=1e-12)
+    for method, ratio in (("mppca", "x_clean"), ("mppca robust", "x_clean_robust")):
+        e3 = df[(df.experiment == "E3") & (df.method == method) & (df.input_views == "0123")]
+        clean = e3[e3.noise == "clean"].pose_cm.mean()
+        assert set(e3.noise) == {k for k, v in head["pose_mean_cm_by_noise_all_views"].items() if method in v}
+        for noise, g in e3.groupby("noise"):
+            v = head["pose_mean_cm_by_noise_all_views"][noise]
+            assert v[method] == pytest.approx(g.pose_cm.mean(), rel=1e-12)
+            assert v[ratio] == pytest.approx(v[method] / clean, rel=1e-12)
     mask = [k for k in head["pose_mean_cm_by_noise_all_views"] if k.startswith("mask")]
     assert mask and all(any(line.startswith(f"| 4 views, noise '{k}' |") for line in lines) for k in mask)
     assert lines.index("## Headline") < lines.index(next(x for x in lines if x.startswith("## E1")))
@@ -99,7 +105,11 @@ def test_row_counts_match_the_protocol(evaluated):
     counts = df.groupby("experiment").size().to_dict()
     assert counts["E1"] == 2 * 4 * n + n  # single-view models at equal q and at q / K, and the 4-view model
     assert counts["E2"] == 15 * n
-    assert counts["E3"] == 4 * (2 + 2) * n  # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge)
+    # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge), plus E6's robust MPPCA rows (2 inputs) for the
+    # settings of silpose.eval.inference_eval.ROBUST_SPECS in the sweep (clean, mask strong) and the standard noise
+    assert counts["E3"] == 4 * (2 + 2) * n + 3 * 2 * n
+    robust = df[(df.experiment == "E3") & (df.method == "mppca robust")]
+    assert sorted(robust.noise.unique()) == ["clean", "mask strong", "standard"]
     assert counts["E4"] == n + 2 * 15 * n
     e2 = df[df.experiment == "E2"]
     assert sorted(e2.groupby("n_input_views").input_views.nunique().to_dict().items()) == [(1, 4), (2, 6), (3, 4), (4, 1)]
@@ -142,3 +152,27 @@ def test_clear_errors_when_data_or_model_missing(tmp_path, stick_dataset):
     assert res.exit_code == 2 and "just gen" in res.output
     res = runner.invoke(build_app(), ["eval", str(stick_dataset), "--model", str(tmp_path / "none.npz")])
     assert res.exit_code == 2 and "just train" in res.output
+
+
+def test_e6_tables_recompute_independently(evaluated):
+    root, model_path, out = evaluated
+    e6 = json.loads((out / "headline.json").read_text())["e6"]
+    assert "## E6" in (out / "summary.md").read_text()
+    test = load_split(root, "test")
+    model = load_model(model_path)
+    noisy = apply_noise(STANDARD_NOISE, test.contours, test.sample_id, seed=0)
+    res = model.infer(noisy, hypotheses=3)
+    # heading recomputed by hand: forward = (a_y, -a_x) of the hip + shoulder axis a (left side minus right)
+    def facing(j):
+        a = (j[..., 11, :] - j[..., 15, :]) + (j[..., 5, :] - j[..., 8, :])
+        return np.arctan2(-a[..., 0], a[..., 1])
+    diff = np.abs((facing(res.hypotheses.best_joints) - facing(test.joints) + np.pi) % (2 * np.pi) - np.pi)
+    row = next(r for r in e6["flips"] if r["condition"] == "4 views, standard")
+    assert row["single_answer_flips_pct"] == pytest.approx(100 * np.mean(diff > np.pi / 2))
+    assert row["best_of_3_pose_cm"] <= row["single_answer_pose_cm"] + 1e-9  # the oracle cannot be worse
+    untangled = [r for r in e6["self_intersection"] if r["untangled_pct"] is not None]
+    assert untangled and all(r["untangled_pct"] == 0.0 for r in untangled)
+    garbage = {g["kind"]: g for g in e6["plausibility"]["garbage"]}
+    assert garbage["all-black"]["no_silhouette_pct"] == 100.0 and garbage["all-black"]["flagged_pct"] == 100.0
+    assert garbage["all-white"]["flagged_pct"] == 100.0
+    assert len(e6["missing_view"]) == 4 and all(r["nearest_neighbour_px"] > 0 for r in e6["missing_view"])

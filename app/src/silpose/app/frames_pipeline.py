@@ -41,7 +41,7 @@ from .contours import (
     view_contour,
 )
 from .errors import FramesInputError
-from .inference import infer_rows, merge_results
+from .inference import TOP_K, InferOptions, apply_temporal, frame_status, infer_rows, merge_results, status_warnings
 from .inputs.frames_folder import open_frames
 from .overlays import OverlayWriter
 from .segmentation import fit_backgrounds, segment_chunk
@@ -91,7 +91,8 @@ class FramesResult:
 def run_frames_pipeline(model, root, *, chunk: int = 32, min_area: int = DEFAULT_MIN_AREA,
                         noise_variance: float | None = None, segment_params: dict | None = None,
                         on_chunk: Callable[[FramesChunk], None] | None = None,
-                        progress: Callable[[int, int], None] | None = None) -> FramesResult:
+                        progress: Callable[[int, int], None] | None = None,
+                        options: InferOptions | None = None) -> FramesResult:
     """Segment, extract contours and infer on every frame of a frames folder (see the module docstring).
 
     Args:
@@ -103,6 +104,9 @@ def run_frames_pipeline(model, root, *, chunk: int = 32, min_area: int = DEFAULT
         segment_params: keyword arguments of :class:`silpose.segment.BackgroundModel`.
         on_chunk: called with each :class:`FramesChunk` after its inference (overlays, evaluation).
         progress: called with (frames done, total).
+        options: the model's inference options (:class:`~silpose.app.inference.InferOptions`; None = the
+            plain posterior with ``noise_variance``). ``options.temporal`` applies to the whole sequence
+            after the last chunk.
     Returns:
         :class:`FramesResult`.
     """
@@ -146,7 +150,7 @@ def run_frames_pipeline(model, root, *, chunk: int = 32, min_area: int = DEFAULT
                     present[start + i, k] = True
         timings["contours"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        res = infer_rows(model, contours[rows], present[rows], noise_variance)
+        res = infer_rows(model, contours[rows], present[rows], noise_variance, options)
         timings["infer"] += time.perf_counter() - t0
         parts.append(res)
         order.append(np.arange(start, start + n))
@@ -156,14 +160,19 @@ def run_frames_pipeline(model, root, *, chunk: int = 32, min_area: int = DEFAULT
         if progress is not None:
             progress(start + n, N)
     result = merge_results(parts, order, N)
+    if options is not None and options.temporal:
+        apply_temporal(result)
     return FramesResult(np.array(folder.frame_names), tuple(names), contours, present, status, area, result, timings)
 
 
 def run_frames_inference(model_path: Path, root: Path, *, out: Path, save_contours: bool = False,
                          save_overlays: bool = False, overlay_dir: Path | None = None,
                          min_area: int = DEFAULT_MIN_AREA, noise_variance: float | None = None,
-                         chunk: int = 32, progress: Callable[[int, int], None] | None = None) -> str:
-    """Everything ``silpose infer MODEL --frames DIR`` does; returns a summary (several lines)."""
+                         chunk: int = 32, progress: Callable[[int, int], None] | None = None,
+                         robust: bool = True, temporal: bool = True) -> str:
+    """Everything ``silpose infer MODEL --frames DIR`` does; returns a summary (several lines, ``warning:``
+    lines last). Frames are a time sequence: with ``temporal`` the single answer of each frame is the Viterbi
+    choice among its top-3 hypotheses (:func:`silpose.model.hypotheses.temporal_choice`)."""
     model_path, root, out = Path(model_path), Path(root), Path(out)
     if out.suffix.lower() not in (".parquet", ".json"):
         raise FramesInputError(f"{out}: the joints file must end in .parquet or .json")
@@ -172,10 +181,13 @@ def run_frames_inference(model_path: Path, root: Path, *, out: Path, save_contou
     if save_overlays:
         overlay_dir = Path(overlay_dir) if overlay_dir is not None else sibling(out, ".overlays")
         on_chunk = OverlayWriter(model, overlay_dir)
+    options = InferOptions(noise_variance=noise_variance, hypotheses=TOP_K, robust=robust, untangle=True,
+                           temporal=temporal)
     fr = run_frames_pipeline(model, root, chunk=chunk, min_area=min_area, noise_variance=noise_variance,
-                             on_chunk=on_chunk, progress=progress)
+                             on_chunk=on_chunk, progress=progress, options=options)
     rig_names = list(model.rig_.names)
-    write_joints(out, fr.frames, fr.result, rig_names, None, str(model_path))
+    status = frame_status(fr.result)
+    write_joints(out, fr.frames, fr.result, rig_names, None, str(model_path), status=status)
     seg_path = sibling(out, ".segmentation.json")
     write_segmentation(seg_path, fr, root, min_area)
     lines = [f"{out}: joints of {len(fr.frames)} frames from {root}", f"{seg_path}: segmentation status per frame and camera"]
@@ -195,4 +207,5 @@ def run_frames_inference(model_path: Path, root: Path, *, out: Path, save_contou
     )
     t = fr.timings
     lines.append("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()))
+    lines += status_warnings(fr.frames, status, getattr(model, "plausibility_", None) is not None)
     return "\n".join(lines)

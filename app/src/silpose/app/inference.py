@@ -5,14 +5,20 @@ usable modelled view and gives the others NaN rows (the camera-frames path can l
 a frame). :func:`run_inference` is ``silpose infer MODEL INPUT``: INPUT is a dataset folder
 (:mod:`.inputs.dataset`) or per-camera silhouette PNG folders (:mod:`.inputs.silhouettes`); it
 writes the joints and optionally the reconstructed contours (:mod:`.writers`).
+
+Every frame gets a status (:func:`frame_status`): ``ok``, ``implausible`` (its plausibility
+percentile, ``silpose.model.plausibility``, is below the model's threshold: a warning is printed)
+or ``no silhouette`` (no usable view: NaN joints).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from silpose.model.hypotheses import Hypotheses, temporal_choice
 from silpose.model.persistence import load_model
 from silpose.model.shape_model import InferenceResult, ShapeStructureModel
 from silpose.shared.skeleton import N_JOINTS
@@ -24,53 +30,152 @@ from .writers import sibling, write_contours, write_joints
 
 _ARRAY_FIELDS = ("joints", "joints_best", "joint_std", "contours_norm", "contours_px", "centroid", "scale",
                  "views_present", "responsibilities", "log_marginal")
+_OPTIONAL_FIELDS = ("plausibility", "implausible", "robust_weights", "log_marginal_robust", "noise_variance")
+
+#: frame statuses written by ``silpose infer`` (column ``status``)
+FRAME_OK = "ok"
+#: the input is less typical than the model's calibration allows (silpose.model.plausibility): a warning
+FRAME_IMPLAUSIBLE = "implausible"
+#: no modelled view has a usable silhouette: nothing was inferred (NaN joints)
+FRAME_NO_VIEWS = "no silhouette"
+#: hypotheses kept per frame by silpose infer
+TOP_K = 3
 
 
-def nan_result(model: ShapeStructureModel, n: int) -> InferenceResult:
-    """An InferenceResult of ``n`` frames without any usable view: NaN everywhere, no view present."""
+@dataclass(frozen=True)
+class InferOptions:
+    """How ``silpose infer`` runs the model (:meth:`ShapeStructureModel.infer` arguments).
+
+    noise_variance: s^2 (None = the model's); hypotheses: top-K kept (0 = none); robust: robust
+    inference (silpose.model.robust); untangle: simple reconstructed contours; temporal: choose among
+    the hypotheses along the frames in order, one track (:func:`silpose.model.hypotheses.temporal_choice`).
+    """
+
+    noise_variance: float | None = None
+    hypotheses: int = 0
+    robust: bool = False
+    untangle: bool = False
+    temporal: bool = False
+
+    def infer_kwargs(self) -> dict:
+        return {"noise_variance": self.noise_variance, "hypotheses": self.hypotheses, "robust": self.robust,
+                "untangle": self.untangle}
+
+
+def nan_result(model: ShapeStructureModel, n: int, options: InferOptions | None = None) -> InferenceResult:
+    """An InferenceResult of ``n`` frames without any usable view: NaN everywhere, no view present.
+
+    With ``options``, the optional fields a result of those options has (plausibility when the model is
+    calibrated for its noise, hypotheses, robust weights) are there too: NaN, probabilities 0,
+    components -1, flags False.
+    """
     lay = model.layout_
     k, p, m = len(lay.views), lay.n_points, len(model.mixture_.weights_)
     nan = lambda *shape: np.full((n,) + shape, np.nan)  # noqa: E731
-    return InferenceResult(joints=nan(N_JOINTS, 3), joints_best=nan(N_JOINTS, 3), joint_std=nan(N_JOINTS, 3),
-                           contours_norm=nan(k, p, 2), contours_px=nan(k, p, 2), centroid=nan(k, 2), scale=nan(k),
-                           views_present=np.zeros((n, k), bool), responsibilities=nan(m), log_marginal=nan(),
-                           views=lay.views)
+    res = InferenceResult(joints=nan(N_JOINTS, 3), joints_best=nan(N_JOINTS, 3), joint_std=nan(N_JOINTS, 3),
+                          contours_norm=nan(k, p, 2), contours_px=nan(k, p, 2), centroid=nan(k, 2), scale=nan(k),
+                          views_present=np.zeros((n, k), bool), responsibilities=nan(m), log_marginal=nan(),
+                          views=lay.views)
+    if options is None:
+        return res
+    s2 = model.noise_variance if options.noise_variance is None else options.noise_variance
+    cal = getattr(model, "plausibility_", None)
+    if cal is not None and cal.applies_to(s2):
+        res.plausibility, res.implausible = nan(), np.zeros(n, dtype=bool)
+    if options.robust:
+        res.robust_weights, res.log_marginal_robust, res.noise_variance = np.zeros((n, k, p)), nan(), nan()
+    if options.hypotheses > 0:
+        kh = int(options.hypotheses)
+        res.hypotheses = Hypotheses(nan(kh, N_JOINTS, 3), np.zeros((n, kh)), np.full((n, kh), -1, dtype=np.intp),
+                                    nan(kh), np.zeros(n, dtype=np.intp))
+    return res
 
 
 def merge_results(parts: list[InferenceResult], order: list[np.ndarray], n: int) -> InferenceResult:
-    """One n-row InferenceResult from ``parts`` whose rows go to indices ``order[i]``."""
+    """One n-row InferenceResult from ``parts`` whose rows go to indices ``order[i]``.
+
+    Optional fields (plausibility, hypotheses, robust weights) are kept when every part has them.
+    """
     ref = parts[0]
-    arrays = {}
-    for f in _ARRAY_FIELDS:
-        a = getattr(ref, f)
+
+    def merged(get):
+        a = get(ref)
         out = np.empty((n,) + a.shape[1:], a.dtype)
         for p, idx in zip(parts, order):
-            out[idx] = getattr(p, f)
-        arrays[f] = out
-    return InferenceResult(**arrays, views=ref.views)
+            out[idx] = get(p)
+        return out
+
+    res = InferenceResult(**{f: merged(lambda r, f=f: getattr(r, f)) for f in _ARRAY_FIELDS}, views=ref.views)
+    for f in _OPTIONAL_FIELDS:
+        if all(getattr(p, f) is not None for p in parts):
+            setattr(res, f, merged(lambda r, f=f: getattr(r, f)))
+    if all(p.hypotheses is not None for p in parts):
+        res.hypotheses = Hypotheses(*(merged(lambda r, a=a: getattr(r.hypotheses, a))
+                                      for a in ("joints", "probability", "component", "heading", "chosen")))
+    return res
 
 
 def infer_rows(model: ShapeStructureModel, contours: np.ndarray, present: np.ndarray,
-               noise_variance: float | None) -> InferenceResult:
+               noise_variance: float | None = None, options: InferOptions | None = None) -> InferenceResult:
     """Infer on the frames with at least one present modelled view; NaN rows for the others.
 
     contours (N, K_rig, n, 2) px (NaN where missing), present (N, K_rig) bool, noise_variance s^2
-    (None = the model's).
+    (None = the model's; ignored when ``options`` is given), options: the model's inference options.
     """
+    opts = options if options is not None else InferOptions(noise_variance=noise_variance)
+    kwargs = dict(opts.infer_kwargs(), input_views=range(model.n_rig_views_))
     modelled = present[:, list(model.layout_.views)].any(axis=1)
     n = len(contours)
     if modelled.all():
-        return model.infer(contours, present, noise_variance=noise_variance, input_views=range(model.n_rig_views_))
+        return model.infer(contours, present, **kwargs)
     if not modelled.any():
-        return nan_result(model, n)
+        return nan_result(model, n, opts)
     ok = np.flatnonzero(modelled)
-    res = model.infer(contours[ok], present[ok], noise_variance=noise_variance, input_views=range(model.n_rig_views_))
-    return merge_results([res, nan_result(model, n - len(ok))], [ok, np.flatnonzero(~modelled)], n)
+    res = model.infer(contours[ok], present[ok], **kwargs)
+    return merge_results([res, nan_result(model, n - len(ok), opts)], [ok, np.flatnonzero(~modelled)], n)
+
+
+def apply_temporal(result: InferenceResult) -> InferenceResult:
+    """Choose among ``result.hypotheses`` along the frames (one track, in order); frames without a view are bridged."""
+    if result.hypotheses is not None:
+        result.hypotheses.chosen = temporal_choice(result.hypotheses, valid=result.views_present.any(axis=1))
+    return result
+
+
+def frame_status(result: InferenceResult) -> np.ndarray:
+    """(N,) str per frame: :data:`FRAME_NO_VIEWS`, :data:`FRAME_IMPLAUSIBLE` or :data:`FRAME_OK`."""
+    status = np.full(len(result.log_marginal), FRAME_OK, dtype=object)
+    if result.implausible is not None:
+        status[np.asarray(result.implausible, dtype=bool)] = FRAME_IMPLAUSIBLE
+    status[~result.views_present.any(axis=1)] = FRAME_NO_VIEWS
+    return status
+
+
+def status_warnings(frames, status: np.ndarray, calibrated: bool) -> list[str]:
+    """``warning: ...`` lines for implausible frames and frames without a view (empty when none)."""
+    lines = []
+    for code, what in ((FRAME_IMPLAUSIBLE, "implausible input (below the plausibility threshold of the model's "
+                                           "calibration: not a person, several people, or a broken silhouette?)"),
+                       (FRAME_NO_VIEWS, "no usable silhouette in any modelled view (NaN joints)")):
+        hit = np.flatnonzero(status == code)
+        if hit.size:
+            lines.append(f"warning: {hit.size} of {len(status)} frame(s) {what}; first: {frames[hit[0]]}")
+    if not calibrated:
+        lines.append("warning: the model file has no plausibility calibration (trained before it existed): "
+                     "frames are not checked; retrain to enable the check")
+    return lines
 
 
 def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str = "test", save_contours: bool = False,
-                  noise_variance: float | None = None, threshold: int = 127) -> str:
-    """Load the model, read the input, infer, write outputs; returns a one-line summary."""
+                  noise_variance: float | None = None, threshold: int = 127, robust: bool = True,
+                  temporal: bool = False) -> str:
+    """Load the model, read the input, infer, write outputs; returns a summary (``warning:`` lines last).
+
+    Every frame gets the top-3 hypotheses, a single answer (the view-pair consensus, or with ``temporal``
+    the Viterbi path over the frames in order), a plausibility percentile and a status; reconstructed
+    contours are untangled (simple polygons). A frame without any usable view gets NaN joints and the
+    status ``no silhouette`` (it does not stop the run); an input where no frame has one is an error.
+    """
     model = load_model(model_path)
     input_path = Path(input_path)
     out = Path(out)
@@ -84,20 +189,26 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
         frames, contours, present, sample_id = read_png_input(model, input_path, threshold)
     modelled = present[:, list(model.layout_.views)]
     empty = ~modelled.any(axis=1)
-    if empty.any():
+    if empty.all():  # nothing to infer from: an input problem, not a per-frame status
         raise InferenceInputError(
-            f"{input_path}: {int(empty.sum())} frame(s) have no usable silhouette in any modelled view "
-            f"(first: {frames[np.flatnonzero(empty)[0]]})"
+            f"{input_path}: none of the {len(frames)} frame(s) has a usable silhouette in any modelled view"
             + ("" if is_dataset(input_path) else f"; a pixel is foreground when brighter than --threshold "
                f"({threshold}; 0/1 mask images are detected): lower it for dim masks")
         )
-    result = model.infer(contours, present, noise_variance=noise_variance, input_views=range(model.n_rig_views_))
+    options = InferOptions(noise_variance=noise_variance, hypotheses=TOP_K, robust=robust, untangle=True,
+                           temporal=temporal)
+    result = infer_rows(model, contours, present, options=options)
+    if temporal:
+        apply_temporal(result)
+    status = frame_status(result)
     rig_names = list(model.rig_.names) if model.rig_ is not None else None
-    write_joints(out, frames, result, rig_names, sample_id, str(model_path))
+    write_joints(out, frames, result, rig_names, sample_id, str(model_path), status=status)
     extra = ""
     if save_contours:
         cpath = sibling(out, ".contours.npz")
         write_contours(cpath, frames, result, rig_names)
         extra = f", contours {cpath}"
     n_missing = int((~modelled).sum())
-    return (f"{out}: joints of {len(frames)} frames ({n_missing} missing views marginalised){extra}")
+    lines = [f"{out}: joints of {len(frames)} frames ({n_missing} missing views marginalised){extra}"]
+    lines += status_warnings(frames, status, getattr(model, "plausibility_", None) is not None)
+    return "\n".join(lines)

@@ -295,11 +295,13 @@ def run_training(
                               "mode": mode, "roughness": None if roughness is None else roughness.to_dict()}
     held_1view = float("nan")
     if streaming:
-        held_ll, held_err = _heldout_streaming(model, plan, held_idx)
+        held_ll, held_err, held_contours = _heldout_streaming(model, plan, held_idx)
     else:
+        held_contours = c_held
         held_ll = model.score_samples(c_held, j_held)
         held_err = pose_error_cm(model.infer(c_held).joints, j_held)
         held_1view = view_errors(model, np.asarray(c_held, np.float64), j_held)["one"]
+    model.calibrate_plausibility(held_contours, seed=seed)  # stored in the model file (silpose.model.plausibility)
 
     save_model(out, model)
     mix = model.mixture_
@@ -367,9 +369,10 @@ def is_training_output(path: Path) -> bool:
     return is_model_file(path)
 
 
-def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(log-likelihood (H,), joint error cm (H,)) of the held-out rows, reading one shard at a time."""
-    lls, errs = [], []
+def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(log-likelihood (H,), joint error cm (H,), contours (H, K, n, 2) px) of the held-out rows, reading one
+    shard at a time."""
+    lls, errs, conts = [], [], []
     for path, rows in zip(plan.paths, split_global_rows(np.asarray(held_idx), plan.shard_rows())):
         if rows.size == 0:
             continue
@@ -378,7 +381,8 @@ def _heldout_streaming(model, plan, held_idx: np.ndarray) -> tuple[np.ndarray, n
         del shard
         lls.append(model.score_samples(c, j))
         errs.append(pose_error_cm(model.infer(c).joints, j))
-    return np.concatenate(lls), np.concatenate(errs)
+        conts.append(np.asarray(c, dtype=np.float64))
+    return np.concatenate(lls), np.concatenate(errs), np.concatenate(conts)
 
 
 def _dataset_info(root: Path, name: str, metadata: dict, n_samples: int, n_fit: int, n_held: int) -> dict:

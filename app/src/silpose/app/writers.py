@@ -1,7 +1,11 @@
 """What ``silpose infer`` writes, each file atomically (:mod:`silpose.shared.atomic`):
 
 - joints: Parquet (one row per frame; ``<joint>_x/_y/_z`` and ``<joint>_x_std`` ... in metres,
-  root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``);
+  root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``). The joints
+  are the frame's single answer: with hypotheses, the chosen one (``hypothesis``, 1-based; its
+  ``heading_deg``), else the posterior mean. Also per frame: ``status`` (``ok``, ``implausible``,
+  ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
+  model has no calibration), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
 
@@ -18,6 +22,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from silpose.model.hypotheses import heading
 from silpose.shared.atomic import atomic_open, atomic_path, write_text_atomic
 from silpose.shared.output_dir import claim_files, claim_folder
 from silpose.shared.skeleton import JOINT_NAMES
@@ -80,7 +85,17 @@ def _view_names(result, rig_names) -> list[str]:
     return [rig_names[v] if rig_names else str(v) for v in result.views]
 
 
-def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "") -> None:
+def answer_joints(result) -> np.ndarray:
+    """(N, 19, 3) the single answer per frame: the chosen hypothesis when there are hypotheses, else the
+    posterior mean."""
+    return result.joints if result.hypotheses is None else result.hypotheses.best_joints
+
+
+def _optional(a, n: int, fill=np.nan) -> np.ndarray:
+    return np.full(n, fill) if a is None else np.asarray(a, dtype=np.float64)
+
+
+def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "", status=None) -> None:
     """Write the joints of an InferenceResult of N frames (module doc).
 
     Args:
@@ -88,10 +103,15 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         frames: (N,) frame names; result: ``ShapeStructureModel.infer``'s result over the K modelled views.
         rig_names: the rig's camera names (None: views are named by their indices).
         sample_id: optional (N,) dataset sample ids; model_path: recorded in the file.
+        status: optional (N,) str frame statuses (``silpose.app.inference.frame_status``).
     """
     path = Path(path)
     n = len(frames)
     names = _view_names(result, rig_names)
+    joints = answer_joints(result)
+    head = np.degrees(heading(joints))
+    plaus = _optional(result.plausibility, n)
+    hyp = result.hypotheses
     if path.suffix.lower() == ".json":
         doc = {
             "model": model_path,
@@ -103,10 +123,19 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
                     "frame": str(frames[i]),
                     **({"sample_id": int(sample_id[i])} if sample_id is not None else {}),
                     "views_present": [names[k] for k in np.flatnonzero(result.views_present[i])],
-                    "joints": result.joints[i].round(6).tolist(),
+                    **({"status": str(status[i])} if status is not None else {}),
+                    "plausibility": None if not np.isfinite(plaus[i]) else float(plaus[i]),
+                    "heading_deg": None if not np.isfinite(head[i]) else float(head[i]),
+                    "joints": joints[i].round(6).tolist(),
                     "joint_std": result.joint_std[i].round(6).tolist(),
                     "log_marginal": float(result.log_marginal[i]),
                     "component": int(np.argmax(result.responsibilities[i])),
+                    **({} if hyp is None else {
+                        "hypothesis": int(hyp.chosen[i]) + 1,
+                        "hypotheses": [{"probability": float(hyp.probability[i, k]),
+                                        "heading_deg": float(np.degrees(hyp.heading[i, k])),
+                                        "joints": hyp.joints[i, k].round(6).tolist()}
+                                       for k in range(hyp.k) if hyp.component[i, k] >= 0]}),
                 }
                 for i in range(n)
             ],
@@ -118,11 +147,20 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         cols["sample_id"] = pa.array(np.asarray(sample_id, dtype=np.int64))
     cols["n_views_present"] = pa.array(result.views_present.sum(1).astype(np.int32))
     cols["views_present"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in result.views_present])
+    if status is not None:
+        cols["status"] = pa.array([str(x) for x in status])
+    cols["plausibility"] = pa.array(plaus.astype(np.float32))
     cols["log_marginal"] = pa.array(result.log_marginal)
-    cols["component"] = pa.array(np.argmax(result.responsibilities, axis=1).astype(np.int32))
+    cols["component"] = pa.array(np.argmax(np.nan_to_num(result.responsibilities, nan=-1.0), axis=1).astype(np.int32))
+    cols["heading_deg"] = pa.array(head.astype(np.float32))
+    if hyp is not None:
+        cols["hypothesis"] = pa.array((hyp.chosen + 1).astype(np.int32))
+        for k in range(hyp.k):
+            cols[f"hyp{k + 1}_probability"] = pa.array(hyp.probability[:, k])
+            cols[f"hyp{k + 1}_heading_deg"] = pa.array(np.degrees(hyp.heading[:, k]).astype(np.float32))
     for j, jn in enumerate(JOINT_NAMES):
         for a, axis in enumerate("xyz"):
-            cols[f"{jn}_{axis}"] = pa.array(result.joints[:, j, a].astype(np.float32))
+            cols[f"{jn}_{axis}"] = pa.array(joints[:, j, a].astype(np.float32))
     for j, jn in enumerate(JOINT_NAMES):
         for a, axis in enumerate("xyz"):
             cols[f"{jn}_{axis}_std"] = pa.array(result.joint_std[:, j, a].astype(np.float32))

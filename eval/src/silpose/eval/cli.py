@@ -21,11 +21,12 @@ def evaluate(
     out: Optional[Path] = typer.Option(None, help="Output folder (default: reports/<name>/)."),
     n_test: Optional[int] = typer.Option(None, min=1, help="Use the first N test examples (default: all)."),
     seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
-    experiments: str = typer.Option("E1,E2,E3,E4,E5", help="Comma-separated subset of E1..E5."),
+    experiments: str = typer.Option("E1,E2,E3,E4,E5,E6", help="Comma-separated subset of E1..E6 (E6: flips, robust "
+                                    "inference, missing views, self-intersections, plausibility)."),
     jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1)."),
-    patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 4)."),
-    n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 3)."),
-    patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 16)."),
+    patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 8)."),
+    n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 6)."),
+    patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 30)."),
     quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 2px, patches 8px, mask strong)."),
     frames: Optional[Path] = typer.Option(None, help="Frames dataset for the camera-frames evaluation (default: <data>/frames if it exists)."),
     no_frames: bool = typer.Option(False, "--no-frames", help="Skip the camera-frames evaluation."),
@@ -34,7 +35,7 @@ def evaluate(
                                                    "motion-capture clips); each gets its own report folder under "
                                                    "--out, and test_sets.md puts them side by side."),
 ) -> None:
-    """Run experiments E1-E5 of the paper (section 6) and write reports/<name>/: summary.md, results.parquet,
+    """Run experiments E1-E5 of the paper (section 6) and E6 (issue 12) and write reports/<name>/: summary.md, results.parquet,
     headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
 
     When data/<name>/frames holds a frames dataset (camera frames + truth), also segments the frames and
@@ -64,9 +65,9 @@ def evaluate(
     except OutputFolderError as exc:
         fail("eval", str(exc))
     exps = tuple(e.strip().upper() for e in experiments.split(",") if e.strip())
-    bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5")]
+    bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5", "E6")]
     if bad:
-        raise typer.BadParameter(f"unknown experiment(s) {bad}; choose from E1,E2,E3,E4,E5", param_hint="--experiments")
+        raise typer.BadParameter(f"unknown experiment(s) {bad}; choose from E1,E2,E3,E4,E5,E6", param_hint="--experiments")
     changes = {k: v for k, v in dict(jitter_px=jitter_px, patch_depth_px=patch_depth_px, n_patches=n_patches,
                                       patch_length=patch_length).items() if v is not None}
     try:

@@ -25,6 +25,9 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
   all views.
 - **E4** chance (one random training pose per example) and kNN / ridge regression fitted per view
   subset (:mod:`silpose.eval.baselines`) on the standard noisy inputs of E2.
+- **E6** hypotheses and flips, robust inference, missing-view contours against a nearest
+  neighbour, self-intersections and plausibility flags (:mod:`silpose.eval.inference_eval`); its
+  robust rows join E3's.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from silpose.shared.contours import normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
 
 from .baselines import ChanceBaseline, ViewSubsetRegressor
+from .inference_eval import run_e6
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
 __all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "E1_PER_VIEW", "view_subsets", "views_label"]
@@ -58,6 +62,7 @@ DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
     *(NoiseSpec(label=f"jitter {m:g}px", jitter_px=m) for m in (0.5, 1.0, 2.0, 4.0)),
     *(NoiseSpec(label=f"patches {d:g}px", n_patches=3, patch_length=16, patch_depth_px=d) for d in (2.0, 4.0, 8.0, 16.0)),
     STANDARD_NOISE,
+    NoiseSpec(label="standard before issue 12", jitter_px=1.0, n_patches=3, patch_length=16, patch_depth_px=4.0),
     NoiseSpec(label="mask mild", mask_holes=2, mask_hole_radius_px=3, mask_blobs=2, mask_blob_radius_px=3, mask_shadow_px=10),
     NoiseSpec(label="mask strong", mask_holes=4, mask_hole_radius_px=5, mask_blobs=4, mask_blob_radius_px=5, mask_shadow_px=20),
 )
@@ -86,7 +91,7 @@ class EvalConfig:
         sweep: E3's noise settings.
         sweep_inputs: E3's input view subsets (None = all views and view 0 alone).
         knn_neighbors: k of the kNN baseline.
-        experiments: which of "E1".."E5" to run.
+        experiments: which of "E1".."E6" to run.
     """
 
     n_test: int | None = None
@@ -95,7 +100,7 @@ class EvalConfig:
     sweep: tuple[NoiseSpec, ...] = DEFAULT_SWEEP
     sweep_inputs: tuple[tuple[int, ...], ...] | None = None
     knn_neighbors: int = 5
-    experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5")
+    experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6")
 
     def to_dict(self) -> dict:
         return {
@@ -184,6 +189,7 @@ class Evaluation:
     rows: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    extra: dict = field(default_factory=dict)  # E6's tables (silpose.eval.inference_eval)
 
     def __post_init__(self) -> None:
         self._chamfer_cache: dict = {}
@@ -214,8 +220,9 @@ class Evaluation:
         row.update(arrays)
         self.rows.append(row)
 
-    def score_model(self, model, noisy: np.ndarray, views: Sequence[int]) -> dict:
-        """Infer from ``noisy`` with only ``views`` present; per-example errors.
+    def score_model(self, model, noisy: np.ndarray, views: Sequence[int], **infer_kwargs) -> dict:
+        """Infer from ``noisy`` with only ``views`` present (``infer_kwargs`` go to ``model.infer``, e.g.
+        ``robust=True``); per-example errors.
 
         Returns:
             dict of (N,) arrays: pose_cm, pose_pa_cm, chamfer_px (one-sided true->recon, mean over
@@ -224,7 +231,7 @@ class Evaluation:
         """
         d = self.data
         present = self._present(views)
-        res = model.infer(noisy, views_present=present, centroid=d.test_centroid, scale=d.test_scale)
+        res = model.infer(noisy, views_present=present, centroid=d.test_centroid, scale=d.test_scale, **infer_kwargs)
         recon = np.full(d.test_contours.shape[:2] + res.contours_px.shape[2:], np.nan)
         recon[:, list(res.views)] = res.contours_px
         one, sym = chamfer_errors(d.test_contours, recon, d.image_size, cache=self._chamfer_cache, keys=d.test_ids)
@@ -297,7 +304,7 @@ class Evaluation:
     # ---------------------------------------------------------------- experiments
     def run(self) -> "Evaluation":
         """Run the configured experiments (E5 figures are drawn by :mod:`silpose.eval.figures`)."""
-        for name in ("E1", "E2", "E3", "E4"):
+        for name in ("E1", "E2", "E3", "E4", "E6"):
             if name in self.config.experiments:
                 t0 = time.perf_counter()
                 getattr(self, f"run_{name.lower()}")()
@@ -362,6 +369,9 @@ class Evaluation:
             if spec != self.config.noise:
                 del self._noisy[spec]
         self._tick("E3", total, total)
+
+    def run_e6(self) -> None:
+        run_e6(self)
 
     def run_e4(self) -> None:
         K = self.data.n_views

@@ -111,8 +111,9 @@ def headline(df) -> dict:
 
 
 def noise_comparison(df) -> dict:
-    """E3 with every view given: {noise label: {"mppca", "knn", "ridge": mean pose cm, "x_clean": MPPCA
-    mean / its clean mean}} in the sweep's order (empty without E3 rows)."""
+    """E3 with every view given: {noise label: {"mppca", "mppca robust", "knn", "ridge": mean pose cm (the
+    methods with rows), "x_clean" / "x_clean_robust": the MPPCA mean / its clean mean}} in the sweep's order
+    (empty without E3 rows)."""
     e3 = select(df, experiment="E3")
     if e3.empty:
         return {}
@@ -121,12 +122,13 @@ def noise_comparison(df) -> dict:
     out: dict = {}
     for noise in dict.fromkeys(e3["noise"]):
         g = select(e3, noise=noise)
-        out[noise] = {m: float(select(g, method=m)["pose_cm"].mean()) for m in ("mppca", "knn", "ridge")
+        out[noise] = {m: float(select(g, method=m)["pose_cm"].mean()) for m in ("mppca", "mppca robust", "knn", "ridge")
                       if len(select(g, method=m))}
-    clean = out.get("clean", {}).get("mppca")
-    for v in out.values():
-        if "mppca" in v:
-            v["x_clean"] = v["mppca"] / clean if clean else float("nan")
+    for method, key in (("mppca", "x_clean"), ("mppca robust", "x_clean_robust")):
+        clean = out.get("clean", {}).get(method)
+        for v in out.values():
+            if method in v:
+                v[key] = v[method] / clean if clean else float("nan")
     return out
 
 
@@ -137,21 +139,25 @@ def _headline_md(df) -> list[str]:
     paper = {4: f"{PAPER['pose_4_views_cm']:.0f}", 1: f"{PAPER['pose_1_view_cm']:.0f}"}
     for n, st in sorted(h.get("pose_cm_by_n_views", {}).items(), key=lambda t: -t[0]):
         knn = h.get("pose_mean_cm_by_method_and_n_views", {}).get(n, {}).get("knn", float("nan"))
-        rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–", fmt(knn),
-                     paper.get(n, "–")])
+        rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–", "–", "–",
+                     fmt(knn), paper.get(n, "–")])
     n_all = max(h.get("pose_cm_by_n_views", {0: None}))
     for noise, v in h.get("pose_mean_cm_by_noise_all_views", {}).items():
         if noise == "clean" or noise.startswith("mask") or noise == "standard":
             rows.append([f"{n_all or 'all'} views, noise '{noise}'", fmt(v.get("mppca", float("nan"))),
-                         f"{fmt(v.get('x_clean', float('nan')))}×", fmt(v.get("knn", float("nan"))), "–"])
+                         f"{fmt(v.get('x_clean', float('nan')))}×", fmt(v.get("mppca robust", float("nan"))),
+                         f"{fmt(v.get('x_clean_robust', float('nan')))}×", fmt(v.get("knn", float("nan"))), "–"])
     if "chance_cm" in h:
-        rows.append(["chance (random training pose)", fmt(h["chance_cm"]["mean"]), "–", "–", f"{PAPER['chance_cm']:.0f}"])
+        rows.append(["chance (random training pose)", fmt(h["chance_cm"]["mean"]), "–", "–", "–", "–",
+                     f"{PAPER['chance_cm']:.0f}"])
     if not rows:
         return []
     return ["## Headline", "",
             "Mean pose error (cm). 'standard' contour noise: E2's inputs; 'mask mild'/'mask strong' corrupt the "
-            "silhouette (holes, blobs, a shadow) and re-extract the contour (E3, every view given).", "",
-            markdown_table(["condition", "MPPCA (cm)", "× clean", "kNN (cm)", "paper (cm)"], rows), ""]
+            "silhouette (holes, blobs, a shadow) and re-extract the contour (E3, every view given). 'robust': "
+            "the same inputs with robust inference (`silpose infer`'s default; E6).", "",
+            markdown_table(["condition", "MPPCA (cm)", "× clean", "MPPCA robust (cm)", "× clean (robust)", "kNN (cm)",
+                            "paper (cm)"], rows), ""]
 
 
 def _e1_md(df) -> list[str]:
@@ -274,14 +280,16 @@ def _e4_md(df) -> list[str]:
     return out
 
 
-def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None) -> str:
-    """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings."""
+def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None,
+                     sections: list[str] | None = None) -> str:
+    """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings; ``sections``
+    (Markdown lines, e.g. E6's) go after E4."""
     parts = [f"# {title}", "",
              "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment "
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "
              "one-sided Chamfer distance D(true clean contour -> reconstruction), px (paper eq. 5), via an exact "
              "Euclidean distance transform; missing views are placed with their true normalisation.", ""]
-    parts += _headline_md(df) + _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df)
+    parts += _headline_md(df) + _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df) + list(sections or [])
     if figures:
         parts += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     if notes:

@@ -3,7 +3,8 @@
 Artefacts (each written atomically, :mod:`silpose.shared.atomic`):
 ``results.parquet`` (one row per experiment condition and test example), ``headline.json``,
 ``summary.md``, ``e1_single_vs_multi.png``, ``e2_missing_views.png``, ``e3_noise.png``,
-``e4_baselines.png``, ``e5_single_view.png``, ``e5_missing_view.png``.
+``e4_baselines.png``, ``e5_single_view.png``, ``e5_missing_view.png``; with E6 also
+``e6_flip_resolved.png``, ``e6_robust_mask.png``, ``e6_garbage.png`` (:mod:`silpose.eval.inference_figures`).
 """
 
 from __future__ import annotations
@@ -25,10 +26,11 @@ from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
 
-from . import figures, plots
+from . import figures, inference_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
+from .inference_eval import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
 from .tables import fmt
 
@@ -126,12 +128,15 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
             if sid is not None:
                 written[stem] = figures.example_figure(ev, sid, views, out / f"{stem}.png",
                                                        caption + " — example nearest the median pose error")
-    head = _jsonable({**headline(df), "chamfer_pct_per_px": pct_per_px(settings), "settings": settings,
-                      "timings_s": ev.timings})
+    if ev.extra.get("E6"):
+        written.update(inference_figures.write_e6_figures(ev, out))
+    head = _jsonable({**headline(df), **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
+                      "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings})
     write_text_atomic(out / "headline.json", json.dumps(head, indent=2))
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
-    md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes)
+    md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes,
+                          sections=e6_markdown(ev.extra.get("E6") or {}))
     write_text_atomic(out / "summary.md", md)
     written["summary"] = out / "summary.md"
     return written

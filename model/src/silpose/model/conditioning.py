@@ -86,7 +86,8 @@ class Posterior:
     :attr:`mean` (N, d_miss): the mixture posterior mean E[b | a] of the missing dims. With
     ``reconstruct=True``, ``reconstruction`` (N, d) holds E[x | a] for every dim instead (the
     conditional mean at the missing dims, the Bayesian reconstruction at the observed ones) and
-    ``missing_mean`` is None; otherwise ``missing_mean`` holds E[b | a] and ``reconstruction`` is None.
+    ``missing_mean`` is None; otherwise ``missing_mean`` holds E[b | a] and ``reconstruction`` is None
+    (with ``Conditioner(detail_only=True)``: E[detail | a], (N, d_det)).
     best_mean (N, d_det): the most probable component's mean of the detail dims; variance
     (N, d_det): diagonal of the mixture posterior covariance of the detail dims; responsibilities
     (N, M): p(i | a); log_marginal (N,): log p(a) in nats; missing (d_miss,) and detail (d_det,):
@@ -172,13 +173,16 @@ class Conditioner:
             the component means and covariances) are returned; None = every missing dim.
         reconstruct: also reconstruct the observed dims: the posterior mean of all d dims
             (``Posterior.reconstruction``); False = the missing dims only.
+        detail_only: the posterior mean of the ``detail`` dims only (``Posterior.missing_mean`` is then
+            (N, d_det)); the output product shrinks to O(N d_det q M). Excludes ``reconstruct``.
 
     Attributes: ``observed`` (d_a,), ``missing`` (d_miss,), ``detail`` (d_det,) indices.
     The q x q factorisations are done here once; a call costs O(N (d_a + d_out) q M), d_out = d
     with ``reconstruct`` else d_miss.
     """
 
-    def __init__(self, model_or_params, observed, noise_variance=0.0, detail=None, reconstruct: bool = False):
+    def __init__(self, model_or_params, observed, noise_variance=0.0, detail=None, reconstruct: bool = False,
+                 detail_only: bool = False):
         p = MixtureParams.of(model_or_params)
         W, mu, sig2 = p.components_, p.means_, p.noise_variance_
         m, d, q = W.shape
@@ -238,8 +242,14 @@ class Conditioner:
         self.A = A
         # the dims whose mixture mean is returned, and where the detail dims sit among them
         self.reconstruct = bool(reconstruct)
-        out_dims = np.arange(d) if self.reconstruct else self.missing
-        self.detail_pos = det if self.reconstruct else np.searchsorted(self.missing, det)
+        if self.reconstruct and detail_only:
+            raise ValueError("condition: reconstruct and detail_only exclude each other")
+        if detail_only:
+            out_dims = det
+            self.detail_pos = np.arange(det.size)
+        else:
+            out_dims = np.arange(d) if self.reconstruct else self.missing
+            self.detail_pos = det if self.reconstruct else np.searchsorted(self.missing, det)
         Wo = W if self.reconstruct else W[:, out_dims, :]
         self.B = np.ascontiguousarray(Wo.transpose(0, 2, 1).reshape(m * q, out_dims.size))  # stacked W_i^T (Mq, d_out)
         self.means = mu if self.reconstruct else mu[:, out_dims]

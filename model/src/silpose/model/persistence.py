@@ -19,7 +19,8 @@ Header: ``format`` (= "silpose-model"), ``format_version``, ``feature_layout``
 null), ``hyperparameters`` (ShapeStructureModel.hyperparameters), ``training`` (n_iter, converged,
 lower_bound, initial_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
 config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
-``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
+``plausibility`` (the :class:`~silpose.model.plausibility.PlausibilityCalibration` as a dict, or
+null: files written before it have none), ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
 dtype, shape and bytes, in sorted key order) which :func:`load_model` verifies.
 """
 
@@ -38,6 +39,7 @@ from silpose.shared.skeleton import JOINT_NAMES
 
 from .features import FeatureLayout
 from .mppca import MPPCA
+from .plausibility import PlausibilityCalibration
 from .shape_model import ShapeStructureModel
 
 FORMAT_NAME = "silpose-model"
@@ -93,6 +95,7 @@ def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
         },
         "dataset": dict(getattr(model, "dataset_info_", {}) or {}),
         "training_config": dict(getattr(model, "training_config_", {}) or {}),
+        "plausibility": None if getattr(model, "plausibility_", None) is None else model.plausibility_.to_dict(),
         "arrays": {k: [v.dtype.str, list(v.shape)] for k, v in arrays.items()},
         "arrays_sha256": arrays_sha256(arrays),
     }
@@ -243,6 +246,13 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     model.n_train_ = int(training.get("n_train", -1))
     model.dataset_info_ = dict(header.get("dataset", {}) or {})
     model.training_config_ = dict(header.get("training_config", {}) or {})
+    model.plausibility_ = None
+    if header.get("plausibility") is not None:
+        try:
+            model.plausibility_ = PlausibilityCalibration.from_dict(header["plausibility"],
+                                                                    source=f"{path}: field 'header.plausibility'")
+        except ValueError as exc:
+            raise ModelFileError(str(exc)) from None
     model.header_ = header
     return model
 

@@ -37,8 +37,12 @@ from silpose.shared.skeleton import N_JOINTS
 from .checks import check_contours, check_factors, check_present
 from .conditioning import Conditioner
 from .features import FeatureLayout, denormalise_contours, normalise_contours, shape_vectors
+from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
 from .mppca import DEFAULT_INIT_ROWS, MPPCA
+from .plausibility import PlausibilityCalibration, view_subsets
 from .provenance import manifest_sha256
+from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
+from .untangle import untangle as untangle_contours
 from .shards import split_global_rows
 from .stature import REFERENCE_STATURE, estimate_stature
 from .streaming import DatasetShards
@@ -77,8 +81,17 @@ class InferenceResult:
         scale: (N, K) px normalisation scale used (NaN where unknown).
         views_present: (N, K) bool, which modelled views were observed.
         responsibilities: (N, M) component posteriors given the observed rows.
-        log_marginal: (N,) log density of the observed rows under the prior.
+        log_marginal: (N,) log density of the observed rows under the prior (nats; with robust inference
+            still that of the observed input).
         views: rig indices of the K modelled views.
+        plausibility: (N,) % of held-out training inputs with the same view subset whose log marginal is
+            lower (``silpose.model.plausibility``); None when the model has no calibration for this noise.
+        implausible: (N,) bool, plausibility below the calibration's flag percentile; None as above.
+        hypotheses: the top-K hypotheses (``infer(hypotheses=K)``), else None.
+        robust_weights: (N, K, n) final per-point weights of robust inference (0 for absent views), else None.
+        log_marginal_robust: (N,) log density of the last robust pass's pseudo-observations, else None.
+        noise_variance: (N,) observation noise s^2 each frame was conditioned with by robust inference's
+            adaptive noise (``silpose.model.robust``), else None (the model's or the given s^2).
     """
 
     joints: np.ndarray
@@ -92,6 +105,12 @@ class InferenceResult:
     responsibilities: np.ndarray
     log_marginal: np.ndarray
     views: tuple[int, ...] = field(default=())
+    plausibility: np.ndarray | None = None
+    implausible: np.ndarray | None = None
+    hypotheses: Hypotheses | None = None
+    robust_weights: np.ndarray | None = None
+    log_marginal_robust: np.ndarray | None = None
+    noise_variance: np.ndarray | None = None
 
 
 class ModelNotFittedError(NotFittedError, RuntimeError):
@@ -122,7 +141,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
 
     Fitted attributes: ``layout_`` (FeatureLayout), ``mixture_`` (fitted MPPCA), ``n_rig_views_``,
     ``rig_`` (Rig or None), ``fit_time_`` (s), ``n_train_``, ``flat_targets_`` (``fit`` got y as (N, 57):
-    ``predict`` returns that shape too).
+    ``predict`` returns that shape too);
+    ``plausibility_`` (:class:`~silpose.model.plausibility.PlausibilityCalibration` or None) after
+    :meth:`calibrate_plausibility`.
     """
 
     def __init__(
@@ -372,6 +393,18 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         err = pose_error_cm(pred, _joints_array(y, "y"))
         return -float(np.average(err, weights=sample_weight))
 
+    def calibrate_plausibility(self, contours_px: np.ndarray, *, n_draws: int | None = None,
+                               seed: int = 0) -> "ShapeStructureModel":
+        """Calibrate the plausibility percentiles on held-out inputs (:mod:`silpose.model.plausibility`).
+
+        contours_px: (N, K_rig, n, 2) clean pixel contours of training walkers the fit did not see.
+        Sets ``plausibility_`` (saved in the model file); returns self.
+        """
+        kwargs = {} if n_draws is None else {"n_draws": int(n_draws)}
+        self.plausibility_ = None  # the calibration's own inferences must not look one up
+        self.plausibility_ = PlausibilityCalibration.fit(self, contours_px, seed=seed, **kwargs)
+        return self
+
     # ------------------------------------------------------------------ inference
     def infer(
         self,
@@ -382,6 +415,10 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         input_views: Sequence[int] | None = None,
         centroid: np.ndarray | None = None,
         scale: np.ndarray | None = None,
+        hypotheses: int = 0,
+        consensus: bool = True,
+        robust: bool | RobustSettings = False,
+        untangle: bool = False,
     ) -> InferenceResult:
         """Infer joints and reconstruct every modelled view's contour from the observed views.
 
@@ -395,18 +432,69 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                 modelled views missing from the input are treated as absent.
             centroid, scale: optional (N, K_in, 2) / (N, K_in) true pixel normalisation factors, used to map
                 absent views' reconstructions to pixels (present views use their own factors).
+            hypotheses: K > 0 also returns the K most probable distinct component hypotheses
+                (``InferenceResult.hypotheses``, :mod:`silpose.model.hypotheses`).
+            consensus: with ``hypotheses``, choose the single answer among them by the vote of the pairs of
+                present views (:func:`~silpose.model.hypotheses.consensus_choice`; needs >= 3 present views);
+                False = the most probable.
+            robust: True or :class:`~silpose.model.robust.RobustSettings`: iteratively reweighted
+                conditioning with heavy-tailed per-point noise (:mod:`silpose.model.robust`); the result
+                describes the last pass, ``log_marginal`` (and the plausibility) the observed input.
+            untangle: make every reconstructed contour a simple polygon (:mod:`silpose.model.untangle`; about
+                1 ms per self-intersecting contour).
         Returns:
             :class:`InferenceResult` over the K modelled views.
         """
-        layout = self.fitted_layout()
         s2 = self.noise_variance if noise_variance is None else noise_variance
         if not np.isfinite(s2) or s2 < 0:
             raise ValueError(f"noise_variance must be finite and >= 0, got {s2}")
+        s2 = float(s2)
+        if int(hypotheses) < 0:
+            raise ValueError(f"hypotheses must be >= 0, got {hypotheses}")
+        settings = RobustSettings() if robust is True else (robust or None)
+        present, c_mod, cen_true, sc_true = self._prepare(contours_px, views_present, input_views, centroid, scale)
+        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=hypotheses > 0)
+        if settings is not None:
+            observed_lm = res.log_marginal
+            if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
+                with np.errstate(invalid="ignore", over="ignore"):
+                    norm_obs = normalise_contours(c_mod)[0]
+                s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
+                res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+            else:
+                s2_rows = s2
+            for _ in range(int(settings.iterations)):
+                matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
+                u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
+                pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
+                                  c_mod)
+                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+            if settings.noise_scale is not None:
+                res.noise_variance = s2_rows
+            res.log_marginal_robust = res.log_marginal
+            res.log_marginal = observed_lm
+            res.robust_weights = u
+        cal = getattr(self, "plausibility_", None)
+        if cal is not None and cal.applies_to(s2):
+            res.plausibility = cal.percentile(res.log_marginal, present)
+            res.implausible = cal.implausible(res.plausibility)
+        if hypotheses > 0:
+            hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
+            if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
+                hyp.chosen = consensus_choice(hyp, self._pair_headings(c_mod, present, s2))
+            res.hypotheses = hyp
+        if untangle:
+            res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
+        return res
+
+    def _prepare(self, contours_px, views_present, input_views, centroid, scale):
+        """Inputs in the model's view order: (present (N, K), contours (N, K, n, 2) px, true centroid
+        (N, K, 2) and scale (N, K) where given (NaN otherwise)); shapes and values checked."""
+        layout = self.fitted_layout()
         c_in = check_contours(contours_px, "contours_px", n_points=layout.n_points)
         n, k_in = c_in.shape[:2]
         cols = self._input_columns(k_in, input_views)  # (K,) input column of each modelled view or -1
         present_in = check_present(views_present, n, k_in)
-
         kmod = layout.n_views
         cen_in, sc_in = check_factors(centroid, scale, n, k_in)
         if np.array_equal(cols, np.arange(k_in)):  # input columns are the modelled views, in order: no copies
@@ -441,6 +529,19 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                 f"every modelled view is missing in {int(none.sum())} frame(s) (first: frame "
                 f"{int(np.flatnonzero(none)[0])}); at least one of views {layout.views} must be observed"
             )
+        return present, c_mod, cen_true, sc_true
+
+    def _infer_prepared(self, c_mod: np.ndarray, present: np.ndarray, cen_true: np.ndarray, sc_true: np.ndarray,
+                        s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
+        """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
+
+        Inputs in the model's view order (:meth:`_prepare`); ``s2`` a float or (N,) one noise variance per
+        frame (robust inference). With ``components`` also returns each component's conditional mean of the
+        joints (N, M, 19, 3) metres, else None.
+        """
+        layout = self.fitted_layout()
+        n, kmod = present.shape
+        all_present = bool(present.all())
         # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
         with np.errstate(invalid="ignore", over="ignore"):
             norm, cen, sc = normalise_contours(c_mod)
@@ -458,39 +559,56 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         d = layout.dim
         M = int(self.mixture_.weights_.shape[0])
         flat = norm.reshape(n, -1)
-        if all_present or n == 1:
+        per_row = np.ndim(s2) > 0
+        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
+            levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
+            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
+            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
+            inverse = inverse.reshape(-1)
+        elif all_present or n == 1:
             patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
         else:
             patterns, inverse = np.unique(present, axis=0, return_inverse=True)
             inverse = inverse.reshape(-1)
+        if not per_row:
+            group_s2 = np.full(len(patterns), float(s2))
+        cmeans = None
         if len(patterns) == 1:  # the common case: no fancy-index copies
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self._conditioner(patterns[0], float(s2))(x_obs)
+            post = self._conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
             mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
                                            post.responsibilities, post.log_marginal)
+            cmeans = post.component_means
         else:
             mean = np.empty((n, d))
             best = np.empty((n, layout.structure_dim))
             var = np.empty((n, layout.structure_dim))
             resp = np.empty((n, M))
             logm = np.empty(n)
+            if components:
+                cmeans = np.empty((n, M, layout.structure_dim))
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self._conditioner(pattern, float(s2))(x_obs)
+                post = self._conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal
+                if components:
+                    cmeans[rows] = post.component_means
 
         rec, joints = layout.split(mean)
         w = layout.structure_weight
         joints_best = best.reshape(n, layout.n_joints, 3) / w
         # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
         joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
+        comp_joints = None if cmeans is None else cmeans.reshape(n, M, layout.n_joints, 3) / w
         if layout.joint_frame == "stature":  # back from "a 1.75 m walker" to this walker's metres
             factor = self._stature(c_mod, present) / REFERENCE_STATURE
             joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
+            if comp_joints is not None:
+                comp_joints = comp_joints * factor[:, None, None, None]
         px = denormalise_contours(rec, cen, sc)
-        return InferenceResult(
+        res = InferenceResult(
             joints=joints,
             joints_best=joints_best,
             joint_std=joint_std,
@@ -503,6 +621,32 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             log_marginal=logm,
             views=layout.views,
         )
+        return res, comp_joints
+
+    def _pair_headings(self, c_mod: np.ndarray, present: np.ndarray, s2: float) -> np.ndarray:
+        """(N, V) headings (radians) of the posterior mean joints given each pair of present views (V = K (K - 1) / 2
+        columns, NaN where a view of the pair is absent); frames with fewer than 3 present views get no votes
+        (all NaN). See :func:`~silpose.model.hypotheses.consensus_choice`."""
+        layout = self.fitted_layout()
+        n, kmod = present.shape
+        pairs = [s for s in view_subsets(kmod) if len(s) == 2]
+        votes = np.full((n, len(pairs)), np.nan)
+        voting = present.sum(axis=1) >= 3
+        if not voting.any():
+            return votes
+        with np.errstate(invalid="ignore", over="ignore"):
+            norm, _, _ = normalise_contours(c_mod)
+        flat = norm.reshape(n, -1)
+        for j, pair in enumerate(pairs):
+            pattern = np.zeros(kmod, dtype=bool)
+            pattern[list(pair)] = True
+            rows = np.flatnonzero(voting & present[:, pattern].all(axis=1))
+            if rows.size == 0:
+                continue
+            x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
+            post = self._conditioner(pattern, s2, structure_only=True)(x_obs)
+            votes[rows, j] = heading(post.missing_mean.reshape(rows.size, layout.n_joints, 3))
+        return votes
 
     def _stature(self, contours_mod: np.ndarray, present: np.ndarray) -> np.ndarray:
         """(N,) metres: stature measured from the present modelled views (``silpose.model.stature``)."""
@@ -511,25 +655,28 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         cams = [self.rig_[v] for v in self.fitted_layout().views]
         return estimate_stature(contours_mod, cams, present)
 
-    def _conditioner(self, pattern: np.ndarray, s2: float) -> Conditioner:
+    def _conditioner(self, pattern: np.ndarray, s2: float, structure_only: bool = False) -> Conditioner:
         """Cached :class:`~silpose.model.conditioning.Conditioner` for one present-view pattern and s^2.
 
         Its q x q factorisations depend only on the pattern and s^2, so they are computed once per
         (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O((d_obs + d) q M).
+        ``structure_only``: a conditioner whose mean covers the joints only (``Posterior.missing_mean``,
+        (N, 57)), for the consensus votes.
         """
         cache = getattr(self, "_conditioner_cache", None)
         if cache is None or cache[0] is not self.mixture_:
             cache = (self.mixture_, {})
             self._conditioner_cache = cache
-        key = (np.asarray(pattern, dtype=bool).tobytes(), s2)
+        key = (np.asarray(pattern, dtype=bool).tobytes(), s2, bool(structure_only))
         post = cache[1].get(key)
         if post is None:
-            if len(cache[1]) >= 64:  # bounded: K views give at most 2^K - 1 patterns per s^2
+            if len(cache[1]) >= 128:  # bounded: K views give at most 2 (2^K - 1) conditioners per s^2
                 cache[1].clear()
             layout = self.fitted_layout()
+            det = np.arange(layout.structure_slice.start, layout.structure_slice.stop)
             post = cache[1][key] = Conditioner(
-                self.mixture_, layout.observed_mask(pattern), s2,
-                detail=np.arange(layout.structure_slice.start, layout.structure_slice.stop), reconstruct=True,
+                self.mixture_, layout.observed_mask(pattern), s2, detail=det,
+                reconstruct=not structure_only, detail_only=structure_only,
             )
         return post
 

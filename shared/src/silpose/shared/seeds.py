@@ -15,7 +15,9 @@ below are part of the data format (changing one changes every dataset or report 
 | synthetic stand-in | ``seed, SPLIT_CODE[split], index`` (9 for another split name) | datagen.testing stick-figure records (tests only; three keys, never a sample-draw stream) |
 | eval noise | ``seed, stream_code(name), sample_id`` | eval (``noise.sample_rng``): contour / mask noise of one test sample, one stream per family, ``name`` in ``"mask"``, ``"patches"``, ``"jitter"`` |
 | training roughness | ``seed, stream_code("roughness"), sample`` | model (``augment.roughen_contours``): ragged-outline augmentation of training sample ``sample`` (``silpose train --roughness``) |
+| eval garbage | ``seed, stream_code("garbage"), kind`` | eval (``garbage.garbage_masks``): the non-person inputs of the plausibility check, ``kind`` the index in ``GARBAGE_KINDS`` |
 | chance baseline | ``random_state, CHANCE_STREAM`` | eval (``baselines.ChanceBaseline``): random training poses |
+| plausibility calibration | ``seed, stream_code("plausibility")`` | ``silpose.model.plausibility``: the observation-noise draws added to held-out inputs when ``silpose train`` calibrates a model's plausibility percentiles |
 | validation split | ``seed, VALIDATION_STREAM`` | ``silpose.model.selection.validation_split``: the train / validation permutation of model selection and the held-out part of ``silpose train`` |
 | synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
 | synthetic scene | ``seed, camera`` (room), ``seed, camera, 0, b`` (background frame b), ``seed, camera, 1 + frame`` (frame) | segment.composite test scenes |

@@ -37,6 +37,8 @@ def infer(
     offsets: Annotated[Optional[str], typer.Option("--offsets", help="With --videos: per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
+    robust: Annotated[bool, typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted.")] = True,
+    temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on with --frames, off otherwise.")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
 
@@ -55,7 +57,11 @@ def infer(
     camera's frames are segmented by background subtraction (the paper's), contours extracted and
     joints inferred. A camera without a folder is a missing view; an empty or tiny segmentation is
     a missing view for that frame, recorded in <out stem>.segmentation.json.
-    Joints are written root-relative in metres (world orientation), as Parquet or JSON.
+    Joints are written root-relative in metres (world orientation), as Parquet or JSON: the single
+    answer among the frame's 3 most probable hypotheses (their probabilities and facing directions are
+    columns too). Every frame gets a plausibility percentile and a status: "implausible" frames (not a
+    person, several people, a broken silhouette) and frames without any usable view are reported
+    with a warning on stderr.
     """
     from silpose.model.persistence import ModelFileError
     from silpose.shared.dataset import DatasetError
@@ -83,18 +89,24 @@ def infer(
                           overlay_dir=(overlay_dir or sibling(out, ".overlays")) if save_overlays else None)
             if frames is not None:
                 summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
-                                       noise_variance, progress)
+                                       noise_variance, progress, robust, True if temporal is None else temporal)
             else:
                 summary = run_inference(model, input, out=out, split=split, save_contours=save_contours,
-                                        noise_variance=noise_variance, threshold=threshold)
+                                        noise_variance=noise_variance, threshold=threshold, robust=robust,
+                                        temporal=bool(temporal))
     except (InputError, DatasetError, ModelFileError, ValueError) as exc:
         fail("infer", str(exc))
     except KeyboardInterrupt:
         fail("infer", "interrupted", 130)
-    print(summary)
+    for line in summary.splitlines():
+        if line.startswith("warning:"):
+            typer.echo(f"silpose infer: {line}", err=True)
+        else:
+            print(line)
 
 
-def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area, noise_variance, progress) -> str:
+def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area, noise_variance, progress,
+                 robust: bool = True, temporal: bool = True) -> str:
     """``silpose infer --frames``: :func:`~silpose.app.frames_pipeline.run_frames_inference` with a progress bar."""
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -107,7 +119,8 @@ def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, 
         task = bar.add_task("frames", total=None)
         return run_frames_inference(model, frames, out=out, save_contours=save_contours, save_overlays=save_overlays,
                                     overlay_dir=overlay_dir, min_area=min_area, noise_variance=noise_variance,
-                                    progress=lambda done, total: bar.update(task, completed=done, total=total))
+                                    progress=lambda done, total: bar.update(task, completed=done, total=total),
+                                    robust=robust, temporal=temporal)
 
 
 def infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays, min_area, noise_variance,

@@ -1,0 +1,145 @@
+"""Top-K hypotheses, facing direction, flips, the view-pair consensus and the Viterbi choice.
+
+References: skeletons built and rotated by hand (the heading of a rotated skeleton is the rotation
+angle), and an exhaustive search over every path for the Viterbi choice.
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from silpose.model.hypotheses import (
+    Hypotheses,
+    consensus_choice,
+    heading,
+    heading_error,
+    is_flip,
+    temporal_choice,
+    top_hypotheses,
+    wrap_angle,
+)
+from silpose.model.shape_model import ShapeStructureModel
+from silpose.model.synthetic import make_linear_shapes
+from silpose.shared.skeleton import JOINT_INDEX, N_JOINTS
+
+
+def _skeleton(facing: float, rng=None) -> np.ndarray:
+    """(19, 3) a body facing +x (its left along +y) rotated by ``facing`` about z; other joints random."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    j = rng.normal(0, 0.05, size=(N_JOINTS, 3)) * [0.3, 0.3, 1.0]
+    j[JOINT_INDEX["l_hip"]] = [0.0, 0.1, 0.0]
+    j[JOINT_INDEX["r_hip"]] = [0.0, -0.1, 0.0]
+    j[JOINT_INDEX["l_shoulder"]] = [0.0, 0.18, 0.5]
+    j[JOINT_INDEX["r_shoulder"]] = [0.0, -0.18, 0.5]
+    c, s = np.cos(facing), np.sin(facing)
+    return j @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+
+
+def test_heading_is_the_rotation_angle():
+    angles = np.radians([0, 30, 90, 179, -120])
+    skel = np.stack([_skeleton(a) for a in angles])
+    np.testing.assert_allclose(wrap_angle(heading(skel) - angles), 0.0, atol=1e-9)
+    assert heading_error(_skeleton(0.2), _skeleton(0.2 + np.pi)) == pytest.approx(np.pi)
+    assert is_flip(_skeleton(0.0), _skeleton(np.radians(100))) and not is_flip(_skeleton(0.0), _skeleton(np.radians(80)))
+    with pytest.raises(ValueError, match="19, 3"):
+        heading(np.zeros((4, 3)))
+
+
+def test_top_hypotheses_sorts_merges_and_pads():
+    a, b, c = _skeleton(0.0), _skeleton(np.pi), _skeleton(1.0)
+    near_a = a + 0.005  # 0.87 cm from a: merged into it (root-relative: the shift cancels anyway)
+    near_a[3] += 0.01
+    comp = np.stack([b, a, near_a, c])[None]  # (1, 4, 19, 3)
+    resp = np.array([[0.30, 0.40, 0.25, 0.05]])
+    h = top_hypotheses(comp, resp, k=3, merge_cm=3.0)
+    assert list(h.component[0]) == [1, 0, 3]  # a (0.40 + 0.25 merged), b, c
+    np.testing.assert_allclose(h.probability[0], [0.65, 0.30, 0.05])
+    np.testing.assert_allclose(wrap_angle(h.heading[0] - [0.0, np.pi, 1.0]), 0.0, atol=1e-9)
+    assert h.chosen[0] == 0 and np.array_equal(h.best_joints[0], a)
+    # fewer distinct components than k: unused slots are empty
+    h5 = top_hypotheses(comp, resp, k=5, merge_cm=3.0)
+    assert list(h5.component[0]) == [1, 0, 3, -1, -1] and np.isnan(h5.joints[0, 3:]).all()
+    assert h5.probability[0, 3:].sum() == 0
+
+
+def test_best_of_is_the_nearest_hypothesis():
+    truth = _skeleton(0.5)[None]
+    comp = np.stack([_skeleton(0.5 + np.pi), _skeleton(0.6), _skeleton(2.0)])[None]
+    h = top_hypotheses(comp, np.array([[0.7, 0.2, 0.1]]), k=3)
+    assert h.best_of(truth)[0] == 1 and h.best_of(truth, k=1)[0] == 0
+
+
+def test_consensus_follows_the_majority_of_votes():
+    comp = np.stack([_skeleton(np.pi), _skeleton(0.0), _skeleton(0.1)])[None].repeat(3, axis=0)
+    resp = np.array([[0.6, 0.3, 0.1]] * 3)
+    h = top_hypotheses(comp, resp, k=3, merge_cm=0.1)
+    votes = np.array([[0.05, 0.1, -0.1, 3.0, np.nan, np.nan],  # 3 of 4 votes face ~0: the first such hypothesis
+                      [0.05, 3.1, np.nan, np.nan, np.nan, np.nan],  # a tie: the most probable stays
+                      [np.nan] * 6])  # no votes: the most probable stays
+    assert list(consensus_choice(h, votes)) == [1, 0, 0]
+
+
+def _brute_force(h: Hypotheses, sigma: float) -> list[int]:
+    t, k = h.probability.shape
+    best, arg = np.inf, None
+    for path in itertools.product(range(k), repeat=t):
+        cost = -np.log(h.probability[np.arange(t), path]).sum()
+        d = wrap_angle(np.diff(h.heading[np.arange(t), path]))
+        cost += 0.5 * np.sum((d / sigma) ** 2)
+        if cost < best:
+            best, arg = cost, list(path)
+    return arg
+
+
+def test_temporal_choice_is_the_optimal_path_and_removes_a_flip():
+    rng = np.random.default_rng(4)
+    t_len = 6
+    facing = np.linspace(0.0, 0.5, t_len)  # a person turning slowly
+    joints = np.stack([[_skeleton(f), _skeleton(f + np.pi)] for f in facing])
+    prob = np.tile([0.8, 0.2], (t_len, 1))
+    prob[3] = [0.1, 0.9]  # frame 3 alone favours the flipped hypothesis
+    h = Hypotheses(joints, prob, np.tile([0, 1], (t_len, 1)), heading(joints), np.zeros(t_len, dtype=np.intp))
+    path = temporal_choice(h, turn_sigma_deg=20.0)
+    assert list(path) == [0] * t_len
+    assert list(path) == _brute_force(h, np.radians(20.0))
+    # random hypotheses: the Viterbi path equals the exhaustive optimum
+    for _ in range(5):
+        prob = rng.dirichlet(np.ones(3), size=5)
+        joints = np.stack([[_skeleton(a) for a in rng.uniform(-np.pi, np.pi, 3)] for _ in range(5)])
+        hr = Hypotheses(joints, prob, np.tile([0, 1, 2], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
+        assert list(temporal_choice(hr, turn_sigma_deg=40.0)) == _brute_force(hr, np.radians(40.0))
+
+
+def test_temporal_choice_bridges_frames_without_views():
+    facing = np.zeros(5)
+    joints = np.stack([[_skeleton(f), _skeleton(f + np.pi)] for f in facing])
+    prob = np.tile([0.9, 0.1], (5, 1))
+    prob[4] = [0.3, 0.7]
+    h = Hypotheses(joints, prob, np.tile([0, 1], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
+    valid = np.array([True, True, False, False, True])
+    assert list(temporal_choice(h, valid=valid, turn_sigma_deg=20.0)) == [0, 0, 0, 0, 0]
+    # a long gap allows a real turn: with sigma grown by the gap, frame 4's evidence wins
+    gap = np.array([1, 1, 1, 1, 40.0])
+    assert temporal_choice(h, valid=valid, frame_gap=gap, turn_sigma_deg=20.0)[4] == 1
+    with pytest.raises(ValueError, match="turn_sigma_deg"):
+        temporal_choice(h, turn_sigma_deg=0.0)
+
+
+def test_model_hypotheses_match_component_means():
+    data = make_linear_shapes(300, n_views=3, n_points=16, seed=5)
+    model = ShapeStructureModel(n_components=3, n_latent=5, structure_weight=2.0, noise_variance=1e-3, n_init=1,
+                                random_state=0, joint_frame="metres").fit(data.contours, data.joints)
+    res = model.infer(data.contours[:40], hypotheses=3, consensus=False)
+    h = res.hypotheses
+    assert h.joints.shape == (40, 3, N_JOINTS, 3) and (h.chosen == 0).all()
+    # slot 0 is the most probable component's conditional mean (InferenceResult.joints_best)
+    np.testing.assert_allclose(h.joints[:, 0], res.joints_best, atol=1e-9)
+    np.testing.assert_array_equal(h.component[:, 0], res.responsibilities.argmax(1))
+    assert np.all(np.diff(h.probability, axis=1) <= 1e-12)
+    # the consensus needs >= 3 present views; with 2 it keeps the most probable
+    present = np.ones((40, 3), bool)
+    present[:, 2] = False
+    assert (model.infer(data.contours[:40], present, hypotheses=3).hypotheses.chosen == 0).all()
+    with pytest.raises(ValueError, match="hypotheses"):
+        model.infer(data.contours[:2], hypotheses=-1)

@@ -1,0 +1,70 @@
+"""Self-intersection test against an exhaustive O(n^2) edge-pair reference, and 2-opt untangling."""
+
+import numpy as np
+
+from silpose.model.shape_model import ShapeStructureModel
+from silpose.model.synthetic import make_linear_shapes
+from silpose.model.untangle import crossing_pairs, self_intersecting, untangle
+
+
+def _brute(poly: np.ndarray) -> bool:
+    """Every pair of non-adjacent edges, proper crossing by the sign of cross products (the reference)."""
+    n = len(poly)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    for i in range(n):
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1:
+                continue
+            p, q, r, s = poly[i], poly[(i + 1) % n], poly[j], poly[(j + 1) % n]
+            if cross(p, q, r) * cross(p, q, s) < 0 and cross(r, s, p) * cross(r, s, q) < 0:
+                return True
+    return False
+
+
+def _figure_eight(n=40):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.stack([np.sin(t), np.sin(t) * np.cos(t)], -1) * 30 + 50
+
+
+def test_matches_the_exhaustive_reference_on_random_polygons():
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 2 * np.pi, 30, endpoint=False)
+    polys = []
+    for amp in (0.0, 0.2, 0.6, 1.2):  # from a circle to a tangled star
+        for _ in range(10):
+            r = 20 * (1 + amp * rng.standard_normal(30).clip(-0.9, 3))
+            polys.append(np.stack([r * np.cos(t), r * np.sin(t)], -1))
+    polys = np.array(polys)
+    got = self_intersecting(polys)
+    assert list(got) == [_brute(p) for p in polys]
+    assert got.any() and not got.all()
+
+
+def test_untangle_makes_a_figure_eight_simple_and_keeps_points():
+    f8 = _figure_eight()
+    assert self_intersecting(f8) and len(crossing_pairs(f8)) >= 1
+    norm = (f8 - 50) / 30.0  # the same polygon in other units
+    fixed, fixed_norm = untangle(f8[None], norm[None])
+    assert not self_intersecting(fixed[0]) and not self_intersecting(fixed_norm[0])
+    np.testing.assert_array_equal(np.sort(fixed[0], axis=0), np.sort(f8, axis=0))  # same points, reordered
+    np.testing.assert_array_equal(fixed[0, 0], f8[0])  # the start point stays first
+    np.testing.assert_allclose(fixed_norm[0], (fixed[0] - 50) / 30.0)  # the same order applied to both
+    # a simple polygon and a NaN polygon are left as they are
+    t = np.linspace(0, 2 * np.pi, 20, endpoint=False)
+    circle = np.stack([np.cos(t), np.sin(t)], -1)
+    nan = np.full_like(circle, np.nan)
+    out = untangle(np.stack([circle, nan]))[0]
+    np.testing.assert_array_equal(out[0], circle)
+    assert np.isnan(out[1]).all() and not self_intersecting(nan)
+
+
+def test_infer_untangle_returns_simple_contours():
+    data = make_linear_shapes(200, n_views=2, n_points=24, seed=2, pixel_noise=2.0)
+    model = ShapeStructureModel(n_components=2, n_latent=8, structure_weight=2.0, noise_variance=1e-4, n_init=1,
+                                random_state=0, joint_frame="metres").fit(data.contours, data.joints)
+    assert self_intersecting(model.infer(data.contours[:50]).contours_px).mean() > 0.5  # tangled as inferred
+    res = model.infer(data.contours[:50], untangle=True)
+    assert not self_intersecting(res.contours_px).any() and not self_intersecting(res.contours_norm).any()
