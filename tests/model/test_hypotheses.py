@@ -15,6 +15,7 @@ from silpose.model.hypotheses import (
     heading,
     heading_error,
     is_flip,
+    online_choice,
     temporal_choice,
     top_hypotheses,
     wrap_angle,
@@ -109,6 +110,36 @@ def test_temporal_choice_is_the_optimal_path_and_removes_a_flip():
         joints = np.stack([[_skeleton(a) for a in rng.uniform(-np.pi, np.pi, 3)] for _ in range(5)])
         hr = Hypotheses(joints, prob, np.tile([0, 1, 2], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
         assert list(temporal_choice(hr, turn_sigma_deg=40.0)) == _brute_force(hr, np.radians(40.0))
+
+
+def test_online_choice_is_the_viterbi_step_from_the_previous_choice():
+    """Each row's online choice equals temporal_choice over two frames whose first frame holds only the
+    track's previous heading (an independent path through the Viterbi code), and keeps a flip out."""
+    rng = np.random.default_rng(7)
+    n = 12
+    joints = np.stack([[_skeleton(a) for a in rng.uniform(-np.pi, np.pi, 3)] for _ in range(n)])
+    prob = rng.dirichlet(np.ones(3), size=n)
+    h = Hypotheses(joints, prob, np.tile([0, 1, 2], (n, 1)), heading(joints), np.zeros(n, dtype=np.intp))
+    prev_facing = rng.uniform(-np.pi, np.pi, n)
+    prev = heading(np.stack([_skeleton(a) for a in prev_facing]))
+    gap = rng.integers(1, 4, n).astype(float)
+    got = online_choice(h, prev, frame_gap=gap, turn_sigma_deg=30.0, min_probability=0.0)
+    for i in range(n):
+        two = Hypotheses(np.stack([np.stack([_skeleton(prev_facing[i])] * 3), joints[i]]),
+                         np.array([[1.0, 0.0, 0.0], prob[i]]), np.array([[0, -1, -1], [0, 1, 2]]),
+                         np.array([[prev[i], np.nan, np.nan], heading(joints[i])]), np.zeros(2, dtype=np.intp))
+        assert got[i] == temporal_choice(two, frame_gap=np.array([1.0, gap[i]]), turn_sigma_deg=30.0)[1]
+    # a flipped hypothesis more probable by 0.9 : 0.1 loses against a track facing the other way
+    flip = np.stack([[_skeleton(np.pi), _skeleton(0.0)]])
+    hf = Hypotheses(flip, np.array([[0.9, 0.1]]), np.array([[0, 1]]), heading(flip), np.zeros(1, dtype=np.intp))
+    assert online_choice(hf, np.array([0.05]))[0] == 1
+    assert online_choice(hf, np.array([np.nan]))[0] == 0  # no previous choice: keep the frame's own
+    # ... unless the other hypothesis is nearly impossible: never follow a 1e-3 component to stay continuous
+    unlikely = Hypotheses(flip, np.array([[0.999, 0.001]]), np.array([[0, 1]]), heading(flip), np.zeros(1, dtype=np.intp))
+    assert online_choice(unlikely, np.array([0.05]))[0] == 0
+    assert online_choice(unlikely, np.array([0.05]), min_probability=0.0)[0] == 1
+    with pytest.raises(ValueError, match="shape"):
+        online_choice(hf, np.zeros(2))
 
 
 def test_temporal_choice_bridges_frames_without_views():

@@ -196,7 +196,9 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
     R, K, V, n = 3, 4, 4, 5
     rows = PersonRows(frame=np.arange(R), person=np.array([1, 2, 1]), status=np.array(["ok", "no usable view", "ok"], object),
                       floor=np.zeros((R, 2)), view_status=np.full((R, K), "ok", object), views_used=np.ones((R, K), bool),
-                      log_marginal=np.array([1.0, np.nan, 2.0]), joints=np.arange(R * 57.0).reshape(R, 19, 3),
+                      log_marginal=np.array([1.0, np.nan, 2.0]), plausibility=np.array([40.0, np.nan, 0.5]),
+                      hypothesis=np.array([1, 0, 2]), hypothesis_probability=np.array([0.9, np.nan, 0.3]),
+                      joints=np.arange(R * 57.0).reshape(R, 19, 3),
                       joints_calibration=np.ones((R, 19, 3)), joint_std=np.zeros((R, 19, 3)), root=np.ones((R, 3)),
                       root_calibration=np.ones((R, 3)), contours=np.zeros((R, V, n, 2)))
     cams = [f"cam{k}" for k in range(K)]
@@ -211,6 +213,8 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
     j = np.array(t.column("joints").to_pylist(), float)
     assert j.shape == (4, 19, 3) and np.array_equal(j[:3], rows.joints)
     assert np.array(t.column("contours_px").to_pylist()).shape == (4, V, n, 2)
+    assert t.column("hypothesis").to_pylist() == [1, 0, 2, 1]
+    np.testing.assert_allclose(t.column("plausibility").to_numpy()[[0, 2, 3]], [40.0, 0.5, 40.0])
     import csv
 
     with open(tmp_path / "j.csv", newline="") as f:

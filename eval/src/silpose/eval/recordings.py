@@ -29,7 +29,6 @@ from scipy.optimize import linear_sum_assignment
 from silpose.app.inference import infer_rows
 from silpose.app.recordings.floor import FloorGrid
 from silpose.app.recordings.placement import place_roots
-from silpose.app.recordings.room import rig_room
 from silpose.shared.contours import EmptyMaskError, extract_contour
 
 
@@ -99,7 +98,7 @@ def clean_reference(model, masks: np.ndarray, noise_variance: float | None = Non
     places the root. Returns ``joints`` (T, P, 19, 3) metres (NaN where nothing was seen) and ``root``.
     """
     rig = model.rig_
-    _, workspace = rig_room(rig)
+    workspace = rig.workspace
     grid = FloorGrid(list(rig), workspace.bounds)
     lay = model.fitted_layout()
     T, P, K = masks.shape[:3]

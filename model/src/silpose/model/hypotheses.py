@@ -36,6 +36,11 @@ hypothesis per frame maximising ``sum_t log p_t(h_t) - sum_t (dtheta_t / sigma)^
 expected turn per frame (``turn_sigma_deg`` times the frame gap). A flipped frame costs a 180 deg
 turn twice, so a path through the right-facing hypotheses wins unless the evidence for the flip is
 overwhelming. Cost O(T K^2).
+
+A stream (:func:`online_choice`). When frames arrive one step at a time (a recording of several
+people, ``silpose infer --videos``), each track keeps only its last chosen heading and the next frame
+takes the hypothesis minimising the same per-step cost, ``-log p(h) + (dtheta / sigma)^2 / 2``: the
+forward half of the Viterbi path, without looking ahead.
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ __all__ = [
     "top_hypotheses",
     "consensus_choice",
     "temporal_choice",
+    "online_choice",
 ]
 
 #: radians: a hypothesis whose heading is further than this from the truth is a flip.
@@ -262,3 +268,37 @@ def temporal_choice(hyp: Hypotheses, *, valid: np.ndarray | None = None, frame_g
         chosen[frames[s]] = slot
         slot = int(back[s, slot])
     return chosen
+
+
+def online_choice(hyp: Hypotheses, prev_heading: np.ndarray, *, frame_gap: np.ndarray | None = None,
+                  turn_sigma_deg: float = 20.0, min_probability: float = 0.05) -> np.ndarray:
+    """(N,) slot per row: the next step of a choice made online, row by row (module doc, "A stream").
+
+    Args:
+        hyp: hypotheses of N rows (each row one track's newest frame).
+        prev_heading: (N,) radians, the heading the row's track chose at its previous frame; NaN = no
+            previous choice (the row keeps ``hyp.chosen``).
+        frame_gap: (N,) frames since that previous choice (None = 1 each); sigma = turn_sigma_deg * gap.
+        turn_sigma_deg: expected heading change per frame (degrees, standard deviation).
+        min_probability: hypotheses less probable than this are never chosen over the frame's own choice
+            (with one wrong choice and no look-ahead, a track could otherwise keep following near-impossible
+            component means to stay continuous).
+    Returns:
+        (N,) int slots; ``hyp.chosen`` is not modified.
+    """
+    n = len(hyp.chosen)
+    prev = np.asarray(prev_heading, dtype=np.float64)
+    gap = np.ones(n) if frame_gap is None else np.asarray(frame_gap, dtype=np.float64)
+    if prev.shape != (n,) or gap.shape != (n,):
+        raise ValueError(f"prev_heading and frame_gap must have shape ({n},)")
+    if turn_sigma_deg <= 0:
+        raise ValueError(f"turn_sigma_deg must be > 0, got {turn_sigma_deg}")
+    sigma = np.radians(float(turn_sigma_deg)) * np.maximum(gap, 1e-9)
+    usable = (hyp.component >= 0) & (hyp.probability >= min_probability)
+    usable[np.arange(n), hyp.chosen] |= hyp.component[np.arange(n), hyp.chosen] >= 0
+    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)), np.inf)  # (N, K)
+    d = wrap_angle(hyp.heading - prev[:, None])
+    cost = unary + 0.5 * (np.nan_to_num(d, nan=np.pi) / sigma[:, None]) ** 2
+    chosen = np.argmin(cost, axis=1)
+    keep = ~np.isfinite(prev) | ~usable.any(axis=1)
+    return np.where(keep, hyp.chosen, chosen).astype(np.intp)

@@ -38,7 +38,7 @@ def infer(
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
     robust: Annotated[bool, typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted.")] = True,
-    temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on with --frames, off otherwise.")] = None,
+    temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on with --frames, off otherwise (--videos always chooses along each person's track).")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
 
@@ -82,7 +82,7 @@ def infer(
     try:
         if videos is not None:
             summary = infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays,
-                                   video_min_area, noise_variance, progress, save_contours)
+                                   video_min_area, noise_variance, progress, save_contours, robust)
         else:
             out = out or Path("joints.parquet")
             claim_outputs(out, contours=save_contours, segmentation=frames is not None,
@@ -124,7 +124,7 @@ def infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, 
 
 
 def infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays, min_area, noise_variance,
-                 progress, contours=False) -> str:
+                 progress, contours=False, robust=True) -> str:
     """``silpose infer --videos``: :func:`~silpose.app.recordings.pipeline.run_recording` with a progress bar
     (frames/s) and warnings on stderr."""
     from rich.console import Console
@@ -138,7 +138,7 @@ def infer_videos(model, videos, out, masks, background, background_frames, offse
     out = claim_folder(out if out is not None else Path(f"{Path(videos).name}.silpose"), "infer")
     options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                offsets=offsets, overlays=overlays, min_area=min_area, noise_variance=noise_variance,
-                               contours=contours)
+                               contours=contours, robust=robust)
     with Progress(TextColumn("[bold]recording"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(), console=console,
                   disable=not progress, transient=True) as bar:

@@ -9,7 +9,6 @@ One concept per module, in data-path order::
     tracking       floor positions over time -> stable person ids (Hungarian assignment)
     views          per person and camera, the blob that is theirs alone, or why the view is missing
     placement      the root in the room (floor position, stature, silhouettes) and missing views' contours
-    room           the rig's world transform (calibration frame) and workspace
     writers        joints.parquet + joints.csv, streamed
     overlay_video  per-camera overlay videos
     floorplan      the tracks seen from above

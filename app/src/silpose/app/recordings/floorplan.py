@@ -22,7 +22,7 @@ def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, w
     """Draw and save the floor plan.
 
     tracks: {person: (T, 3) array of (frame, x, y)}, metres; rig: cameras; transform, workspace: the room
-    (:func:`silpose.app.recordings.room.rig_room`).
+    (``Rig.transform``, ``Rig.workspace``).
     """
     import matplotlib
 

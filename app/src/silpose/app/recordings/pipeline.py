@@ -40,24 +40,24 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from silpose.model.hypotheses import online_choice
 from silpose.model.persistence import load_model
 from silpose.shared.atomic import write_json_atomic
 from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
 
 from ..errors import RecordingError
-from ..inference import infer_rows
+from ..inference import TOP_K, InferOptions, infer_rows
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid
 from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
-from .room import rig_room
 from .silhouettes import MaskBinariser, background_from_clips, background_from_first_frames
 from .sources import CameraReader, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, grounded)
-from .writers import STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
+from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
 DEFAULT_MIN_AREA_PX = 150
@@ -74,6 +74,9 @@ class RecordingOptions:
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
     (:class:`~silpose.app.recordings.tracking.Tracker`; max_misses None: half a second of frames).
     contours: also write every view's reconstructed contour (``contours_px``) to joints.parquet.
+    robust: robust inference (``silpose.model.robust``: contour points far from the reconstruction are
+    down-weighted). hypotheses: top-K kept per person-frame, the single answer chosen online along each
+    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean.
     """
 
     masks: bool = False
@@ -90,6 +93,8 @@ class RecordingOptions:
     min_hits: int = 3
     max_misses: int | None = None
     contours: bool = False
+    robust: bool = True
+    hypotheses: int = TOP_K
 
 
 @dataclass
@@ -196,7 +201,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         raise RecordingError("chunk and min_area must be >= 1")
     rig = model.rig_
     names = list(rig.names)
-    transform, workspace = rig_room(rig)
+    transform, workspace = rig.transform, rig.workspace
     recording = open_recording(videos, rig, parse_offsets(opt.offsets, names))
     warnings = list(recording.warnings)
     for w in warnings:
@@ -244,6 +249,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     views_hist = [0] * (len(modelled) + 1)
     floor_tracks: dict[int, list] = {}
     pending: list[tuple[int, PersonRows, list[Track], np.ndarray]] = []
+    last_heading: dict[int, tuple[int, float]] = {}  # track key -> (step, heading) of its last chosen hypothesis
     threads = _default_threads(len(cams)) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
@@ -285,8 +291,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     progress(step, total)
             if not seen_chunk:
                 break
-            rows, world = _infer_chunk(model, people, rig, names, modelled, transform, opt.noise_variance, first_frame,
-                                       timings)
+            rows, world = _infer_chunk(model, people, rig, names, modelled, transform, opt, first_frame, timings,
+                                       last_heading)
             pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
             if overlays is not None:
                 t0 = time.perf_counter()
@@ -393,14 +399,19 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     return out
 
 
-def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, noise_variance, first_frame, timings):
-    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3)."""
+def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,
+                 timings, last_heading: dict):
+    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3).
+
+    With ``opt.hypotheses``, each row's joints are the hypothesis chosen online along its track
+    (``last_heading``: track key -> (step, heading), updated in place); the root is placed for that pose."""
     R, K = len(people), len(names)
     lay = model.fitted_layout()
     V, n_pts = len(lay.views), lay.n_points
     nan = lambda *s: np.full((R,) + s, np.nan)  # noqa: E731
     joints, std, root = nan(N_JOINTS, 3), nan(N_JOINTS, 3), nan(3)
-    contours, logm = nan(V, n_pts, 2), nan()
+    contours, logm, plaus, hyp_p = nan(V, n_pts, 2), nan(), nan(), nan()
+    hyp_slot = np.zeros(R, np.int8)
     status = np.array([STATUS_NOT_DETECTED] * R, dtype=object)
     view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
     is_modelled = np.array([c in modelled for c in names])
@@ -413,23 +424,42 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
     if len(rows):
         t0 = time.perf_counter()
         c = np.stack([people[i].contours for i in rows])
-        res = infer_rows(model, c, used[rows], noise_variance)
+        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=opt.robust,
+                               untangle=True)
+        res = infer_rows(model, c, used[rows], options=options)
+        pose = res.joints
+        if res.hypotheses is not None:
+            hyp = res.hypotheses
+            for j, i in enumerate(rows):  # people are in step order: a track's rows are chosen in time order
+                key, step = people[i].track.key, people[i].step
+                prev_step, prev = last_heading.get(key, (step, np.nan))
+                one = hyp.take(np.array([j]))
+                hyp.chosen[j] = online_choice(one, np.array([prev]), frame_gap=np.array([max(step - prev_step, 1)],
+                                                                                        float))[0]
+                last_heading[key] = (step, float(hyp.heading[j, hyp.chosen[j]]))
+            pose = hyp.best_joints
+            hyp_slot[rows] = hyp.chosen + 1
+            hyp_p[rows] = hyp.probability[np.arange(len(rows)), hyp.chosen]
         timings["infer"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         cams = [rig[v] for v in res.views]
         floor = np.stack([people[i].floor for i in rows])
-        r = place_roots(res.joints, res.centroid, res.views_present, cams, floor)
-        joints[rows] = res.joints + r[:, None]
+        r = place_roots(pose, res.centroid, res.views_present, cams, floor)
+        joints[rows] = pose + r[:, None]
         std[rows] = res.joint_std
         root[rows] = r
         contours[rows] = place_contours(res, r, cams)
         logm[rows] = res.log_marginal
-        status[rows] = STATUS_OK
+        if res.plausibility is not None:
+            plaus[rows] = res.plausibility
+        implausible = np.zeros(len(rows), bool) if res.implausible is None else np.asarray(res.implausible, bool)
+        status[rows] = np.where(implausible, STATUS_IMPLAUSIBLE, STATUS_OK)
         timings["place"] += time.perf_counter() - t0
     floor = np.stack([p.floor for p in people]) if R else np.zeros((0, 2))
     rows_out = PersonRows(
         frame=np.array([p.step for p in people], np.int64) + first_frame, person=np.zeros(R, np.int32),
-        status=status, floor=floor, view_status=view_status, views_used=used, log_marginal=logm, joints=joints,
+        status=status, floor=floor, view_status=view_status, views_used=used, log_marginal=logm,
+        plausibility=plaus, hypothesis=hyp_slot, hypothesis_probability=hyp_p, joints=joints,
         joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,
         root_calibration=transform.to_calibration(root), contours=contours)
     return rows_out, joints

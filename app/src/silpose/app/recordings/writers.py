@@ -6,13 +6,19 @@ One row per person per time step (rows ordered by frame, then person). Columns:
 frame               time step: the frame index of cameras without an offset (int64)
 time                seconds, ``frame / fps`` (NaN when no video states its frame rate)
 person              person id, 1, 2, ... (stable over the recording)
-status              ``ok`` (joints inferred), ``no usable view`` (on the floor, but every view
+status              ``ok`` (joints inferred), ``implausible`` (joints inferred, but the input is below
+                    the model's plausibility threshold: not one person, a broken silhouette?), ``no usable view`` (on the floor, but every view
                     merged, cut or missing: no joints), ``not detected`` (the person's track
                     bridged this step without a detection: no joints)
 floor_x, floor_y    metres, silpose's frame: where the floor grid found the person (NaN: not detected)
 n_views, views      usable views and their camera names (comma-separated)
 view_status         per rig camera, why the view was or was not used (``silpose.app.recordings.views``)
-log_marginal        the model's log density of the observed views (its plausibility; NaN without joints)
+log_marginal        the model's log density of the observed views (NaN without joints)
+plausibility        that density as a percentile (0-100) of held-out training inputs with the same
+                    views (``silpose.model.plausibility``; NaN when the model has no calibration)
+hypothesis          the slot (1-based) of the chosen pose among the top-K hypotheses, chosen online
+                    along the person's track (``silpose.model.hypotheses.online_choice``; 0: none)
+hypothesis_probability  its posterior probability
 joints              (19, 3) metres, silpose's frame (z up, floor z = 0): root placed in the room
 joints_calibration  (19, 3) the same joints in the calibration's own frame and units
 joint_std           (19, 3) metres, the posterior standard deviation per coordinate
@@ -49,7 +55,8 @@ from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
 STATUS_OK = "ok"
 STATUS_NO_VIEW = "no usable view"
 STATUS_NOT_DETECTED = "not detected"
-ROW_STATUSES = (STATUS_OK, STATUS_NO_VIEW, STATUS_NOT_DETECTED)
+STATUS_IMPLAUSIBLE = "implausible"
+ROW_STATUSES = (STATUS_OK, STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED)
 #: rows per Parquet row group (with 4 views of 200 contour points, ~4 MB held at most)
 ROW_GROUP = 512
 
@@ -59,7 +66,7 @@ class PersonRows:
     """Rows of R (person, step) pairs; arrays lead with R. K rig cameras, V modelled views, n contour points.
 
     frame (R,) int; person (R,) int; status (R,) str; floor (R, 2); view_status (R, K) str; views_used
-    (R, K) bool; log_marginal (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
+    (R, K) bool; log_marginal, plausibility (R,); hypothesis (R,) int; hypothesis_probability (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
     root_calibration (R, 3); contours (R, V, n, 2).
     """
 
@@ -70,6 +77,9 @@ class PersonRows:
     view_status: np.ndarray
     views_used: np.ndarray
     log_marginal: np.ndarray
+    plausibility: np.ndarray
+    hypothesis: np.ndarray
+    hypothesis_probability: np.ndarray
     joints: np.ndarray
     joints_calibration: np.ndarray
     joint_std: np.ndarray
@@ -120,6 +130,7 @@ class RecordingWriter:
         self._held: list[PersonRows] = []
         head = [("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
                 ("n_views", pa.int8()), ("views", pa.string()), ("log_marginal", pa.float64()),
+                ("plausibility", pa.float32()), ("hypothesis", pa.int8()), ("hypothesis_probability", pa.float32()),
                 ("floor_x", pa.float32()), ("floor_y", pa.float32())]
         flat = [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
         for tag in ("", "_cal", "_std"):
@@ -135,6 +146,7 @@ class RecordingWriter:
             ("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
             ("floor_x", pa.float32()), ("floor_y", pa.float32()), ("n_views", pa.int8()), ("views", pa.string()),
             ("view_status", pa.list_(pa.string(), len(self.cameras))), ("log_marginal", pa.float64()),
+            ("plausibility", pa.float32()), ("hypothesis", pa.int8()), ("hypothesis_probability", pa.float32()),
             ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
         ]
         if self.contours:
@@ -169,8 +181,10 @@ class RecordingWriter:
         frame, person = pa.array(rows.frame.astype(np.int64)), pa.array(rows.person.astype(np.int32))
         status, logm = pa.array(rows.status.astype(str).tolist()), pa.array(rows.log_marginal.astype(np.float64))
         fx, fy = pa.array(rows.floor[:, 0].astype(np.float32)), pa.array(rows.floor[:, 1].astype(np.float32))
+        plaus = [pa.array(rows.plausibility.astype(np.float32)), pa.array(rows.hypothesis.astype(np.int8)),
+                 pa.array(rows.hypothesis_probability.astype(np.float32))]
         table = pa.Table.from_arrays([
-            frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs, logm,
+            frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs, logm, *plaus,
             _fixed(rows.joints), _fixed(rows.joints_calibration), _fixed(rows.joint_std), _fixed(rows.root),
             _fixed(rows.root_calibration),
         ] + ([_fixed(rows.contours)] if self.contours else []), schema=self.schema)
@@ -179,7 +193,7 @@ class RecordingWriter:
                                rows.joints_calibration.reshape(R, -1), rows.joint_std.reshape(R, -1)], axis=1)
         flat = flat.astype(np.float32)
         self._csv.write_table(pa.Table.from_arrays(
-            [frame, pa.array(time), person, status, pa.array(n_views), pa.array(views), logm, fx, fy]
+            [frame, pa.array(time), person, status, pa.array(n_views), pa.array(views), logm, *plaus, fx, fy]
             + [pa.array(flat[:, c]) for c in range(flat.shape[1])], schema=self.csv_schema))
 
     def close(self) -> None:
