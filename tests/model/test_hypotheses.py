@@ -16,6 +16,7 @@ from silpose.model.hypotheses import (
     heading_error,
     is_flip,
     online_choice,
+    single_answer,
     temporal_choice,
     top_hypotheses,
     wrap_angle,
@@ -140,6 +141,21 @@ def test_online_choice_is_the_viterbi_step_from_the_previous_choice():
     assert online_choice(unlikely, np.array([0.05]), min_probability=0.0)[0] == 1
     with pytest.raises(ValueError, match="shape"):
         online_choice(hf, np.zeros(2))
+
+
+def test_single_answer_keeps_the_mean_unless_the_choice_faces_the_other_way():
+    mean = np.stack([_skeleton(0.1), _skeleton(0.2), _skeleton(0.0)])
+    joints = np.stack([[_skeleton(0.3), _skeleton(np.pi)], [_skeleton(0.2 + 2.0), _skeleton(0.2)],
+                       [_skeleton(np.pi), _skeleton(0.0)]])
+    h = Hypotheses(joints, np.tile([0.6, 0.4], (3, 1)), np.array([[0, 1], [0, 1], [0, -1]]), heading(joints),
+                   np.array([0, 0, 0]))
+    got = single_answer(mean, h)
+    np.testing.assert_array_equal(got[0], mean[0])  # chosen 17 deg away: the mean
+    np.testing.assert_array_equal(got[1], joints[1, 0])  # chosen 115 deg away (> 90): the hypothesis
+    np.testing.assert_array_equal(got[2], joints[2, 0])  # a flip: the hypothesis
+    np.testing.assert_array_equal(single_answer(mean, h, chosen=np.array([1, 1, 1]))[:2], [joints[0, 1], mean[1]])
+    assert np.array_equal(single_answer(mean, h, chosen=np.array([1, 1, 1]))[2], mean[2])  # unused slot: the mean
+    np.testing.assert_array_equal(single_answer(mean, None), mean)
 
 
 def test_temporal_choice_bridges_frames_without_views():

@@ -171,8 +171,9 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
                   temporal: bool = False) -> str:
     """Load the model, read the input, infer, write outputs; returns a summary (``warning:`` lines last).
 
-    Every frame gets the top-3 hypotheses, a single answer (the view-pair consensus, or with ``temporal``
-    the Viterbi path over the frames in order), a plausibility percentile and a status; reconstructed
+    Every frame gets the top-3 hypotheses, a single answer (the posterior mean, unless the chosen hypothesis
+    -- the most probable, or with ``temporal`` the one on the Viterbi path over the frames in order -- faces
+    the other way: ``silpose.model.hypotheses.single_answer``), a plausibility percentile and a status; reconstructed
     contours are untangled (simple polygons). A frame without any usable view gets NaN joints and the
     status ``no silhouette`` (it does not stop the run); an input where no frame has one is an error.
     """

@@ -2,8 +2,9 @@
 
 - joints: Parquet (one row per frame; ``<joint>_x/_y/_z`` and ``<joint>_x_std`` ... in metres,
   root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``). The joints
-  are the frame's single answer: with hypotheses, the chosen one (``hypothesis``, 1-based; its
-  ``heading_deg``), else the posterior mean. Also per frame: ``status`` (``ok``, ``implausible``,
+  are the frame's single answer (``silpose.model.hypotheses.single_answer``): the posterior mean,
+  or, where the chosen hypothesis (``hypothesis``, 1-based; its ``heading_deg``) faces the other way,
+  that hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
   ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
   model has no calibration), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
@@ -22,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from silpose.model.hypotheses import heading
+from silpose.model.hypotheses import heading, single_answer
 from silpose.shared.atomic import atomic_open, atomic_path, write_text_atomic
 from silpose.shared.output_dir import claim_files, claim_folder
 from silpose.shared.skeleton import JOINT_NAMES
@@ -86,9 +87,9 @@ def _view_names(result, rig_names) -> list[str]:
 
 
 def answer_joints(result) -> np.ndarray:
-    """(N, 19, 3) the single answer per frame: the chosen hypothesis when there are hypotheses, else the
-    posterior mean."""
-    return result.joints if result.hypotheses is None else result.hypotheses.best_joints
+    """(N, 19, 3) the single answer per frame (:func:`silpose.model.hypotheses.single_answer`): the posterior
+    mean, or the chosen hypothesis where it faces the other way."""
+    return single_answer(result.joints, result.hypotheses)
 
 
 def _optional(a, n: int, fill=np.nan) -> np.ndarray:

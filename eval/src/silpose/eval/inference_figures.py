@@ -91,7 +91,7 @@ def flip_figure(ev, path: Path) -> Path | None:
     """``e6_flip_resolved.png`` (module doc); None when no example qualifies."""
     d, K = ev.data, ev.data.n_views
     noisy = ev.noisy(ev.config.noise)
-    res = ev.model.infer(noisy, hypotheses=3)
+    res = ev.model.infer(noisy, hypotheses=3, consensus=True)
     hyp = res.hypotheses
     truth = root_relative(d.test_joints)
     top1, chosen = hyp.joints[:, 0], hyp.best_joints

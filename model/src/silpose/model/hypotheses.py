@@ -37,6 +37,12 @@ expected turn per frame (``turn_sigma_deg`` times the frame gap). A flipped fram
 turn twice, so a path through the right-facing hypotheses wins unless the evidence for the flip is
 overwhelming. Cost O(T K^2).
 
+The single answer (:func:`single_answer`). The posterior mean has the lowest pose error of the
+per-frame answers (it averages the components' hypotheses by their weights), but it cannot follow a
+choice among hypotheses. So the answer is the posterior mean, unless the chosen hypothesis faces
+the other way (more than 90 deg from the posterior mean's heading): then the chosen hypothesis --
+a flip resolved by a temporal (or consensus) choice replaces the mean, and nothing else does.
+
 A stream (:func:`online_choice`). When frames arrive one step at a time (a recording of several
 people, ``silpose infer --videos``), each track keeps only its last chosen heading and the next frame
 takes the hypothesis minimising the same per-step cost, ``-log p(h) + (dtheta / sigma)^2 / 2``: the
@@ -61,6 +67,7 @@ __all__ = [
     "consensus_choice",
     "temporal_choice",
     "online_choice",
+    "single_answer",
 ]
 
 #: radians: a hypothesis whose heading is further than this from the truth is a flip.
@@ -302,3 +309,18 @@ def online_choice(hyp: Hypotheses, prev_heading: np.ndarray, *, frame_gap: np.nd
     chosen = np.argmin(cost, axis=1)
     keep = ~np.isfinite(prev) | ~usable.any(axis=1)
     return np.where(keep, hyp.chosen, chosen).astype(np.intp)
+
+
+def single_answer(posterior_mean: np.ndarray, hyp: Hypotheses | None, chosen: np.ndarray | None = None) -> np.ndarray:
+    """(N, 19, 3) the single answer per frame (module doc): ``posterior_mean`` (N, 19, 3), replaced by the
+    chosen hypothesis (``chosen`` (N,) slots, default ``hyp.chosen``) in the frames where that hypothesis's
+    heading is more than 90 deg from the posterior mean's. Without hypotheses, the posterior mean."""
+    mean = np.asarray(posterior_mean, dtype=np.float64)
+    if hyp is None:
+        return mean
+    slots = hyp.chosen if chosen is None else np.asarray(chosen, dtype=np.intp)
+    rows = np.arange(len(slots))
+    pick = hyp.joints[rows, slots]
+    turned = np.abs(wrap_angle(hyp.heading[rows, slots] - heading(mean))) > FLIP_ANGLE
+    turned &= (hyp.component[rows, slots] >= 0) & np.isfinite(pick).all(axis=(1, 2))
+    return np.where(turned[:, None, None], pick, mean)

@@ -40,7 +40,7 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from silpose.model.hypotheses import online_choice
+from silpose.model.hypotheses import online_choice, single_answer
 from silpose.model.persistence import load_model
 from silpose.shared.atomic import write_json_atomic
 from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
@@ -424,8 +424,9 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
     if len(rows):
         t0 = time.perf_counter()
         c = np.stack([people[i].contours for i in rows])
+        # untangled (simple) contours only matter where they are drawn or written (~1 ms per crossing contour)
         options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=opt.robust,
-                               untangle=True)
+                               untangle=opt.overlays or opt.contours)
         res = infer_rows(model, c, used[rows], options=options)
         pose = res.joints
         if res.hypotheses is not None:
@@ -437,7 +438,7 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
                 hyp.chosen[j] = online_choice(one, np.array([prev]), frame_gap=np.array([max(step - prev_step, 1)],
                                                                                         float))[0]
                 last_heading[key] = (step, float(hyp.heading[j, hyp.chosen[j]]))
-            pose = hyp.best_joints
+            pose = single_answer(res.joints, hyp)
             hyp_slot[rows] = hyp.chosen + 1
             hyp_p[rows] = hyp.probability[np.arange(len(rows)), hyp.chosen]
         timings["infer"] += time.perf_counter() - t0
