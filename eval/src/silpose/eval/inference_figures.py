@@ -3,7 +3,7 @@
 Each figure states how its example was chosen (never the best case silently):
 
 - ``e6_flip_resolved.png``: among the test examples (4 views, standard noise) whose most probable
-  hypothesis is flipped and whose single answer (the vote of the view pairs) is not, the one with the
+  hypothesis is flipped and whose view-pair consensus choice (``infer(consensus=True)``) is not, the one with the
   median pose-error gain. Row 1: the noisy inputs over the true clean contours; row 2: the floor plane
   seen from above (true skeleton, the flipped top-1 hypothesis, the chosen one; arrows = facing) and
   the three skeletons in 3D.
@@ -109,7 +109,7 @@ def flip_figure(ev, path: Path) -> Path | None:
     fig.axes[0].legend(loc="lower left", fontsize=6)
     half = max(1, K // 2)
     skel = [(truth[i], ":", "black", "truth"), (root_relative(top1[i]), "-", "tab:red", "top-1 (flipped)"),
-            (root_relative(chosen[i]), "-", "tab:green", f"single answer (hypothesis {int(hyp.chosen[i]) + 1})")]
+            (root_relative(chosen[i]), "-", "tab:green", f"view-pair consensus (hypothesis {int(hyp.chosen[i]) + 1})")]
     _floor_plane(fig.add_subplot(gs[1, :half]), skel)
     _stick3d(fig.add_subplot(gs[1, half:], projection="3d"), skel)
     p = hyp.probability[i]
