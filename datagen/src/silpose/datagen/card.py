@@ -2,7 +2,8 @@
 
 It documents the files, the schema, units and conventions, the camera rig, the subject and gait
 distributions (documented and as measured), how to load the data with pyarrow, pandas, DuckDB,
-Polars, Hugging Face ``datasets`` and silpose, embeds the preview contact sheet, and carries the
+Polars, Hugging Face ``datasets`` and silpose, embeds the preview contact sheet and (with both splits)
+the train vs test characters picture (``silpose.datagen.character_sheet``), and carries the
 license (CC BY 4.0), Hugging Face task and size categories and the paper's BibTeX.
 """
 
@@ -18,6 +19,7 @@ from silpose.shared.dataset import list_shards, load_split, read_metadata, rig_f
 from silpose.shared.dataset_schema import TENSOR_DTYPES
 from silpose.shared.rig_frame import Workspace
 
+from .character_sheet import CHARACTERS_NAME
 from .characters import measured_comparison, side_by_side
 from .manifest import read_manifest
 from .preview import PREVIEW_NAME
@@ -227,6 +229,20 @@ def _citation() -> str:
             f"{PAPER_BIBTEX}\n```\n")
 
 
+def _characters_picture(root: Path) -> list[str]:
+    """The card's lines embedding ``characters.png`` with a caption, or none when it was not written."""
+    if not (root / CHARACTERS_NAME).is_file():
+        return []
+    return [f"![silhouettes of training characters (left) and test characters (right), each labelled with its "
+            f"character kind]({CHARACTERS_NAME})\n",
+            "*Training (left) vs test (right) characters: one mask per walker (the view where it covers most "
+            "pixels), cropped and scaled to equal height, labelled with its kind (kinds explained under the measured "
+            "table below), sample id and view. What differs: training skirts, dresses and coats are bell- or "
+            "tulip-shaped (coats hang from the mid-torso), trousers flare or taper, hair falls 0.2-0.45 or 0.75-1.0 "
+            "head radii behind the head and bulky jackets occur; test skirts are straight cones from the hips, "
+            "trousers straight, hair 0.6 head radii behind, no jackets, and some test walkers wear nothing.*\n"]
+
+
 def write_card(root: str | Path) -> Path:
     """Write ``root/README.md`` from the shards, the manifest and (if present) the preview."""
     root = Path(root)
@@ -276,7 +292,7 @@ def write_card(root: str | Path) -> Path:
           ["### documented gait distribution (both splits)\n", _gait_section(rig.workspace)]),
     ]
     if "train" in loaded and "test" in loaded:
-        parts += ["### train vs test characters (documented)\n", side_by_side(),
+        parts += ["### train vs test characters (documented)\n", *_characters_picture(root), side_by_side(),
                   "### train vs test characters (measured)\n",
                   measured_comparison(loaded["train"].subject, loaded["test"].subject)]
     for s in splits:

@@ -27,7 +27,7 @@ def gen(
     blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,
     seed: Annotated[Optional[int], typer.Option(help="Override the config's dataset seed.")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar.")] = True,
-    preview: Annotated[bool, typer.Option(help="Write preview.png (shown in the card).")] = True,
+    preview: Annotated[bool, typer.Option(help="Write preview.png and, with both splits, characters.png (shown in the card).")] = True,
 ) -> None:
     """Generate a dataset of multi-view silhouettes and 3D joints (Parquet shards, card, manifest, preview).
 

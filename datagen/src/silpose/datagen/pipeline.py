@@ -21,6 +21,7 @@ from silpose.shared.dataset import SHARD_RE, build_metadata, write_shard
 from silpose.shared.seeds import MOTION_STREAM
 
 from .card import write_card
+from .character_sheet import write_characters
 from .config import GenConfig
 from .executor import DEFAULT_MAX_TASKS_PER_CHILD, DEFAULT_RENDER, EXECUTORS, ShardTask, default_workers
 from .manifest import MANIFEST, MANIFEST_VERSION, sha256_file
@@ -96,6 +97,7 @@ def generate(
         write_json_atomic(out / MANIFEST, manifest)
         if preview:
             write_preview(out)
+            write_characters(out)
         if card:
             write_card(out)
     return manifest
