@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 from silpose.shared.skeleton import BONES
 
 from .contours import STATUS_OK
@@ -111,13 +111,7 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
         a2.set_title(f"inferred pose, {cam.name}'s view", fontsize=7)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=90, format="png")
-    finally:
-        plt.close(fig)
-    return path
+    return write_figure_atomic(fig, path, dpi=90)
 
 
 class OverlayWriter:

@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 from silpose.shared.dataset import iter_shards, list_shards
 
 from .characters import character_kind
@@ -123,9 +123,4 @@ def write_characters(root: str | Path, out: str | Path | None = None, n: int = N
             ax.set_title(p["kind"].replace("+", "\n") + f"\n#{p['sample_id']} {p['view']}", fontsize=6.5)
     fig.suptitle(f"{root.name}: character kind, sample id and view of each silhouette (cropped, equal height)",
                  fontsize=8)
-    try:
-        with atomic_path(out) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
-    finally:
-        plt.close(fig)
-    return out
+    return write_figure_atomic(fig, out, dpi=110)

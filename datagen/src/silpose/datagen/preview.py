@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 from silpose.shared.dataset import iter_shards, list_shards
 from silpose.shared.skeleton import BONES, N_JOINTS, TERMINAL_JOINTS
 
@@ -75,9 +75,4 @@ def write_preview(root: str | Path, out: str | Path | None = None, n_samples: in
                 ax.set_ylabel(f"{split} #{int(shard.sample_id[i])}{_clip_label(shard, i)}", fontsize=7)
     fig.suptitle(f"{root.name}: mask, contour (orange), projected joints (blue; terminal x)", fontsize=8)
     fig.tight_layout()
-    try:
-        with atomic_path(out) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
-    finally:
-        plt.close(fig)
-    return out
+    return write_figure_atomic(fig, out, dpi=110)

@@ -1,7 +1,7 @@
 """Box plots in the paper's style (Figs. 5 and 8): median line, quartile box, dashed whiskers to the
 most extreme point within 1.5 IQR of the box, outliers beyond them marked '+'.
 
-Files are written atomically (:func:`silpose.shared.atomic.atomic_path`). matplotlib runs headless
+Files are written atomically (:func:`silpose.shared.atomic.write_figure_atomic`). matplotlib runs headless
 (Agg) and is imported on first use (:func:`pyplot`), not with this module.
 """
 
@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 
 from .experiments import E1_PER_VIEW
 from .report import e1_comparison
@@ -54,15 +54,8 @@ def paper_boxplot(ax, data: Sequence[np.ndarray], labels: Sequence[str], ylabel:
 
 
 def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Save ``fig`` as PNG atomically (temporary file, then rename); closes the figure."""
-    plt = pyplot()
-    path = Path(path)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight")
-    finally:
-        plt.close(fig)
-    return path
+    """Save ``fig`` as PNG atomically (temporary file, then rename), cropped to its content; closes the figure."""
+    return write_figure_atomic(fig, path, dpi=dpi, tight=True)
 
 
 def plot_e1(df, path) -> Path | None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,6 +26,7 @@ __all__ = [
     "write_bytes_atomic",
     "write_text_atomic",
     "write_json_atomic",
+    "write_figure_atomic",
 ]
 
 #: glob of the temporary files this module creates in a folder (for cleanup of killed runs).
@@ -103,3 +105,18 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
 def write_json_atomic(path: str | Path, obj: Any, *, indent: int | None = 2, sort_keys: bool = False) -> Path:
     """Write ``obj`` as JSON (plus a final newline) to ``path`` atomically; returns ``Path(path)``."""
     return write_text_atomic(path, json.dumps(obj, indent=indent, sort_keys=sort_keys) + "\n")
+
+
+def write_figure_atomic(fig: Any, path: str | Path, *, dpi: int = 110, tight: bool = False) -> Path:
+    """Save a matplotlib figure as PNG to ``path`` atomically and close it (also when saving fails);
+    returns ``Path(path)``. ``tight``: ``bbox_inches="tight"``. matplotlib is not imported here: the figure
+    saves itself, and it is closed through ``matplotlib.pyplot`` when pyplot is loaded (it made the figure)."""
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png", **({"bbox_inches": "tight"} if tight else {}))
+    finally:
+        pyplot = sys.modules.get("matplotlib.pyplot")
+        if pyplot is not None:
+            pyplot.close(fig)
+    return path

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 
 from .overlay_video import person_colour
 
@@ -74,10 +74,4 @@ def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, w
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    path = Path(path)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
-    finally:
-        plt.close(fig)
-    return path
+    return write_figure_atomic(fig, path, dpi=100)

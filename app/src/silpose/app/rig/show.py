@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from silpose.shared.atomic import atomic_path
+from silpose.shared.atomic import write_figure_atomic
 from silpose.shared.camera import Camera, Rig
 from silpose.shared.rig_frame import PERSON_HEIGHT_M
 
@@ -222,8 +222,4 @@ def draw_rig(rig: Rig, out: str | Path, title: str | None = None, height: float 
     files = ", ".join(Path(part).name for part in rig.where.split(", "))
     fig.suptitle(title or f"{files}: {k} camera(s), workspace {ws.describe()}", fontsize=10)
     fig.tight_layout()
-    out = Path(out)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
-    return out
+    return write_figure_atomic(fig, out, dpi=110)
