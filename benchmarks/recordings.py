@@ -12,7 +12,9 @@ Rows:
   per second, CPU seconds per step (all threads; the machine is shared, so wall time is the noisier
   figure), per-stage shares, the process's baseline RSS (after imports and the model) and peak RSS
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
-  child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays, 1x single-threaded, 1x with overlay videos.
+  child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
+  (``silpose infer --videos``'s defaults: robust inference, top-3 hypotheses), ``repeat`` x with ``--no-robust``,
+  1x single-threaded, 1x with overlay videos.
 - ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
@@ -90,7 +92,7 @@ def peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None) -> dict:
+def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool = True) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -104,7 +106,7 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
 
     baseline = psutil.Process().memory_info().rss
     cpu0, t0 = time.process_time(), time.perf_counter()
-    s = run_recording(m, videos, out, RecordingOptions(masks=True, overlays=overlays, threads=threads))
+    s = run_recording(m, videos, out, RecordingOptions(masks=True, overlays=overlays, threads=threads, robust=robust))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
@@ -225,12 +227,14 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             model = str(_train(tmp / "train", train, n_points, MODEL if train >= 400 else TINY_MODEL))
         long_frames = _ping_pong(lab / "masks", tmp / "long", repeat)
         rows = []
-        for label, videos, overlays, thr in (("1x", lab / "masks", False, threads), (f"{repeat}x", tmp / "long", False, threads),
-                                            ("1x single-threaded", lab / "masks", False, 0),
-                                            ("1x with overlays", lab / "masks", True, threads)):
+        for label, videos, overlays, thr, robust in (
+                ("1x", lab / "masks", False, threads, True), (f"{repeat}x", tmp / "long", False, threads, True),
+                (f"{repeat}x, --no-robust", tmp / "long", False, threads, False),
+                ("1x single-threaded", lab / "masks", False, 0, True),
+                ("1x with overlays", lab / "masks", True, threads, True)):
             out = tmp / f"out-{len(rows)}"
             res = subproc.call(__name__, "measure", dict(model=model, videos=str(videos), out=str(out),
-                                                          overlays=overlays, threads=thr))
+                                                          overlays=overlays, threads=thr, robust=robust))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})
