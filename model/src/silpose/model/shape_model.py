@@ -455,22 +455,24 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             raise ValueError(f"hypotheses must be >= 0, got {hypotheses}")
         settings = RobustSettings() if robust is True else (robust or None)
         present, c_mod, cen_true, sc_true = self._prepare(contours_px, views_present, input_views, centroid, scale)
-        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=hypotheses > 0)
+        want = hypotheses > 0  # component means (hypotheses) come from the last pass only
+        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=want and settings is None)
         if settings is not None:
             observed_lm = res.log_marginal
             if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
                 with np.errstate(invalid="ignore", over="ignore"):
                     norm_obs = normalise_contours(c_mod)[0]
                 s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-                res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+                res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=False)
             else:
                 s2_rows = s2
-            for _ in range(int(settings.iterations)):
+            for it in range(int(settings.iterations)):
                 matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
                 u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
                 pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
                                   c_mod)
-                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=hypotheses > 0)
+                last = it == int(settings.iterations) - 1
+                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=want and last)
             if settings.noise_scale is not None:
                 res.noise_variance = s2_rows
             res.log_marginal_robust = res.log_marginal
