@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from silpose.model.persistence import ModelFileError, load_model, save_model
-from silpose.model.plausibility import PERCENTILES, PlausibilityCalibration, subset_key
+from silpose.model.plausibility import (PERCENTILES, PlausibilityCalibration, convex_in_every_view, solidity,
+                                       subset_key)
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
 
@@ -75,3 +76,40 @@ def test_calibration_survives_the_model_file(calibrated, tmp_path):
         load_model(bad)
     with pytest.raises(ValueError, match="noise_variance"):
         PlausibilityCalibration.from_dict({"tables": {}}, source="x")
+
+
+def _polygon(corners, n):
+    """(n, 2) points along the closed polygon ``corners`` (equal steps in arc length)."""
+    c = np.asarray(corners, float)
+    seg = np.r_[c[1:], c[:1]] - c
+    cum = np.r_[0, np.cumsum(np.linalg.norm(seg, axis=1))]
+    t = np.linspace(0, cum[-1], n, endpoint=False)
+    i = np.searchsorted(cum, t, side="right") - 1
+    return c[i] + seg[i] * ((t - cum[i]) / np.linalg.norm(seg[i], axis=1))[:, None]
+
+
+def test_solidity_of_known_polygons():
+    square = _polygon([[0, 0], [10, 0], [10, 10], [0, 10]], 80)
+    ell = _polygon([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]], 80)  # area 300, hull 350 (perimeter 80: every corner is a point)
+    got = solidity(np.stack([square, ell, np.full_like(square, np.nan)]))
+    np.testing.assert_allclose(got[:2], [1.0, 300 / 350], rtol=1e-6)
+    assert np.isnan(got[2])
+
+
+def test_convex_in_every_present_view():
+    box = _polygon([[0, 0], [10, 0], [10, 30], [0, 30]], 24)
+    ell = _polygon([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]], 24)
+    c = np.stack([[box, box, box], [box, ell, box], [box, ell, box], [box, box, box]])
+    present = np.array([[1, 1, 1], [1, 1, 1], [1, 0, 1], [0, 0, 0]], bool)
+    assert list(convex_in_every_view(c, present)) == [True, False, True, False]  # an absent view does not count
+
+
+def test_a_box_is_flagged_whatever_its_likelihood(calibrated):
+    model, test = calibrated
+    genuine = model.infer(test)
+    assert not convex_in_every_view(test, np.ones(test.shape[:2], bool)).any()  # the model's shapes are not convex
+    centre = np.nanmean(test[:1], axis=2, keepdims=True)
+    box = centre + _polygon([[-8, -20], [8, -20], [8, 20], [-8, 20]], test.shape[2])
+    res = model.infer(box)
+    assert res.implausible.all()
+    assert genuine.implausible.mean() < 0.05

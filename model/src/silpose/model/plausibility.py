@@ -22,6 +22,15 @@ percentiles 0, 0.5, ..., 100 of the calibration log marginals. A frame whose log
 the ``flag_percentile`` percentile (default 1 %) of its subset's table is *implausible*
 (``silpose infer`` flags it). The calibration holds for the noise variance it was made with; an
 inference at another s^2 gets NaN percentiles and no flags.
+
+Convex silhouettes (:func:`convex_in_every_view`). A smooth blob -- a box, a rectangle, a bin bag --
+is *more* likely under the prior than any person (it sits near a component mean: percentile 100), so
+no likelihood threshold flags it. A person's silhouette is never convex: the neck, the armpits and
+the gap between the legs make its area clearly smaller than its convex hull's. Measured on the
+default preset's 500 test walkers x 4 views (clothing and builds the model never saw): solidity
+(area / convex-hull area) median 0.65, largest 0.93 clean and 0.91 with the evaluation's standard
+noise. A frame whose every observed view has solidity >= :data:`CONVEX_SOLIDITY` (0.97) is flagged
+too, whatever its likelihood. It needs no calibration, so it applies at any s^2.
 """
 
 from __future__ import annotations
@@ -29,13 +38,15 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from silpose.shared.seeds import derive_rng, stream_code
 
 from .features import denormalise_contours, normalise_contours
 
-__all__ = ["PlausibilityCalibration", "PERCENTILES", "DEFAULT_FLAG_PERCENTILE", "subset_key", "view_subsets"]
+__all__ = ["PlausibilityCalibration", "PERCENTILES", "DEFAULT_FLAG_PERCENTILE", "CONVEX_SOLIDITY", "subset_key",
+           "view_subsets", "solidity", "convex_in_every_view"]
 
 #: the percentile grid of every table (0, 0.5, ..., 100)
 PERCENTILES = np.linspace(0.0, 100.0, 201)
@@ -47,6 +58,31 @@ DEFAULT_DRAWS = 3
 MAX_INPUTS = 400
 #: the noise stream of the calibration (silpose.shared.seeds)
 PLAUSIBILITY_STREAM = "plausibility"
+#: a frame whose every observed view is at least this convex (area / hull area) is not a person
+CONVEX_SOLIDITY = 0.97
+
+
+def solidity(contours_px: np.ndarray) -> np.ndarray:
+    """Area over convex-hull area (...,) of closed contours (..., n, 2) px; NaN for non-finite or empty ones."""
+    c = np.asarray(contours_px, dtype=np.float64)
+    flat = c.reshape(-1, c.shape[-2], 2)
+    out = np.full(len(flat), np.nan)
+    for i, poly in enumerate(flat):
+        if not np.isfinite(poly).all():
+            continue
+        pts = poly.astype(np.float32)
+        hull = cv2.contourArea(cv2.convexHull(pts))
+        if hull > 0:
+            out[i] = abs(cv2.contourArea(pts)) / hull
+    return out.reshape(c.shape[:-2])
+
+
+def convex_in_every_view(contours_px: np.ndarray, present: np.ndarray, threshold: float = CONVEX_SOLIDITY) -> np.ndarray:
+    """(N,) bool: every present view of the frame has solidity >= ``threshold`` (module doc); False for a
+    frame without a present view. contours_px (N, K, n, 2) px, present (N, K) bool."""
+    p = np.asarray(present, dtype=bool)
+    s = np.where(p, solidity(np.where(p[..., None, None], contours_px, np.nan)), np.nan)
+    return p.any(axis=1) & np.all(~p | (s >= threshold), axis=1)
 
 
 def subset_key(present_row) -> str:

@@ -39,7 +39,7 @@ from .conditioning import Conditioner
 from .features import FeatureLayout, denormalise_contours, normalise_contours, shape_vectors
 from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
 from .mppca import DEFAULT_INIT_ROWS, MPPCA
-from .plausibility import PlausibilityCalibration, view_subsets
+from .plausibility import PlausibilityCalibration, convex_in_every_view, view_subsets
 from .provenance import manifest_sha256
 from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 from .untangle import untangle as untangle_contours
@@ -481,7 +481,8 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
             res.plausibility = cal.percentile(res.log_marginal, present)
-            res.implausible = cal.implausible(res.plausibility)
+            # a likelihood percentile cannot flag a smooth blob: convex silhouettes are flagged too
+            res.implausible = cal.implausible(res.plausibility) | convex_in_every_view(c_mod, present)
         if hypotheses > 0:
             hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
             if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
