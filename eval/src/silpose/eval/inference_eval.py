@@ -35,6 +35,7 @@ import numpy as np
 from sklearn.neighbors import NearestNeighbors
 
 from silpose.model.hypotheses import is_flip, single_answer
+from silpose.model.plausibility import CONVEX_SOLIDITY
 from silpose.model.untangle import self_intersecting, untangle
 from silpose.shared.contours import denormalise, normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm
@@ -327,7 +328,9 @@ def e6_markdown(e6: dict) -> list[str]:
         lines += [f"Plausibility (`silpose.model.plausibility`): a frame is flagged when its log marginal likelihood is "
                   f"below the {pl['flag_percentile']:g} % percentile of held-out training inputs with the same views "
                   f"({cal['n_inputs']} walkers x {cal['n_draws']} draws of the model's observation noise, "
-                  f"s² = {cal['noise_variance']:g}). Garbage inputs: `silpose.eval.garbage`, all views.", "",
+                  f"s² = {cal['noise_variance']:g}), or when every observed view is convex (solidity >= "
+                  f"{CONVEX_SOLIDITY:g}: a smooth blob is more likely than any person). Garbage inputs: "
+                  f"`silpose.eval.garbage`, all views.", "",
                   markdown_table(["garbage input", "n", "flagged %", "of which no silhouette %", "median percentile"],
                                  [[g["kind"], str(g["n"]), fmt(g["flagged_pct"], 1), fmt(g["no_silhouette_pct"], 1),
                                    fmt(g["median_percentile"], 1)] for g in pl["garbage"]]), "",

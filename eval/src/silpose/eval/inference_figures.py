@@ -191,7 +191,7 @@ def garbage_figure(ev, path: Path) -> Path | None:
     axes[0, 0].legend(loc="lower left", fontsize=6)
     fig.suptitle("Inputs that are not a person: the first input of each kind (silpose.eval.garbage), all views, with the "
                  "model's reconstruction (it always draws a walker).\nEach row: the plausibility percentile and whether "
-                 "silpose infer flags the frame (below the model's threshold); "
+                 "silpose infer flags the frame (below the model's plausibility threshold, or convex in every view); "
                  + (f"not flagged: {', '.join(missed)}." if missed else "every one shown is flagged."), fontsize=8)
     return save_figure(fig, path)
 
