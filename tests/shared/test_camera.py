@@ -49,6 +49,11 @@ def test_project_matches_opencv_without_distortion():
         np.testing.assert_allclose(cam.project(X), ref.reshape(-1, 2), rtol=1e-10, atol=1e-9)
         # Leading dimensions are kept.
         assert cam.project(X.reshape(4, 25, 3)).shape == (4, 25, 2)
+        # K_inv takes a pixel back to the ray OpenCV projected it from (normalised image coordinates)
+        uv1 = np.c_[cam.project(X), np.ones(len(X))]
+        cam_pts = cam.to_camera(X)
+        np.testing.assert_allclose(uv1 @ cam.K_inv.T, cam_pts / cam_pts[:, 2:], rtol=1e-10, atol=1e-12)
+        assert cam.K_inv is cam.K_inv  # computed once
 
 
 def test_project_with_distortion_matches_opencv_and_the_written_out_model():

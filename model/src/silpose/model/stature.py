@@ -44,7 +44,7 @@ def _pixel_rays(cam, points: np.ndarray) -> np.ndarray:
         norm = cv2.undistortPoints(pts.reshape(-1, 1, 2), cam.K, np.asarray(cam.dist, dtype=np.float64))
         h = np.concatenate([norm.reshape(-1, 2), np.ones((len(pts), 1))], axis=1)
     else:
-        h = np.concatenate([pts, np.ones((len(pts), 1))], axis=1) @ np.linalg.inv(cam.K).T
+        h = np.concatenate([pts, np.ones((len(pts), 1))], axis=1) @ cam.K_inv.T
     return h @ cam.R  # row-wise R^T h
 
 

@@ -9,6 +9,7 @@ Projection: ``x ~ K (R X + t)`` followed by OpenCV lens distortion (zeros for sy
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -85,6 +86,11 @@ class Camera:
             raise RigError(f"{what} field R: not a rotation matrix")
         if self.K[0, 0] <= 0 or self.K[1, 1] <= 0:
             raise RigError(f"{what} field K: focal lengths must be positive")
+
+    @cached_property
+    def K_inv(self) -> np.ndarray:
+        """(3, 3) inverse of ``K`` (pixels -> normalised image coordinates), computed once per camera."""
+        return np.linalg.inv(self.K)
 
     @property
     def center(self) -> np.ndarray:
