@@ -180,3 +180,27 @@ def test_offsets_synchronise_a_camera_that_started_late(rig, tiny_model, tools, 
     assert shifted.n_steps == 10 and shifted.views_hist[4] == 10
     t = pq.read_table(tmp_path / "b" / "joints.parquet")
     assert t.column("frame").to_pylist() == list(range(10))
+
+
+def test_camera_threads_change_nothing(tiny_model, two_cylinders, tmp_path):
+    """Per-camera worker threads (threads > 0) give the same file as everything in one thread (threads = 0).
+    (Another chunk size batches other rows together for inference, which may change the last bits.)"""
+    tables = []
+    for i, (threads, chunk) in enumerate(((0, 2), (2, 2), (4, 2))):
+        out = tmp_path / f"out{i}"
+        run_recording(tiny_model, two_cylinders, out, RecordingOptions(masks=True, overlays=False, threads=threads,
+                                                                       chunk=chunk))
+        tables.append(pq.read_table(out / "joints.parquet"))
+    for other in tables[1:]:
+        assert other.column_names == tables[0].column_names and other.num_rows == tables[0].num_rows > 0
+        for col in tables[0].column_names:
+            a, b = _flat(tables[0].column(col)), _flat(other.column(col))
+            assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), col
+
+
+def _flat(column) -> np.ndarray:
+    """A Parquet column's values as one flat numpy array (nested fixed-size lists unrolled)."""
+    x = column.combine_chunks()
+    while str(x.type).startswith("fixed_size_list"):
+        x = x.flatten()
+    return x.to_numpy(zero_copy_only=False)
