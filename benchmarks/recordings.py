@@ -13,7 +13,7 @@ Rows:
   figure), per-stage shares, the process's baseline RSS (after imports and the model) and peak RSS
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
-  (``silpose infer --videos``'s defaults: robust inference, top-3 hypotheses), ``repeat`` x with ``--no-robust``,
+  (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
   1x single-threaded, 1x with overlay videos.
 - ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
@@ -92,7 +92,7 @@ def peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool = True) -> dict:
+def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -228,10 +228,10 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
         long_frames = _ping_pong(lab / "masks", tmp / "long", repeat)
         rows = []
         for label, videos, overlays, thr, robust in (
-                ("1x", lab / "masks", False, threads, True), (f"{repeat}x", tmp / "long", False, threads, True),
-                (f"{repeat}x, --no-robust", tmp / "long", False, threads, False),
-                ("1x single-threaded", lab / "masks", False, 0, True),
-                ("1x with overlays", lab / "masks", True, threads, True)):
+                ("1x", lab / "masks", False, threads, None), (f"{repeat}x", tmp / "long", False, threads, None),
+                (f"{repeat}x, --robust", tmp / "long", False, threads, True),
+                ("1x single-threaded", lab / "masks", False, 0, None),
+                ("1x with overlays", lab / "masks", True, threads, None)):
             out = tmp / f"out-{len(rows)}"
             res = subproc.call(__name__, "measure", dict(model=model, videos=str(videos), out=str(out),
                                                           overlays=overlays, threads=thr, robust=robust))

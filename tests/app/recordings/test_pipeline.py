@@ -204,3 +204,18 @@ def _flat(column) -> np.ndarray:
     while str(x.type).startswith("fixed_size_list"):
         x = x.flatten()
     return x.to_numpy(zero_copy_only=False)
+
+
+def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_path):
+    """--videos --masks: robust inference is off unless asked for (RecordingOptions.robust None)."""
+    tables = {}
+    for name, robust in (("default", None), ("plain", False), ("robust", True)):
+        run_recording(tiny_model, two_cylinders, tmp_path / name,
+                      RecordingOptions(masks=True, overlays=False, threads=0, robust=robust))
+        tables[name] = pq.read_table(tmp_path / name / "joints.parquet")
+    same = [np.array_equal(_flat(tables["default"].column(c)), _flat(tables["plain"].column(c)),
+                           equal_nan=_flat(tables["plain"].column(c)).dtype.kind == "f")
+            for c in tables["plain"].column_names]
+    assert all(same)
+    assert not np.array_equal(_flat(tables["robust"].column("joints")), _flat(tables["plain"].column("joints")),
+                              equal_nan=True)

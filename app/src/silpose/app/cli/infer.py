@@ -37,7 +37,7 @@ def infer(
     offsets: Annotated[Optional[str], typer.Option("--offsets", help="With --videos: per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
-    robust: Annotated[bool, typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted.")] = True,
+    robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted. Default: on, except for --videos --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on with --frames, off otherwise (--videos always chooses along each person's track).")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
@@ -82,17 +82,18 @@ def infer(
     try:
         if videos is not None:
             summary = infer_videos(model, videos, out, masks, background, background_frames, offsets, overlays,
-                                   video_min_area, noise_variance, progress, save_contours, robust)
+                                   video_min_area, noise_variance, progress, save_contours,
+                                   (not masks) if robust is None else robust)
         else:
             out = out or Path("joints.parquet")
             claim_outputs(out, contours=save_contours, segmentation=frames is not None,
                           overlay_dir=(overlay_dir or sibling(out, ".overlays")) if save_overlays else None)
             if frames is not None:
                 summary = infer_frames(model, frames, out, save_contours, save_overlays, overlay_dir, min_area,
-                                       noise_variance, progress, robust, True if temporal is None else temporal)
+                                       noise_variance, progress, robust is not False, True if temporal is None else temporal)
             else:
                 summary = run_inference(model, input, out=out, split=split, save_contours=save_contours,
-                                        noise_variance=noise_variance, threshold=threshold, robust=robust,
+                                        noise_variance=noise_variance, threshold=threshold, robust=robust is not False,
                                         temporal=bool(temporal))
     except (InputError, DatasetError, ModelFileError, ValueError) as exc:
         fail("infer", str(exc))
