@@ -37,7 +37,7 @@ def test_quick_run_writes_markdown_and_json_with_the_blas_floor(tmp_path):
     assert sections["em"]["kwargs"]["n"] == 400 and sections["em"]["kwargs"]["gmm_iters"] == 1  # --set over --quick
     kernels = [r for r in sections["em"]["rows"] if r["quantity"] == "time per EM iteration"]
     kernels += sections["inference"]["rows"]
-    assert len(kernels) == 7  # EM: 2 sizes; inference: posterior mean x 3, top-3 hypotheses, robust
+    assert len(kernels) == 8  # EM's kernel row + 7 inference rows (batched x 3, one frame, top-3, + consensus, robust)
     for r in kernels:
         seconds = r.get("seconds", r["value"])
         assert 0 < r["blas_floor_s"] < seconds
