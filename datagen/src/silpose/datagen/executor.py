@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing
+import multiprocessing.connection
 import os
 import signal
 import threading
@@ -94,6 +95,54 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _worker_loop(conn, max_tasks: int) -> None:
+    """Worker side of :func:`run_local`: run up to ``max_tasks`` tasks received on ``conn``, sending
+    each ``(task, result, error)`` back; stop on ``None`` or when the driver is gone."""
+    ignore_interrupt()
+    for _ in range(max_tasks):
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):  # the driver went away
+            return
+        if message is None:
+            return
+        conn.send(_run_task_star(message))
+    conn.close()
+
+
+class _Worker:
+    """One spawned worker process, its end of a private pipe, and the task it is running (or None)."""
+
+    def __init__(self, ctx, max_tasks: int):
+        self.conn, child_conn = ctx.Pipe(duplex=True)
+        self.process = ctx.Process(target=_worker_loop, args=(child_conn, max_tasks), daemon=True)
+        self.process.start()
+        child_conn.close()
+        self.task: ShardTask | None = None
+        self.remaining = max_tasks
+
+    def give(self, task: ShardTask, target: str, config: dict) -> None:
+        self.task = task
+        self.remaining -= 1
+        self.conn.send((task, target, config))
+
+    def stop(self, kill: bool) -> None:
+        """Ask an idle worker to exit (or kill a busy one) and reap it."""
+        if self.process.exitcode is None:
+            if kill:
+                self.process.kill()
+            else:
+                try:
+                    self.conn.send(None)
+                except OSError:
+                    self.process.kill()
+        self.process.join(timeout=10)
+        if self.process.exitcode is None:  # pragma: no cover - a worker that ignored its stop
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
+
+
 def run_local(
     tasks: Iterable[ShardTask],
     config: dict,
@@ -101,57 +150,68 @@ def run_local(
     workers: int | None = None,
     max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
 ) -> Iterator[tuple[ShardTask, dict]]:
-    """Run ``tasks`` on a ``multiprocessing`` spawn pool of ``workers`` processes (default: all cores).
+    """Run ``tasks`` on ``workers`` spawned processes (default: all cores), each replaced after
+    ``max_tasks_per_child`` tasks (bounds memory growth in Blender).
 
-    Uses ``Pool(maxtasksperchild=...)``, not ``ProcessPoolExecutor(max_tasks_per_child=...)``, which
-    can deadlock on Python 3.11 (docs/conventions.md, "Blender").
+    Each worker has a private pipe, and the driver waits on the pipes and the processes' sentinels
+    together, so a worker that dies (a crash in Blender, the OOM killer, SIGKILL) is seen at once and
+    named with the shard it held. Neither ``multiprocessing.Pool`` (it silently replaces a dead worker
+    and loses its task; its ``terminate()`` can deadlock on the queue lock a killed worker held,
+    CPython issues 73945, 78178 and 96995) nor ``ProcessPoolExecutor(max_tasks_per_child=...)``
+    (deadlocks on Python 3.11) is used: no lock is shared between processes here
+    (docs/conventions.md, "Blender").
     """
-    tasks = list(tasks)
-    if not tasks:
+    queue = list(tasks)
+    if not queue:
         return
-    n = min(workers or default_workers(), len(tasks))
     ctx = multiprocessing.get_context("spawn")
-    with _interrupt_ignored_by_children():
-        pool = ctx.Pool(processes=n, maxtasksperchild=max_tasks_per_child, initializer=ignore_interrupt)
+    n = min(workers or default_workers(), len(queue))
+    pool: list[_Worker] = []
+    failed = True
     try:
-        pending = [(t, pool.apply_async(_run_task_star, ((t, target, config),))) for t in tasks]
-        seen: dict[int, object] = {}
-        while pending:
-            pending[0][1].wait(WATCHDOG_SECONDS)
-            for item in [p for p in pending if p[1].ready()]:
-                pending.remove(item)
-                task, result, error = item[1].get()
+        with _interrupt_ignored_by_children():
+            pool = [_Worker(ctx, max_tasks_per_child) for _ in range(n)]
+        for worker in pool:
+            worker.give(queue.pop(0), target, config)
+        while any(w.task is not None for w in pool):
+            busy = [w for w in pool if w.task is not None]
+            ready = multiprocessing.connection.wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
+            for worker in busy:
+                if worker.conn not in ready and worker.process.sentinel not in ready:
+                    continue
+                try:
+                    if not worker.conn.poll():  # its process ended without answering
+                        raise EOFError
+                    task, result, error = worker.conn.recv()
+                except (EOFError, OSError):
+                    worker.process.join(timeout=5)
+                    raise ExecutorError(
+                        f"worker process {worker.process.pid} died with exit code {worker.process.exitcode} "
+                        f"while rendering; unfinished shard(s): {_names(worker.task, pool)}"
+                    ) from None
+                worker.task = None
                 if error is not None:
                     raise ExecutorError(f"shard {task.file}: worker failed: {error}")
                 yield task, result
-            _check_workers_alive(pool, seen, [t for t, _ in pending])
-        pool.close()
+                if queue:
+                    if worker.remaining == 0:  # retire it; a fresh process takes the next task
+                        worker.stop(kill=False)
+                        pool.remove(worker)
+                        with _interrupt_ignored_by_children():
+                            worker = _Worker(ctx, max_tasks_per_child)
+                        pool.append(worker)
+                    worker.give(queue.pop(0), target, config)
+        failed = False
     finally:
-        pool.terminate()
-        pool.join()
+        for worker in pool:
+            worker.stop(kill=failed or worker.task is not None)
 
 
-#: How often the driver checks that no pool worker died (seconds).
-WATCHDOG_SECONDS = 0.2
-
-
-def _check_workers_alive(pool, seen: dict, unfinished: list[ShardTask]) -> None:
-    """Raise ExecutorError if a pool worker died abnormally (a crash in Blender, the OOM killer).
-
-    ``multiprocessing.Pool`` silently replaces a dead worker and loses its task, so waiting for
-    that task would hang forever. Workers retired by ``maxtasksperchild`` exit with code 0.
-    Reads the pool's worker list (``Pool._pool``, the only way to see them); the processes are
-    remembered so a worker already reaped and replaced by the pool is still checked.
-    """
-    for proc in list(getattr(pool, "_pool", [])):
-        seen.setdefault(proc.pid, proc)
-    for pid, proc in seen.items():
-        code = proc.exitcode
-        if code not in (None, 0):
-            names = ", ".join(t.file for t in unfinished[:3]) + (" ..." if len(unfinished) > 3 else "")
-            raise ExecutorError(
-                f"worker process {pid} died with exit code {code} while rendering; unfinished shard(s): {names}"
-            )
+def _names(first: ShardTask | None, pool: list[_Worker]) -> str:
+    """The unfinished shards, the dead worker's first, for an error message (at most three)."""
+    unfinished = [first] + [w.task for w in pool if w.task is not None and w.task is not first]
+    names = [t.file for t in unfinished if t is not None]
+    return ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
 
 
 def run_ray(
