@@ -18,7 +18,7 @@ import numpy as np
 import psutil
 import pytest
 
-from silpose.datagen.executor import ExecutorError, ShardTask, run_local
+from silpose.datagen.executor import ExecutorError, ShardTask, WorkerDied, run_local, spawned_map
 from silpose.datagen.testing import DELAY_ENV, STARTED_ENV, synthetic_render_samples, tiny_config
 
 SYNTH = "silpose.datagen.testing:synthetic_render_samples"
@@ -64,7 +64,7 @@ def test_a_longer_lived_worker_runs_several_tasks(config):
 
 _DRIVER = r"""
 import sys
-from silpose.datagen.executor import ExecutorError, ShardTask, run_local
+from silpose.datagen.executor import ExecutorError, ShardTask, WorkerDied, run_local, spawned_map
 from silpose.datagen.testing import tiny_config
 config = tiny_config(sys.argv[2]).worker_config()
 tasks = [ShardTask("train", k, 4, (2 * k, 2 * k + 1), f"train-{k:05d}-of-00004.parquet") for k in range(4)]
@@ -117,4 +117,16 @@ def test_a_failing_task_names_its_shard_and_stops_the_workers(config):
     with pytest.raises(ExecutorError, match=r"shard test-00000-of-00001.parquet: worker failed: RuntimeError"):
         list(run_local([ShardTask("test", 0, 1, (0, 1), "test-00000-of-00001.parquet")], config,
                        "silpose.datagen.testing:failing_render_samples", workers=1))
+    assert workers_alive() == []
+
+
+def test_spawned_map_answers_every_job_once_and_names_the_job_of_a_dead_worker():
+    from silpose.datagen.testing import exit_or_square
+
+    got = dict(spawned_map(exit_or_square, [(k, (0, k)) for k in range(7)], workers=2, max_tasks_per_child=3))
+    assert {k: v[0] for k, v in got.items()} == {k: k * k for k in range(7)}
+    assert len({v[1] for v in got.values()}) >= 3  # 7 calls, at most 3 per process
+    with pytest.raises(WorkerDied) as died:
+        list(spawned_map(exit_or_square, [("a", (0, 1)), ("b", (5, 2)), ("c", (0, 3))], workers=2))
+    assert died.value.key == "b" and died.value.exitcode == 5
     assert workers_alive() == []

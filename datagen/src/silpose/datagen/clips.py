@@ -17,7 +17,6 @@ hashes, frame counts, licences) and what the render workers need (cache folders,
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from silpose.shared.atomic import atomic_path, write_json_atomic
 
 from .blender_bvh import import_clip
 from .bvh_check import BvhError
+from .executor import WorkerDied, spawned_map
 from .joint_maps import ResolvedMap, resolve_map
 from .manifest import sha256_file
 from .motion_config import ClipSpec, MotionConfig
@@ -113,14 +113,19 @@ def ensure_cached(paths: list[Path], root: Path | None = None, workers: int | No
         out[Path(p)] = (sha, entry_dir(root, sha))
     todo = sorted({d: p for p, (_, d) in out.items() if not (d / "meta.json").is_file()}.items())
     if todo:
-        n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-        ctx = multiprocessing.get_context("spawn")
-        with ctx.Pool(processes=n, maxtasksperchild=8) as pool:
-            errors = pool.starmap(import_into_cache, [(str(p), str(d)) for d, p in todo])
-        bad = [e for e in errors if e]
-        if bad:
-            raise ClipError(bad[0])
+        jobs = [(str(p), (str(p), str(d))) for d, p in todo]
+        try:
+            for _, error in spawned_map(_import_job, jobs, workers, max_tasks_per_child=8):
+                if error:
+                    raise ClipError(error)
+        except WorkerDied as died:
+            raise ClipError(f"{died.key}: Blender's BVH importer crashed on this file ({died})") from None
     return out
+
+
+def _import_job(args: tuple[str, str]) -> str | None:
+    """Worker side of :func:`ensure_cached`: ``import_into_cache(path, dest)``."""
+    return import_into_cache(*args)
 
 
 def resolve_frames(first: int, last: int, stride: int, n: int, source: str) -> np.ndarray:

@@ -95,9 +95,20 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _worker_loop(conn, max_tasks: int) -> None:
-    """Worker side of :func:`run_local`: run up to ``max_tasks`` tasks received on ``conn``, sending
-    each ``(task, result, error)`` back; stop on ``None`` or when the driver is gone."""
+class WorkerDied(RuntimeError):
+    """A worker process of :func:`spawned_map` ended without answering (a crash, the OOM killer, SIGKILL).
+
+    Attributes: ``pid``, ``exitcode`` and ``key`` (the key of the job it was running).
+    """
+
+    def __init__(self, pid: int, exitcode: int | None, key):
+        super().__init__(f"worker process {pid} died with exit code {exitcode}")
+        self.pid, self.exitcode, self.key = pid, exitcode, key
+
+
+def _worker_loop(conn, max_tasks: int, call) -> None:
+    """Worker side of :func:`spawned_map`: answer up to ``max_tasks`` messages received on ``conn``
+    with ``call(message)``; stop on ``None`` or when the driver is gone."""
     ignore_interrupt()
     for _ in range(max_tasks):
         try:
@@ -106,25 +117,26 @@ def _worker_loop(conn, max_tasks: int) -> None:
             return
         if message is None:
             return
-        conn.send(_run_task_star(message))
+        conn.send(call(message))
     conn.close()
 
 
 class _Worker:
-    """One spawned worker process, its end of a private pipe, and the task it is running (or None)."""
+    """One spawned worker process, its end of a private pipe, and the key of its job (or None)."""
 
-    def __init__(self, ctx, max_tasks: int):
+    def __init__(self, ctx, max_tasks: int, call):
         self.conn, child_conn = ctx.Pipe(duplex=True)
-        self.process = ctx.Process(target=_worker_loop, args=(child_conn, max_tasks), daemon=True)
+        self.process = ctx.Process(target=_worker_loop, args=(child_conn, max_tasks, call), daemon=True)
         self.process.start()
         child_conn.close()
-        self.task: ShardTask | None = None
+        self.key = None
+        self.busy = False
         self.remaining = max_tasks
 
-    def give(self, task: ShardTask, target: str, config: dict) -> None:
-        self.task = task
+    def give(self, key, message) -> None:
+        self.key, self.busy = key, True
         self.remaining -= 1
-        self.conn.send((task, target, config))
+        self.conn.send(message)
 
     def stop(self, kill: bool) -> None:
         """Ask an idle worker to exit (or kill a busy one) and reap it."""
@@ -143,25 +155,23 @@ class _Worker:
         self.conn.close()
 
 
-def run_local(
-    tasks: Iterable[ShardTask],
-    config: dict,
-    target: str = DEFAULT_RENDER,
-    workers: int | None = None,
-    max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
-) -> Iterator[tuple[ShardTask, dict]]:
-    """Run ``tasks`` on ``workers`` spawned processes (default: all cores), each replaced after
-    ``max_tasks_per_child`` tasks (bounds memory growth in Blender).
+def spawned_map(call, jobs: Iterable[tuple], workers: int | None = None,
+                max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD) -> Iterator[tuple]:
+    """Yield ``(key, call(message))`` for every ``(key, message)`` of ``jobs``, as they finish (any
+    order), computed in ``workers`` spawned processes (default: all cores), each replaced after
+    ``max_tasks_per_child`` calls (bounds memory growth in Blender).
 
-    Each worker has a private pipe, and the driver waits on the pipes and the processes' sentinels
-    together, so a worker that dies (a crash in Blender, the OOM killer, SIGKILL) is seen at once and
-    named with the shard it held. Neither ``multiprocessing.Pool`` (it silently replaces a dead worker
-    and loses its task; its ``terminate()`` can deadlock on the queue lock a killed worker held,
-    CPython issues 73945, 78178 and 96995) nor ``ProcessPoolExecutor(max_tasks_per_child=...)``
-    (deadlocks on Python 3.11) is used: no lock is shared between processes here
-    (docs/conventions.md, "Blender").
+    ``call`` is a module-level function (spawn pickles it by name); it should return its errors rather
+    than raise them. Each worker has a private pipe, and the driver waits on the pipes and the processes'
+    sentinels together, so a worker that dies is seen at once: :class:`WorkerDied` names the job's key.
+    On any exit (an error, the consumer stopping, Ctrl-C) the workers are stopped and reaped.
+
+    Neither ``multiprocessing.Pool`` (it silently replaces a dead worker and loses its task, and its
+    ``terminate()`` can deadlock on the queue lock a killed worker held, CPython issues 73945, 78178
+    and 96995) nor ``ProcessPoolExecutor(max_tasks_per_child=...)`` (deadlocks on Python 3.11) is
+    used: no lock is shared between processes here (docs/conventions.md, "Blender").
     """
-    queue = list(tasks)
+    queue = list(jobs)
     if not queue:
         return
     ctx = multiprocessing.get_context("spawn")
@@ -170,11 +180,11 @@ def run_local(
     failed = True
     try:
         with _interrupt_ignored_by_children():
-            pool = [_Worker(ctx, max_tasks_per_child) for _ in range(n)]
+            pool = [_Worker(ctx, max_tasks_per_child, call) for _ in range(n)]
         for worker in pool:
-            worker.give(queue.pop(0), target, config)
-        while any(w.task is not None for w in pool):
-            busy = [w for w in pool if w.task is not None]
+            worker.give(*queue.pop(0))
+        while any(w.busy for w in pool):
+            busy = [w for w in pool if w.busy]
             ready = multiprocessing.connection.wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
             for worker in busy:
                 if worker.conn not in ready and worker.process.sentinel not in ready:
@@ -182,36 +192,52 @@ def run_local(
                 try:
                     if not worker.conn.poll():  # its process ended without answering
                         raise EOFError
-                    task, result, error = worker.conn.recv()
+                    reply = worker.conn.recv()
                 except (EOFError, OSError):
                     worker.process.join(timeout=5)
-                    raise ExecutorError(
-                        f"worker process {worker.process.pid} died with exit code {worker.process.exitcode} "
-                        f"while rendering; unfinished shard(s): {_names(worker.task, pool)}"
-                    ) from None
-                worker.task = None
-                if error is not None:
-                    raise ExecutorError(f"shard {task.file}: worker failed: {error}")
-                yield task, result
+                    raise WorkerDied(worker.process.pid, worker.process.exitcode, worker.key) from None
+                worker.busy = False
+                yield worker.key, reply
                 if queue:
-                    if worker.remaining == 0:  # retire it; a fresh process takes the next task
+                    if worker.remaining == 0:  # retire it; a fresh process takes the next job
                         worker.stop(kill=False)
                         pool.remove(worker)
                         with _interrupt_ignored_by_children():
-                            worker = _Worker(ctx, max_tasks_per_child)
+                            worker = _Worker(ctx, max_tasks_per_child, call)
                         pool.append(worker)
-                    worker.give(queue.pop(0), target, config)
+                    worker.give(*queue.pop(0))
         failed = False
     finally:
         for worker in pool:
-            worker.stop(kill=failed or worker.task is not None)
+            worker.stop(kill=failed or worker.busy)
 
 
-def _names(first: ShardTask | None, pool: list[_Worker]) -> str:
-    """The unfinished shards, the dead worker's first, for an error message (at most three)."""
-    unfinished = [first] + [w.task for w in pool if w.task is not None and w.task is not first]
-    names = [t.file for t in unfinished if t is not None]
-    return ", ".join(names[:3]) + (" ..." if len(names) > 3 else "")
+def run_local(
+    tasks: Iterable[ShardTask],
+    config: dict,
+    target: str = DEFAULT_RENDER,
+    workers: int | None = None,
+    max_tasks_per_child: int = DEFAULT_MAX_TASKS_PER_CHILD,
+) -> Iterator[tuple[ShardTask, dict]]:
+    """Run ``tasks`` on spawned worker processes (:func:`spawned_map`; default: all cores).
+
+    Raises:
+        ExecutorError: a task raised (the message names its shard and the error) or a worker died (it
+            names the worker, its exit code and the unfinished shards, the dead worker's first).
+    """
+    tasks = list(tasks)
+    done: set[int] = set()
+    try:
+        for k, (task, result, error) in spawned_map(_run_task_star, [(k, (t, target, config)) for k, t in enumerate(tasks)],
+                                                    workers, max_tasks_per_child):
+            if error is not None:
+                raise ExecutorError(f"shard {task.file}: worker failed: {error}")
+            done.add(k)
+            yield task, result
+    except WorkerDied as died:
+        unfinished = [tasks[died.key]] + [t for k, t in enumerate(tasks) if k not in done and k != died.key]
+        names = ", ".join(t.file for t in unfinished[:3]) + (" ..." if len(unfinished) > 3 else "")
+        raise ExecutorError(f"{died} while rendering; unfinished shard(s): {names}") from None
 
 
 def run_ray(

@@ -138,6 +138,15 @@ def crashing_render_samples(config: dict, split: str, indices: list[int]) -> lis
     return synthetic_render_samples(config, split, indices)
 
 
+def exit_or_square(message: tuple[int, int]) -> tuple[int, int]:
+    """A :func:`silpose.datagen.executor.spawned_map` call for tests: ``(code, x)`` exits the worker
+    process with ``code`` when it is not 0, else returns ``(x * x, pid)``."""
+    code, x = message
+    if code:
+        os._exit(code)
+    return x * x, os.getpid()
+
+
 #: ``killing_render_samples`` reads ``"<split>:<index>:<marker file>"`` from this variable.
 KILL_ENV = "SILPOSE_TEST_KILL_AT"
 #: ``slow_render_samples`` sleeps this many seconds per sample (a float).
