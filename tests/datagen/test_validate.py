@@ -152,3 +152,20 @@ def test_preview_png(dataset):
 
     img = mpimg.imread(out)
     assert img.shape[0] > 200 and img.shape[1] > 400
+
+
+def test_preview_out_never_replaces_a_users_file(dataset, tmp_path):
+    from typer.testing import CliRunner
+
+    from silpose.shared.cli import build_app
+
+    _, root = dataset
+    mine = tmp_path / "holiday.png"
+    mine.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 64)  # someone else's PNG (no silpose tag)
+    before = mine.read_bytes()
+    r = CliRunner().invoke(build_app(), ["preview", str(root), "--out", str(mine)])
+    assert r.exit_code != 0 and "which silpose did not write" in r.output and mine.read_bytes() == before
+    ours = tmp_path / "sheet.png"
+    for _ in range(2):  # new, then silpose's own picture replaced
+        r = CliRunner().invoke(build_app(), ["preview", str(root), "--out", str(ours), "--samples", "2"])
+        assert r.exit_code == 0, r.output

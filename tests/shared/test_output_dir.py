@@ -128,3 +128,37 @@ def test_claim_files_allows_new_files_and_silpose_files_only(tmp_path):
     assert theirs.read_bytes() == b"user" and not new.exists()
     with pytest.raises(OutputFolderError, match="is a folder"):
         claim_files([tmp_path], "train", recognise=is_ours)
+
+
+def test_silpose_pictures_are_recognised_by_their_png_text(tmp_path):
+    """write_figure_atomic tags its PNGs; Pillow (an independent reader) sees the tag, and is_silpose_png
+    accepts those and nothing else (another program's PNG, a renamed text file, a truncated PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from silpose.shared.atomic import FIGURE_SOFTWARE, write_figure_atomic
+    from silpose.shared.output_dir import OutputFolderError, claim_picture, is_silpose_png
+
+    ours = write_figure_atomic(plt.figure(figsize=(1, 1)), tmp_path / "ours.png")
+    assert Image.open(ours).info.get("Software") == FIGURE_SOFTWARE
+    assert is_silpose_png(ours)
+    theirs = tmp_path / "theirs.png"
+    Image.new("RGB", (4, 4)).save(theirs)
+    tagged_other = tmp_path / "other_software.png"
+    from PIL.PngImagePlugin import PngInfo
+
+    info = PngInfo()
+    info.add_text("Software", "GIMP 2.10")
+    Image.new("RGB", (4, 4)).save(tagged_other, pnginfo=info)
+    text = tmp_path / "text.png"
+    text.write_text("not a picture")
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(ours.read_bytes()[:20])
+    assert not any(is_silpose_png(p) for p in (theirs, tagged_other, text, cut, tmp_path / "missing.png"))
+    assert claim_picture(ours, "x") == ours and claim_picture(tmp_path / "new.png", "x") == tmp_path / "new.png"
+    for p in (theirs, tmp_path / "new.jpg"):
+        with pytest.raises(OutputFolderError):
+            claim_picture(p, "x")

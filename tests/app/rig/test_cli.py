@@ -136,3 +136,41 @@ def test_done_when_lab_files_import_with_unit_and_image_size_only_then_gen_and_v
     card = (ds / "README.md").read_text()
     assert f"**workspace** (walkers' pelvis positions, uniform): {rig.workspace.describe()}" in card
     assert "calibration frame -> world frame" in card and "scale 0.001 m per calibration unit" in card
+
+
+def test_outputs_never_replace_a_file_silpose_did_not_write(tmp_path):
+    """Nothing lost: --out naming a calibration file, a user's JSON or a user's picture is refused before any
+    work, the file left byte for byte; silpose's own rig file and picture are replaced on a rerun."""
+    paths = write_lab(tmp_path / "lab")
+    before = paths[0].read_bytes()
+    args = (*paths, "--unit", "mm", "--image-size", "644x486", "--step", "0.2")
+    r = run("rig", "import", *args, "--out", paths[0])
+    assert r.exit_code != 0 and "names one of the calibration files" in r.output
+    assert paths[0].read_bytes() == before
+    notes = tmp_path / "notes.json"
+    notes.write_text('{"my": "notes"}')
+    r = run("rig", "import", *args, "--out", notes)
+    assert r.exit_code != 0 and "which silpose did not write" in r.output and notes.read_text() == '{"my": "notes"}'
+    photo = tmp_path / "photo.png"
+    cv2.imwrite(str(photo), np.full((8, 8, 3), 200, np.uint8))
+    photo_bytes = photo.read_bytes()
+    out = tmp_path / "rig.json"
+    r = run("rig", "import", *args, "--out", out, "--show", photo)
+    assert r.exit_code != 0 and "photo.png" in r.output and not out.exists()
+    r = run("rig", "show", default_rig_file(tmp_path), "--out", photo)
+    assert r.exit_code != 0 and photo.read_bytes() == photo_bytes
+    r = run("rig", "show", default_rig_file(tmp_path), "--out", tmp_path / "rig.jpg")
+    assert r.exit_code != 0 and ".png" in r.output
+
+    pic = tmp_path / "rig.png"
+    for _ in range(2):  # the second run replaces silpose's own outputs
+        r = run("rig", "import", *args, "--out", out, "--show", pic)
+        assert r.exit_code == 0, r.output
+    r = run("rig", "show", out, "--out", pic)
+    assert r.exit_code == 0, r.output
+
+
+def default_rig_file(folder):
+    p = folder / "default.json"
+    p.write_text(default_rig().to_json())
+    return p

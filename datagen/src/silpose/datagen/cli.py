@@ -100,9 +100,15 @@ def preview(
 ) -> None:
     """Write a contact sheet PNG: a few samples x all views, mask, contour and projected joints."""
     from silpose.shared.dataset import DatasetError
+    from silpose.shared.output_dir import OutputFolderError, claim_picture
 
     from .preview import write_preview
 
+    if out is not None:  # the default DIR/preview.png lives in the dataset folder, silpose's own
+        try:
+            claim_picture(out, "preview")
+        except OutputFolderError as exc:
+            fail("preview", str(exc), 1)
     try:
         written = write_preview(path, out, n_samples=samples, split=split)
     except (DatasetError, StopIteration) as exc:

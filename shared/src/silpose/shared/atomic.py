@@ -27,6 +27,7 @@ __all__ = [
     "write_text_atomic",
     "write_json_atomic",
     "write_figure_atomic",
+    "FIGURE_SOFTWARE",
 ]
 
 #: glob of the temporary files this module creates in a folder (for cleanup of killed runs).
@@ -107,14 +108,20 @@ def write_json_atomic(path: str | Path, obj: Any, *, indent: int | None = 2, sor
     return write_text_atomic(path, json.dumps(obj, indent=indent, sort_keys=sort_keys) + "\n")
 
 
+#: The PNG ``Software`` text of every figure silpose writes (how a later run recognises its own pictures,
+#: ``silpose.shared.output_dir.is_silpose_png``).
+FIGURE_SOFTWARE = "silpose"
+
+
 def write_figure_atomic(fig: Any, path: str | Path, *, dpi: int = 110, tight: bool = False) -> Path:
     """Save a matplotlib figure as PNG to ``path`` atomically and close it (also when saving fails);
-    returns ``Path(path)``. ``tight``: ``bbox_inches="tight"``. matplotlib is not imported here: the figure
+    returns ``Path(path)``. The PNG carries ``Software: silpose`` (:data:`FIGURE_SOFTWARE`). ``tight``: ``bbox_inches="tight"``. matplotlib is not imported here: the figure
     saves itself, and it is closed through ``matplotlib.pyplot`` when pyplot is loaded (it made the figure)."""
     path = Path(path)
     try:
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png", **({"bbox_inches": "tight"} if tight else {}))
+            fig.savefig(tmp, dpi=dpi, format="png", metadata={"Software": FIGURE_SOFTWARE},
+                        **({"bbox_inches": "tight"} if tight else {}))
     finally:
         pyplot = sys.modules.get("matplotlib.pyplot")
         if pyplot is not None:

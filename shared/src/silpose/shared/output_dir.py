@@ -29,7 +29,7 @@ import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from .atomic import write_json_atomic
+from .atomic import FIGURE_SOFTWARE, write_json_atomic
 
 __all__ = [
     "MARKER",
@@ -41,6 +41,8 @@ __all__ = [
     "check_folder",
     "claim_folder",
     "claim_files",
+    "is_silpose_png",
+    "claim_picture",
 ]
 
 #: The file silpose writes into every output folder it owns: ``{"written_by": "silpose", "command": ...}``.
@@ -175,3 +177,39 @@ def claim_files(paths: Iterable[str | Path], command: str, *, recognise: Recogni
             "which silpose did not write; choose another --out or move the file (nothing was written)"
         )
     return paths
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def is_silpose_png(path: str | Path) -> bool:
+    """True if ``path`` is a PNG whose ``Software`` text chunk says silpose wrote it
+    (``silpose.shared.atomic.write_figure_atomic``). Reads the chunks before the image data only."""
+    try:
+        with open(path, "rb") as f:
+            if f.read(8) != _PNG_SIGNATURE:
+                return False
+            while True:
+                head = f.read(8)
+                if len(head) < 8:
+                    return False
+                length, kind = int.from_bytes(head[:4], "big"), head[4:]
+                if kind in (b"IDAT", b"IEND") or length > 1 << 20:
+                    return False
+                data = f.read(length)
+                f.read(4)  # CRC
+                if kind == b"tEXt":
+                    key, _, value = data.partition(b"\0")
+                    if key == b"Software" and value.decode("latin-1").startswith(FIGURE_SOFTWARE):
+                        return True
+    except OSError:
+        return False
+
+
+def claim_picture(path: str | Path, command: str) -> Path:
+    """Check a picture path given with ``--out``: new, or a PNG silpose wrote (:func:`is_silpose_png`);
+    it must end in ``.png``. Raises :class:`OutputFolderError` (one line); writes nothing."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise OutputFolderError(f"{path}: 'silpose {command}' writes a PNG picture; give a file name ending in .png")
+    return claim_files([path], command, recognise=is_silpose_png)[0]

@@ -62,6 +62,7 @@ def import_command(
 
     if not (0 <= footprint < 10 and 0.5 <= person_height <= 3.0 and 0.005 <= step <= 1.0):
         fail("rig import", "--footprint must be in [0, 10), --person-height in [0.5, 3], --step in [0.005, 1] metres")
+    _claim_rig_outputs(calib, out, show)
     options = ImportOptions(fmt=fmt, unit=unit, up=up, origin=origin, floor_offset=floor_offset, image_size=image_size,
                             workspace=workspace, min_views=min_views, person_height=person_height,
                             footprint=footprint, step=step)
@@ -93,6 +94,10 @@ def show_command(
 
     from .show import describe_rig, draw_rig
 
+    if out is not None:
+        from silpose.shared.output_dir import claim_picture
+
+        _claim("rig show", lambda: claim_picture(out, "rig show"))
     try:
         loaded = load_rig(rig)
         stored = Rig.from_json(rig.read_text(encoding="utf-8")).source  # where it was imported from
@@ -104,3 +109,37 @@ def show_command(
             print(f"wrote {draw_rig(loaded, out, height=person_height)}")
         except OSError as exc:
             fail("rig show", f"{out}: cannot write the picture ({exc.strerror or exc})")
+
+
+def is_rig_file(path: Path) -> bool:
+    """True if ``path`` holds a silpose rig (JSON that :meth:`Rig.from_json` accepts): a file ``rig import`` may replace."""
+    from silpose.shared.camera import Rig, RigError
+
+    try:
+        Rig.from_json(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RigError):
+        return False
+    return True
+
+
+def _claim(command: str, check) -> None:
+    from silpose.shared.output_dir import OutputFolderError
+
+    try:
+        check()
+    except OutputFolderError as exc:
+        fail(command, str(exc))
+
+
+def _claim_rig_outputs(calib: list[Path], out: Path, show: Optional[Path]) -> None:
+    """Before any work: ``--out`` is not one of the calibration files and is new or a silpose rig file;
+    ``--show`` is a new PNG or one silpose drew."""
+    from silpose.shared.output_dir import claim_files, claim_picture
+
+    inputs = {p.resolve() for p in calib if p.exists()}
+    for given, flag in ((out, "--out"), (show, "--show")):
+        if given is not None and given.resolve() in inputs:
+            fail("rig import", f"{given}: {flag} names one of the calibration files being imported; choose another name")
+    _claim("rig import", lambda: claim_files([out], "rig import", recognise=is_rig_file))
+    if show is not None:
+        _claim("rig import", lambda: claim_picture(show, "rig import"))
