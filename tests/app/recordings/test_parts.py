@@ -10,7 +10,8 @@ from silpose.app.recordings.floor import FloorGrid
 from silpose.app.recordings.placement import body_point, place_contours, place_roots, root_height
 from silpose.app.recordings.silhouettes import binarise
 from silpose.app.recordings.tracking import Tracker
-from silpose.app.recordings.views import VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK, assign_views
+from silpose.app.recordings.views import (VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK,
+                                          VIEW_PARTIAL, assign_views)
 from silpose.app.recordings.writers import PersonRows, RecordingWriter
 from silpose.datagen.lab import lossy
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE
@@ -96,6 +97,32 @@ def test_views_ok_merged_border_not_seen(rig, tools):
     m3 = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8)
     assert assign_views(cam, find_blobs(np.zeros_like(m), 50), c[None])[1] == [VIEW_EMPTY]
     assert assign_views(cam, find_blobs(m3, 50), np.array([[-1.2, 1.2]]))[1] == [VIEW_NOT_SEEN]
+
+
+def test_a_piece_of_a_person_is_partial_not_their_silhouette(rig, tools):
+    """Background subtraction splits a person where their clothes match the background, and furniture hides
+    their legs: the torso piece (the blob the torso column falls on) or an upper body alone is not the
+    person's silhouette. The cut rows come from the camera's own projection of heights on the person."""
+    cam, c = rig[1], np.array([1.3, 0.0])
+    whole = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8)
+    assert assign_views(cam, find_blobs(whole, 50), c[None])[1] == [VIEW_OK]
+
+    def row(height):  # image row of the person's axis at this height (m)
+        return int(round(cam.project(np.r_[c, height])[1]))
+
+    split = whole.copy()
+    split[row(0.75) : row(0.6)] = 0  # a 15 cm gap at the belt: torso blob + legs blob
+    labels, status = assign_views(cam, find_blobs(split, 50), c[None])
+    assert status == [VIEW_PARTIAL] and find_blobs(split, 50).n_usable == 2
+    hidden = whole.copy()
+    hidden[row(0.7):] = 0  # legs behind a table
+    assert assign_views(cam, find_blobs(hidden, 50), c[None])[1] == [VIEW_PARTIAL]
+    short = (tools.cylinder_masks(rig, [c], height=1.0)[1] > 0).view(np.uint8)  # a child or someone sitting
+    assert assign_views(cam, find_blobs(short, 50), c[None])[1] == [VIEW_PARTIAL]
+    holed = whole.copy()
+    x = int(round(cam.project(np.r_[c, 1.0])[0]))
+    holed[row(1.1) : row(1.0), x - 2 : x + 3] = 0  # a hole inside the torso: still one blob spanning the person
+    assert assign_views(cam, find_blobs(holed, 50), c[None])[1] == [VIEW_OK]
 
 
 def test_border_blob_is_not_used(rig):

@@ -9,7 +9,12 @@ the person's silhouette only when (status :data:`VIEW_OK`):
 - it does not touch the image border (:data:`VIEW_BORDER`: cut outline);
 - it fits in the image box of a cylinder of radius :data:`BODY_RADIUS_M` and height
   :data:`BODY_HEIGHT_M` standing at the person's position (else :data:`VIEW_MERGED` too: the blob
-  also holds something the floor grid did not find, e.g. a person outside the workspace).
+  also holds something the floor grid did not find, e.g. a person outside the workspace);
+- it spans the person from the feet to above the torso: its box reaches the image of the floor point
+  (within :data:`FOOT_TOLERANCE_M`) and of the point :data:`MIN_TOP_M` above it (within
+  :data:`TOP_TOLERANCE_M`) -- else :data:`VIEW_PARTIAL`. Real background subtraction breaks a person
+  into pieces where their clothes match the background (a torso blob and a legs blob), and furniture
+  or a nearer person hides part of them; such a piece is not the person's silhouette.
 
 Otherwise the view is missing for that person (the model marginalises it).
 
@@ -35,13 +40,14 @@ from .floor import COLUMN_HEIGHTS
 VIEW_OK = "ok"
 VIEW_MERGED = "merged"
 VIEW_BORDER = "border"
+VIEW_PARTIAL = "partial"
 VIEW_NOT_SEEN = "not seen"
 VIEW_EMPTY = "empty mask"
 VIEW_NO_VIDEO = "no video"
 VIEW_ENDED = "video ended"
 VIEW_NOT_MODELLED = "not modelled"
 #: every per-view status, in report order
-VIEW_STATUSES = (VIEW_OK, VIEW_MERGED, VIEW_BORDER, VIEW_NOT_SEEN, VIEW_EMPTY, VIEW_NO_VIDEO, VIEW_ENDED,
+VIEW_STATUSES = (VIEW_OK, VIEW_MERGED, VIEW_BORDER, VIEW_PARTIAL, VIEW_NOT_SEEN, VIEW_EMPTY, VIEW_NO_VIDEO, VIEW_ENDED,
                  VIEW_NOT_MODELLED)
 #: metres: radius of the cylinder a person's blob must fit in (arms and stride included)
 BODY_RADIUS_M = 0.6
@@ -51,6 +57,11 @@ BODY_HEIGHT_M = 2.2
 BOX_SLACK_PX = 4.0
 #: metres: a blob ends at a person's feet within this distance of their floor point (:func:`grounded`)
 FOOT_TOLERANCE_M = 0.2
+#: metres: a person's blob reaches at least this far above the floor (the top of the torso columns; a
+#: person shorter than about 1.45 m, or sitting, is not the walking adult the model knows)
+MIN_TOP_M = 1.3
+#: metres: slack of the top test
+TOP_TOLERANCE_M = 0.1
 #: metres: half-width of the image band below the torso searched for the feet
 FOOT_BAND_M = 0.15
 
@@ -141,5 +152,27 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
             x, y, w, h = blobs.bbox[b]
             x0, y0, x1, y1 = boxes[p]
             fits = x >= x0 and y >= y0 and x + w - 1 <= x1 and y + h - 1 <= y1
-            status.append(VIEW_OK if fits else VIEW_MERGED)
+            if not fits:
+                status.append(VIEW_MERGED)
+            else:
+                status.append(VIEW_OK if spans_person(cam, blobs.bbox[b], xy[p]) else VIEW_PARTIAL)
     return mine, status
+
+
+def spans_person(cam, bbox: np.ndarray, xy: np.ndarray) -> bool:
+    """True if a blob's box ``bbox`` (x, y, width, height px) reaches the images of the floor point ``xy``
+    (2,) and of the point :data:`MIN_TOP_M` above it, each within its tolerance (module docstring).
+
+    Tolerances are metres at the person's distance (``f / depth`` px per metre); the boxes are compared in
+    image coordinates, so a rolled camera is handled like an upright one."""
+    x, y, w, h = (float(v) for v in bbox)
+    pts = np.array([[xy[0], xy[1], 0.0], [xy[0], xy[1], MIN_TOP_M]])
+    depth = cam.to_camera(pts)[:, 2]
+    if np.any(depth <= 0):
+        return False
+    px = cam.project(pts)
+    per_m = cam.K[0, 0] / depth
+    for (u, v), tol in zip(px, (FOOT_TOLERANCE_M * per_m[0], TOP_TOLERANCE_M * per_m[1])):
+        if not (x - tol <= u <= x + w - 1 + tol and y - tol <= v <= y + h - 1 + tol):
+            return False
+    return True
