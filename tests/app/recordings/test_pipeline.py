@@ -97,6 +97,23 @@ def test_nobody_anywhere_writes_no_rows(rig, tiny_model, tools, tmp_path):
     assert any("nobody" in w for w in s.warnings)
 
 
+def test_masks_stored_as_0_1_or_inverted_are_diagnosed(rig, tiny_model, tools, tmp_path):
+    """Two common mask-video mistakes end in "nobody was found"; the warnings say why, naming the video."""
+    track = tools.walk((-1.0, -0.5), (1.0, -0.5), 8)
+    frames = np.stack([tools.cylinder_masks(rig, [p]) for p in track], 1)  # (K, 8, H, W) 0/255
+    videos = tmp_path / "v"
+    videos.mkdir()
+    for k, cam in enumerate(rig):
+        f = frames[k] // 255 if k == 0 else (255 - frames[k] if k == 1 else frames[k])  # cam0: 0/1, cam1: inverted
+        tools.write_video(videos / f"{cam.name}.mp4", f)
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    lines = {w.split(":")[0]: w for w in s.warnings}
+    assert "foreground is stored as 1 (not 255)" in lines["cam0.mp4"] and "no foreground in 8 of 8" in lines["cam0.mp4"]
+    assert "inverted" in lines["cam1.mp4"] and "8 of 8 frames" in lines["cam1.mp4"]
+    assert "cam2.mp4" not in lines and "cam3.mp4" not in lines
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"] == s.warnings
+
+
 def test_a_detection_that_never_becomes_a_person_leaves_no_rows(rig, tiny_model, tools, tmp_path):
     videos = tmp_path / "v"
     videos.mkdir()

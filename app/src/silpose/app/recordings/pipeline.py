@@ -26,6 +26,11 @@ Rows of a track are held back until the track is a person (``min_hits`` detectio
 becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
 (an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
+
+At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
+90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
+cause -- mask videos storing foreground as 1 instead of 255, inverted masks (people black on white), the wrong
+video or background clip, a lighting change -- since such a run otherwise ends with "nobody was found".
 """
 
 from __future__ import annotations
@@ -52,7 +57,7 @@ from .floor import FloorGrid
 from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
-from .silhouettes import MaskBinariser, background_from_clips, background_from_first_frames
+from .silhouettes import MASK_THRESHOLD, MaskBinariser, background_from_clips, background_from_first_frames
 from .sources import CameraReader, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
@@ -61,6 +66,9 @@ from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, ST
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
 DEFAULT_MIN_AREA_PX = 150
+#: a camera whose masks are empty, or mostly foreground, in at least this share of its frames gets a warning
+#: naming the likely cause (0/1 or inverted mask videos, a wrong background clip)
+MASK_DIAGNOSIS_SHARE = 0.9
 
 
 @dataclass
@@ -148,6 +156,8 @@ class _Camera:
     def __init__(self, reader: CameraReader, silhouettes, min_area: int, keep_frame: bool):
         self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
         self.ended = False
+        self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
+        self.brightest_empty = 0  # the highest grey level of a frame whose mask came out empty
 
     def step(self) -> _Seen:
         if self.ended:
@@ -158,7 +168,30 @@ class _Camera:
             return _Seen(None, None, VIEW_ENDED)
         mask = self.silhouettes(self.reader.source.camera, img)
         blobs = find_blobs(mask, self.min_area)
+        self.frames += 1
+        if blobs.empty:
+            self.empty += 1
+            self.brightest_empty = max(self.brightest_empty, int(img.max()))
+        elif 2 * int(blobs.area[1:].sum()) > mask.size:
+            self.crowded += 1
         return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask)
+
+    def diagnosis(self, masks: bool) -> str | None:
+        """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
+        name, n = self.reader.source.path.name, self.frames
+        if n == 0:
+            return None
+        if self.empty >= MASK_DIAGNOSIS_SHARE * n:
+            hint = ("its grey levels never exceeded "
+                    f"{self.brightest_empty}: if foreground is stored as 1 (not 255), rescale the video"
+                    if masks and 0 < self.brightest_empty <= MASK_THRESHOLD else
+                    "check that this is the right video" + (" and the background clip" if not masks else ""))
+            return f"{name}: no foreground in {self.empty} of {n} frames ({hint})"
+        if self.crowded >= MASK_DIAGNOSIS_SHARE * n:
+            what = ("are the masks inverted (people black on white)?" if masks else
+                    "did the lighting change, or the camera move, since the background was learnt?")
+            return f"{name}: foreground covers more than half of the image in {self.crowded} of {n} frames: {what}"
+        return None
 
 
 @dataclass
@@ -323,6 +356,12 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             pool.shutdown()
         for c in cams.values():
             c.reader.close()
+    for c in cams.values():
+        line = c.diagnosis(opt.masks)
+        if line:
+            warnings.append(line)
+            if warn:
+                warn(line)
     tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
     n_persons = len(tracks)
     if n_persons == 0:
