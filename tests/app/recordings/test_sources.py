@@ -78,7 +78,7 @@ def test_image_folders_are_cameras_too(rig, tmp_path):
     ("unknown", r"stranger.mp4: 'stranger' is not a rig camera"),
     ("garbage", r"cam0.mp4: OpenCV \(FFmpeg\) cannot open this video|cam0.mp4: the video has no decodable frame"),
     ("empty", r"cam0.mp4: OpenCV \(FFmpeg\) cannot open this video|cam0.mp4: the video has no decodable frame"),
-    ("size", r"cam0.mp4: frames are 320x240 \(WxH\), camera 'cam0' of the rig is 644x486"),
+    ("size", r"cam0.mp4: frames are 320x240 \(WxH\), camera 'cam0' of the rig is 644x486 \(another aspect ratio\)"),
     ("fps", r"frame rates differ \(cam0.mp4 25 fps, cam1.mp4 30 fps\)"),
     ("none", r"no video named as a rig camera"),
 ])
@@ -97,3 +97,22 @@ def test_bad_folders_are_one_line_errors(rig, tools, tmp_path, case, pattern):
     with pytest.raises(RecordingError, match=pattern) as err:
         open_recording(tmp_path, rig)
     assert "\n" not in str(err.value)
+
+
+def test_a_video_at_half_the_calibrations_size_is_scaled_up(rig, tools, tmp_path):
+    """Labs calibrate at full resolution and keep smaller videos: 322x242 is the 644x486 picture at half size
+    (video codecs need even sides: 243 rounds to 242). Frames come out at the rig's size, the mask where it
+    was; a warning says so. 320x240 (another aspect ratio) stays an error (test_bad_folders_...)."""
+    import cv2
+
+    full = np.zeros((3, 486, 644), np.uint8)
+    full[:, 100:300, 200:260] = 255
+    half = np.stack([cv2.resize(f, (322, 242), interpolation=cv2.INTER_AREA) for f in full])
+    tools.write_video(tmp_path / "cam2.mp4", half)
+    rec = open_recording(tmp_path, rig)
+    assert rec.sources["cam2"].resize_to == (644, 486)
+    assert any("cam2.mp4: frames are 322x242" in w and "scaled by 2" in w for w in rec.warnings)
+    frame = CameraReader(rec.sources["cam2"], grey=True).read()
+    assert frame.shape == (486, 644)
+    iou = ((frame > 127) & (full[0] > 0)).sum() / ((frame > 127) | (full[0] > 0)).sum()
+    assert iou > 0.97

@@ -11,7 +11,11 @@ file stem must be a rig camera name (sub-folders not named after a camera are ig
 no video is a missing view in every frame (a warning); no video at all is an error.
 
 Checks before any frame is processed, each a one-line :class:`~silpose.app.errors.RecordingError` naming
-the file: the video opens and decodes a first frame; its frame size is the rig camera's; all videos have
+the file: the video opens and decodes a first frame; its frame size is the rig camera's -- or the same
+picture at another scale (a lab calibrates at full resolution and records or stores smaller videos: both
+sides scaled by one factor, to the pixel: the rig's aspect ratio gives the video's height from its width within
+one pixel), then every frame is resized to the camera's size
+(bilinear; a mask is thresholded after) with a warning; all videos have
 one frame rate (1 % tolerance; frames are synchronised by index, so different rates would pair frames
 shot at different times). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
 the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
@@ -27,6 +31,7 @@ one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchm
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,7 +56,8 @@ class CameraSource:
 
     camera: rig camera name; path: the file or folder; fps: frames per second (0 when unknown: image
     folders, or a header without it); n_frames: frames the header (or folder) reports, -1 when unknown;
-    width, height: frame size, px; skip: frames skipped at the start (offsets).
+    width, height: frame size, px; skip: frames skipped at the start (offsets); resize_to: (width, height) of
+    the rig camera when the frames are its picture at another scale (each frame is resized), else None.
     """
 
     camera: str
@@ -62,6 +68,7 @@ class CameraSource:
     height: int
     skip: int = 0
     images: tuple[Path, ...] | None = None
+    resize_to: tuple[int, int] | None = None
 
     @property
     def is_video(self) -> bool:
@@ -190,9 +197,15 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None) -> Record
         src = _probe(cam, entries[cam])
         want = rig[cameras.index(cam)]
         if (src.width, src.height) != (want.width, want.height):
-            raise RecordingError(
-                f"{src.path}: frames are {src.width}x{src.height} (WxH), camera {cam!r} of the rig is "
-                f"{want.width}x{want.height}: resize the video or use the calibration of this resolution")
+            sx = want.width / src.width
+            if abs(want.height / sx - src.height) > 1.0:  # not the same picture up to rounding
+                raise RecordingError(
+                    f"{src.path}: frames are {src.width}x{src.height} (WxH), camera {cam!r} of the rig is "
+                    f"{want.width}x{want.height} (another aspect ratio): crop or resize the video to the "
+                    f"calibration's picture, or calibrate at this resolution")
+            src = dataclasses.replace(src, resize_to=(want.width, want.height))
+            warnings.append(f"{src.path.name}: frames are {src.width}x{src.height}, camera {cam!r} of the rig is "
+                            f"{want.width}x{want.height}: every frame is scaled by {sx:.3g}")
         sources[cam] = src
     missing = tuple(c for c in cameras if c not in sources)
     if missing:
@@ -213,7 +226,7 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None) -> Record
     offsets = dict(offsets or {})
     base = min([0] + [offsets.get(c, 0) for c in sources])
     for c, s in sources.items():
-        sources[c] = CameraSource(s.camera, s.path, s.fps, s.n_frames, s.width, s.height, offsets.get(c, 0) - base, s.images)
+        sources[c] = dataclasses.replace(s, skip=offsets.get(c, 0) - base)
     lengths = {c: s.n_frames - s.skip for c, s in sources.items() if s.n_frames >= 0}
     for c, n in lengths.items():
         if n <= 0:
@@ -263,6 +276,8 @@ class CameraReader:
         self.index += 1
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        if self.source.resize_to is not None:
+            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_LINEAR)
         return img
 
     def close(self) -> None:
