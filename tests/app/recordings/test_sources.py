@@ -116,3 +116,23 @@ def test_a_video_at_half_the_calibrations_size_is_scaled_up(rig, tools, tmp_path
     assert frame.shape == (486, 644)
     iou = ((frame > 127) & (full[0] > 0)).sum() / ((frame > 127) | (full[0] > 0)).sum()
     assert iou > 0.97
+
+
+def test_camera_folders_holding_videos(rig, tools, tmp_path):
+    """The course/lab layout cam1/{background,video,checkerboard}.avi: --videos reads each camera's video,
+    --background its background clip; an ambiguous folder is a one-line error naming its videos."""
+    for cam in rig.names:
+        (tmp_path / cam).mkdir()
+        tools.write_video(tmp_path / cam / "video.avi", _numbered(5))
+        tools.write_video(tmp_path / cam / "background.avi", _numbered(3))
+        tools.write_video(tmp_path / cam / "checkerboard.avi", _numbered(2))
+        (tmp_path / cam / "config.xml").write_text("<opencv_storage/>")
+    rec = open_recording(tmp_path, rig)
+    assert {c: s.path.name for c, s in rec.sources.items()} == dict.fromkeys(rig.names, "video.avi")
+    assert rec.n_steps == 5
+    bg = open_recording(tmp_path, rig, role="background")
+    assert {s.path.name for s in bg.sources.values()} == {"background.avi"} and bg.n_steps == 3
+    (tmp_path / "cam0" / "video.avi").rename(tmp_path / "cam0" / "take2.avi")
+    with pytest.raises(RecordingError, match=r"cam0: holds 3 videos \(background.avi, checkerboard.avi, take2.avi\) "
+                                             r"and none is named 'video'"):
+        open_recording(tmp_path, rig)

@@ -24,6 +24,11 @@ SPELLINGS = {
                     "t": "TVector", "width": "Image_Width", "height": "Image_Height"},
     "short": {"K": "K", "dist": "D", "R": "R", "t": "T", "size": "image_size"},
     "intrinsics": {"K": "Intrinsics", "dist": "dist", "R": "rotation_matrix", "t": "Translation", "size": "Size"},
+    # course scripts (per-camera config.xml): a "Camera" prefix and "Vecs" / "Values" endings
+    "course_vecs": {"K": "CameraIntrinsicMatrix", "dist": "DistortionCoeffs", "rvec": "CameraRotationVecs",
+                    "t": "CameraTranslationVecs", "size": "ImageSize"},
+    "course_values": {"K": "CameraMatrix", "dist": "DistortionCoeffs", "rvec": "RotationValues",
+                      "t": "TranslationValues", "width": "Width", "height": "Height"},
 }
 
 

@@ -12,9 +12,10 @@ from silpose.app.rig.formats import detect_format
 from silpose.app.rig.importer import ImportOptions, import_rig, write_rig
 from silpose.app.rig.opencv import read_opencv, write_opencv_camera
 from silpose.app.rig.pose2sim import write_pose2sim
-from silpose.shared.camera import load_rig
+from silpose.shared.camera import RigError, load_rig
 
-SPELLING_NAMES = ["opencv_sample", "calibrate_camera", "capitalised", "short", "intrinsics"]
+SPELLING_NAMES = ["opencv_sample", "calibrate_camera", "capitalised", "short", "intrinsics", "course_vecs",
+                  "course_values"]
 
 
 def options(**kw):
@@ -123,3 +124,26 @@ def test_easymocap_cameras_without_extrinsics_are_left_out_and_said(tmp_path, kn
     result = import_rig([intri], options())
     assert result.rig.names == ("1", "2", "3")
     assert any("camera(s) 4 have intrinsics but no extrinsics" in n for n in result.notes)
+
+
+def test_per_camera_folders_of_same_named_files_are_named_by_their_folders(tmp_path, known_calibration,
+                                                                           spelled_writer, check_same_projections):
+    """cam1/config.xml ... cam4/config.xml (no name field): the cameras are cam1 ... cam4, said in a note; with a
+    name field the file's name wins; one folder name used twice is still a clash (one line)."""
+    paths = []
+    for c in known_calibration:
+        (tmp_path / c.name).mkdir()
+        paths.append(tmp_path / c.name / "config.xml")
+        spelled_writer(paths[-1], c, "course_vecs", size=True)
+    result = import_rig(paths, options())
+    check_same_projections(result.rig, known_calibration)
+    assert sum("after its folder" in n for n in result.notes) == len(paths)
+    twin = tmp_path / "config.xml"  # one more config.xml, in the folder above: two cameras would be 'tmp...'
+    twin.write_bytes(paths[0].read_bytes())
+    named = import_rig([paths[0], twin], options())  # different folders: cam names from the folders
+    assert named.rig.names == (paths[0].parent.name, tmp_path.name)
+    dup = tmp_path / "other" / known_calibration[0].name
+    dup.mkdir(parents=True)
+    (dup / "config.xml").write_bytes(paths[0].read_bytes())
+    with pytest.raises(RigError, match=r"camera name '[^']+' is also a camera of"):
+        import_rig([paths[0], dup / "config.xml"], options())  # two folders of one name: a clash, one line

@@ -100,8 +100,9 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> 
 
 def background_from_clips(folder: Path, rig, cameras, params: dict | None = None) -> ColourSegmenter:
     """Background models of ``cameras`` learnt from the empty-room clips in ``folder`` (same layout and
-    names as the videos folder: ``<camera>.mp4`` or ``<camera>/`` frames)."""
-    clips = open_recording(folder, rig)
+    names as the videos folder: ``<camera>.mp4``, ``<camera>/`` frames, or ``<camera>/background.avi`` in a
+    camera folder holding several videos)."""
+    clips = open_recording(folder, rig, role="background")
     absent = [c for c in cameras if c not in clips.sources]
     if absent:
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "

@@ -3,8 +3,14 @@
 Layout of ``silpose infer MODEL --videos DIR``::
 
     DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig, or
-    DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order)
+    DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order), or
+    DIR/<camera>/video.avi                         a camera folder holding videos: its only video, or the one
+                                                   named ``video`` (``background`` for ``--background DIR``)
     DIR/cameras.toml                               optional: [cameras] <camera> = "<file or folder>"
+
+The camera-folder layout is what many labs and courses keep (``cam1/background.avi``, ``cam1/video.avi``,
+``cam1/checkerboard.avi``, ``cam1/config.xml``): ``--videos data --background data`` then reads each camera's
+``video`` and ``background`` clip.
 
 With ``cameras.toml`` only the mapped entries are read (paths relative to DIR); without it every video's
 file stem must be a rig camera name (sub-folders not named after a camera are ignored). A rig camera with
@@ -115,7 +121,26 @@ def parse_offsets(text: str | None, cameras) -> dict[str, int]:
     return out
 
 
-def _entries(folder: Path, cameras: tuple[str, ...]) -> dict[str, Path]:
+def _camera_folder_video(folder: Path, role: str) -> Path | None:
+    """The video a camera folder holds for ``role`` (``"video"`` or ``"background"``): None when the folder
+    holds frames (or nothing); its only video, or the one whose stem is ``role``; else a one-line error."""
+    files = [q for q in sorted(folder.iterdir()) if q.is_file() and not q.name.startswith(".")]
+    if any(q.suffix.lower() in IMAGE_SUFFIXES for q in files):
+        return None
+    videos = [q for q in files if q.suffix.lower() in VIDEO_SUFFIXES]
+    if not videos:
+        return None
+    named = [q for q in videos if q.stem.lower() == role]
+    if len(named) == 1:
+        return named[0]
+    if len(videos) == 1:
+        return videos[0]
+    raise RecordingError(
+        f"{folder}: holds {len(videos)} videos ({', '.join(q.name for q in videos)}) and none is named '{role}'; "
+        f"name the one to use {role}{videos[0].suffix} or map it in {folder.parent / MAPPING_FILE}")
+
+
+def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video") -> dict[str, Path]:
     mapping = folder / MAPPING_FILE
     if mapping.is_file():
         try:
@@ -147,6 +172,11 @@ def _entries(folder: Path, cameras: tuple[str, ...]) -> dict[str, Path]:
                     f"{folder / MAPPING_FILE}")
         elif not (p.is_dir() and p.name in cameras):
             continue
+        else:
+            p = _camera_folder_video(p, role) or p
+            if p.is_file():
+                out[p.parent.name] = p
+                continue
         if p.stem in out:
             raise RecordingError(f"{p}: camera {p.stem!r} has both {out[p.stem].name} and {p.name}")
         out[p.stem] = p
@@ -178,13 +208,14 @@ def _probe(camera: str, path: Path) -> CameraSource:
                         img.shape[1], img.shape[0])
 
 
-def open_recording(folder, rig, offsets: dict[str, int] | None = None) -> Recording:
-    """Match, probe and synchronise the videos of ``folder`` for ``rig`` (module docstring)."""
+def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str = "video") -> Recording:
+    """Match, probe and synchronise the videos of ``folder`` for ``rig`` (module docstring); ``role`` picks the
+    video of camera folders that hold several (``"video"``, or ``"background"`` for empty-room clips)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise RecordingError(f"{folder}: videos folder not found")
     cameras = tuple(rig.names)
-    entries = _entries(folder, cameras)
+    entries = _entries(folder, cameras, role)
     if not entries:
         raise RecordingError(
             f"{folder}: no video named as a rig camera ({', '.join(c + '.mp4' for c in cameras)}, or a "

@@ -7,7 +7,9 @@ calibration's own world frame and length unit. :mod:`.importer` turns them into 
 
 Fields are looked up by *spelling-insensitive* names (:data:`FIELD_ALIASES`): a key matches when it
 equals an alias after lower-casing and dropping everything but letters and digits, so
-``camera_matrix``, ``cameraMatrix`` and ``CameraMatrix`` are one name. A rotation is a Rodrigues
+``camera_matrix``, ``cameraMatrix`` and ``CameraMatrix`` are one name; a leading ``camera`` and endings such as
+``Vecs`` or ``Values`` are read through too (:func:`key_forms`: ``CameraRotationVecs``, ``TranslationValues``,
+``CameraIntrinsicMatrix`` -- spellings of course and lab calibration scripts). A rotation is a Rodrigues
 vector (3 values) or a 3x3 matrix, told apart by its size; several keys naming the same field must
 agree. Every problem is a :class:`~silpose.shared.camera.RigError` whose one-line message names the
 file and the field.
@@ -29,6 +31,7 @@ __all__ = [
     "FIELD_ALIASES",
     "FieldReader",
     "normalise_key",
+    "key_forms",
     "rotation_from_values",
     "rotation_to_rvec",
     "as_pixels",
@@ -43,7 +46,7 @@ FIELD_ALIASES: dict[str, tuple[str, ...]] = {
     "distortion": ("distortioncoefficients", "distortioncoeffs", "distcoeffs", "distcoeff", "distcoefs", "dist",
                    "d", "distortion", "distortions"),
     "rotation": ("rotationvector", "rotationvectors", "rvec", "rvecs", "rvector", "rotation", "r", "rot",
-                 "rotationmatrix", "rmat"),
+                 "rotationmatrix", "rmat", "rotmatrix", "rotmat"),
     "translation": ("translationvector", "translationvectors", "tvec", "tvecs", "tvector", "translation", "t"),
     "image size": ("imagesize", "size", "resolution"),
     "image width": ("imagewidth", "width", "w"),
@@ -56,6 +59,23 @@ _DIST_SIZES = (4, 5, 8, 12, 14)
 def normalise_key(key: str) -> str:
     """``"Camera_Matrix"`` -> ``"cameramatrix"``: lower case, letters and digits only."""
     return re.sub(r"[^a-z0-9]", "", str(key).lower())
+
+
+#: word endings people use for the same thing, read as the alias spelling (``RotationVecs``, ``TranslationValues``)
+_ENDINGS = (("vecs", "vector"), ("vec", "vector"), ("values", "vector"), ("vals", "vector"), ("mat", "matrix"))
+
+
+def key_forms(base: str) -> set[str]:
+    """The spellings a normalised key is read as: itself, without a leading ``camera`` (``CameraRotationVecs``,
+    ``CameraIntrinsicMatrix``), and each of those with a common ending replaced (:data:`_ENDINGS`)."""
+    forms = {base}
+    if base.startswith("camera") and len(base) > len("camera"):
+        forms.add(base[len("camera"):])
+    for f in list(forms):
+        for end, canonical in _ENDINGS:
+            if f.endswith(end) and len(f) > len(end):
+                forms.add(f[: -len(end)] + canonical)
+    return forms
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,14 +189,17 @@ class FieldReader:
             return normalise_key(key[: -len(self.suffix)]) if key.endswith(self.suffix) else None
         return normalise_key(key)
 
+    def _spells(self, key: str, name: str) -> bool:
+        base = self._base(key)
+        return base is not None and any(form in FIELD_ALIASES[name] for form in key_forms(base))
+
     def matches(self, name: str) -> list[str]:
         """The record's keys spelling field ``name`` (in file order)."""
-        return [k for k in self.keys if self._base(k) in FIELD_ALIASES[name]]
+        return [k for k in self.keys if self._spells(k, name)]
 
     def unused_keys(self) -> list[str]:
         """Keys that spell no field silpose reads (listed when a required field is missing)."""
-        known = {a for aliases in FIELD_ALIASES.values() for a in aliases}
-        return [k for k in self.keys if self._base(k) is not None and self._base(k) not in known]
+        return [k for k in self.keys if self._base(k) is not None and not any(self._spells(k, n) for n in FIELD_ALIASES)]
 
     def missing(self, name: str) -> RigError:
         """The error for a missing required field: what we looked for and what the record has."""

@@ -15,6 +15,7 @@ pose2sim, ``.json`` -> silpose, other FileStorage suffixes -> opencv.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from silpose.shared.camera import Rig, RigError, load_rig
@@ -61,7 +62,9 @@ class Calibrations:
 def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
     """Every camera of ``paths`` (one or more files), in file order then camera order.
 
-    Camera names come from the files (never renumbered) and must be unique across them.
+    Camera names come from the files (never renumbered) and must be unique across them. Per-camera files that
+share one name in different folders (``cam1/config.xml``, ``cam2/config.xml``: a common course and lab
+layout) and have no name field are named by their folders.
     """
     paths = [Path(p) for p in paths]
     if not paths:
@@ -77,6 +80,10 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
     rig = None
     notes: list[str] = []
     seen_pairs: set[tuple[str, str]] = set()
+    stems = [q.stem for q in paths]
+    parents = [q.resolve().parent.name for q in paths]
+    stems_of_several = {st for st in stems if stems.count(st) > 1
+                        and len({pa for q_st, pa in zip(stems, parents) if q_st == st}) == stems.count(st)}
     for p in paths:
         kind = detect_format(p) if fmt == "auto" else fmt
         formats.append(kind)
@@ -105,6 +112,10 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
         else:
             got = read_opencv(p)
             sources.append(str(p))
+            if len(got) == 1 and got[0].name == p.stem and p.stem in stems_of_several:
+                # cam1/config.xml, cam2/config.xml ...: one file name in per-camera folders names by the folder
+                got = [dataclasses.replace(got[0], name=p.parent.name)]
+                notes.append(f"{p}: camera named {p.parent.name!r} after its folder (every file is {p.name})")
         for c in got:
             twin = next((o for o in cams if o.name == c.name), None)
             if twin is not None:

@@ -219,7 +219,11 @@ def draw_rig(rig: Rig, out: str | Path, title: str | None = None, height: float 
         ax.set_yticks([0, cam.height // 2, cam.height - 1])
         ax.tick_params(labelsize=7)
         ax.set_title(f"{cam.name} ({cam.width}x{cam.height}): workspace box to {height:g} m", fontsize=8, color=col)
-    files = ", ".join(Path(part).name for part in rig.where.split(", "))
+    parts = [Path(part) for part in rig.where.split(", ")]
+    names = [q.name for q in parts]
+    if len(set(names)) < len(names):  # cam1/config.xml, cam2/config.xml ...: keep the folders
+        names = [f"{q.parent.name}/{q.name}" for q in parts]
+    files = ", ".join(names)
     fig.suptitle(title or f"{files}: {k} camera(s), workspace {ws.describe()}", fontsize=10)
     fig.tight_layout()
     return write_figure_atomic(fig, out, dpi=110)
