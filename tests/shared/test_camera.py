@@ -235,3 +235,26 @@ def test_rig_errors():
         Rig.from_dict({"cameras": [{"name": "a"}]})
     with pytest.raises(RigError, match="not found"):
         load_rig("/nonexistent/rig.json")
+
+
+def test_points_beyond_the_lens_models_fold_are_not_seen():
+    """A real calibration's k2 = -1.61 folds OpenCV's radial model back at r = 0.59: cv2.projectPoints puts a point
+    43 deg off-axis (image right edge 31 deg) inside the image; Camera.project calls it not seen (NaN). The fold radius is the
+    first root of d/dr [r (1 + k1 r^2 + k2 r^4)] = 1 + 3 k1 r^2 + 5 k2 r^4 (numpy.roots)."""
+    import cv2
+
+    from silpose.shared.pinhole import Camera as PinholeCamera
+
+    K = np.array([[1583.0, 0, 970.4], [0, 1589.7, 523.9], [0, 0, 1]])
+    dist = np.array([0.005225, -1.613793, -0.005377, -0.000435, 0.0])
+    cam = PinholeCamera("c", K, np.eye(3), np.zeros(3), 1920, 1080, dist)
+    roots = np.roots([5 * dist[1], 0, 3 * dist[0], 0, 1])
+    fold = min(r.real for r in roots if abs(r.imag) < 1e-12 and r.real > 0)
+    assert cam.max_radius == pytest.approx(fold, abs=2e-3)
+    far = np.array([[0.9, 0.2, 1.0], [0.2, 0.1, 1.0]])  # r = 0.92 (beyond the fold; 43 deg off-axis) and r = 0.22
+    folded, _ = cv2.projectPoints(far, np.zeros(3), np.zeros(3), K, dist)
+    assert cam.in_image(folded.reshape(-1, 2))[0]  # OpenCV alone: "in the image"
+    px = cam.project(far)
+    assert np.isnan(px[0]).all() and not cam.in_image(px)[0]
+    np.testing.assert_allclose(px[1], folded.reshape(-1, 2)[1], atol=1e-9)  # inside the domain: unchanged
+    assert PinholeCamera("d", K, np.eye(3), np.zeros(3), 1920, 1080).max_radius == np.inf

@@ -169,3 +169,25 @@ def test_easymocap_and_pose2sim_problems(tmp_path, known_calibration):
                     "distortions = [0, 0, 0, 0]\nrotation = [1, 2]\ntranslation = [0, 0, 5]\n")
     msg = error_of([toml])
     assert msg.startswith(f"{toml}: field cam_1.rotation: expected 3 values")
+
+
+def test_a_workspace_only_a_folding_lens_model_would_see_is_refused(tmp_path):
+    """A real EasyMocap camera (k2 = -1.61): the workspace lies 35-43 deg off its axis, where OpenCV's radial
+    model has folded back and projects into the image. The import refuses it, saying why, instead of a rig
+    whose camera 'sees' the workspace; without distortion the same pose is refused as outside the image."""
+    def write(dist):
+        (tmp_path / "intri.yml").write_text(
+            '%YAML:1.0\n---\nnames:\n  - "9"\nK_9: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n'
+            "  data: [1583.013492, 0.0, 970.378172, 0.0, 1589.725234, 523.944567, 0.0, 0.0, 1.0]\n"
+            f"dist_9: !!opencv-matrix\n  rows: 1\n  cols: 5\n  dt: d\n  data: {dist}\n")
+        (tmp_path / "extri.yml").write_text(
+            '%YAML:1.0\n---\nnames:\n  - "9"\nRot_9: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n'
+            "  data: [0.536141, -0.84405, -0.01153, -0.287043, -0.16945, -0.942811, 0.793826, 0.50879, -0.333128]\n"
+            "T_9: !!opencv-matrix\n  rows: 3\n  cols: 1\n  dt: d\n  data: [0.217978, 1.19732, 3.469565]\n")
+        return [tmp_path / "intri.yml", tmp_path / "extri.yml"]
+
+    opts = dict(unit="m", image_size="1920x1080", origin="-1.9,0.75,0", workspace="0.1x0.1", person_height=0.5)
+    msg = error_of(write("[0.005225, -1.613793, -0.005377, -0.000435, 0.0]"), **opts)
+    assert "camera '9' does not see the workspace corner" in msg and "beyond where its lens distortion model is valid" in msg
+    msg = error_of(write("[0.0, 0.0, 0.0, 0.0, 0.0]"), **opts)
+    assert "camera '9' does not see the workspace corner" in msg and "projects to" in msg

@@ -214,3 +214,27 @@ def test_write_rejects_bad_arguments(tmp_path):
         write_opencv_camera(tmp_path / "c.json", cam)
     with pytest.raises(ValueError, match="rotation"):
         write_opencv_camera(tmp_path / "c.yml", cam, rotation="quaternion")
+
+
+def test_plain_yaml_and_integers_in_double_matrices_are_read(tmp_path):
+    """Two quirks of real files: YAML without OpenCV's '%YAML:1.0' header (ROS camera_info style, hand-written),
+    and integers in a 'dt: d' matrix, which cv2.FileNode.mat() of OpenCV 4.11 misreads (4.29e9 for 0). Both are
+    read as the numbers written; the reference is the text itself."""
+    import cv2
+
+    body = ("camera_matrix:\n  rows: 3\n  cols: 3\n  data: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n"
+            "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0, 0, 0, 0, 0 ]\n"
+            "rvec: [0.1, 0.2, 0.3]\ntvec: [0, 0, 3]\nimage_width: 640\nimage_height: 480\n")
+    plain = tmp_path / "ros.yaml"
+    plain.write_text(body)
+    headed = tmp_path / "headed.yml"
+    headed.write_text("%YAML:1.0\n---\n" + body)
+    fs = cv2.FileStorage(str(headed), cv2.FILE_STORAGE_READ)
+    assert np.abs(fs.getNode("distortion_coefficients").mat()).max() > 1e6  # the OpenCV quirk this guards against
+    fs.release()
+    for p in (plain, headed):
+        (cam,) = read_opencv(p)
+        np.testing.assert_array_equal(cam.K, [[500, 0, 320], [0, 500, 240], [0, 0, 1]])
+        np.testing.assert_array_equal(cam.dist, np.zeros(5))
+        np.testing.assert_array_equal(cam.t, [0, 0, 3])
+        assert cam.size == (640, 480)

@@ -218,14 +218,18 @@ def project_vertices(vertices: np.ndarray, cameras, min_depth: float = 1e-6) -> 
         cameras: a Rig or a list of cameras.
         min_depth: vertices closer than this (metres, camera z) count as behind the camera.
     Returns:
-        (K, V, 2) float64 pixels, or None when some vertex is behind some camera.
+        (K, V, 2) float64 pixels, or None when some vertex is behind some camera or beyond its lens
+        model's domain (``Camera.max_radius``).
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     out = []
     for cam in cameras:
         if np.any(cam.to_camera(vertices)[:, 2] <= min_depth):
             return None
-        out.append(cam.project(vertices))
+        uv = cam.project(vertices)
+        if not np.all(np.isfinite(uv)):
+            return None
+        out.append(uv)
     return np.stack(out)
 
 

@@ -103,6 +103,8 @@ def joints_visible(scene: SampleScene, margin_px: float = BORDER_MARGIN_PX) -> b
         if np.any(z <= 0.1):
             return False
         px = cam.project(J)
+        if not np.all(np.isfinite(px)):  # beyond the lens model's domain: not seen
+            return False
         m = r * cam.K[0, 0] / z + margin_px
         x, y = px[:, 0], px[:, 1]
         if np.any(x < -0.5 + m) or np.any(x > cam.width - 0.5 - m) or np.any(y < -0.5 + m) or np.any(y > cam.height - 0.5 - m):

@@ -175,8 +175,13 @@ class Rig:
             if np.all(ok):
                 continue
             i = int(np.flatnonzero(~ok)[0])
-            where = ("is behind the camera" if depth[i] <= 0 else
-                     f"projects to {px[i].round(1).tolist()} in a {cam.width}x{cam.height} image")
+            if depth[i] <= 0:
+                where = "is behind the camera"
+            elif not np.all(np.isfinite(px[i])):
+                where = (f"lies {np.degrees(np.arctan(cam.max_radius)):.0f} deg or more off the camera's axis, beyond "
+                         "where its lens distortion model is valid")
+            else:
+                where = f"projects to {px[i].round(1).tolist()} in a {cam.width}x{cam.height} image"
             raise RigError(
                 f"{self.where}: camera {cam.name!r} does not see the workspace corner "
                 f"{corners[i].round(2).tolist()} m ({where}); {CONVENTION} ({ws.describe()}); "

@@ -45,13 +45,28 @@ def open_filestorage(path: str | Path) -> Iterator[cv2.FileNode]:
     source = str(path)
     if not Path(path).is_file():
         raise RigError(f"{source}: calibration file not found")
+    text = None
+    if Path(path).stat().st_size == 0:
+        raise RigError(f"{source}: not a readable OpenCV FileStorage file (the file is empty)")
+    if Path(path).suffix.lower() in (".yml", ".yaml"):
+        try:
+            raw = Path(path).read_text(encoding="utf-8-sig")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RigError(f"{source}: cannot read this file as text ({exc})") from None
+        if not raw.lstrip().startswith("%YAML"):  # plain YAML (ROS, hand-written): OpenCV wants its header
+            text = "%YAML:1.0\n---\n" + raw
     try:
-        fs = cv2.FileStorage(source, cv2.FILE_STORAGE_READ)
+        if text is None:
+            fs = cv2.FileStorage(source, cv2.FILE_STORAGE_READ)
+        else:
+            fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML)
         opened = fs.isOpened()
-    except (cv2.error, SystemError) as exc:
-        raise RigError(f"{source}: not a readable OpenCV FileStorage file ({type(exc).__name__})") from None
+    except (cv2.error, SystemError):
+        opened = False
     if not opened:
-        raise RigError(f"{source}: not a readable OpenCV FileStorage file")
+        kind = "YAML" if Path(path).suffix.lower() in (".yml", ".yaml") else "XML" if Path(path).suffix.lower() == ".xml" else "file"
+        raise RigError(f"{source}: not a readable OpenCV FileStorage file (OpenCV cannot parse this {kind}; expected "
+                       "XML, or YAML such as 'camera_matrix: !!opencv-matrix {rows: 3, cols: 3, dt: d, data: [...]}')")
     try:
         root = fs.root()
         if not root.isMap():
@@ -66,7 +81,7 @@ def node_value(node, where: str):
     try:
         if node.isMap():
             if {"rows", "cols", "data"} <= set(node.keys()):
-                return np.asarray(node.mat(), dtype=np.float64)
+                return _matrix(node, where)
             return None
         if node.isSeq():
             items = [node_value(node.at(i), where) for i in range(node.size())]
@@ -82,6 +97,29 @@ def node_value(node, where: str):
             raise
         raise RigError(f"{where}: malformed value ({str(exc).strip().splitlines()[-1]})") from None
     return None
+
+
+def _matrix(node, where: str) -> np.ndarray:
+    """An ``!!opencv-matrix`` / ``type_id="opencv-matrix"`` node as a (rows, cols) float array, read element by
+    element: ``FileNode.mat()`` of OpenCV 4.11 turns integers written in a ``dt: d`` matrix (``data: [0, 0, 1]``,
+    common in hand-written files) into garbage such as 4.29e9, while each element's ``real()`` is right."""
+    rows, cols, data = node.getNode("rows"), node.getNode("cols"), node.getNode("data")
+    if not (rows.isInt() or rows.isReal()) or not (cols.isInt() or cols.isReal()):
+        raise RigError(f"{where}: matrix rows and cols must be numbers")
+    r, c = int(rows.real()), int(cols.real())
+    if data.isSeq():
+        values = [data.at(i) for i in range(data.size())]
+    elif data.isInt() or data.isReal():
+        values = [data]
+    else:
+        raise RigError(f"{where}: matrix data must be a sequence of numbers")
+    if not all(v.isInt() or v.isReal() for v in values):
+        raise RigError(f"{where}: matrix data must be numbers")
+    channels = max(1, len(values) // max(1, r * c))
+    if r < 0 or c < 0 or len(values) != r * c * channels:
+        raise RigError(f"{where}: matrix of {r}x{c} has {len(values)} values")
+    arr = np.array([v.real() for v in values], dtype=np.float64)
+    return arr.reshape(r, c) if channels == 1 else arr.reshape(r, c, channels)
 
 
 def _reader(node, source: str, where: str = "") -> FieldReader:

@@ -104,6 +104,7 @@ def project_fast(cam: Camera, points: np.ndarray) -> np.ndarray:
     rational function, tangential p1 p2, thin prism s1..s4):
     ``x'' = x' (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6) + 2 p1 x'y' + p2 (r^2 + 2 x'^2)
     + s1 r^2 + s2 r^4`` and likewise for y''; 14 coefficients (tilted sensor) go through ``cam.project``.
+    Like ``cam.project``, NaN beyond the lens model's :attr:`~silpose.shared.pinhole.Camera.max_radius`.
     """
     d = np.zeros(12)
     if cam.dist.size > 12:
@@ -118,7 +119,9 @@ def project_fast(cam: Camera, points: np.ndarray) -> np.ndarray:
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
     K = cam.K
-    return np.stack([K[0, 0] * xd + K[0, 1] * yd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)
+    uv = np.stack([K[0, 0] * xd + K[0, 1] * yd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)
+    uv[~(np.sqrt(r2) < cam.max_radius)] = np.nan  # beyond the lens model's domain: not seen (Camera.max_radius)
+    return uv
 
 
 def _sees(cam: Camera, boxes: np.ndarray, feet_head: np.ndarray, min_px: float) -> np.ndarray:
