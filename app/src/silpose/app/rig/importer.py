@@ -27,6 +27,7 @@ from silpose.shared.atomic import write_text_atomic
 from silpose.shared.camera import Camera, Rig, RigError
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace, WorldTransform
 
+from .calibration import CalibratedCamera
 from .formats import read_calibrations
 from .frame import auto_up, axis_name, make_transform, parse_axis, parse_origin, parse_unit
 from .image_size import parse_image_size, resolve_image_size
@@ -149,6 +150,14 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     cams = _cameras(calib, sizes, transform)
     for c, cam in zip(calib, cams):
         z = float(cam.center[2])
+        if z < MIN_CAMERA_HEIGHT_M and o.floor_offset == 0.0 and _is_camera_frame(c):
+            raise RigError(
+                f"{c.source}: camera {c.name!r} has the calibration's own axes (no rotation): the world of this "
+                "file is that camera's frame (as anipose and Pose2Sim write without a floor reference), so it does "
+                "not say where the floor is; pass --floor-offset with the floor's coordinate along up, about minus "
+                f"that camera's height ({axis_name(up)} is up; in the file's units: --floor-offset -1500 for a camera "
+                "1.5 m up with --unit mm), and --unit if the distances are not in metres"
+            )
         if z < MIN_CAMERA_HEIGHT_M:
             raise RigError(
                 f"{c.source}: camera {c.name!r} is {abs(z):.2f} m {'below' if z < 0 else 'above'} the floor: silpose "
@@ -178,7 +187,8 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
             why = (f"camera(s) {', '.join(map(repr, blind))} see a {o.person_height:g} m person nowhere on the floor "
                    "the other cameras see (facing away, or the up axis / unit is wrong?)" if 0 < len(blind) < k else
                    f"no floor spot is seen by {min_views} cameras at once (try --min-views)")
-            raise RigError(f"{read.sources[0]}: no workspace: {why}; look at the rig with `silpose rig show`")
+            raise RigError(f"{read.sources[0]}: no workspace: {why}; set it with --origin X,Y,Z and --workspace WxH, "
+                           "or draw the cameras with --min-views 1 --show rig.png to see where they look")
         if origin is None:  # the origin moves to the centre of the region all cameras see
             shift = WorldTransform(offset=[-ws.center[0], -ws.center[1], 0.0])
             transform = transform.followed_by(shift)
@@ -221,3 +231,10 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
 def write_rig(rig: Rig, out: str | Path) -> Path:
     """Write ``rig`` as JSON (atomically)."""
     return write_text_atomic(Path(out), rig.to_json() + "\n")
+
+
+def _is_camera_frame(cam: CalibratedCamera) -> bool:
+    """True if ``cam``'s axes are the world's (within 2 deg): with a camera standing below the floor this means
+    the file's world is that camera's own frame (anipose, Pose2Sim), not a floor's."""
+    angle = np.degrees(np.arccos(np.clip((np.trace(np.asarray(cam.R)) - 1.0) / 2.0, -1.0, 1.0)))
+    return bool(angle < 2.0)
