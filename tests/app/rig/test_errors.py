@@ -116,7 +116,7 @@ def lab_files(tmp_path, turn=None):
 def test_cameras_facing_away_wrong_up_wrong_unit_and_options(tmp_path):
     paths = lab_files(tmp_path, turn=2)
     msg = error_of(paths, image_size="644x486")
-    assert msg.startswith(str(paths[0])) and "camera(s) 'cam3' see a 2 m person nowhere" in msg and "rig show" in msg
+    assert msg.startswith(str(paths[0])) and "camera(s) 'cam3' see a 2 m person nowhere" in msg and "--show rig.png" in msg
     (tmp_path / "good").mkdir()
     good = lab_files(tmp_path / "good")
     msg = error_of(good, image_size="644x486", up="+z")

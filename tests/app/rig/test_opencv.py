@@ -238,3 +238,34 @@ def test_plain_yaml_and_integers_in_double_matrices_are_read(tmp_path):
         np.testing.assert_array_equal(cam.dist, np.zeros(5))
         np.testing.assert_array_equal(cam.t, [0, 0, 3])
         assert cam.size == (640, 480)
+
+
+@pytest.mark.parametrize("spelling", [("K1", "D1", "K2", "D2"), ("cameraMatrix1", "distCoeffs1", "cameraMatrix2", "distCoeffs2")])
+def test_a_stereo_calibrate_file_is_two_cameras_in_the_first_ones_frame(tmp_path, spelling):
+    """cv2.stereoCalibrate's outputs (with stereoRectify's R1, P1 ... beside them, which are not poses): cam1 at
+    the identity, cam2 at [R | T]; the values are the ones written."""
+    import cv2
+
+    K1 = np.array([[484.3, 0, 241.9], [0, 486.2, 305.0], [0, 0, 1]])
+    K2 = np.array([[253.8, 0, 240.6], [0, 254.9, 316.2], [0, 0, 1]])
+    D1, D2 = np.array([[0.227, -1.189, -0.004, -0.0019, 1.793]]), np.array([[0.0287, -0.0536, -0.0009, -0.0011, 0.0182]])
+    R = cv2.Rodrigues(np.array([0.01, -0.2, 0.02]))[0]
+    T = np.array([[-0.12], [0.003], [0.01]])
+    path = tmp_path / "stereo.yml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    for key, value in zip(spelling, (K1, D1, K2, D2)):
+        fs.write(key, value)
+    for key, value in (("R", R), ("T", T), ("R1", np.eye(3)), ("P1", np.hstack([K1, np.zeros((3, 1))])),
+                       ("frame_width", 480), ("frame_height", 640)):
+        fs.write(key, value)
+    fs.release()
+    cam1, cam2 = read_opencv(path)
+    assert (cam1.name, cam2.name) == ("cam1", "cam2") and cam1.size == cam2.size == (480, 640)
+    np.testing.assert_array_equal(cam1.K, K1)
+    np.testing.assert_array_equal(cam2.K, K2)
+    np.testing.assert_array_equal(cam1.dist, D1.ravel())
+    np.testing.assert_array_equal(cam2.dist, D2.ravel())
+    np.testing.assert_array_equal(cam1.R, np.eye(3))
+    np.testing.assert_array_equal(cam1.t, np.zeros(3))
+    np.testing.assert_allclose(cam2.R, R, atol=1e-12)
+    np.testing.assert_array_equal(cam2.t, T.ravel())

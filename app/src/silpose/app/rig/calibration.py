@@ -35,6 +35,8 @@ __all__ = [
     "rotation_from_values",
     "rotation_to_rvec",
     "as_pixels",
+    "camera_matrix",
+    "distortion",
 ]
 
 #: field -> accepted key spellings, normalised (:func:`normalise_key`). The first group of the
@@ -49,8 +51,8 @@ FIELD_ALIASES: dict[str, tuple[str, ...]] = {
                  "rotationmatrix", "rmat", "rotmatrix", "rotmat"),
     "translation": ("translationvector", "translationvectors", "tvec", "tvecs", "tvector", "translation", "t"),
     "image size": ("imagesize", "size", "resolution"),
-    "image width": ("imagewidth", "width", "w"),
-    "image height": ("imageheight", "height", "h"),
+    "image width": ("imagewidth", "width", "w", "framewidth"),
+    "image height": ("imageheight", "height", "h", "frameheight"),
     "name": ("name", "cameraname"),
 }
 _DIST_SIZES = (4, 5, 8, 12, 14)
@@ -280,9 +282,9 @@ class FieldReader:
 
     def camera(self, default_name: str, require_pose: bool = True) -> CalibratedCamera:
         """The camera of this record (intrinsics, pose, size when present, name)."""
-        _, K = self.agreed("camera matrix", self.numbers("camera matrix"), _camera_matrix, 1e-9)
+        _, K = self.agreed("camera matrix", self.numbers("camera matrix"), camera_matrix, 1e-9)
         dists = self.numbers("distortion", required=False)
-        dist = self.agreed("distortion", dists, _distortion, 1e-12)[1] if dists else np.zeros(5)
+        dist = self.agreed("distortion", dists, distortion, 1e-12)[1] if dists else np.zeros(5)
         _, R = self.agreed("rotation", self.numbers("rotation"), rotation_from_values, 1e-6)
         _, t = self.agreed("translation", self.numbers("translation"), _translation, 1e-9)
         size = self.image_size()
@@ -290,7 +292,8 @@ class FieldReader:
         return CalibratedCamera(name=name, K=K, dist=dist, R=R, t=t, size=size, source=self.source, where=self.where)
 
 
-def _camera_matrix(value: np.ndarray, where: str) -> np.ndarray:
+def camera_matrix(value: np.ndarray, where: str) -> np.ndarray:
+    """A (3, 3) camera matrix from 9 values; RigError naming ``where`` otherwise."""
     if value.size != 9:
         raise RigError(f"{where}: expected a 3x3 camera matrix, got shape {value.shape}")
     K = value.reshape(3, 3)
@@ -299,7 +302,8 @@ def _camera_matrix(value: np.ndarray, where: str) -> np.ndarray:
     return K
 
 
-def _distortion(value: np.ndarray, where: str) -> np.ndarray:
+def distortion(value: np.ndarray, where: str) -> np.ndarray:
+    """OpenCV distortion coefficients (4, 5, 8, 12 or 14 values); RigError naming ``where`` otherwise."""
     d = value.ravel()
     if d.size not in _DIST_SIZES:
         raise RigError(f"{where}: expected 4, 5, 8, 12 or 14 distortion coefficients, got {d.size}")

@@ -5,7 +5,9 @@ Layouts:
 - one camera per file: the fields at the top level; the camera is named by a ``name`` field, else
   by the file's stem (``cam1.xml`` is ``cam1``);
 - several cameras per file: top-level maps (``cam0:``, ``cam1:`` ...) each holding the fields,
-  named by their ``name`` field or else their key, in file order.
+  named by their ``name`` field or else their key, in file order;
+- a ``cv2.stereoCalibrate`` pair: ``K1``, ``D1``, ``K2``, ``D2`` (or ``cameraMatrix1``, ``distCoeffs1`` ...), ``R``,
+  ``T``: cameras ``cam1`` (the world is its frame) and ``cam2``.
 
 Fields (spelling-insensitive, :data:`.calibration.FIELD_ALIASES`): camera matrix (``camera_matrix``,
 ``cameraMatrix``, ``CameraMatrix``, ``K``, ``M``, ``intrinsic(s)``), distortion
@@ -30,7 +32,7 @@ import numpy as np
 from silpose.shared.atomic import atomic_path
 from silpose.shared.camera import RigError
 
-from .calibration import CalibratedCamera, FieldReader, rotation_to_rvec
+from .calibration import CalibratedCamera, FieldReader, camera_matrix, distortion, rotation_from_values, rotation_to_rvec
 
 __all__ = ["read_opencv", "write_opencv_camera", "open_filestorage", "node_value", "DEFAULT_KEYS"]
 
@@ -134,6 +136,9 @@ def read_opencv(path: str | Path) -> list[CalibratedCamera]:
         top = _reader(root, source)
         if top.matches("camera matrix"):
             return [top.camera(Path(path).stem)]
+        stereo = _stereo_pair(root, source)
+        if stereo is not None:
+            return stereo
         cams = []
         for key in top.keys:
             node = root.getNode(key)
@@ -144,6 +149,35 @@ def read_opencv(path: str | Path) -> list[CalibratedCamera]:
         if not cams:
             raise top.missing("camera matrix")
         return cams
+
+
+def _stereo_pair(root, source: str) -> list[CalibratedCamera] | None:
+    """The two cameras of a ``cv2.stereoCalibrate`` file (``K1``/``cameraMatrix1``, ``D1``/``distCoeffs1``, ``K2``,
+    ``D2``, ``R``, ``T``; optional ``image_size``), named ``cam1`` and ``cam2``, or None if it is not one. The world
+    is camera 1's frame (identity pose); camera 2's pose is ``[R | T]``."""
+    get = lambda k: node_value(root.getNode(k), f"{source}: field {k}")  # noqa: E731
+    keys = tuple(root.keys())
+    first = FieldReader(keys, get, source, suffix="1")
+    second = FieldReader(keys, get, source, suffix="2")
+    if not (first.matches("camera matrix") and second.matches("camera matrix")):
+        return None
+    pose = FieldReader(keys, get, source)
+    _, R = pose.agreed("rotation", pose.numbers("rotation"), rotation_from_values, 1e-6)
+    _, t = pose.agreed("translation", pose.numbers("translation"), lambda v, w: _three(v, w), 1e-9)
+    size = pose.image_size()
+    cams = []
+    for name, reader, (R_k, t_k) in (("cam1", first, (np.eye(3), np.zeros(3))), ("cam2", second, (R, t))):
+        _, K = reader.agreed("camera matrix", reader.numbers("camera matrix"), camera_matrix, 1e-9)
+        dists = reader.numbers("distortion", required=False)
+        dist = reader.agreed("distortion", dists, distortion, 1e-12)[1] if dists else np.zeros(5)
+        cams.append(CalibratedCamera(name=name, K=K, dist=dist, R=R_k, t=t_k, size=size, source=source))
+    return cams
+
+
+def _three(value: np.ndarray, where: str) -> np.ndarray:
+    if value.size != 3:
+        raise RigError(f"{where}: expected 3 values (the translation from camera 1 to camera 2), got shape {value.shape}")
+    return value.ravel()
 
 
 def write_opencv_camera(path: str | Path, camera: CalibratedCamera, keys: dict[str, str] | None = None,
