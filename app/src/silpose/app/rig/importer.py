@@ -38,6 +38,8 @@ __all__ = ["ImportOptions", "ImportResult", "import_rig", "write_rig", "parse_wo
 
 #: Smallest image height (px) of a 1.75 m person at the workspace centre (a wrong unit gives ~0).
 MIN_PERSON_PX = 20.0
+#: Degrees: when the cameras' image-up directions are this far from the chosen up on average, say so.
+UP_DOUBT_DEG = 30.0
 #: A camera lower than this above the floor (metres) means the floor or the up axis is wrong.
 MIN_CAMERA_HEIGHT_M = 0.2
 #: Cameras all higher than this (metres) mean the unit is wrong (millimetres read as metres).
@@ -136,8 +138,12 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
                            f"{size[0]}x{size[1]} image: wrong image size (--image-size WIDTHxHEIGHT)?")
     if o.up == "auto":
         up, agreement = auto_up(calib)
-        notes.append(f"up: {axis_name(up)} of the calibration (the cameras' image up is within "
-                     f"{np.degrees(np.arccos(min(1.0, agreement))):.0f} deg of it on average; --up to change)")
+        spread = float(np.degrees(np.arccos(min(1.0, agreement))))
+        notes.append(f"up: {axis_name(up)} of the calibration (the cameras' image up is within {spread:.0f} deg of it "
+                     "on average; --up to change)")
+        if spread > UP_DOUBT_DEG:
+            notes.append(f"warning: the cameras disagree about up by {spread:.0f} deg on average (rolled or steeply "
+                         "tilted cameras, or no floor in this calibration): check the drawing (--show) and pass --up")
     else:
         up = parse_axis(o.up)
         notes.append(f"up: {axis_name(up)} of the calibration (--up)")
