@@ -150,6 +150,13 @@ class _Seen:
     mask: np.ndarray | None = None
 
 
+def _shown(source) -> str:
+    """How a warning names a camera's video: its file name, with its folder when that is the camera's
+    (``cam1/video.avi``)."""
+    p = source.path
+    return f"{p.parent.name}/{p.name}" if p.parent.name == source.camera else p.name
+
+
 class _Camera:
     """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread)."""
 
@@ -178,7 +185,7 @@ class _Camera:
 
     def diagnosis(self, masks: bool) -> str | None:
         """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
-        name, n = self.reader.source.path.name, self.frames
+        name, n = _shown(self.reader.source), self.frames
         if n == 0:
             return None
         if self.empty >= MASK_DIAGNOSIS_SHARE * n:
@@ -309,7 +316,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     ended = [c for c, s in seen.items() if s.status == VIEW_ENDED]
                     early = step < total if total >= 0 else len(ended) < len(seen)  # unknown length: unequal ends
                     if early:
-                        msg = f"{', '.join(recording.sources[c].path.name for c in ended)} ended after {step} frames"
+                        msg = f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
                         warnings.append(msg + (f" (expected {total})" if total >= 0 else "") + ": stopping there")
                         if warn:
                             warn(warnings[-1])

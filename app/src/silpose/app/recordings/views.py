@@ -49,19 +49,21 @@ VIEW_NOT_MODELLED = "not modelled"
 #: every per-view status, in report order
 VIEW_STATUSES = (VIEW_OK, VIEW_MERGED, VIEW_BORDER, VIEW_PARTIAL, VIEW_NOT_SEEN, VIEW_EMPTY, VIEW_NO_VIDEO, VIEW_ENDED,
                  VIEW_NOT_MODELLED)
-#: metres: radius of the cylinder a person's blob must fit in (arms and stride included)
-BODY_RADIUS_M = 0.6
+#: metres: radius of the cylinder a person's blob must fit in: arms, stride, and someone seated with their
+#: legs forward and the chair under them (0.6 m marked every view of a seated person in a public 4-camera
+#: recording "merged": the feet and chair legs reach 0.7 m from the head's vertical)
+BODY_RADIUS_M = 0.9
 #: metres: its height
 BODY_HEIGHT_M = 2.2
 #: pixels of slack around the cylinder's box
 BOX_SLACK_PX = 4.0
 #: metres: a blob ends at a person's feet within this distance of their floor point (:func:`grounded`)
 FOOT_TOLERANCE_M = 0.2
-#: metres: a person's blob reaches at least this far above the floor (the top of the torso columns; a
-#: person shorter than about 1.45 m, or sitting, is not the walking adult the model knows)
-MIN_TOP_M = 1.3
+#: metres: a person's blob reaches at least this far above the floor: above the hips of an adult (a legs-only
+#: piece ends near 0.9-1.0 m), below the head of someone seated on a chair (about 1.3 m)
+MIN_TOP_M = 1.1
 #: metres: slack of the top test
-TOP_TOLERANCE_M = 0.1
+TOP_TOLERANCE_M = 0.05
 #: metres: half-width of the image band below the torso searched for the feet
 FOOT_BAND_M = 0.15
 
