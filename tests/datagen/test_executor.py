@@ -19,7 +19,7 @@ import psutil
 import pytest
 
 from silpose.datagen.executor import ExecutorError, ShardTask, WorkerDied, run_local, spawned_map
-from silpose.datagen.testing import DELAY_ENV, STARTED_ENV, synthetic_render_samples, tiny_config
+from silpose.datagen.testing import DELAY_ENV, STARTED_ENV, synthetic_render_samples, tiny_config, kill_process_group
 
 SYNTH = "silpose.datagen.testing:synthetic_render_samples"
 
@@ -102,10 +102,7 @@ def test_a_worker_killed_from_outside_is_reported_and_nothing_is_left_running(tm
         os.kill(target.pid, signal.SIGKILL)
         stdout, stderr = proc.communicate(timeout=60)  # a hang fails here
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        kill_process_group(proc.pid)  # the driver and any worker left
     assert proc.returncode == 3, stderr[-2000:]
     line = stdout.strip().splitlines()[-1]
     assert line.startswith(f"error worker process {target.pid} died with exit code -9"), line

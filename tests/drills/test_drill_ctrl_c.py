@@ -13,7 +13,7 @@ import subprocess
 import sys
 import time
 
-from silpose.datagen.testing import DELAY_ENV, STARTED_ENV, tiny_config_toml
+from silpose.datagen.testing import DELAY_ENV, STARTED_ENV, tiny_config_toml, kill_process_group
 
 SLOW = "silpose.datagen.testing:slow_render_samples"
 
@@ -56,9 +56,6 @@ def test_ctrl_c_to_the_process_group_prints_no_worker_traceback(tmp_path):
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C
         _, stderr = proc.communicate(timeout=60)
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        kill_process_group(proc.pid)  # the driver and any worker left
     assert proc.returncode == 130, stderr[-2000:]
     assert stderr.strip().splitlines() == ["silpose gen: error: interrupted"], stderr[-3000:]

@@ -21,7 +21,7 @@ from silpose.datagen.config import load_config
 from silpose.datagen.executor import ExecutorError
 from silpose.datagen.manifest import LOCK, MANIFEST
 from silpose.datagen.pipeline import generate
-from silpose.datagen.testing import DELAY_ENV, KILL_ENV
+from silpose.datagen.testing import DELAY_ENV, KILL_ENV, kill_process_group
 from silpose.shared.dataset import SHARD_RE, DatasetError, load_split, read_metadata, read_shard
 
 SYNTH = "silpose.datagen.testing:synthetic_render_samples"
@@ -143,10 +143,7 @@ def test_driver_sigkilled_while_writing_a_shard_then_rerun_equals_uninterrupted_
     try:
         stdout, stderr = proc.communicate(timeout=120)
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)  # its pool workers, if any survived
-        except ProcessLookupError:
-            pass
+        kill_process_group(proc.pid)  # the driver and any worker left
     assert proc.returncode == -signal.SIGKILL, stderr[-2000:]
     tmp_name = stdout.strip()
     assert tmp_name.startswith(".") and tmp_name.endswith(".tmp"), stdout
@@ -187,10 +184,7 @@ def _finish(proc):
     try:
         out, err = proc.communicate(timeout=180)
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        kill_process_group(proc.pid)  # the driver and any worker left
     return proc.returncode, out, err
 
 

@@ -138,6 +138,15 @@ def crashing_render_samples(config: dict, split: str, indices: list[int]) -> lis
     return synthetic_render_samples(config, split, indices)
 
 
+def kill_process_group(pid: int) -> None:
+    """SIGKILL the process group led by ``pid`` (a driver started with ``start_new_session=True`` and its
+    workers), if any of it is left; the cleanup of the fault drills."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def exit_or_square(message: tuple[int, int]) -> tuple[int, int]:
     """A :func:`silpose.datagen.executor.spawned_map` call for tests: ``(code, x)`` exits the worker
     process with ``code`` when it is not 0, else returns ``(x * x, pid)``."""
