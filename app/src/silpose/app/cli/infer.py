@@ -19,7 +19,7 @@ from ..errors import InputError
 
 def infer(
     model: Annotated[Path, typer.Argument(help="Model file written by silpose train (.npz).")],
-    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera silhouette PNG folders (omit with --frames or --videos).")] = None,
+    input: Annotated[Optional[Path], typer.Argument(help="A dataset folder, or a folder of per-camera folders of silhouette images: PNG, BMP, TIFF or JPEG (omit with --frames or --videos).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Joints file: .parquet, or .json (default joints.parquet); with --videos an output folder (default <DIR>.silpose/).")] = None,
     split: Annotated[str, typer.Option(help="Split to read when INPUT is a dataset folder.")] = "test",
     save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz (with --videos: a contours_px column in joints.parquet).")] = False,
@@ -43,7 +43,7 @@ def infer(
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
 
     INPUT is either a dataset folder (its --split is read) or a folder with one subfolder per
-    camera, named as in the model's rig, holding silhouette PNGs; frames are matched by file name,
+    camera, named as in the model's rig, holding silhouette images (PNG, BMP, TIFF, JPEG); frames are matched by file name,
     and a missing camera folder, a missing file or an empty mask is a missing view.
 
     With --videos DIR (instead of INPUT): a recording of several people, one video per camera (mask videos
