@@ -78,7 +78,9 @@ class VisibilityGrid:
         r0, r1, c0, c1 = rect
         x0, x1 = self.xs[c0] - self.step / 2, self.xs[c1] + self.step / 2
         y0, y1 = self.ys[r0] - self.step / 2, self.ys[r1] + self.step / 2
-        return Workspace([(x0 + x1) / 2, (y0 + y1) / 2], [x1 - x0, y1 - y0])
+        # whole cells: the size is (cells x step), free of the float sums' 1e-15 m (rig.json shows 3.0, not 2.9999999999999893)
+        size = [round((c1 - c0 + 1) * self.step, 9), round((r1 - r0 + 1) * self.step, 9)]
+        return Workspace([round((x0 + x1) / 2, 9), round((y0 + y1) / 2, 9)], size)
 
 
 def normalised_bounds(cam: Camera, samples: int = 16) -> np.ndarray:
