@@ -147,6 +147,7 @@ def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, t
 @pytest.mark.parametrize("args, message", [
     (["--masks", "--background-frames", "5"], "mask videos need no background"),
     ([], "colour videos need a background"),
+    (["--background", "empty", "--background-frames", "3"], "give one background"),
     (["--masks", "--offsets", "camZ=1"], "camera 'camZ' is not in the rig"),
 ])
 def test_bad_options_are_one_line_errors(tiny_model_file, two_cylinders, tmp_path, args, message):

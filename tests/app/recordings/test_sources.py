@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from silpose.app.errors import RecordingError
-from silpose.app.recordings.sources import CameraReader, open_recording, parse_offsets
+from silpose.app.recordings.sources import CameraReader, holds_background_clips, open_recording, parse_offsets
 
 
 def _numbered(n, h=486, w=644, value=0):
@@ -130,6 +130,7 @@ def test_camera_folders_holding_videos(rig, tools, tmp_path):
     rec = open_recording(tmp_path, rig)
     assert {c: s.path.name for c, s in rec.sources.items()} == dict.fromkeys(rig.names, "video.avi")
     assert rec.n_steps == 5
+    assert holds_background_clips(tmp_path, rig.names) and not holds_background_clips(tmp_path / "cam0", rig.names)
     bg = open_recording(tmp_path, rig, role="background")
     assert {s.path.name for s in bg.sources.values()} == {"background.avi"} and bg.n_steps == 3
     (tmp_path / "cam0" / "video.avi").rename(tmp_path / "cam0" / "take2.avi")

@@ -58,7 +58,7 @@ from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
 from .silhouettes import MASK_THRESHOLD, MaskBinariser, background_from_clips, background_from_first_frames
-from .sources import CameraReader, open_recording, parse_offsets
+from .sources import CameraReader, holds_background_clips, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, grounded)
@@ -236,9 +236,14 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         raise RecordingError("the model file stores no rig, so videos cannot be matched to cameras")
     if opt.masks and (opt.background is not None or opt.background_frames is not None):
         raise RecordingError("--masks: mask videos need no background (--background / --background-frames)")
-    if not opt.masks and (opt.background is None) == (opt.background_frames is None):
+    if not opt.masks and opt.background is not None and opt.background_frames is not None:
+        raise RecordingError("give one background: --background DIR or --background-frames N, not both")
+    if not opt.masks and opt.background is None and opt.background_frames is None:
+        hint = (f" (the camera folders of {videos} hold empty-room clips: --background {videos})"
+                if holds_background_clips(Path(videos), model.rig_.names) else "")
         raise RecordingError("colour videos need a background: give --background DIR (empty-room clips) or "
-                             "--background-frames N (the first N frames show the empty room), or --masks for mask videos")
+                             "--background-frames N (the first N frames show the empty room), or --masks for mask "
+                             f"videos{hint}")
     if opt.chunk < 1 or opt.min_area < 1:
         raise RecordingError("chunk and min_area must be >= 1")
     rig = model.rig_

@@ -140,6 +140,14 @@ def _camera_folder_video(folder: Path, role: str) -> Path | None:
         f"name the one to use {role}{videos[0].suffix} or map it in {folder.parent / MAPPING_FILE}")
 
 
+def holds_background_clips(folder: Path, cameras) -> bool:
+    """True if ``folder`` has camera folders and each holds a video named ``background`` (the layout where
+    ``--background`` can be the videos folder itself)."""
+    dirs = [folder / c for c in cameras if (folder / c).is_dir()] if folder.is_dir() else []
+    return bool(dirs) and all(any(q.is_file() and q.stem.lower() == "background" and q.suffix.lower() in VIDEO_SUFFIXES
+                                  for q in d.iterdir()) for d in dirs)
+
+
 def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video") -> dict[str, Path]:
     mapping = folder / MAPPING_FILE
     if mapping.is_file():
