@@ -133,6 +133,14 @@ def test_camera_folders_holding_videos(rig, tools, tmp_path):
     assert holds_background_clips(tmp_path, rig.names) and not holds_background_clips(tmp_path / "cam0", rig.names)
     bg = open_recording(tmp_path, rig, role="background")
     assert {s.path.name for s in bg.sources.values()} == {"background.avi"} and bg.n_steps == 3
+    for cam in rig.names[1:]:  # only the recordings left: never used as empty-room clips
+        (tmp_path / cam / "background.avi").unlink()
+    with pytest.raises(RecordingError, match=r"cam1: holds 2 videos \(checkerboard.avi, video.avi\) and none is named "
+                                             r"'background'"):
+        open_recording(tmp_path, rig, role="background")
+    (tmp_path / "cam1" / "checkerboard.avi").unlink()
+    with pytest.raises(RecordingError, match=r"cam1: holds 1 video \(video.avi\) and none is named 'background'"):
+        open_recording(tmp_path, rig, role="background")
     (tmp_path / "cam0" / "video.avi").rename(tmp_path / "cam0" / "take2.avi")
     with pytest.raises(RecordingError, match=r"cam0: holds 3 videos \(background.avi, checkerboard.avi, take2.avi\) "
                                              r"and none is named 'video'"):

@@ -123,7 +123,9 @@ def parse_offsets(text: str | None, cameras) -> dict[str, int]:
 
 def _camera_folder_video(folder: Path, role: str) -> Path | None:
     """The video a camera folder holds for ``role`` (``"video"`` or ``"background"``): None when the folder
-    holds frames (or nothing); its only video, or the one whose stem is ``role``; else a one-line error."""
+    holds frames (or nothing); the one whose stem is ``role``, or its only video unless that is named for the
+    other role (``background.avi`` is never the recording, ``video.avi`` never the empty room); else a
+    one-line error."""
     files = [q for q in sorted(folder.iterdir()) if q.is_file() and not q.name.startswith(".")]
     if any(q.suffix.lower() in IMAGE_SUFFIXES for q in files):
         return None
@@ -133,10 +135,12 @@ def _camera_folder_video(folder: Path, role: str) -> Path | None:
     named = [q for q in videos if q.stem.lower() == role]
     if len(named) == 1:
         return named[0]
-    if len(videos) == 1:
+    other = "background" if role == "video" else "video"
+    if len(videos) == 1 and videos[0].stem.lower() != other:  # never a recording as the empty room, or back
         return videos[0]
     raise RecordingError(
-        f"{folder}: holds {len(videos)} videos ({', '.join(q.name for q in videos)}) and none is named '{role}'; "
+        f"{folder}: holds {len(videos)} video{'s' if len(videos) > 1 else ''} ({', '.join(q.name for q in videos)}) "
+        f"and none is named '{role}'; "
         f"name the one to use {role}{videos[0].suffix} or map it in {folder.parent / MAPPING_FILE}")
 
 

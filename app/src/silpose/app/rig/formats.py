@@ -63,8 +63,8 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
     """Every camera of ``paths`` (one or more files), in file order then camera order.
 
     Camera names come from the files (never renumbered) and must be unique across them. Per-camera files that
-share one name in different folders (``cam1/config.xml``, ``cam2/config.xml``: a common course and lab
-layout) and have no name field are named by their folders.
+    share one name in different folders (``cam1/config.xml``, ``cam2/config.xml``: a common course and lab
+    layout) and have no name field are named by their folders.
     """
     paths = [Path(p) for p in paths]
     if not paths:
@@ -114,8 +114,9 @@ layout) and have no name field are named by their folders.
             sources.append(str(p))
             if len(got) == 1 and got[0].name == p.stem and p.stem in stems_of_several:
                 # cam1/config.xml, cam2/config.xml ...: one file name in per-camera folders names by the folder
-                got = [dataclasses.replace(got[0], name=p.parent.name)]
-                notes.append(f"{p}: camera named {p.parent.name!r} after its folder (every file is {p.name})")
+                folder = p.resolve().parent.name
+                got = [dataclasses.replace(got[0], name=folder)]
+                notes.append(f"{p}: camera named {folder!r} after its folder (every file is {p.name})")
         for c in got:
             twin = next((o for o in cams if o.name == c.name), None)
             if twin is not None:
