@@ -70,6 +70,7 @@ DEFAULT_N_INIT = 1
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
+from silpose.shared.memory import release_freed_memory
 from silpose.shared.dataset import load_split, read_shard
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.output_dir import claim_files
@@ -101,7 +102,7 @@ def supported_size(n_fit: int, m: int, q: int, *, fixed_m: bool = False, fixed_q
 
     Lowers what the user did not fix: M first (not below ``MIN_DEFAULT_COMPONENTS``), then q (>= 1);
     both fixed: unchanged. The default preset's 1,800 samples give M 10, q 30 (what model selection
-    chose among the fits whose EM moved); the paper preset's 18,000 keep M 20, q 40.
+    chose among the fits whose EM moved); the paper preset's 18,000 keep the defaults M 60, q 40.
     """
     r = MIN_ROWS_PER_LATENT
     if n_fit >= r * m * q:
@@ -286,6 +287,7 @@ def run_training(
             model.fit(c_fit, j_fit, rig=rig)
             del c_fit, j_fit
         wall = time.perf_counter() - t0
+    release_freed_memory()  # EM's freed blocks, before the held-out inference allocates its own
     model.callback = None
     model.dataset_info_ = _dataset_info(root, name, metadata, n, len(fit_idx), len(held_idx))
     mode = {"streaming": streaming, "executor": executor if streaming else "in-memory",

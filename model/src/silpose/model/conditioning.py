@@ -43,7 +43,8 @@ import numpy as np
 __all__ = ["MixtureParams", "Posterior", "RowsPosterior", "Conditioner", "condition", "condition_rows"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
-_CHUNK = 2048  # rows per block of the batched products
+_CHUNK = 2048  # rows per block of the batched products ...
+_CHUNK_VALUES = 1 << 21  # ... and fewer when M max(q, d_det) is large: each (M, rows, .) temporary <= 16 MB
 
 
 @dataclass(frozen=True)
@@ -260,6 +261,12 @@ class Conditioner:
         # posterior variance of the detail dims per component: diag(W_det K^-1 W_det^T) + sigma^2
         self.var_det = np.einsum("mjq,mqr,mjr->mj", self.W_det, self.Kinv, self.W_det) + sig2[:, None]  # (M, d_det)
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays this conditioner holds (what a cache of them keeps alive; the means may be a
+        view of the mixture's)."""
+        return int(sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray)))
+
     def component_cov(self) -> np.ndarray:
         """(M, d_det, d_det) per-component posterior covariance of the detail dims,
         ``W_det K^-1 W_det^T + sigma_i^2 I`` (independent of the observed values)."""
@@ -290,8 +297,9 @@ class Conditioner:
         cmeans = np.empty((n, m, n_det)) if (return_components or return_cov) else None
         Kt = self.K  # (M, q, q)
         WdT = self.W_det.transpose(0, 2, 1)  # (M, q, d_det)
-        for s in range(0, n, _CHUNK):
-            sl = slice(s, min(s + _CHUNK, n))
+        chunk = int(min(_CHUNK, max(64, _CHUNK_VALUES // max(1, m * max(q, n_det)))))
+        for s in range(0, n, chunk):
+            sl = slice(s, min(s + chunk, n))
             x = X[sl]
             b = x.shape[0]
             Pm = x @ self.A  # (b, Mq + M): a @ P_i for every i, then a . mu_a,i (D^-1-weighted)

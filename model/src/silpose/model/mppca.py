@@ -28,7 +28,14 @@ from .shards import ArrayShards, ShardSource, split_global_rows
 _SHORT_RUN = 5  # EM iterations of each of the n_init short runs (em-EM)
 _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many random rows
 DEFAULT_INIT_ROWS = 5000  # fit_stream: rows of the initialisation subsample
-_FIT_BLOCK = 4096  # fit: rows per block of the in-memory EM passes (bounds the per-pass temporaries)
+_FIT_BLOCK = 4096  # fit: rows per block of the in-memory EM passes (bounds the per-pass temporaries) ...
+_FIT_BLOCK_VALUES = 1 << 21  # ... and fewer when M (q + 1) is large: a block's (rows, M q + M) products stay <= 16 MB
+
+
+def fit_block_rows(n_components: int, n_latent: int) -> int:
+    """Rows per block of the in-memory fit: 4,096, or fewer (>= 256) so that a block's E-step products
+    (rows x M (q + 1) float64, ``silpose.model._ppca.e_step_products``) hold at most 2^21 values."""
+    return int(min(_FIT_BLOCK, max(256, _FIT_BLOCK_VALUES // max(1, n_components * (n_latent + 1)))))
 
 
 class MPPCA(DensityMixin, BaseEstimator):
@@ -135,11 +142,13 @@ class MPPCA(DensityMixin, BaseEstimator):
     def fit(self, X, y=None) -> "MPPCA":
         """Fit by EM. X (N, d) array-like of finite numbers; y ignored. Returns self.
 
-        The in-memory fit is the streaming EM (``fit_stream``) over X's rows in blocks of 4,096 (views of X,
+        The in-memory fit is the streaming EM (``fit_stream``) over X's rows in blocks of 4,096 or fewer
+        (:func:`fit_block_rows`; views of X,
         centred block by block in each pass), so besides X only one block's temporaries are held.
         """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        blocks = [X[i:i + _FIT_BLOCK] for i in range(0, X.shape[0], _FIT_BLOCK)]  # views, no copies
+        rows = fit_block_rows(int(self.n_components), self._latent_dim(X.shape[1]))
+        blocks = [X[i:i + rows] for i in range(0, X.shape[0], rows)]  # views, no copies
         return self._fit_source(ArrayShards(blocks).checked(), init_rows=None)
 
     def fit_stream(self, shards, init_rows: int = DEFAULT_INIT_ROWS) -> "MPPCA":
