@@ -12,7 +12,7 @@ concatenates k copies of the split's arrays, the streaming fit reads the same sh
 per pass (a k-fold longer list of shards, same shard size). The trainer itself has no such option.
 Memory does not depend on the number of EM iterations (each is one pass over the same data), so
 ``max_iter`` 2 keeps the runs short; the hyperparameters default to M 5, q 60 (the model defaults
-are M 20, q 40). Without the dataset, see :mod:`benchmarks.inputs` (``fallback``).
+are M 60, q 40 where the data support it). Without the dataset, see :mod:`benchmarks.inputs` (``fallback``).
 """
 
 from __future__ import annotations

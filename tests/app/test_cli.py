@@ -232,6 +232,10 @@ def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):
     assert supported_size(1800, 20, 40, fixed_q=True) == (7, 40)
     assert supported_size(1800, 20, 40, fixed_m=True) == (20, 15)
     assert supported_size(100, 2, 4, fixed_m=True, fixed_q=True) == (2, 4)
+    # the shipped defaults on the two presets' fitted sizes: paper keeps them, default gets M 10, q 30
+    assert supported_size(18000, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT) == (DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT)
+    assert supported_size(1800, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT) == (10, 30)
+    assert supported_size(5000, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT) == (20, 40)
     out = tmp_path / "small.npz"
     res = _invoke("train", dataset, "--n-init", "1", "--max-iter", "10", "--no-progress", "--out", out)
     assert res.exit_code == 0, res.output

@@ -163,6 +163,25 @@ def test_prepared_conditioner_is_reusable_and_single_row_works():
     np.testing.assert_allclose(cond.component_cov(), condition(p, X, obs, 0.2, return_cov=True).component_cov)
 
 
+def test_rows_conditioned_in_chunks_equal_one_batch(monkeypatch):
+    """Large M x q models condition in smaller row chunks (bounded temporaries): chunking must not change a
+    single number of the posterior, the per-row reference being each row conditioned alone."""
+    import silpose.model.conditioning as conditioning
+
+    rng = np.random.default_rng(7)
+    p = Params(rng)
+    obs = np.arange(6)
+    X = rng.standard_normal((50, 6))
+    whole = Conditioner(p, obs, 0.1, reconstruct=True)(X, return_components=True)
+    monkeypatch.setattr(conditioning, "_CHUNK_VALUES", 1)  # the value bound alone gives its 64-row floor ...
+    monkeypatch.setattr(conditioning, "_CHUNK", 7)  # ... and the row bound 7: chunks of 7, 7, ..., 1 rows
+    chunked = Conditioner(p, obs, 0.1, reconstruct=True)(X, return_components=True)
+    for name in ("reconstruction", "best_mean", "variance", "responsibilities", "log_marginal", "component_means"):
+        np.testing.assert_allclose(getattr(chunked, name), getattr(whole, name), rtol=1e-12, atol=1e-14, err_msg=name)
+    one = Conditioner(p, obs, 0.1, reconstruct=True)(X[31])
+    np.testing.assert_allclose(one.reconstruction[0], whole.reconstruction[31], rtol=1e-12)
+
+
 @pytest.mark.parametrize(
     "call, match",
     [
