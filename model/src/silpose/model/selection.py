@@ -44,11 +44,12 @@ from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 from .augment import Roughness, augment_rows, roughen_contours
 from .shape_model import ShapeStructureModel
 
-#: The default grid (12 fits, 3 s^2 each): around the region the 2026-11 selections on the `default`
-#: preset found best (see the defaults in shape_model.py).
+#: The default grid (18 fits, 3 s^2 each): around the region the 2026-11 selections on the `default`
+#: preset found best, and M 40 / 60 for larger data such as the paper preset's (see the defaults in
+#: shape_model.py; on small data those fits stay at their k-means start and are not chosen).
 DEFAULT_GRID: dict[str, tuple] = {
     "n_latent": (20, 30, 40),
-    "n_components": (5, 10, 15, 20),
+    "n_components": (5, 10, 15, 20, 40, 60),
     "structure_weight": (30.0,),
     "noise_variance": (0.01, 0.03, 0.1),
 }
