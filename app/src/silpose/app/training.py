@@ -70,8 +70,8 @@ DEFAULT_N_INIT = 1
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
-from silpose.shared.memory import release_freed_memory
 from silpose.shared.dataset import load_split, read_shard
+from silpose.shared.memory import release_freed_memory
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.output_dir import claim_files
 
