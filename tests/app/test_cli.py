@@ -252,3 +252,19 @@ def test_header_records_training_config_and_generator_config(trained):
     assert header["training_config"]["heldout_fraction"] == 0.1 and header["training_config"]["select"] is False
     assert header["dataset"]["generator_config"]["name"] == "tiny"
     assert load_model(trained[0]).training_config_["seed"] == 0
+
+
+def test_fits_pools_em_fits_and_reports_each(dataset, tmp_path):
+    """--fits N: N EM fits from seeds seed..seed+N-1 pooled into one model file; the report lists every fit;
+    with --streaming it is a one-line error."""
+    out = tmp_path / "pooled.npz"
+    res = _invoke("train", dataset, "-M", "2", "-q", "2", "--fits", "3", "--seed", "7", "--max-iter", "15",
+                  "--no-progress", "--out", out)
+    assert res.exit_code == 0, res.output
+    header = read_header(out)
+    assert header["hyperparameters"]["n_fits"] == 3 and header["arrays"]["weights"][1] == [6]
+    report = json.loads(out.with_suffix(".report.json").read_text())
+    assert len(report["em"]["pooled_runs"]) == 3
+    assert "pooled: 3 EM fits from seeds 7..9" in out.with_suffix(".report.md").read_text()
+    res = _invoke("train", dataset, "--fits", "2", "--streaming", "--no-progress", "--out", tmp_path / "s.npz")
+    assert res.exit_code == 2 and "--fits" in res.output and "--streaming" in res.output

@@ -208,3 +208,25 @@ def test_em_em_continues_the_best_short_run(mixture_data):
     np.testing.assert_array_equal(est.lower_bounds_[: len(short[winner])], short[winner])
     assert est.lower_bound_ >= max(r[-1] for r in short)
     assert [it for it, _ in seen[starts[-2]:]][-1] == est.n_iter_  # the continuation counts on
+
+
+def test_pooled_mixture_is_the_average_of_the_fits_densities(mixture_data):
+    """pool_mixtures: log p(x) = log((1/F) sum_f p_f(x)), checked against each fit's own density, and the
+    pooled model is an MPPCA like any other (dense reference, weights summing to 1, real EM per fit)."""
+    from scipy.special import logsumexp
+
+    from silpose.model.mppca import pool_mixtures
+    from silpose.model.selection import is_real_em
+
+    X = mixture_data[0][:600]
+    fits = [MPPCA(3, 2, n_init=1, random_state=s, max_iter=50).fit(X) for s in range(3)]
+    pooled = pool_mixtures(fits, X)
+    expected = logsumexp(np.stack([f.score_samples(X) for f in fits]), axis=0) - np.log(3)
+    np.testing.assert_allclose(pooled.score_samples(X), expected, rtol=1e-10)
+    np.testing.assert_allclose(pooled.score_samples(X[:50]), _dense_log_density(pooled, X[:50]), rtol=1e-8)
+    assert pooled.weights_.shape == (9,) and abs(pooled.weights_.sum() - 1) < 1e-12
+    assert pooled.lower_bound_ == pytest.approx(expected.mean(), rel=1e-10)
+    assert [r["n_iter"] for r in pooled.runs_] == [f.n_iter_ for f in fits]
+    assert is_real_em(pooled, 0.1) == all(is_real_em(f, 0.1) for f in fits)
+    with pytest.raises(ValueError, match="differ in latent dimension"):
+        pool_mixtures([fits[0], MPPCA(2, 3, n_init=1, random_state=0, max_iter=5).fit(X)])

@@ -127,3 +127,23 @@ def test_foreign_files(tmp_path):
         load_model(pickled)
     with pytest.raises(ModelFileError, match="no such model file"):
         load_model(tmp_path / "absent.npz")
+
+
+def test_pooled_fits_round_trip_and_are_checked(tmp_path):
+    """n_fits > 1: the file holds n_fits x M components and says so; a count that disagrees is refused."""
+    data = make_linear_shapes(120, n_views=4, n_points=10, seed=5)
+    model = ShapeStructureModel(2, 3, structure_weight=1.5, noise_variance=2e-3, n_init=1, n_fits=3,
+                                random_state=4, max_iter=30).fit(data.contours, data.joints, rig=default_rig())
+    assert model.mixture_.weights_.shape == (6,)
+    single = ShapeStructureModel(2, 3, structure_weight=1.5, noise_variance=2e-3, n_init=1, random_state=5,
+                                 max_iter=30).fit(data.contours, data.joints, rig=default_rig())
+    np.testing.assert_allclose(model.mixture_.means_[2:4], single.mixture_.means_)  # fit 2 starts from seed 4 + 1
+    path = save_model(tmp_path / "pooled.npz", model)
+    back = load_model(path)
+    assert back.n_fits == 3 and back.hyperparameters() == model.hyperparameters()
+    np.testing.assert_array_equal(back.predict(data.contours[:7]), model.predict(data.contours[:7]))
+    _rewrite(path, header_edit=lambda h: h["hyperparameters"].update(n_fits=2))
+    with pytest.raises(ModelFileError, match="n_components x n_fits says 2 x 2"):
+        load_model(path)
+    with pytest.raises(ValueError, match="in-memory fit"):
+        ShapeStructureModel(2, 3, n_fits=2).fit_shards(None)

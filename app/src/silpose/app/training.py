@@ -181,6 +181,7 @@ def run_training(
     views: Sequence[int] | None = None,
     max_iter: int = DEFAULT_MAX_ITER,
     n_init: int = DEFAULT_N_INIT,
+    n_fits: int = 1,
     tol: float = DEFAULT_TOL,
     seed: int = 0,
     heldout: float = 0.1,
@@ -199,6 +200,8 @@ def run_training(
     ``streaming`` fits out of core (EM streams over the train shards, ``ShapeStructureModel.fit_stream``)
     and scores the held-out part shard by shard; ``executor="ray"`` (implies streaming) runs each
     shard's EM task on Ray with ``workers`` CPUs when it starts a local Ray instance.
+    ``n_fits`` > 1 pools that many EM fits from seeds ``seed``, ``seed + 1``, ... into one mixture
+    (``ShapeStructureModel(n_fits=...)``; in memory only).
     """
     if executor not in EXECUTORS:
         raise TrainingError(f"executor must be 'local' or 'ray', got {executor!r}")
@@ -206,6 +209,10 @@ def run_training(
     if streaming and select:
         raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
                             "then train the chosen hyperparameters with streaming")
+    if int(n_fits) < 1:
+        raise TrainingError(f"--fits must be >= 1, got {n_fits}")
+    if streaming and int(n_fits) > 1:
+        raise TrainingError("--fits pools fits made in memory; run it without --streaming / --executor ray")
     if roughness == "auto":
         roughness = None if streaming else "auto"
     elif streaming and roughness is not None:
@@ -275,7 +282,7 @@ def run_training(
     with EMProgress(progress, max_iter, n_init) as em:
         model = ShapeStructureModel(
             hp["n_components"], hp["n_latent"], structure_weight=hp["structure_weight"], views=views,
-            noise_variance=hp["noise_variance"], tol=tol, max_iter=max_iter, n_init=n_init, random_state=seed,
+            noise_variance=hp["noise_variance"], tol=tol, max_iter=max_iter, n_init=n_init, n_fits=int(n_fits), random_state=seed,
             callback=em,
         )
         t0 = time.perf_counter()
@@ -308,7 +315,7 @@ def run_training(
     save_model(out, model)
     mix = model.mixture_
     q = int(model.n_latent)
-    rows_per_comp = mix.weights_ * mix.n_fit_samples_
+    rows_per_comp = mix.weights_ * mix.n_fit_samples_ * int(model.n_fits)  # pooled fits: each fit's weights / n_fits
     report = {
         "model": str(out),
         "dataset": model.dataset_info_,
@@ -328,6 +335,7 @@ def run_training(
             "all_segments": em.curves,
             "fit_time_s": float(wall),
             "n_fit_rows": int(mix.n_fit_samples_),
+            "pooled_runs": list(getattr(mix, "runs_", None) or []),
             "rows_per_component": {"min": float(rows_per_comp.min()), "median": float(np.median(rows_per_comp)),
                                    "max": float(rows_per_comp.max())},
             "rows_per_component_per_latent_min": float(rows_per_comp.min() / q),
@@ -431,6 +439,12 @@ def report_markdown(r: dict, selection) -> str:
         f"- held-out joint error: all views observed mean {held['joint_error_cm']:.2f} cm, "
         f"median {held['joint_error_median_cm']:.2f} cm; one view observed (mean over views) "
         f"{held.get('joint_error_1view_cm', float('nan')):.2f} cm",
+        *([f"- pooled: {hp.get('n_fits', 1)} EM fits from seeds {hp['random_state']}.."
+            f"{hp['random_state'] + hp.get('n_fits', 1) - 1 if hp['random_state'] is not None else ''}, "
+            f"iterations {[run['n_iter'] for run in em['pooled_runs']]}, gains "
+            f"{[round(run['final_bound'] - run['initial_bound'], 2) for run in em['pooled_runs']]} nats/sample; "
+            f"{hp['n_components'] * hp.get('n_fits', 1)} components in all; the curve below is the first fit's"]
+          if em.get("pooled_runs") else []),
         *([f"- training augmentation: ragged outlines {r['roughness']}"] if r.get("roughness") else []),
         *[f"- note: {n}" for n in r.get("notes", [])],
         "",

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numbers
 import warnings
+from typing import Sequence
 
 import numpy as np
 from scipy.special import logsumexp
@@ -398,6 +399,52 @@ class MPPCA(DensityMixin, BaseEstimator):
         return float(-2.0 * self.score(X) * X.shape[0] + 2 * self.n_parameters())
 
 
+def pool_mixtures(fits: Sequence["MPPCA"], X: np.ndarray | None = None) -> "MPPCA":
+    """One MPPCA whose density is the equal-weight average of the fitted mixtures' densities.
+
+    ``p(x) = (1/F) sum_f p_f(x)`` is again a mixture of PPCA: the F fits' components side by side, each
+    weight divided by F (every fit must have the same q and d). Pooling fits from different EM starts
+    averages out the start's luck (silpose.model.shape_model, ``n_fits``). Fitted attributes:
+    ``weights_``, ``means_``, ``components_``, ``noise_variance_``, ``noise_dof_factor_`` concatenated;
+    ``converged_`` all converged; ``n_iter_``, ``lower_bounds_``, ``initial_bound_`` those of the first
+    fit; ``runs_`` one dict per fit (``n_iter``, ``initial_bound``, ``final_bound``, ``n_components``);
+    ``lower_bound_`` the pooled mixture's mean log-likelihood of ``X`` (N, d) when given, else NaN.
+    """
+    fits = list(fits)
+    if not fits:
+        raise ValueError("pool_mixtures: no fitted mixtures given")
+    qs = {int(f.components_.shape[2]) for f in fits}
+    ds = {int(f.means_.shape[1]) for f in fits}
+    if len(qs) != 1 or len(ds) != 1:
+        raise ValueError(f"pool_mixtures: the fits differ in latent dimension {sorted(qs)} or features {sorted(ds)}")
+    first = fits[0]
+    out = MPPCA(n_components=int(sum(f.weights_.shape[0] for f in fits)), n_latent=qs.pop(), tol=first.tol,
+                max_iter=first.max_iter, n_init=first.n_init, init=first.init, reg_variance=first.reg_variance,
+                noise_dof=first.noise_dof, random_state=first.random_state)
+    out.weights_ = np.concatenate([f.weights_ for f in fits]) / len(fits)
+    out.means_ = np.concatenate([f.means_ for f in fits])
+    out.components_ = np.concatenate([f.components_ for f in fits])
+    out.noise_variance_ = np.concatenate([f.noise_variance_ for f in fits])
+    out.noise_dof_factor_ = np.concatenate([getattr(f, "noise_dof_factor_", np.ones(f.weights_.shape[0])) for f in fits])
+    out.n_underdetermined_ = int(sum(getattr(f, "n_underdetermined_", 0) for f in fits))
+    out.n_latent_ = int(out.components_.shape[2])
+    out.n_features_in_ = ds.pop()
+    out.n_fit_samples_ = int(getattr(first, "n_fit_samples_", -1))
+    out.converged_ = all(bool(f.converged_) for f in fits)
+    out.n_iter_ = int(first.n_iter_)
+    out.lower_bounds_ = list(first.lower_bounds_)
+    out.initial_bound_ = float(first.initial_bound_)
+    out.runs_ = [{"n_iter": int(f.n_iter_), "initial_bound": float(f.initial_bound_),
+                  "final_bound": float(f.lower_bounds_[-1]), "n_components": int(f.weights_.shape[0])} for f in fits]
+    if X is None:
+        out.lower_bound_ = float("nan")
+    else:  # in row blocks: the products are (rows, M q + M)
+        rows = fit_block_rows(out.n_components, out.n_latent_)
+        out.lower_bound_ = float(np.mean(np.concatenate([out.score_samples(X[i:i + rows])
+                                                         for i in range(0, X.shape[0], rows)])))
+    return out
+
+
 class _ArrayRows:
     """The initialisation's rows held as one (n, d) array."""
 
@@ -434,4 +481,4 @@ class _SourceRows:
         yield from self.src.map(_em.take_rows)
 
 
-__all__ = ["MPPCA"]
+__all__ = ["MPPCA", "pool_mixtures", "fit_block_rows"]

@@ -165,8 +165,10 @@ def _check_shapes(path: Path, header: dict, data: dict[str, np.ndarray], layout:
     if w.ndim != 1 or w.size < 1:
         raise ModelFileError(f"{path}: field 'weights' must be a non-empty vector, got shape {w.shape}")
     m = w.shape[0]
-    if m != int(hp.get("n_components", m)):
-        raise ModelFileError(f"{path}: field 'weights' has {m} components, header.hyperparameters.n_components says {hp['n_components']}")
+    fits = int(hp.get("n_fits", 1))
+    if m != int(hp.get("n_components", m)) * fits:
+        raise ModelFileError(f"{path}: field 'weights' has {m} components, header.hyperparameters.n_components "
+                             f"x n_fits says {hp['n_components']} x {fits}")
     if mu.shape != (m, layout.dim):
         raise ModelFileError(f"{path}: field 'means' has shape {mu.shape}, expected ({m}, {layout.dim}) from the feature layout")
     q = int(hp.get("n_latent", W.shape[-1] if W.ndim == 3 else -1))
@@ -209,6 +211,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
             tol=float(hp.get("tol", 1e-4)),
             max_iter=int(hp.get("max_iter", 200)),
             n_init=int(hp.get("n_init", 3)),
+            n_fits=int(hp.get("n_fits", 1)),
             random_state=hp.get("random_state"),
         )
     except (KeyError, TypeError, ValueError) as exc:
@@ -224,7 +227,7 @@ def load_model(path: str | Path) -> ShapeStructureModel:
     if layout.joint_frame == "stature" and rig is None:
         raise ModelFileError(f"{path}: field 'header.rig' is missing, but the feature layout's joints are in the "
                              "'stature' frame, which needs the cameras")
-    mix = MPPCA(n_components=model.n_components, n_latent=model.n_latent, tol=model.tol,
+    mix = MPPCA(n_components=int(data["weights"].shape[0]), n_latent=model.n_latent, tol=model.tol,
                 max_iter=model.max_iter, n_init=model.n_init, random_state=model.random_state)
     mix.weights_ = data["weights"]
     mix.means_ = data["means"]

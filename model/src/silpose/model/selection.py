@@ -88,7 +88,12 @@ def unit_weight_loglik(model: ShapeStructureModel, values: np.ndarray) -> np.nda
 
 
 def is_real_em(mixture, tol: float) -> bool:
-    """True when EM moved (module doc): M = 1, or more than one iteration and a gain above ``tol``."""
+    """True when EM moved (module doc): M = 1, or more than one iteration and a gain above ``tol``; for
+    pooled fits (``runs_``, :func:`silpose.model.mppca.pool_mixtures`) when every fit's EM moved."""
+    runs = getattr(mixture, "runs_", None)
+    if runs:
+        return all(r["n_components"] == 1 or (r["n_iter"] > 1 and r["final_bound"] - r["initial_bound"] > tol)
+                   for r in runs)
     if mixture.weights_.shape[0] == 1:
         return True
     gain = mixture.lower_bounds_[-1] - getattr(mixture, "initial_bound_", mixture.lower_bounds_[-1])

@@ -38,7 +38,7 @@ from .checks import check_contours, check_factors, check_present
 from .conditioning import Conditioner
 from .features import FeatureLayout, denormalise_contours, normalise_contours, shape_vectors
 from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
-from .mppca import DEFAULT_INIT_ROWS, MPPCA
+from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
 from .plausibility import PlausibilityCalibration, convex_in_every_view, view_subsets
 from .provenance import manifest_sha256
 from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
@@ -143,6 +143,13 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         joint_frame: "stature" (model the joints of each walker scaled to a 1.75 m stature measured from
             the calibrated silhouettes, ``silpose.model.stature``; needs the rig), "metres" (the paper's
             raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
+        n_fits: EM fits from the seeds random_state, random_state + 1, ..., pooled into one mixture of
+            n_fits x n_components components, each fit's weights divided by n_fits
+            (:func:`silpose.model.mppca.pool_mixtures`): the prior is the average of the fits' densities.
+            Single fits on small data carry about +-10 % of joint error from their k-means start alone
+            (default preset, 200 held-out walkers, 5 seeds, standard noise, robust inference: 4.53-5.49 cm);
+            5 fits pooled gave 4.40, clean 3.27 against 3.40-3.92. Inference costs as much as a mixture
+            of n_fits x n_components components. In-memory fits only.
         noise_dof: correct the components' noise variances for the degrees of freedom their fit used
             (``MPPCA(noise_dof=True)``): the maximum-likelihood ones are biased low when a component has few
             rows for its q (the train / held-out log-likelihood gap of issue 12); the joints hardly change.
@@ -170,6 +177,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         tol: float = 1e-4,
         max_iter: int = 200,
         n_init: int = 3,
+        n_fits: int = 1,
         random_state: int | None = 0,
         callback: Callable | None = None,
         verbose: int = 0,
@@ -185,6 +193,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         self.tol = tol
         self.max_iter = max_iter
         self.n_init = n_init
+        self.n_fits = n_fits
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
@@ -213,6 +222,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             "tol": float(self.tol),
             "max_iter": int(self.max_iter),
             "n_init": int(self.n_init),
+            "n_fits": int(self.n_fits),
             "random_state": None if self.random_state is None else int(self.random_state),
         }
 
@@ -221,6 +231,8 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             raise ValueError(f"n_components must be >= 1, got {self.n_components}")
         if int(self.n_latent) < 1:
             raise ValueError(f"n_latent must be >= 1, got {self.n_latent}")
+        if int(self.n_fits) < 1:
+            raise ValueError(f"n_fits must be >= 1, got {self.n_fits}")
         if not np.isfinite(self.noise_variance) or self.noise_variance < 0:
             raise ValueError(f"noise_variance must be finite and >= 0, got {self.noise_variance}")
         if self.joint_frame not in (None, "metres", "stature"):
@@ -233,7 +245,10 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             raise ValueError("joint_frame 'stature' needs the camera rig: pass rig= to fit (or joint_frame='metres')")
         return frame
 
-    def _make_mixture(self, init_params: dict | None = None) -> MPPCA:
+    def _make_mixture(self, init_params: dict | None = None, fit_index: int = 0) -> MPPCA:
+        seed = self.random_state
+        if fit_index and seed is not None:  # fit i of n_fits starts from seed + i
+            seed = int(seed) + int(fit_index)
         return MPPCA(
             n_components=int(self.n_components),
             n_latent=int(self.n_latent),
@@ -242,7 +257,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             n_init=int(self.n_init),
             init_params=init_params,
             noise_dof=bool(self.noise_dof),
-            random_state=self.random_state,
+            random_state=seed,
             callback=self.callback,
             verbose=self.verbose,
         )
@@ -302,7 +317,11 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         X = self.features(c, j)
         del c, j, raw  # the inputs' copies are not needed during EM
         t0 = time.perf_counter()
-        self.mixture_ = self._make_mixture(init_params).fit(X)
+        if int(self.n_fits) == 1:
+            self.mixture_ = self._make_mixture(init_params).fit(X)
+        else:  # n_fits EM fits from seeds random_state + i, pooled into one mixture (class docstring)
+            fits = [self._make_mixture(init_params, i).fit(X) for i in range(int(self.n_fits))]
+            self.mixture_ = pool_mixtures(fits, X)
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(X.shape[0])
         return self
@@ -334,6 +353,8 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         ``DatasetShards.open``); ``rows`` are global row indices over its shards, ``where`` names the
         data in errors. See :meth:`fit_stream`. Returns self."""
         self._check_hyperparameters()
+        if int(self.n_fits) != 1:
+            raise ValueError(f"n_fits = {self.n_fits}: pooled fits need the in-memory fit (fit), not the streaming one")
         n_rig = source.n_rig_views
         views = tuple(range(n_rig)) if self.views is None else tuple(int(v) for v in self.views)
         bad = [v for v in views if not 0 <= v < n_rig]
