@@ -80,7 +80,8 @@ def test_get_params_deep_and_set_params():
 def test_hyperparameters_stay_the_json_record_of_model_files():
     hp = ShapeStructureModel(**SMALL, views=(0, 1)).hyperparameters()
     assert hp == {"n_components": 2, "n_latent": 4, "structure_weight": 2.0, "views": [0, 1], "noise_variance": 1e-4,
-                  "joint_frame": None, "noise_dof": True, "tol": 1e-4, "max_iter": 30, "n_init": 1, "random_state": 0}
+                  "joint_frame": None, "noise_dof": True, "tol": 1e-4, "max_iter": 30, "n_init": 1, "n_fits": 1,
+                  "random_state": 0}
 
 
 # ------------------------------------------------------------------ fit / predict / score
