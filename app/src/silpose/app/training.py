@@ -282,8 +282,8 @@ def run_training(
     with EMProgress(progress, max_iter, n_init) as em:
         model = ShapeStructureModel(
             hp["n_components"], hp["n_latent"], structure_weight=hp["structure_weight"], views=views,
-            noise_variance=hp["noise_variance"], tol=tol, max_iter=max_iter, n_init=n_init, n_fits=int(n_fits), random_state=seed,
-            callback=em,
+            noise_variance=hp["noise_variance"], tol=tol, max_iter=max_iter, n_init=n_init, n_fits=int(n_fits),
+            random_state=seed, callback=em,
         )
         t0 = time.perf_counter()
         if streaming:
