@@ -19,12 +19,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from silpose.model.augment import Roughness, augment_rows
+from silpose.model.augment import Roughness, training_rows
 from silpose.model.persistence import load_model
 from silpose.model.selection import validation_split
 from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
+from silpose.shared.rig_symmetry import RigMirror
 
 from . import figures, inference_figures, plots
 from .errors import EvalInputError
@@ -84,12 +85,18 @@ def match_training_subset(data: EvalData, model) -> str:
         return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
     data.train_contours = data.train_contours[fit_idx]
     data.train_joints = data.train_joints[fit_idx]
-    rough = (getattr(model, "training_config_", None) or {}).get("roughness")
+    config = getattr(model, "training_config_", None) or {}
+    rough = config.get("roughness")
+    mirrors = tuple(RigMirror.from_dict(m) for m in config.get("mirrors") or ())
     extra = ""
-    if rough:  # the trainer's ragged copies (silpose.model.augment), reproduced row for row
-        data.train_contours, data.train_joints = augment_rows(data.train_contours, data.train_joints,
-                                                              Roughness(**rough), seed, fit_idx)
-        extra = f", plus the trainer's {int(rough['copies'])} ragged cop{'y' if rough['copies'] == 1 else 'ies'} of each"
+    if rough or mirrors:  # the trainer's mirrored people and ragged copies (silpose.model.augment), row for row
+        data.train_contours, data.train_joints = training_rows(
+            data.train_contours, data.train_joints, fit_idx, rig=data.rig, mirrors=mirrors,
+            roughness=Roughness(**rough) if rough else None, seed=seed)
+        if mirrors:
+            extra += f", plus their mirrored people ({len(mirrors)} rig symmetr{'y' if len(mirrors) == 1 else 'ies'})"
+        if rough:
+            extra += f", plus the trainer's {int(rough['copies'])} ragged cop{'y' if rough['copies'] == 1 else 'ies'} of each"
     return (f"single-view models, baselines and chance use the same {n_fit} training samples as the 4-view model "
             f"(the trainer's {n_held} held-out samples reproduced and excluded{extra})")
 

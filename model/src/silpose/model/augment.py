@@ -1,4 +1,18 @@
-"""Training augmentation: ragged contours like those of real segmentation (issue 12).
+"""Training augmentation: ragged contours like those of real segmentation, and mirrored people (issue 12).
+
+**Mirrored people.** When the rig is mirror-symmetric (``silpose.shared.rig_symmetry``: a vertical plane
+maps every camera a onto a camera ``view_map[a]`` with its image flipped), every training sample gives a
+second, exact one: the person reflected in the plane. :func:`mirror_samples` builds it without rendering:
+
+    contour_a' = reverse(flip(contour_{view_map[a]}))      flip(x, y) = (W - 1 - x, y)
+    joints'    = swap_left_right(S joints)                  S X = X - 2 (n . X - c) n
+
+``reverse`` keeps point 0 and reverses the others, so the contour stays clockwise and starts where it
+did (the start point's rule, docs/conventions.md "Contours", commutes with the flip); ``swap_left_right``
+relabels the reflected left arm as the right one (``silpose.shared.skeleton.mirror_indices``).
+Measured on the default preset (200 held-out training walkers, 4 views, robust inference, M 15 q 40
+with the mirrored copies against M 10 q 30 without, cm, three EM seeds): clean 3.68 -> 2.77-3.12,
+standard noise 4.55 -> 3.82-4.32, mild mask noise 6.59 -> 5.95-6.41.
 
 Real background subtraction (the paper's section 5, ``silpose.segment``) leaves ragged outlines:
 the boundary wanders by a pixel or two over a few pixels of its length (camera noise, shadow
@@ -26,13 +40,19 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from silpose.shared.camera import Rig
 from silpose.shared.contours import outward_normals
+from silpose.shared.rig_symmetry import RigMirror
 from silpose.shared.seeds import derive_rng, stream_code
+from silpose.shared.skeleton import mirror_indices
 
-__all__ = ["Roughness", "roughen_contours", "augment_rows", "ROUGHNESS_STREAM"]
+__all__ = ["Roughness", "roughen_contours", "augment_rows", "mirror_samples", "training_rows",
+           "ROUGHNESS_STREAM", "MIRROR_ID_STRIDE"]
 
 #: Second key of the roughness stream (``derive_rng(seed, ROUGHNESS_STREAM, sample)``).
 ROUGHNESS_STREAM = stream_code("roughness")
+#: Sample id of the k-th mirror (k = 1, 2, ...) of sample i in the roughness streams: ``i + k * MIRROR_ID_STRIDE``.
+MIRROR_ID_STRIDE = 1 << 32
 
 
 @dataclass(frozen=True)
@@ -133,3 +153,54 @@ def augment_rows(contours_px: np.ndarray, joints: np.ndarray, spec: Roughness, s
     parts = [np.asarray(contours_px, dtype=np.float64)]
     parts += [roughen_contours(contours_px, spec, seed + c, ids) for c in range(int(spec.copies))]
     return np.concatenate(parts), np.concatenate([np.asarray(joints)] * (1 + int(spec.copies)))
+
+
+def mirror_samples(contours_px: np.ndarray, joints: np.ndarray, mirror: RigMirror, rig: Rig) -> tuple[np.ndarray, np.ndarray]:
+    """The mirrored people of a batch of samples (module docstring, "Mirrored people").
+
+    Args:
+        contours_px: (N, V, n, 2) pixel contours of all V rig views (x right, y down), clockwise from the start point.
+        joints: (N, 19, 3) world joints, metres (absolute or root-relative: the plane's offset only moves the root).
+        mirror: a symmetry of ``rig`` (``silpose.shared.rig_symmetry.rig_mirrors``).
+        rig: the rig the contours were seen by (its image widths).
+    Returns:
+        (contours (N, V, n, 2) float64 px, joints (N, 19, 3) float64 metres) of the mirrored people.
+    """
+    c = np.asarray(contours_px, dtype=np.float64)
+    if c.ndim != 4 or c.shape[-1] != 2 or c.shape[1] != len(rig):
+        raise ValueError(f"contours_px must have shape (N, {len(rig)}, n, 2) for this rig, got {c.shape}")
+    if len(mirror.view_map) != len(rig):
+        raise ValueError(f"the mirror maps {len(mirror.view_map)} views, the rig has {len(rig)}")
+    source = np.asarray(mirror.view_map)
+    widths = np.array([rig[int(b)].width for b in source], dtype=np.float64)
+    out = c[:, source].copy()
+    out[..., 0] = (widths[None, :, None] - 1.0) - out[..., 0]
+    out = np.concatenate([out[:, :, :1], out[:, :, :0:-1]], axis=2)  # clockwise again, same start point
+    mirrored_joints = mirror.reflect(np.asarray(joints, dtype=np.float64))[:, mirror_indices()]
+    return out, mirrored_joints
+
+
+def training_rows(contours_px: np.ndarray, joints: np.ndarray, sample_ids, *, rig: Rig | None = None,
+                  mirrors: tuple[RigMirror, ...] = (), roughness: Roughness | None = None,
+                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The rows a model is fitted on: the samples, then their mirrored people (one block per mirror,
+    :func:`mirror_samples`), then the roughness copies of all of those (:func:`augment_rows`; the k-th
+    mirror of sample i draws as sample ``i + k * MIRROR_ID_STRIDE``). ``silpose train``, model selection
+    and the eval's baselines all build their training rows here, so they fit the same rows.
+
+    contours_px (N, V, n, 2) px, joints (N, 19, 3) metres, sample_ids (N,) non-negative ints.
+    Returns (contours (N', V, n, 2) float64, joints (N', 19, 3)), N' = N (1 + len(mirrors)) (1 + copies).
+    """
+    ids = np.asarray(sample_ids, dtype=np.int64)
+    c_parts, j_parts, id_parts = [np.asarray(contours_px, dtype=np.float64)], [np.asarray(joints)], [ids]
+    if mirrors and rig is None:
+        raise ValueError("mirrored training rows need the rig the contours were seen by")
+    for k, mirror in enumerate(mirrors, start=1):
+        c_m, j_m = mirror_samples(contours_px, joints, mirror, rig)
+        c_parts.append(c_m)
+        j_parts.append(j_m.astype(j_parts[0].dtype, copy=False))
+        id_parts.append(ids + k * MIRROR_ID_STRIDE)
+    c, j, i = (np.concatenate(p) if len(p) > 1 else p[0] for p in (c_parts, j_parts, id_parts))
+    if roughness is not None:
+        c, j = augment_rows(c, j, roughness, seed, i)
+    return c, j

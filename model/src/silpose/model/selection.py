@@ -41,7 +41,7 @@ import numpy as np
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 
-from .augment import Roughness, augment_rows, roughen_contours
+from .augment import Roughness, roughen_contours, training_rows
 from .shape_model import ShapeStructureModel
 
 #: The default grid (18 fits, 3 s^2 each): around the region the 2026-11 selections on the `default`
@@ -197,6 +197,7 @@ def select(
     tol: float = 0.1,
     rig=None,
     roughness: Roughness | None = None,
+    mirrors: tuple = (),
     noise_dof: bool = True,
     error_tolerance: float = DEFAULT_ERROR_TOLERANCE,
     progress: Callable[[int, int, dict], None] | None = None,
@@ -213,6 +214,8 @@ def select(
         n_init, max_iter, tol: EM settings of each fit (smaller than a final fit's, to keep the search cheap).
         roughness: training augmentation (``silpose.model.augment``) applied to the fitted rows as in
             ``silpose train --roughness``; None = none. The validation inputs are roughened either way.
+        mirrors: rig symmetries (``silpose.shared.rig_symmetry.RigMirror``) whose mirrored people are added to
+            the fitted rows (``silpose.model.augment.training_rows``; needs ``rig``); never to the validation rows.
         noise_dof: the fits' ``noise_dof`` (``ShapeStructureModel``).
         error_tolerance: relative score margin of :func:`choose`.
         progress: called as ``progress(i, n_fits, row)`` after each fit.
@@ -230,8 +233,8 @@ def select(
     joints = np.asarray(joints)
     tr, va = validation_split(len(joints), val_fraction, seed)
     c_fit, j_fit = contours_px[tr], joints[tr]
-    if roughness is not None:
-        c_fit, j_fit = augment_rows(c_fit, j_fit, roughness, seed, tr)
+    if roughness is not None or mirrors:
+        c_fit, j_fit = training_rows(c_fit, j_fit, tr, rig=rig, mirrors=tuple(mirrors), roughness=roughness, seed=seed)
     c_val = roughen_contours(contours_px[va], Roughness(), seed + VALIDATION_ROUGHNESS_SEED, va)
     fits = list(itertools.product(g["n_latent"], g["n_components"], g["structure_weight"]))
     rows: list[dict] = []
@@ -273,5 +276,6 @@ def select(
             progress(i + 1, len(fits), rows[-1])
     best, how = choose(rows, error_tolerance)
     return SelectionResult(rows=rows, best=best, grid=g, n_train=int(tr.size), n_val=int(va.size),
-                           extra={"choice": how, "roughness": None if roughness is None else roughness.to_dict()})
+                           extra={"choice": how, "roughness": None if roughness is None else roughness.to_dict(),
+                                  "mirrors": [m.to_dict() for m in mirrors]})
 

@@ -50,6 +50,11 @@ def train(
                                              "5,000 samples are fitted; off above.")] = None,
     roughness_copies: Annotated[int, typer.Option(min=0, help="Ragged copies added per training sample "
                                                   "(0 = replace each sample by one).")] = 1,
+    mirror: Annotated[str, typer.Option(help="Training augmentation for mirror-symmetric rigs (the paper's): add the "
+                                        "mirrored person of every training sample, seen by the mirrored cameras "
+                                        "(silpose.shared.rig_symmetry). 'auto': when the rig has a symmetry and at "
+                                        "most 10,000 samples result; 'on': always (error if the rig has none); "
+                                        "'off'. Real calibrations have no symmetry, so 'auto' changes nothing for them.")] = "auto",
 ) -> None:
     """Fit the shape+structure model (mixture of PPCA over contours + joints) on a dataset's train split.
 
@@ -82,6 +87,7 @@ def train(
             roughness=("auto" if roughness is None and roughness_copies == 1 else
                        Roughness(amplitude_px=1.0 if roughness is None else roughness, copies=roughness_copies)
                        if roughness is None or roughness > 0 else None),
+            mirror=mirror,
         )
     except (InputError, DatasetError, ModelFileError, StreamingError, ValueError) as exc:
         fail("train", str(exc))
