@@ -4,6 +4,7 @@ The records come from ``silpose.datagen.testing.synthetic_record`` (stick-figure
 extraction): fast, and written and read through ``silpose.shared.dataset`` like a generated dataset.
 """
 
+import dataclasses
 import json
 
 import cv2
@@ -14,12 +15,13 @@ from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
 from silpose.model.persistence import load_model, read_header
-from silpose.model.augment import Roughness, augment_rows, roughen_contours
+from silpose.model.augment import Roughness, augment_rows, roughen_contours, training_rows
 from silpose.model.selection import DEFAULT_GRID, validation_split
-from silpose.shared.camera import default_rig
+from silpose.shared.camera import Rig, default_rig
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split, write_shard
 from silpose.shared.dataset_schema import build_metadata
+from silpose.shared.rig_symmetry import rig_mirrors
 from silpose.shared.skeleton import JOINT_NAMES
 from silpose.model.hypotheses import single_answer
 
@@ -66,9 +68,14 @@ def test_train_writes_model_and_report(trained, dataset):
     fit_idx, held_idx = validation_split(80, 0.1, 0)
     w = model.structure_weight
     held = model.score_samples(data.contours[held_idx], data.joints[held_idx]).mean() + 57 * np.log(w)
-    # the fitted rows: the clean samples plus one ragged copy each (roughness "auto" below 5,000 samples)
-    assert report["roughness"] == Roughness().to_dict() and report["em"]["n_fit_rows"] == 2 * 72
-    c_rows, j_rows = augment_rows(data.contours[fit_idx], data.joints[fit_idx], Roughness(), 0, fit_idx)
+    # the fitted rows: the clean samples, their mirrored people (the default rig has one mirror symmetry,
+    # mirror "auto") and one ragged copy of each (roughness "auto" below 5,000 samples)
+    mirrors = rig_mirrors(data.rig)
+    assert report["mirrors"] == [m.to_dict() for m in mirrors] and len(mirrors) == 1
+    assert report["roughness"] == Roughness().to_dict() and report["em"]["n_fit_rows"] == 2 * 2 * 72
+    c_rows, j_rows = training_rows(data.contours[fit_idx], data.joints[fit_idx], fit_idx, rig=data.rig,
+                                   mirrors=tuple(mirrors), roughness=Roughness(), seed=0)
+    assert "mirrored person" in out.with_suffix(".report.md").read_text()
     train = model.score_samples(c_rows, j_rows).mean() + 57 * np.log(w)
     assert report["heldout"]["mean_loglik"] == pytest.approx(held, rel=1e-9)
     assert report["em"]["train_loglik"] == pytest.approx(train, rel=1e-6)
@@ -200,7 +207,7 @@ def test_train_errors_and_select(dataset, tmp_path):
 def test_roughness_adds_ragged_copies_of_the_fitted_rows(dataset, tmp_path):
     out = tmp_path / "rough.npz"
     res = _invoke("train", dataset, "-M", "1", "-q", "3", "--n-init", "1", "--max-iter", "5", "--no-progress",
-                  "--roughness", "0.5", "--roughness-copies", "2", "--out", out)
+                  "--roughness", "0.5", "--roughness-copies", "2", "--mirror", "off", "--out", out)
     assert res.exit_code == 0, res.output
     report = json.loads(out.with_suffix(".report.json").read_text())
     assert report["n_fit"] == 72 and report["em"]["n_fit_rows"] == 3 * 72
@@ -218,6 +225,38 @@ def test_roughness_adds_ragged_copies_of_the_fitted_rows(dataset, tmp_path):
     np.testing.assert_allclose(ref.mixture_.means_, model.mixture_.means_, rtol=1e-9, atol=1e-9)
     res = _invoke("train", dataset, "--roughness", "1", "--streaming", "--out", tmp_path / "s.npz")
     assert res.exit_code == 2 and "--roughness" in res.output
+
+
+def test_mirror_modes(dataset, tmp_path):
+    """--mirror auto adds the default rig's mirrored people (see also test_train_writes_model_and_report),
+    off adds none, on refuses a rig without a symmetry and streaming."""
+    common = ["-M", "1", "-q", "3", "--n-init", "1", "--max-iter", "3", "--no-progress", "--roughness", "0"]
+    res = _invoke("train", dataset, *common, "--mirror", "off", "--out", tmp_path / "off.npz")
+    assert res.exit_code == 0, res.output
+    report = json.loads((tmp_path / "off.report.json").read_text())
+    assert report["mirrors"] == [] and report["em"]["n_fit_rows"] == 72
+    res = _invoke("train", dataset, *common, "--mirror", "on", "--out", tmp_path / "on.npz")
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "on.report.json").read_text())["em"]["n_fit_rows"] == 2 * 72
+    res = _invoke("train", dataset, *common, "--mirror", "on", "--streaming", "--out", tmp_path / "s.npz")
+    assert res.exit_code == 2 and "--mirror on" in res.output
+    res = _invoke("train", dataset, *common, "--mirror", "sometimes", "--out", tmp_path / "x.npz")
+    assert res.exit_code == 2 and "--mirror must be one of" in res.output
+    # a rig one camera of which moved 1 cm has no symmetry: auto adds nothing, on is an error
+    asym = tmp_path / "asym"
+    asym.mkdir()
+    cams = list(default_rig().cameras)
+    cams[1] = dataclasses.replace(cams[1], t=cams[1].t + np.array([0.01, 0, 0]))
+    rig = Rig(tuple(cams))
+    config = {"name": "asym", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS}
+    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
+    write_shard(asym / "train-00000-of-00001.parquet", [synthetic_record(config, "train", i) for i in range(40)], meta)
+    (asym / "manifest.json").write_text(json.dumps({"name": "asym"}))
+    res = _invoke("train", asym, *common, "--out", tmp_path / "asym.npz")
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "asym.report.json").read_text())["mirrors"] == []
+    res = _invoke("train", asym, *common, "--mirror", "on", "--out", tmp_path / "asym.npz")
+    assert res.exit_code == 2 and "no mirror symmetry" in res.output
 
 
 def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):
@@ -239,8 +278,9 @@ def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):
     out = tmp_path / "small.npz"
     res = _invoke("train", dataset, "--n-init", "1", "--max-iter", "10", "--no-progress", "--out", out)
     assert res.exit_code == 0, res.output
-    m, q = supported_size(72, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT)
-    assert (m, q) == (10, 1)
+    # 72 fitted samples and their 72 mirrored people (the default rig is mirror-symmetric)
+    m, q = supported_size(144, DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT)
+    assert (m, q) == (10, 2) and "(with their 72 mirrored people)" in res.output
     assert f"lowered from the defaults {DEFAULT_N_COMPONENTS}, {DEFAULT_N_LATENT} to {m}, {q}" in res.output
     hp = read_header(out)["hyperparameters"]
     assert (hp["n_components"], hp["n_latent"]) == (m, q)

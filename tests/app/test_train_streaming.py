@@ -48,7 +48,7 @@ def dataset(tmp_path_factory):
 def test_train_cli_streaming_equals_in_memory(dataset, tmp_path):
     """`silpose train --streaming`: same held-out rows, same k-means start (<= 5,000 rows), same model."""
     common = [str(dataset), "-M", "2", "-q", "4", "--n-init", "2", "--max-iter", "15", "--tol", "0", "--no-progress",
-              "--roughness", "0"]  # the ragged-copy augmentation is in-memory only
+              "--roughness", "0", "--mirror", "off"]  # the ragged copies and mirrored people are in-memory only
     paths = {}
     for mode, extra in (("memory", []), ("stream", ["--streaming"])):
         paths[mode] = tmp_path / f"{mode}.npz"

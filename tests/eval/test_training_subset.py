@@ -19,9 +19,12 @@ def test_subset_reproduces_the_trainers_fit(stick_dataset, tmp_path):
     data = load_data(stick_dataset, None, with_masks=False)
     n_all = len(data.train_joints)
     note = match_training_subset(data, model)
-    # the trainer's ragged-copy augmentation (roughness "auto": one copy per sample) is reproduced too
+    # the trainer's mirrored people (the stick rig is the default, mirror-symmetric one; mirror "auto") and
+    # ragged copies (roughness "auto": one copy per sample) are reproduced too
     copies = model.training_config_["roughness"]["copies"]
-    assert copies == 1 and "ragged copy" in note
-    assert len(data.train_joints) == (1 + copies) * model.dataset_info_["n_fit"] and model.dataset_info_["n_fit"] < n_all
+    assert copies == 1 and "ragged copy" in note and "mirrored people (1 rig symmetry)" in note
+    assert len(model.training_config_["mirrors"]) == 1
+    n_fit = model.dataset_info_["n_fit"]
+    assert len(data.train_joints) == 2 * (1 + copies) * n_fit and n_fit < n_all
     refit = ShapeStructureModel(**model.get_params()).fit(data.train_contours, data.train_joints, rig=data.rig)
     np.testing.assert_allclose(refit.mixture_.means_, model.mixture_.means_, rtol=1e-6, atol=1e-9)
