@@ -24,6 +24,8 @@ from typing import Iterable, Iterator
 
 import psutil
 
+from silpose.shared.ray_tasks import cancel_pending, task_failure_message
+
 DEFAULT_RENDER = "silpose.datagen.worker:render_samples"
 #: Shard tasks a worker runs before it is replaced (bounds memory growth in long runs).
 DEFAULT_MAX_TASKS_PER_CHILD = 20
@@ -285,15 +287,10 @@ def run_ray(
                 try:
                     result = ray.get(ref)
                 except Exception as exc:
-                    msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-                    raise ExecutorError(f"shard {task.file}: Ray task failed: {msg}") from None
+                    raise ExecutorError(f"shard {task.file}: Ray task failed: {task_failure_message(exc)}") from None
                 yield task, result
     finally:
-        for ref in pending:
-            try:
-                ray.cancel(ref, force=True)
-            except Exception:  # already finished or gone
-                pass
+        cancel_pending(ray, pending)
 
 
 EXECUTORS = {"local": run_local, "ray": run_ray}

@@ -29,6 +29,7 @@ import pyarrow.parquet as pq
 
 from silpose.shared.camera import Rig
 from silpose.shared.dataset import DatasetError, list_shards, read_metadata, read_shard, rig_from_metadata, shard_name
+from silpose.shared.ray_tasks import cancel_pending, task_failure_message
 
 from .features import FeatureLayout, shape_vectors
 from .shards import ShardSource, compose_rows
@@ -198,15 +199,9 @@ def _ray_map(src: DatasetShards, todo: list[int], fn: Callable, args: tuple) -> 
                 try:
                     ready[k] = ray.get(ref)
                 except Exception as exc:
-                    lines = str(exc).strip().splitlines()
-                    raise StreamingError(f"{src.paths[todo[k]]}: Ray task failed: "
-                                         f"{lines[-1] if lines else type(exc).__name__}") from None
+                    raise StreamingError(f"{src.paths[todo[k]]}: Ray task failed: {task_failure_message(exc)}") from None
             while nxt in ready:
                 yield ready.pop(nxt)
                 nxt += 1
     finally:
-        for ref in pending:
-            try:
-                ray.cancel(ref, force=True)
-            except Exception:  # already finished or gone
-                pass
+        cancel_pending(ray, pending)
