@@ -17,7 +17,7 @@ from silpose.datagen.testing import synthetic_record
 from silpose.model.persistence import load_model, read_header
 from silpose.model.augment import Roughness, augment_rows, roughen_contours, training_rows
 from silpose.model.selection import DEFAULT_GRID, validation_split
-from silpose.shared.camera import Rig, default_rig
+from silpose.shared.camera import Rig, default_rig, ring_rig
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split, write_shard
 from silpose.shared.dataset_schema import build_metadata
@@ -257,6 +257,16 @@ def test_mirror_modes(dataset, tmp_path):
     assert json.loads((tmp_path / "asym.report.json").read_text())["mirrors"] == []
     res = _invoke("train", asym, *common, "--mirror", "on", "--out", tmp_path / "asym.npz")
     assert res.exit_code == 2 and "no mirror symmetry" in res.output
+    # auto leaves the mirrors out above AUTO_MIRROR_MAX_ROWS (the paper preset's 18,000) and when streaming,
+    # and says so in the report's notes
+    from silpose.app.training import AUTO_MIRROR_MAX_ROWS, choose_mirrors
+    ring = ring_rig(n_cameras=8, azimuth_step_deg=45.0)
+    assert choose_mirrors(default_rig(), "auto", 1800, False) == (tuple(rig_mirrors(default_rig())), "")
+    used, note = choose_mirrors(ring, "auto", AUTO_MIRROR_MAX_ROWS // 4, False)
+    assert len(used) == 3 and "3 of the rig's 8 mirror symmetries used" in note
+    assert choose_mirrors(default_rig(), "auto", 18000, False)[0] == ()
+    assert "not added when streaming" in choose_mirrors(default_rig(), "auto", 100, True)[1]
+    assert choose_mirrors(rig, "auto", 100, False) == ((), "")
 
 
 def test_defaults_are_lowered_for_a_small_dataset(dataset, tmp_path):

@@ -254,7 +254,7 @@ def run_training(
     fit_idx, held_idx = validation_split(n, heldout, seed)
     if roughness == "auto":
         roughness = Roughness() if len(fit_idx) <= AUTO_ROUGHNESS_MAX_SAMPLES else None
-    mirrors = choose_mirrors(rig, mirror, len(fit_idx), streaming)
+    mirrors, mirror_note = choose_mirrors(rig, mirror, len(fit_idx), streaming)
     n_rows = len(fit_idx) * (1 + len(mirrors))  # the samples EM sees, before roughness copies
     contours, joints = (None, None) if split is None else (split.contours, split.joints)
     del split
@@ -281,7 +281,7 @@ def run_training(
         )
         print(selection.to_markdown())
         hp = {k: selection.best[k] for k in hp}
-    notes = []
+    notes = [mirror_note] if mirror_note else []
     if not select:
         m_fit, q_fit = supported_size(n_rows, int(hp["n_components"]), int(hp["n_latent"]),
                                       fixed_m=n_components is not None, fixed_q=n_latent is not None)
@@ -384,19 +384,27 @@ def run_training(
     return TrainingResult(out, report_md, report_json, report)
 
 
-def choose_mirrors(rig, mode: str, n_fit: int, streaming: bool) -> tuple[RigMirror, ...]:
-    """The rig symmetries whose mirrored people ``silpose train --mirror mode`` adds (see ``run_training``)."""
+def choose_mirrors(rig, mode: str, n_fit: int, streaming: bool) -> tuple[tuple[RigMirror, ...], str]:
+    """(the rig symmetries whose mirrored people ``silpose train --mirror mode`` adds, a note for the report
+    when ``auto`` leaves some out, else "") -- see ``run_training``."""
     if mode == "off" or rig is None:
-        return ()
+        return (), ""
     found = tuple(rig_mirrors(rig))
     if mode == "on":
         if not found:
             raise TrainingError(f"{rig.where}: --mirror on, but the rig has no mirror symmetry (no vertical plane maps "
                                 f"its cameras onto each other; real calibrations never do): use --mirror auto or off")
-        return found
+        return found, ""
+    if not found:
+        return (), ""
     if streaming:
-        return ()
-    return found[:max(0, AUTO_MIRROR_MAX_ROWS // max(n_fit, 1) - 1)]
+        return (), (f"the rig has {len(found)} mirror symmetr{'y' if len(found) == 1 else 'ies'}, but their mirror "
+                    f"images are not added when streaming (--mirror on works in memory)")
+    used = found[:max(0, AUTO_MIRROR_MAX_ROWS // max(n_fit, 1) - 1)]
+    if len(used) < len(found):
+        return used, (f"{len(used)} of the rig's {len(found)} mirror symmetries used: {n_fit} fitted samples with "
+                      f"all their mirror images would pass {AUTO_MIRROR_MAX_ROWS:,} (--mirror on uses all)")
+    return used, ""
 
 
 def report_paths(model_path: Path) -> tuple[Path, Path, Path]:
