@@ -75,7 +75,9 @@ def test_robust_inference_ignores_an_outlying_stretch(fitted):
     bad = contours.copy()
     bad[:, 1, 3:8] += np.array([25.0, -15.0])  # 5 of 24 points of view 1 thrown ~30 px away (a blob)
     gauss = model.infer(bad)
-    rob = model.infer(bad, robust=True)
+    # the weights alone: these random linear "contours" are not outlines, so excursion trimming (which
+    # reads outline geometry, test_excursions.py) is off here
+    rob = model.infer(bad, robust=RobustSettings(excursion_passes=0))
     clean = model.infer(contours)
     assert _err(rob.joints, joints) < 0.5 * _err(gauss.joints, joints)
     assert _err(rob.joints, joints) < 2.0 * _err(clean.joints, joints) + 0.5

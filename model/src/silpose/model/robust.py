@@ -46,9 +46,11 @@ passes, 300 walkers): standard 6.03 -> 5.89 cm, "mask mild" 10.2 -> 9.7 cm (``wi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from .excursions import ExcursionSettings
 
 __all__ = ["RobustSettings", "NOISE_LEVELS", "frame_noise_variance", "point_weights", "snap_correspondences"]
 
@@ -60,7 +62,10 @@ class RobustSettings:
     iterations: reweighting passes after the Gaussian one; threshold: c, in robust scales;
     scale_floor_px: added to the robust scale (keeps clean views from rejecting sub-pixel residuals);
     window: correspondence search half-width in contour points (0 = index correspondences);
-    noise_scale: adaptive observation noise (:func:`frame_noise_variance`); None = the model's s^2.
+    noise_scale: adaptive observation noise (:func:`frame_noise_variance`); None = the model's s^2;
+    excursion_passes: times the observed contours' excursions (shadows, blobs, bitten holes) are trimmed
+        against the robust reconstruction and the changed frames inferred again (``silpose.model.excursions``;
+        0 = never); excursions: their thresholds.
     """
 
     iterations: int = 8
@@ -68,6 +73,8 @@ class RobustSettings:
     scale_floor_px: float = 0.3
     window: int = 0
     noise_scale: float | None = 10.0
+    excursion_passes: int = 2
+    excursions: ExcursionSettings = field(default_factory=ExcursionSettings)
 
     def __post_init__(self) -> None:
         if int(self.iterations) < 1:
@@ -78,6 +85,8 @@ class RobustSettings:
             raise ValueError(f"robust scale_floor_px must be >= 0, got {self.scale_floor_px}")
         if int(self.window) < 0:
             raise ValueError(f"robust window must be >= 0, got {self.window}")
+        if int(self.excursion_passes) < 0:
+            raise ValueError(f"robust excursion_passes must be >= 0, got {self.excursion_passes}")
         if self.noise_scale is not None and not (np.isfinite(self.noise_scale) and self.noise_scale > 0):
             raise ValueError(f"robust noise_scale must be finite and > 0 (or None), got {self.noise_scale}")
 

@@ -41,6 +41,7 @@ from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
 from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
 from .plausibility import PlausibilityCalibration, convex_in_every_view, view_subsets
 from .provenance import manifest_sha256
+from .excursions import trim_excursions
 from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 from .untangle import untangle as untangle_contours
 from .shards import split_global_rows
@@ -107,6 +108,9 @@ class InferenceResult:
         log_marginal_robust: (N,) log density of the last robust pass's pseudo-observations, else None.
         noise_variance: (N,) observation noise s^2 each frame was conditioned with by robust inference's
             adaptive noise (``silpose.model.robust``), else None (the model's or the given s^2).
+        excursions_trimmed: (N, K) bool, views whose excursions (shadows, blobs, bitten holes) robust inference
+            trimmed before its final pass (``silpose.model.excursions``; ``robust_weights`` then index the trimmed
+            contour), else None.
     """
 
     joints: np.ndarray
@@ -126,6 +130,16 @@ class InferenceResult:
     robust_weights: np.ndarray | None = None
     log_marginal_robust: np.ndarray | None = None
     noise_variance: np.ndarray | None = None
+    excursions_trimmed: np.ndarray | None = None
+
+
+def _replace_rows(full: InferenceResult, part: InferenceResult, rows: np.ndarray) -> None:
+    """Write ``part`` (the results of frames ``rows`` of ``full``, inferred again) into ``full``, per-frame field by field."""
+    n = len(full.joints)
+    for name in full.__dataclass_fields__:
+        value, new = getattr(full, name), getattr(part, name)
+        if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == n and isinstance(new, np.ndarray):
+            value[rows] = new
 
 
 class ModelNotFittedError(NotFittedError, RuntimeError):
@@ -492,28 +506,27 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         settings = RobustSettings() if robust is True else (robust or None)
         present, c_mod, cen_true, sc_true = self._prepare(contours_px, views_present, input_views, centroid, scale)
         want = hypotheses > 0  # component means (hypotheses) come from the last pass only
-        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=want and settings is None)
-        if settings is not None:
-            observed_lm = res.log_marginal
-            if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
-                with np.errstate(invalid="ignore", over="ignore"):
-                    norm_obs = normalise_contours(c_mod)[0]
-                s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-                res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=False)
-            else:
-                s2_rows = s2
-            for it in range(int(settings.iterations)):
-                matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
-                u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
-                pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
-                                  c_mod)
-                last = it == int(settings.iterations) - 1
-                res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=want and last)
-            if settings.noise_scale is not None:
-                res.noise_variance = s2_rows
-            res.log_marginal_robust = res.log_marginal
-            res.log_marginal = observed_lm
-            res.robust_weights = u
+        if settings is None:
+            res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=want)
+        else:
+            res, comp = self._infer_robust(c_mod, present, cen_true, sc_true, s2, settings, want)
+            observed_lm = res.log_marginal.copy()  # _replace_rows below writes into res's arrays
+            trimmed = np.zeros(present.shape, dtype=bool)
+            work = c_mod
+            for _ in range(int(settings.excursion_passes)):  # shadows, blobs, holes (silpose.model.excursions)
+                new, changed = trim_excursions(work, res.contours_px, present, settings.excursions)
+                rows = np.flatnonzero(changed.any(axis=1))
+                if rows.size == 0:
+                    break
+                work = np.where(changed[..., None, None], new, work)
+                trimmed |= changed
+                again, again_comp = self._infer_robust(work[rows], present[rows], cen_true[rows], sc_true[rows], s2,
+                                                       settings, want)
+                _replace_rows(res, again, rows)
+                if comp is not None:
+                    comp[rows] = again_comp
+            res.log_marginal = observed_lm  # of the input as observed, excursions and all
+            res.excursions_trimmed = trimmed
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
             res.plausibility = cal.percentile(res.log_marginal, present)
@@ -527,6 +540,35 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         if untangle:
             res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
         return res
+
+    def _infer_robust(self, c_mod: np.ndarray, present: np.ndarray, cen_true: np.ndarray, sc_true: np.ndarray,
+                      s2: float, settings: RobustSettings, want: bool) -> tuple[InferenceResult, np.ndarray | None]:
+        """Robust inference (``silpose.model.robust``) of prepared inputs (:meth:`_prepare`): the Gaussian pass,
+        the adaptive noise, then ``settings.iterations`` reweighted passes; returns the last pass's result (with
+        ``log_marginal`` that of the input, ``log_marginal_robust``, ``robust_weights``, ``noise_variance``) and,
+        with ``want``, its component means (as :meth:`_infer_prepared`)."""
+        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=False)
+        observed_lm = res.log_marginal
+        if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
+            with np.errstate(invalid="ignore", over="ignore"):
+                norm_obs = normalise_contours(c_mod)[0]
+            s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
+            res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=False)
+        else:
+            s2_rows = s2
+        for it in range(int(settings.iterations)):
+            matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
+            u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
+            pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
+                              c_mod)
+            last = it == int(settings.iterations) - 1
+            res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=want and last)
+        if settings.noise_scale is not None:
+            res.noise_variance = s2_rows
+        res.log_marginal_robust = res.log_marginal
+        res.log_marginal = observed_lm
+        res.robust_weights = u
+        return res, comp
 
     def _prepare(self, contours_px, views_present, input_views, centroid, scale):
         """Inputs in the model's view order: (present (N, K), contours (N, K, n, 2) px, true centroid
