@@ -6,7 +6,8 @@
   or, where the chosen hypothesis (``hypothesis``, 1-based; its ``heading_deg``) faces the other way,
   that hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
   ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
-  model has no calibration), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
+  model has no calibration), ``views_trimmed`` (the views whose outline robust inference cut a shadow,
+  blob or hole from, ``silpose.model.excursions``; comma-separated, empty when none), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
 
@@ -113,6 +114,8 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
     head = np.degrees(heading(joints))
     plaus = _optional(result.plausibility, n)
     hyp = result.hypotheses
+    trimmed = (np.zeros(result.views_present.shape, dtype=bool) if result.excursions_trimmed is None
+               else np.asarray(result.excursions_trimmed, dtype=bool))
     if path.suffix.lower() == ".json":
         doc = {
             "model": model_path,
@@ -124,6 +127,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
                     "frame": str(frames[i]),
                     **({"sample_id": int(sample_id[i])} if sample_id is not None else {}),
                     "views_present": [names[k] for k in np.flatnonzero(result.views_present[i])],
+                    "views_trimmed": [names[k] for k in np.flatnonzero(trimmed[i])],
                     **({"status": str(status[i])} if status is not None else {}),
                     "plausibility": None if not np.isfinite(plaus[i]) else float(plaus[i]),
                     "heading_deg": None if not np.isfinite(head[i]) else float(head[i]),
@@ -148,6 +152,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         cols["sample_id"] = pa.array(np.asarray(sample_id, dtype=np.int64))
     cols["n_views_present"] = pa.array(result.views_present.sum(1).astype(np.int32))
     cols["views_present"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in result.views_present])
+    cols["views_trimmed"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in trimmed])
     if status is not None:
         cols["status"] = pa.array([str(x) for x in status])
     cols["plausibility"] = pa.array(plaus.astype(np.float32))
