@@ -8,9 +8,9 @@ Each figure states how its example was chosen (never the best case silently):
   seen from above (true skeleton, the flipped top-1 hypothesis, the chosen one; arrows = facing) and
   the three skeletons in 3D.
 - ``e6_robust_mask.png``: "mask strong", 4 views; the example at the 75th percentile of the pose-error
-  gain of robust over Gaussian inference. Per view: the corrupted input, its points that robust
-  inference down-weighted below 0.5, the Gaussian and the robust reconstructions over the true clean
-  contour; below, the skeletons.
+  gain of robust over Gaussian inference. Per view: the corrupted input, where robust inference cut
+  loops from it the input it used (``silpose.model.excursions``), the points it down-weighted below 0.5,
+  the Gaussian and the robust reconstructions over the true clean contour; below, the skeletons.
 - ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.garbage``: two people
   merged, a box, an all-white frame), every view's mask with its contour and the model's
   reconstruction, titled with the plausibility percentile and whether ``silpose infer`` flags it.
@@ -106,7 +106,8 @@ def flip_figure(ev, path: Path) -> Path | None:
     for k in range(K):
         _contour_axes(fig.add_subplot(gs[0, k]), [(d.test_contours[i, k], ":", "gray", "true clean"),
                                                   (noisy[i, k], "-", "tab:blue", "noisy input")], f"view {k}: input")
-    fig.axes[0].legend(loc="lower left", fontsize=6)
+    handles = {h.get_label(): h for ax in fig.axes for h in ax.get_lines()}
+    fig.axes[0].legend(handles.values(), handles.keys(), loc="lower left", fontsize=6)
     half = max(1, K // 2)
     skel = [(truth[i], ":", "black", "truth"), (root_relative(top1[i]), "-", "tab:red", "top-1 (flipped)"),
             (root_relative(chosen[i]), "-", "tab:green", f"view-pair consensus (hypothesis {int(hyp.chosen[i]) + 1})")]
@@ -143,9 +144,13 @@ def robust_figure(ev, path: Path, label: str = "mask strong") -> Path | None:
         _contour_axes(ax, [(d.test_contours[i, k], ":", "gray", "true clean"), (noisy[i, k], "-", "black", "corrupted input"),
                            (gauss.contours_px[i, k], "-", "tab:red", "Gaussian"),
                            (rob.contours_px[i, k], "-", "tab:green", "robust")], f"view {k}")
+        used = rob.robust_input_px[i, k]  # the input with its excursions cut (silpose.model.excursions)
+        if rob.excursions_trimmed[i, k]:
+            ax.plot(*np.vstack([used, used[:1]]).T, "--", color="tab:blue", lw=0.9, label="input, loops cut")
         low = rob.robust_weights[i, k] < 0.5
-        ax.plot(noisy[i, k, low, 0], noisy[i, k, low, 1], "x", color="tab:orange", ms=3, label="weight < 0.5")
-    fig.axes[0].legend(loc="lower left", fontsize=6)
+        ax.plot(used[low, 0], used[low, 1], "x", color="tab:orange", ms=3, label="weight < 0.5")
+    handles = {h.get_label(): h for ax in fig.axes for h in ax.get_lines()}
+    fig.axes[0].legend(handles.values(), handles.keys(), loc="lower left", fontsize=6)
     _stick3d(fig.add_subplot(gs[1, :], projection="3d"),
              [(truth[i], ":", "black", "truth"), (root_relative(gauss.joints[i]), "-", "tab:red", f"Gaussian {eg[i]:.1f} cm"),
               (root_relative(rob.joints[i]), "-", "tab:green", f"robust {er[i]:.1f} cm")])

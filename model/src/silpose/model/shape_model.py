@@ -111,6 +111,8 @@ class InferenceResult:
         excursions_trimmed: (N, K) bool, views whose excursions (shadows, blobs, bitten holes) robust inference
             trimmed before its final pass (``silpose.model.excursions``; ``robust_weights`` then index the trimmed
             contour), else None.
+        robust_input_px: (N, K, n, 2) the observed contours robust inference's final pass started from: the input
+            with those excursions trimmed (``robust_weights`` index these points), else None.
     """
 
     joints: np.ndarray
@@ -131,6 +133,7 @@ class InferenceResult:
     log_marginal_robust: np.ndarray | None = None
     noise_variance: np.ndarray | None = None
     excursions_trimmed: np.ndarray | None = None
+    robust_input_px: np.ndarray | None = None
 
 
 def _replace_rows(full: InferenceResult, part: InferenceResult, rows: np.ndarray) -> None:
@@ -527,6 +530,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                     comp[rows] = again_comp
             res.log_marginal = observed_lm  # of the input as observed, excursions and all
             res.excursions_trimmed = trimmed
+            res.robust_input_px = np.asarray(work, dtype=np.float64)
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
             res.plausibility = cal.percentile(res.log_marginal, present)
