@@ -8,6 +8,7 @@ the Blender tests use a 2-camera 160x120 rig (same field of view as the default 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import multiprocessing as mp
 import shutil
@@ -18,10 +19,11 @@ import cv2
 import numpy as np
 import pytest
 
-from silpose.datagen.frames.scene import check_props_do_not_occlude, occludes, place_props
+from silpose.datagen.frames.scene import check_props_do_not_occlude, occludes, place_props, room_centre, room_half_size
 from silpose.datagen.worker import render_samples
 from silpose.shared.camera import Rig, default_rig, ring_rig
 from silpose.shared.camera_noise import add_camera_noise, noise_rng
+from silpose.shared.rig_frame import Workspace
 from silpose.shared.dataset import load_split
 
 TIMEOUT_S = 600
@@ -115,6 +117,16 @@ def test_props_never_hide_the_workspace():
         props = place_props(rig)
         assert [p["name"] for p in props] == ["box", "table"]
         check_props_do_not_occlude(rig, props)
+    # a lab calibrated with its origin in a room corner: the room and the props go where people walk
+    far = Rig(tuple(dataclasses.replace(c, t=c.t - c.R @ np.array([12.0, 30.0, 0.0])) for c in default_rig()),
+              workspace=Workspace(center=np.array([12.0, 30.0])))
+    assert room_half_size(far) == pytest.approx(room_half_size(default_rig()))
+    np.testing.assert_allclose(room_centre(far), [12.0, 30.0])
+    props = place_props(far)
+    assert [p["name"] for p in props] == ["box", "table"]
+    for p, q in zip(props, place_props(default_rig())):  # the same layout, moved with the rig
+        np.testing.assert_allclose(p["boxes"][0][0], q["boxes"][0][0] + np.array([12.0, 30.0, 0.0]), atol=1e-9)
+    check_props_do_not_occlude(far, props)
     # the check itself: a point between camera 0 and the centre hides the workspace, one behind does not
     c = default_rig()[0].center
     assert occludes(np.array([[c[0] / 2, c[1] / 2, 1.0]]), default_rig())

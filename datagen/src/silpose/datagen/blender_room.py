@@ -158,6 +158,7 @@ def build_room(rig: Rig) -> list[dict]:
     from mathutils import Vector
 
     half, h = fs.room_half_size(rig), fs.ROOM_HEIGHT
+    cx, cy = (float(v) for v in fs.room_centre(rig))  # the workspace's centre
     floor_m, bsdf = _material("floor", fs.FLOOR_COLOURS[0], roughness=0.6)
     _mix_by_texture(floor_m, bsdf, *fs.FLOOR_COLOURS, "ShaderNodeTexNoise", 6.0, Detail=6.0, Roughness=0.7)
     _add_grain(floor_m, bsdf, fs.FLOOR_GRAIN["scale"], fs.FLOOR_GRAIN["amount"])
@@ -165,12 +166,12 @@ def build_room(rig: Rig) -> list[dict]:
     _mix_by_texture(wall_m, bsdf, fs.WALL_COLOUR, tuple(0.8 * c for c in fs.WALL_COLOUR), "ShaderNodeTexNoise",
                     1.5, Detail=3.0)
     t = 0.1
-    _box_object("floor", (0, 0, -t / 2), (2 * half, 2 * half, t), floor_m)
+    _box_object("floor", (cx, cy, -t / 2), (2 * half, 2 * half, t), floor_m)
     for name, c, s in (
-        ("wall_px", (half + t / 2, 0, h / 2), (t, 2 * half, h)),
-        ("wall_nx", (-half - t / 2, 0, h / 2), (t, 2 * half, h)),
-        ("wall_py", (0, half + t / 2, h / 2), (2 * half, t, h)),
-        ("wall_ny", (0, -half - t / 2, h / 2), (2 * half, t, h)),
+        ("wall_px", (cx + half + t / 2, cy, h / 2), (t, 2 * half, h)),
+        ("wall_nx", (cx - half - t / 2, cy, h / 2), (t, 2 * half, h)),
+        ("wall_py", (cx, cy + half + t / 2, h / 2), (2 * half, t, h)),
+        ("wall_ny", (cx, cy - half - t / 2, h / 2), (2 * half, t, h)),
     ):
         _box_object(name, c, s, wall_m)
     props = fs.place_props(rig)

@@ -37,7 +37,7 @@ subtraction and end-to-end path (issue 5). Made by `silpose gen-frames {config.n
   (`silpose.shared.dataset.load_split(dir, "test")`), with the records of `silpose gen`'s test
   samples (renderer `{config.renderer}`): masks, contours, joints bit-identical. The person in the
   frames is the same posed mesh the truth masks are filled from.
-- **Scene**: a {2 * fs.room_half_size(config.rig):.0f} m square room, {fs.ROOM_HEIGHT} m walls, a floor
+- **Scene**: a {2 * fs.room_half_size(config.rig):.0f} m square room centred on the workspace ({fs.room_centre(config.rig)[0]:.1f}, {fs.room_centre(config.rig)[1]:.1f}) m, {fs.ROOM_HEIGHT} m walls, a floor
   with a procedural noise texture, props ({props}) placed where they never hide the workspace
   from a camera; a sun (elevation {fs.SUN['elevation_deg']:.0f} deg, azimuth {fs.SUN['azimuth_deg']:.0f}
   deg) casts the shadows, a uniform world light of strength {fs.AMBIENT} lights them.

@@ -146,9 +146,16 @@ def part_labels(
     return labels
 
 
+def room_centre(rig: Rig) -> np.ndarray:
+    """(2,) metres: the floor point the square room is centred on, the centre of the rig's workspace (a lab
+    calibrated with its origin in a room corner gets its room around where people walk, not around (0, 0))."""
+    return np.asarray(rig.workspace.center, dtype=np.float64)
+
+
 def room_half_size(rig: Rig) -> float:
-    """Half side (metres) of the square room: the cameras stand 1 m inside its walls."""
-    return float(max(np.abs(cam.center[:2]).max() for cam in rig) + 1.0)
+    """Half side (metres) of the square room around :func:`room_centre`: the cameras stand 1 m inside its walls."""
+    centre = room_centre(rig)
+    return float(max(np.abs(cam.center[:2] - centre).max() for cam in rig) + 1.0)
 
 
 ROOM_HEIGHT = 3.5
@@ -191,7 +198,7 @@ def occludes(points: np.ndarray, rig: Rig) -> bool:
 def place_props(rig: Rig) -> list[dict]:
     """Static props placed where they never hide the person volume from any camera.
 
-    Candidates sit on rings of :data:`_PROP_RADII` around the centre every 15 degrees, in a fixed
+    Candidates sit on rings of :data:`_PROP_RADII` around :func:`room_centre` every 15 degrees, in a fixed
     order; each prop takes the first candidate that is inside the room, clear of the other props
     and passes :func:`occludes` (so the layout is a pure function of the rig). A prop with no free
     place is left out.
@@ -199,14 +206,14 @@ def place_props(rig: Rig) -> list[dict]:
     Returns:
         list of ``{"name", "boxes": [(centre (3,), size (3,)), ...], "colour"}``.
     """
-    half = room_half_size(rig)
+    half, centre = room_half_size(rig), room_centre(rig)
     placed: list[dict] = []
     used: list[np.ndarray] = []
     candidates = [(r, a) for a in np.deg2rad(np.arange(180.0, 540.0, 15.0)) for r in _PROP_RADII]
     for name, shape in PROP_SHAPES.items():
         for r, a in candidates:
-            c = np.array([r * np.cos(a), r * np.sin(a), 0.0])
-            if np.abs(c[:2]).max() > half - 1.0 or any(np.linalg.norm(c[:2] - u) < 1.8 for u in used):
+            c = np.array([centre[0] + r * np.cos(a), centre[1] + r * np.sin(a), 0.0])
+            if np.abs(c[:2] - centre).max() > half - 1.0 or any(np.linalg.norm(c[:2] - u) < 1.8 for u in used):
                 continue
             if any(np.linalg.norm(c[:2] - cam.center[:2]) < 1.5 for cam in rig):
                 continue
