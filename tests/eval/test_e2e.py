@@ -17,6 +17,7 @@ from silpose.eval.noise import STANDARD_NOISE, apply_noise
 from silpose.model.persistence import load_model, save_model
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.cli import build_app
+from silpose.shared.contours import normalise
 from silpose.shared.dataset import load_split
 
 ARTEFACTS = ("results.parquet", "headline.json", "summary.md", "e1_single_vs_multi.png", "e2_missing_views.png",
@@ -183,3 +184,14 @@ def test_e6_tables_recompute_independently(evaluated):
     assert garbage["all-black"]["no_silhouette_pct"] == 100.0 and garbage["all-black"]["flagged_pct"] == 100.0
     assert garbage["all-white"]["flagged_pct"] == 100.0
     assert len(e6["missing_view"]) == 4 and all(r["nearest_neighbour_px"] > 0 for r in e6["missing_view"])
+    # the robust missing-view column: view 0 inferred from views 1-3 by silpose infer's default inference
+    row = e6["missing_view"][0]
+    given = np.ones((len(test), 4), bool)
+    given[:, 0] = False
+    clean = np.asarray(test.contours, np.float64)
+    _, centroid, scale = normalise(clean)
+    rec = model.infer(noisy, views_present=given, centroid=centroid, scale=scale, robust=True).contours_px
+    cam = test.rig.cameras[0]
+    one, _ = metrics.chamfer_errors(clean[:, :1], rec[:, :1], (cam.height, cam.width))
+    assert row["mppca_robust_px"] == pytest.approx(float(np.nanmean(one)), rel=1e-9)
+    assert row["ratio_robust"] == pytest.approx(row["mppca_robust_px"] / row["nearest_neighbour_px"])
