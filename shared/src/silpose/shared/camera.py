@@ -34,6 +34,7 @@ __all__ = [
     "ring_rig",
     "default_rig",
     "load_rig",
+    "is_rig_dict",
     "CONVENTION",
 ]
 
@@ -42,6 +43,16 @@ CONVENTION = "silpose assumes z up, metres, the floor at z = 0 and people walkin
 #: Calibration file suffixes that ``silpose rig import`` reads (``load_rig`` refuses them with a hint).
 CALIBRATION_SUFFIXES = (".xml", ".yml", ".yaml", ".toml")
 _RIG_KEYS = {"cameras", "transform", "workspace", "source"}
+_CAMERA_KEYS = {"name", "K", "R", "t", "width", "height", "dist"}
+
+
+def is_rig_dict(d) -> bool:
+    """True when ``d`` (parsed JSON) is shaped like a silpose rig file: an object of rig fields only, whose
+    ``cameras`` list holds objects of silpose camera fields only. Other tools' JSON calibrations (CMU Panoptic,
+    AIST++, VoxelPose ...) are not, and go to ``silpose rig import``."""
+    if not isinstance(d, dict) or not isinstance(d.get("cameras"), list) or not set(d) <= _RIG_KEYS:
+        return False
+    return all(isinstance(c, dict) and set(c) <= _CAMERA_KEYS for c in d["cameras"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -279,4 +290,15 @@ def load_rig(path: str | Path) -> Rig:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{p}: cannot read the rig file as UTF-8 text ({exc})") from None
-    return dataclasses.replace(Rig.from_json(text, source=str(p)), source=str(p))
+    try:
+        rig = Rig.from_json(text, source=str(p))
+    except RigError as exc:
+        try:
+            foreign = not is_rig_dict(json.loads(text))
+        except (ValueError, RecursionError):
+            foreign = False
+        if foreign:  # another tool's JSON calibration (CMU Panoptic, AIST++, VoxelPose ...)
+            raise RigError(f"{exc}; if this is a calibration file of another tool, convert it with "
+                           f"`silpose rig import {p} --out rig.json`") from None
+        raise
+    return dataclasses.replace(rig, source=str(p))

@@ -14,7 +14,8 @@ from silpose.shared.cli import fail
 
 app = typer.Typer(
     name="rig",
-    help="Camera rigs: import a calibration (OpenCV, EasyMocap, Pose2Sim/anipose, silpose) as a rig file; show a rig.",
+    help="Camera rigs: import a calibration (OpenCV, EasyMocap, Pose2Sim/anipose, JSON of datasets, silpose) as a rig "
+         "file; show a rig.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -25,9 +26,17 @@ app = typer.Typer(
 def import_command(
     calib: Annotated[List[Path], typer.Argument(help="Calibration file(s): OpenCV .xml/.yml/.yaml (one per camera or one "
                                                      "for all), EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, "
-                                                     "or a silpose rig .json.")],
+                                                     "a JSON calibration (anipose/AIST++, CMU Panoptic, "
+                                                     "Human3.6M-style as VoxelPose's Shelf/Campus), or a silpose rig "
+                                                     ".json.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="The rig file to write (JSON).")],
-    fmt: Annotated[str, typer.Option("--format", help="auto, opencv, easymocap, pose2sim or silpose.")] = "auto",
+    fmt: Annotated[str, typer.Option("--format", help="auto, opencv, easymocap, pose2sim, json or silpose.")] = "auto",
+    translation: Annotated[str, typer.Option(help="What the files' translations are: auto (world->camera, x_cam = R X "
+                                                  "+ t, except Human3.6M-style JSON records, whose T is the camera "
+                                                  "centre), world-to-camera, or camera-centre (x_cam = R (X - t)).")
+                           ] = "auto",
+    cameras: Annotated[Optional[str], typer.Option(help="Keep only these cameras: names or patterns separated by "
+                                                        "commas (e.g. 00_* for CMU Panoptic's HD cameras).")] = None,
     unit: Annotated[Optional[str], typer.Option(help="The calibration's length unit: mm, cm, m, or metres per unit "
                                                      "(default m).")] = None,
     image_size: Annotated[Optional[str], typer.Option(help="WIDTHxHEIGHT for cameras whose file has no image size "
@@ -63,7 +72,7 @@ def import_command(
     if not (0 <= footprint < 10 and 0.5 <= person_height <= 3.0 and 0.005 <= step <= 1.0):
         fail("rig import", "--footprint must be in [0, 10), --person-height in [0.5, 3], --step in [0.005, 1] metres")
     _claim_rig_outputs(calib, out, show)
-    options = ImportOptions(fmt=fmt, unit=unit, up=up, origin=origin, floor_offset=floor_offset, image_size=image_size,
+    options = ImportOptions(fmt=fmt, translation=translation, cameras=cameras, unit=unit, up=up, origin=origin, floor_offset=floor_offset, image_size=image_size,
                             workspace=workspace, min_views=min_views, person_height=person_height,
                             footprint=footprint, step=step)
     try:

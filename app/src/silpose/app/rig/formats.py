@@ -6,28 +6,41 @@ format                  files                                       reader
 ``opencv``              ``*.xml`` / ``*.yml`` / ``*.yaml``           :func:`.opencv.read_opencv`
 ``easymocap``           ``intri.yml`` + ``extri.yml``               :func:`.easymocap.read_easymocap`
 ``pose2sim``            ``*.toml`` (Pose2Sim, anipose)              :func:`.pose2sim.read_pose2sim`
+``json``                ``*.json`` of other tools (anipose/AIST++,   :func:`.json_layouts.read_json_calibration`
+                        CMU Panoptic, Human3.6M-style/VoxelPose)
 ``silpose``             ``rig.json`` (``silpose rig import``)         :func:`silpose.shared.camera.load_rig`
 ======================  ==========================================  ==========================
 
 ``auto`` picks by name and suffix: ``intri*.yml`` / ``extri*.yml`` -> easymocap, ``.toml`` ->
-pose2sim, ``.json`` -> silpose, other FileStorage suffixes -> opencv.
+pose2sim, ``.json`` -> silpose when it is shaped like a rig file (:func:`silpose.shared.camera.is_rig_dict`),
+else json; other FileStorage suffixes -> opencv.
+
+``translation`` (``--translation``): ``auto`` reads every format's translation as world -> camera, except the
+Human3.6M-style JSON records (:mod:`.json_layouts`); ``camera-centre`` reads it as the camera's position in the
+world (``x_cam = R (X - t)``) in every file; ``world-to-camera`` as ``x_cam = R X + t`` in every file.
+``cameras`` (``--cameras``) keeps the cameras whose names match one of its comma-separated patterns
+(``fnmatch``: ``00_*`` keeps CMU Panoptic's HD cameras), in file order.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 from pathlib import Path
+
+import numpy as np
 
 from silpose.shared.camera import Rig, RigError, load_rig
 
 from .calibration import CalibratedCamera
 from .easymocap import easymocap_pair, is_easymocap, read_easymocap
+from .json_layouts import TRANSLATIONS, is_silpose_rig_json, read_json_calibration
 from .opencv import read_opencv
 from .pose2sim import read_pose2sim
 
-__all__ = ["FORMATS", "detect_format", "read_calibrations", "Calibrations"]
+__all__ = ["FORMATS", "detect_format", "read_calibrations", "select_cameras", "Calibrations"]
 
-FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "silpose")
+FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "json", "silpose")
 _OPENCV_SUFFIXES = (".xml", ".yml", ".yaml")
 
 
@@ -40,11 +53,12 @@ def detect_format(path: str | Path) -> str:
     if suffix == ".toml":
         return "pose2sim"
     if suffix == ".json":
-        return "silpose"
+        return "silpose" if is_silpose_rig_json(p) else "json"
     if suffix in _OPENCV_SUFFIXES:
         return "opencv"
     raise RigError(f"{p}: unknown calibration format (suffix {suffix or 'none'}); silpose reads OpenCV .xml/.yml/.yaml, "
-                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml and silpose rig .json (or pass --format)")
+                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, JSON calibrations (anipose/AIST++, CMU Panoptic, "
+                   "Human3.6M-style) and silpose rig .json (or pass --format)")
 
 
 class Calibrations:
@@ -59,7 +73,7 @@ class Calibrations:
         self.notes = notes or []
 
 
-def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
+def read_calibrations(paths, fmt: str = "auto", translation: str = "auto", cameras: str | None = None) -> Calibrations:
     """Every camera of ``paths`` (one or more files), in file order then camera order.
 
     Camera names come from the files (never renumbered) and must be unique across them. Per-camera files that
@@ -71,6 +85,8 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
         raise RigError("rig import: no calibration files given")
     if fmt not in FORMATS:
         raise RigError(f"--format: must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    if translation not in TRANSLATIONS:
+        raise RigError(f"--translation: must be one of {', '.join(TRANSLATIONS)}, got {translation!r}")
     for p in paths:
         if not p.is_file():
             raise RigError(f"{p}: calibration file not found")
@@ -109,6 +125,9 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
         elif kind == "pose2sim":
             got = read_pose2sim(p)
             sources.append(str(p))
+        elif kind == "json":
+            got = read_json_calibration(p, translation, notes)
+            sources.append(str(p))
         else:
             got = read_opencv(p)
             sources.append(str(p))
@@ -122,5 +141,26 @@ def read_calibrations(paths, fmt: str = "auto") -> Calibrations:
             if twin is not None:
                 raise RigError(f"{c.source}: camera name {c.name!r} is also a camera of {twin.source}; names must be "
                                "unique (a camera is named by its name field, its section, or its file's stem)")
+        if translation == "camera-centre" and kind != "json":  # the json reader applies it per record
+            got = [dataclasses.replace(c, t=-np.asarray(c.R) @ np.asarray(c.t)) for c in got]
         cams.extend(got)
+    if rig is not None and translation != "auto":
+        raise RigError(f"{sources[0]}: a silpose rig's poses are silpose's own; drop --translation")
+    if cameras is not None:
+        cams = select_cameras(cams, cameras)
+        notes.append(f"kept {len(cams)} camera(s) matching --cameras {cameras}")
     return Calibrations(cams, formats, rig, sources, notes)
+
+
+def select_cameras(cams: list[CalibratedCamera], patterns: str) -> list[CalibratedCamera]:
+    """The cameras whose names match one of the comma-separated ``fnmatch`` patterns, in their order;
+    RigError when a pattern matches none (naming the cameras there are)."""
+    wanted = [w.strip() for w in str(patterns).split(",") if w.strip()]
+    if not wanted:
+        raise RigError("--cameras: expected camera names or patterns separated by commas (e.g. 00_00,00_01 or 00_*)")
+    names = [c.name for c in cams]
+    for w in wanted:
+        if not any(fnmatch.fnmatchcase(n, w) for n in names):
+            shown = ", ".join(names[:12]) + (f" ... ({len(names)} in all)" if len(names) > 12 else "")
+            raise RigError(f"--cameras: {w!r} matches none of the cameras ({shown})")
+    return [c for c in cams if any(fnmatch.fnmatchcase(c.name, w) for w in wanted)]

@@ -51,7 +51,9 @@ class ImportOptions:
     """The choices of ``silpose rig import`` (strings as typed; parsed by :func:`import_rig`).
 
     Attributes:
-        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim`` or ``silpose``.
+        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``json`` or ``silpose``.
+        translation: ``auto``, ``world-to-camera`` or ``camera-centre`` (:mod:`.formats`).
+        cameras: comma-separated camera names or ``fnmatch`` patterns to keep (None: all).
         unit: ``mm``, ``cm``, ``m`` ... or metres per unit (None: metres).
         up: ``auto`` or ``+x`` ... ``-z`` (the calibration's axis pointing up).
         origin: ``auto`` or ``X,Y,Z`` in calibration units (its floor position becomes (0, 0)).
@@ -66,6 +68,8 @@ class ImportOptions:
     """
 
     fmt: str = "auto"
+    translation: str = "auto"
+    cameras: str | None = None
     unit: str | None = None
     up: str = "auto"
     origin: str = "auto"
@@ -118,7 +122,7 @@ def _cameras(calib, sizes, transform: WorldTransform) -> list[Camera]:
 def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     """Import calibration files as a silpose rig (module docstring). RigError names the file and field."""
     o = options or ImportOptions()
-    read = read_calibrations(paths, o.fmt)
+    read = read_calibrations(paths, o.fmt, o.translation, o.cameras)
     calib = read.cameras
     notes = [f"read {len(calib)} camera(s) ({', '.join(c.name for c in calib)}) as {'/'.join(sorted(set(read.formats)))} "
              f"from {', '.join(read.sources)}", *read.notes]
