@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from silpose.app.errors import RecordingError
-from silpose.app.recordings.sources import CameraReader, holds_background_clips, open_recording, parse_offsets
+from silpose.app.recordings.sources import (CameraReader, camera_in_stem, holds_background_clips, open_recording,
+                                            parse_offsets)
 
 
 def _numbered(n, h=486, w=644, value=0):
@@ -60,6 +61,31 @@ def test_mapping_file_names_the_videos(rig, tools, tmp_path):
     assert list(rec.sources) == ["cam2"] and rec.sources["cam2"].path.name == "left.mp4"
     (tmp_path / "cameras.toml").write_text('[cameras]\ncamX = "left.mp4"\n')
     with pytest.raises(RecordingError, match=r"cameras.toml: field 'cameras.camX': not a rig camera"):
+        open_recording(tmp_path, rig)
+
+
+def test_camera_in_stem_reads_dataset_video_names():
+    assert camera_in_stem("hd_00_00", ["00_00", "00_01"]) == ["00_00"]  # CMU Panoptic
+    assert camera_in_stem("gBR_sBM_c01_d04_mBR0_ch01", ["c01", "c02"]) == ["c01"]  # AIST++
+    assert camera_in_stem("Cam1-take2", ["cam1", "cam2"]) == ["cam1"]  # words, any case
+    assert camera_in_stem("cam10", ["cam1", "cam10"]) == ["cam10"]
+    assert camera_in_stem("cam10_take", ["cam1"]) == []  # cam10 is not cam1
+    assert camera_in_stem("hd_00_00", ["00_00", "00"]) == ["00_00"]  # 00 only inside the longer match
+    assert camera_in_stem("cam1_vs_cam2", ["cam1", "cam2"]) == ["cam1", "cam2"]
+
+
+def test_videos_named_with_the_camera_inside_are_matched_with_a_warning(rig, tools, tmp_path):
+    tools.write_video(tmp_path / "hd_cam0.mp4", _numbered(3))
+    tools.write_video(tmp_path / "cam2.mp4", _numbered(3))
+    rec = open_recording(tmp_path, rig)
+    assert rec.sources["cam0"].path.name == "hd_cam0.mp4" and rec.sources["cam2"].path.name == "cam2.mp4"
+    assert any("hd_cam0.mp4: read as camera 'cam0'" in w for w in rec.warnings)
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(3))  # now two videos for cam0
+    with pytest.raises(RecordingError, match=r"camera 'cam0' has both"):
+        open_recording(tmp_path, rig)
+    (tmp_path / "cam0.mp4").unlink()
+    tools.write_video(tmp_path / "cam1_and_cam3.mp4", _numbered(3))
+    with pytest.raises(RecordingError, match=r"'cam1_and_cam3' names several rig cameras \(cam1, cam3\)"):
         open_recording(tmp_path, rig)
 
 

@@ -2,7 +2,7 @@
 
 Layout of ``silpose infer MODEL --videos DIR``::
 
-    DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig, or
+    DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig (or holding the name), or
     DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order), or
     DIR/<camera>/video.avi                         a camera folder holding videos: its only video, or the one
                                                    named ``video`` (``background`` for ``--background DIR``)
@@ -13,7 +13,10 @@ The camera-folder layout is what many labs and courses keep (``cam1/background.a
 ``video`` and ``background`` clip.
 
 With ``cameras.toml`` only the mapped entries are read (paths relative to DIR); without it every video's
-file stem must be a rig camera name (sub-folders not named after a camera are ignored). A rig camera with
+file stem must name a rig camera (sub-folders not named after a camera are ignored): be the name, or hold it
+as whole words (:func:`camera_in_stem`: CMU Panoptic's ``hd_00_00.mp4`` is camera ``00_00``, AIST++'s
+``gBR_sBM_c01_d04_mBR0_ch01.mp4`` camera ``c01``; a warning says which video was read as which camera, and a
+stem naming two cameras is an error). A rig camera with
 no video is a missing view in every frame (a warning); no video at all is an error.
 
 Checks before any frame is processed, each a one-line :class:`~silpose.app.errors.RecordingError` naming
@@ -38,6 +41,7 @@ one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchm
 from __future__ import annotations
 
 import dataclasses
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -152,7 +156,30 @@ def holds_background_clips(folder: Path, cameras) -> bool:
                                   for q in d.iterdir()) for d in dirs)
 
 
-def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video") -> dict[str, Path]:
+def _words(text: str) -> list[str]:
+    return [w for w in re.split(r"[^0-9a-z]+", text.lower()) if w]
+
+
+def camera_in_stem(stem: str, cameras) -> list[str]:
+    """The cameras a file stem names: ``[stem]`` when it is a camera's name, else every camera whose name's
+    words (letters and digits, lower case) appear consecutively among the stem's words (``hd_00_00`` holds
+    ``00_00``; ``cam10`` does not hold ``cam1``), longest names first, and none nested in another match."""
+    if stem in cameras:
+        return [stem]
+    words = _words(stem)
+    found = []
+    for cam in sorted(cameras, key=lambda c: -len(_words(c))):
+        cw = _words(cam)
+        spans = [set(range(i, i + len(cw))) for i in range(len(words) - len(cw) + 1)
+                 if cw and words[i : i + len(cw)] == cw]
+        free = [span for span in spans if not any(span <= used for _, used in found)]
+        if free:
+            found.append((cam, free[0]))
+    return [c for c, _ in found]
+
+
+def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
+             renamed: list[str] | None = None) -> dict[str, Path]:
     mapping = folder / MAPPING_FILE
     if mapping.is_file():
         try:
@@ -178,10 +205,18 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video") -> dic
         if p.name.startswith("."):
             continue
         if p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES:
-            if p.stem not in cameras:
-                raise RecordingError(
-                    f"{p}: {p.stem!r} is not a rig camera (cameras {list(cameras)}); rename the video or map it in "
-                    f"{folder / MAPPING_FILE}")
+            named = camera_in_stem(p.stem, cameras)
+            if len(named) != 1:
+                what = (f"names several rig cameras ({', '.join(named)})" if named
+                        else f"is not a rig camera (cameras {list(cameras)})")
+                raise RecordingError(f"{p}: {p.stem!r} {what}; rename the video or map it in {folder / MAPPING_FILE}")
+            if named[0] != p.stem:
+                if named[0] in out:
+                    raise RecordingError(f"{p}: camera {named[0]!r} has both {out[named[0]].name} and {p.name}")
+                out[named[0]] = p
+                if renamed is not None:
+                    renamed.append(f"{p.name}: read as camera {named[0]!r} (its name holds the camera's)")
+                continue
         elif not (p.is_dir() and p.name in cameras):
             continue
         else:
@@ -227,12 +262,13 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
     if not folder.is_dir():
         raise RecordingError(f"{folder}: videos folder not found")
     cameras = tuple(rig.names)
-    entries = _entries(folder, cameras, role)
+    renamed: list[str] = []
+    entries = _entries(folder, cameras, role, renamed)
     if not entries:
         raise RecordingError(
             f"{folder}: no video named as a rig camera ({', '.join(c + '.mp4' for c in cameras)}, or a "
             f"{MAPPING_FILE} mapping)")
-    warnings = []
+    warnings = list(renamed)
     sources = {}
     for cam in cameras:
         if cam not in entries:
