@@ -389,6 +389,8 @@ class Evaluation:
                 s = self.score_regressor(kind, views, noisy)
                 self._add(dict(experiment="E4", method=kind, training="multi-view", trained_views=views_label(views),
                                input_views=views_label(views), n_input_views=len(views), noise=self.config.noise.label), **s)
+                if len(views) < K:  # only the all-views regressors are used again (E3, E6); a kNN holds its rows
+                    self._regressors.pop((kind, tuple(views)), None)
         self._tick("E4", len(subsets), len(subsets))
 
     # ---------------------------------------------------------------- output
