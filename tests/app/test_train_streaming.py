@@ -1,7 +1,7 @@
 """``silpose train --streaming`` and ``--executor ray`` (silpose.app.training) against the in-memory command.
 
-The dataset: several uneven Parquet shards written with the dataset writer (records from
-``silpose.datagen.testing.synthetic_record``, as in tests/model/test_streaming.py, which tests the
+The dataset: several uneven Parquet shards written with the dataset writer
+(``silpose.datagen.testing.write_synthetic_dataset``, as in tests/model/test_streaming.py, which tests the
 streaming fit itself).
 """
 
@@ -15,12 +15,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from silpose.datagen.testing import synthetic_record
+from silpose.datagen.testing import write_synthetic_dataset
 from silpose.model.persistence import load_model
-from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
-from silpose.shared.dataset_schema import build_metadata
-from silpose.shared.dataset import write_shard
 
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
@@ -30,19 +27,7 @@ SHARD_ROWS = (30, 25, 30, 15)  # uneven shards, 100 rows
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("data") / "sharded"
-    root.mkdir()
-    rig = default_rig()
-    config = {"name": "sharded", "seed": 5, "rig": rig.to_dict(), "n_points": N_POINTS}
-    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
-    start = 0
-    for s, n in enumerate(SHARD_ROWS):
-        records = [synthetic_record(config, "train", i) for i in range(start, start + n)]
-        write_shard(root / f"train-{s:05d}-of-{len(SHARD_ROWS):05d}.parquet", records, meta)
-        start += n
-    write_shard(root / "test-00000-of-00001.parquet", [synthetic_record(config, "test", i) for i in range(5)], meta)
-    (root / "manifest.json").write_text(json.dumps({"name": "sharded"}))
-    return root
+    return write_synthetic_dataset(tmp_path_factory.mktemp("data") / "sharded", SHARD_ROWS, N_POINTS)
 
 
 def test_train_cli_streaming_equals_in_memory(dataset, tmp_path):

@@ -2,13 +2,12 @@
 
 The in-memory fit is the reference (its EM is checked against dense densities and known mixtures in
 test_mppca.py). Streaming reads a dataset written as several Parquet shards with the dataset writer
-(records from ``silpose.datagen.testing.synthetic_record``, as in tests/app/test_cli.py). The
+(``silpose.datagen.testing.write_synthetic_dataset``, as in tests/app/test_train_streaming.py). The
 ``silpose train --streaming`` / ``--executor ray`` commands are tested in tests/app/test_train_streaming.py.
 """
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import weakref
@@ -16,14 +15,11 @@ import weakref
 import numpy as np
 import pytest
 
-from silpose.datagen.testing import synthetic_record
+from silpose.datagen.testing import write_synthetic_dataset
 from silpose.model import streaming
 from silpose.model.mppca import MPPCA
-from silpose.model.persistence import load_model
 from silpose.model.shape_model import ShapeStructureModel
-from silpose.shared.camera import default_rig
-from silpose.shared.dataset import load_split, write_shard
-from silpose.shared.dataset_schema import build_metadata
+from silpose.shared.dataset import load_split
 
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
@@ -33,19 +29,7 @@ SHARD_ROWS = (30, 25, 30, 15)  # uneven shards, 100 rows
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("data") / "sharded"
-    root.mkdir()
-    rig = default_rig()
-    config = {"name": "sharded", "seed": 5, "rig": rig.to_dict(), "n_points": N_POINTS}
-    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
-    start = 0
-    for s, n in enumerate(SHARD_ROWS):
-        records = [synthetic_record(config, "train", i) for i in range(start, start + n)]
-        write_shard(root / f"train-{s:05d}-of-{len(SHARD_ROWS):05d}.parquet", records, meta)
-        start += n
-    write_shard(root / "test-00000-of-00001.parquet", [synthetic_record(config, "test", i) for i in range(5)], meta)
-    (root / "manifest.json").write_text(json.dumps({"name": "sharded"}))
-    return root
+    return write_synthetic_dataset(tmp_path_factory.mktemp("data") / "sharded", SHARD_ROWS, N_POINTS)
 
 
 def _model(**kw):

@@ -111,6 +111,32 @@ def synthetic_record(config: dict, split: str, index: int) -> dict:
     }
 
 
+def write_synthetic_dataset(root, shard_rows=(30, 25, 30, 15), n_points: int = 16, n_test: int = 5,
+                            name: str = "sharded", seed: int = 5) -> Path:
+    """A dataset folder of :func:`synthetic_record` rows written with the dataset writer: train shards of
+    ``shard_rows`` rows each (uneven by default), one test shard of ``n_test`` rows, a manifest; default rig.
+    Returns ``root`` (created; must not exist)."""
+    import json
+
+    from silpose.shared.camera import default_rig
+    from silpose.shared.dataset import write_shard
+    from silpose.shared.dataset_schema import build_metadata
+
+    root = Path(root)
+    root.mkdir(parents=True)
+    rig = default_rig()
+    config = {"name": name, "seed": seed, "rig": rig.to_dict(), "n_points": n_points}
+    meta = build_metadata(rig.to_dict()["cameras"], config, n_points, generator_version="test")
+    start = 0
+    for s, n in enumerate(shard_rows):
+        records = [synthetic_record(config, "train", i) for i in range(start, start + n)]
+        write_shard(root / f"train-{s:05d}-of-{len(shard_rows):05d}.parquet", records, meta)
+        start += n
+    write_shard(root / "test-00000-of-00001.parquet", [synthetic_record(config, "test", i) for i in range(n_test)], meta)
+    (root / "manifest.json").write_text(json.dumps({"name": name}))
+    return root
+
+
 def synthetic_render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     """Stand-in for ``render_samples``: one synthetic record per index."""
     return [synthetic_record(config, split, i) for i in indices]
