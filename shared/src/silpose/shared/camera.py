@@ -41,7 +41,7 @@ __all__ = [
 #: What silpose assumes about a rig's world frame, quoted by the errors that teach it.
 CONVENTION = "silpose assumes z up, metres, the floor at z = 0 and people walking inside the rig's workspace"
 #: Calibration file suffixes that ``silpose rig import`` reads (``load_rig`` refuses them with a hint).
-CALIBRATION_SUFFIXES = (".xml", ".yml", ".yaml", ".toml")
+CALIBRATION_SUFFIXES = (".xml", ".yml", ".yaml", ".toml", ".calibration")
 _RIG_KEYS = {"cameras", "transform", "workspace", "source"}
 _CAMERA_KEYS = {"name", "K", "R", "t", "width", "height", "dist"}
 

@@ -1,19 +1,20 @@
 """Which calibration format a file is in, and reading several files into one list of cameras.
 
-======================  ==========================================  ==========================
-format                  files                                       reader
-======================  ==========================================  ==========================
-``opencv``              ``*.xml`` / ``*.yml`` / ``*.yaml``           :func:`.opencv.read_opencv`
-``easymocap``           ``intri.yml`` + ``extri.yml``               :func:`.easymocap.read_easymocap`
-``pose2sim``            ``*.toml`` (Pose2Sim, anipose)              :func:`.pose2sim.read_pose2sim`
-``json``                ``*.json`` of other tools (anipose/AIST++,   :func:`.json_layouts.read_json_calibration`
-                        CMU Panoptic, Human3.6M-style/VoxelPose)
-``silpose``             ``rig.json`` (``silpose rig import``)         :func:`silpose.shared.camera.load_rig`
-======================  ==========================================  ==========================
+=============  ================================================  ==========================================
+format         files                                             reader
+=============  ================================================  ==========================================
+``opencv``     ``*.xml`` / ``*.yml`` / ``*.yaml``                :func:`.opencv.read_opencv`
+``easymocap``  ``intri.yml`` + ``extri.yml``                     :func:`.easymocap.read_easymocap`
+``pose2sim``   ``*.toml`` (Pose2Sim, anipose)                    :func:`.pose2sim.read_pose2sim`
+``skeletool``  ``*.calibration`` (MPI-INF-3DHP, DynaCap)         :func:`.skeletool.read_skeletool`
+``json``       other tools' ``*.json`` (anipose/AIST++, CMU      :func:`.json_layouts.read_json_calibration`
+               Panoptic, Human3.6M-style as VoxelPose's)
+``silpose``    ``rig.json`` (``silpose rig import``)             :func:`silpose.shared.camera.load_rig`
+=============  ================================================  ==========================================
 
-``auto`` picks by name and suffix: ``intri*.yml`` / ``extri*.yml`` -> easymocap, ``.toml`` ->
-pose2sim, ``.json`` -> silpose when it is shaped like a rig file (:func:`silpose.shared.camera.is_rig_dict`),
-else json; other FileStorage suffixes -> opencv.
+``auto`` picks by name and suffix: ``intri*.yml`` / ``extri*.yml`` -> easymocap, ``.toml`` -> pose2sim,
+``.calibration`` (or a file starting with the Skeletool header) -> skeletool, ``.json`` -> silpose when it is
+shaped like a rig file (:func:`silpose.shared.camera.is_rig_dict`), else json; other FileStorage suffixes -> opencv.
 
 ``translation`` (``--translation``): ``auto`` reads every format's translation as world -> camera, except the
 Human3.6M-style JSON records (:mod:`.json_layouts`); ``camera-centre`` reads it as the camera's position in the
@@ -37,10 +38,11 @@ from .easymocap import easymocap_pair, is_easymocap, read_easymocap
 from .json_layouts import TRANSLATIONS, is_silpose_rig_json, read_json_calibration
 from .opencv import read_opencv
 from .pose2sim import read_pose2sim
+from .skeletool import is_skeletool, read_skeletool
 
 __all__ = ["FORMATS", "detect_format", "read_calibrations", "select_cameras", "Calibrations"]
 
-FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "json", "silpose")
+FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "skeletool", "json", "silpose")
 _OPENCV_SUFFIXES = (".xml", ".yml", ".yaml")
 
 
@@ -52,12 +54,14 @@ def detect_format(path: str | Path) -> str:
         return "easymocap"
     if suffix == ".toml":
         return "pose2sim"
+    if is_skeletool(p):
+        return "skeletool"
     if suffix == ".json":
         return "silpose" if is_silpose_rig_json(p) else "json"
     if suffix in _OPENCV_SUFFIXES:
         return "opencv"
     raise RigError(f"{p}: unknown calibration format (suffix {suffix or 'none'}); silpose reads OpenCV .xml/.yml/.yaml, "
-                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, JSON calibrations (anipose/AIST++, CMU Panoptic, "
+                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, Skeletool .calibration, JSON calibrations (anipose/AIST++, CMU Panoptic, "
                    "Human3.6M-style) and silpose rig .json (or pass --format)")
 
 
@@ -124,6 +128,9 @@ def read_calibrations(paths, fmt: str = "auto", translation: str = "auto", camer
                              f"{pair[1]}; left out")
         elif kind == "pose2sim":
             got = read_pose2sim(p)
+            sources.append(str(p))
+        elif kind == "skeletool":
+            got = read_skeletool(p)
             sources.append(str(p))
         elif kind == "json":
             got = read_json_calibration(p, translation, notes)

@@ -51,7 +51,7 @@ class ImportOptions:
     """The choices of ``silpose rig import`` (strings as typed; parsed by :func:`import_rig`).
 
     Attributes:
-        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``json`` or ``silpose``.
+        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``skeletool``, ``json`` or ``silpose``.
         translation: ``auto``, ``world-to-camera`` or ``camera-centre`` (:mod:`.formats`).
         cameras: comma-separated camera names or ``fnmatch`` patterns to keep (None: all).
         unit: ``mm``, ``cm``, ``m`` ... or metres per unit (None: metres).
