@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from silpose.app.errors import RecordingError
-from silpose.app.recordings.sources import (CameraReader, camera_in_stem, holds_background_clips, open_recording,
+from silpose.app.camera_names import camera_in_stem
+from silpose.app.recordings.sources import (CameraReader, holds_background_clips, open_recording,
                                             parse_offsets)
 
 

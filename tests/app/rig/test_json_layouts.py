@@ -173,3 +173,60 @@ def test_cli_imports_a_panoptic_file(tmp_path, known_calibration):
     res = CliRunner().invoke(build_app(), ["rig", "import", str(path), "--out", str(tmp_path / "r2.json"),
                                            "--cameras", "cam*"])
     assert res.exit_code != 0 and "--cameras: 'cam*' matches none" in res.output
+
+
+def human36m_parameters_layout(calibration, subjects=("S1", "S9")):
+    """Human3.6M's camera-parameters.json (karfly/human36m-camera-parameters): intrinsics per camera,
+    extrinsics per subject and camera (world -> camera, t as a column). Subject S1 here has every camera
+    moved 10 units along x, so picking the wrong subject shows."""
+    out = {"intrinsics": {c.name: {"calibration_matrix": np.asarray(c.K).tolist(),
+                                   "distortion": np.asarray(c.dist).tolist()} for c in calibration},
+           "extrinsics": {}}
+    for s in subjects:
+        shift = np.array([10.0, 0.0, 0.0]) if s == "S1" else np.zeros(3)
+        out["extrinsics"][s] = {c.name: {"R": np.asarray(c.R).tolist(), "t": _column(np.asarray(c.t) + shift)}
+                                for c in calibration}
+    return out
+
+
+def test_human36m_intrinsics_and_per_subject_extrinsics(tmp_path, known_calibration, check_same_projections):
+    path = _write(tmp_path / "camera-parameters.json", human36m_parameters_layout(known_calibration))
+    sizes = ",".join(f"{c.name}={_size(c)}" for c in known_calibration)
+    with pytest.raises(RigError, match=r"camera-parameters.json: the file holds the cameras' poses for 2 groups "
+                                       r"\(S1, S9\): keep one with --cameras 'S1/\*'"):
+        import_rig([path], options(image_size=sizes))
+    result = import_rig([path], options(cameras="S9/*", image_size=sizes))
+    check_same_projections(result.rig, known_calibration)  # plain camera names, subject S9's poses
+    assert any("cameras of group S9 named" in n for n in result.notes)
+    one = human36m_parameters_layout(known_calibration, subjects=("S9",))
+    del one["intrinsics"][known_calibration[1].name]
+    broken = _write(tmp_path / "broken-parameters.json", one)
+    with pytest.raises(RigError, match=rf"the pose at extrinsics\.S9\.{known_calibration[1].name} has no intrinsics"):
+        read_calibrations([broken])
+
+
+def _write_video(path, size):
+    import cv2
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, size)
+    for _ in range(2):
+        out.write(np.zeros((size[1], size[0], 3), np.uint8))
+    out.release()
+
+
+def test_per_camera_image_sizes_and_dataset_video_names_next_to_the_file(tmp_path, known_calibration):
+    layout = human36m_parameters_layout(known_calibration, subjects=("S9",))
+    path = _write(tmp_path / "camera-parameters.json", layout)
+    names = [c.name for c in known_calibration]
+    w, h = known_calibration[0].size
+    # one camera gets its size from the option, the others from videos named as Human3.6M names them
+    # (Walking.<camera>.mp4) below the file
+    for name in names[1:]:
+        _write_video(tmp_path / "videos" / f"Walking.{name}.mp4", (w, h))
+    rig = import_rig([path], options(image_size=f"{names[0]}={w}x{h}")).rig
+    assert [(c.width, c.height) for c in rig] == [(w, h)] * len(names)
+    with pytest.raises(RigError, match=r"--image-size: 'nope' is not a camera of the calibration"):
+        import_rig([path], options(image_size=f"nope={w}x{h}"))
+    with pytest.raises(RigError, match=r"--image-size: two sizes for the cameras not named"):
+        import_rig([path], options(image_size=f"{w}x{h},{w}x{h}"))

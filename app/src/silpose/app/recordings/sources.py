@@ -14,7 +14,7 @@ The camera-folder layout is what many labs and courses keep (``cam1/background.a
 
 With ``cameras.toml`` only the mapped entries are read (paths relative to DIR); without it every video's
 file stem must name a rig camera (sub-folders not named after a camera are ignored): be the name, or hold it
-as whole words (:func:`camera_in_stem`: CMU Panoptic's ``hd_00_00.mp4`` is camera ``00_00``, AIST++'s
+as whole words (:func:`silpose.app.camera_names.camera_in_stem`: CMU Panoptic's ``hd_00_00.mp4`` is camera ``00_00``, AIST++'s
 ``gBR_sBM_c01_d04_mBR0_ch01.mp4`` camera ``c01``; a warning says which video was read as which camera, and a
 stem naming two cameras is an error). A rig camera with
 no video is a missing view in every frame (a warning); no video at all is an error.
@@ -41,7 +41,6 @@ one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchm
 from __future__ import annotations
 
 import dataclasses
-import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +48,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..camera_names import camera_in_stem
 from ..errors import RecordingError
 from ..inputs.images import IMAGE_SUFFIXES
 
@@ -154,28 +154,6 @@ def holds_background_clips(folder: Path, cameras) -> bool:
     dirs = [folder / c for c in cameras if (folder / c).is_dir()] if folder.is_dir() else []
     return bool(dirs) and all(any(q.is_file() and q.stem.lower() == "background" and q.suffix.lower() in VIDEO_SUFFIXES
                                   for q in d.iterdir()) for d in dirs)
-
-
-def _words(text: str) -> list[str]:
-    return [w for w in re.split(r"[^0-9a-z]+", text.lower()) if w]
-
-
-def camera_in_stem(stem: str, cameras) -> list[str]:
-    """The cameras a file stem names: ``[stem]`` when it is a camera's name, else every camera whose name's
-    words (letters and digits, lower case) appear consecutively among the stem's words (``hd_00_00`` holds
-    ``00_00``; ``cam10`` does not hold ``cam1``), longest names first, and none nested in another match."""
-    if stem in cameras:
-        return [stem]
-    words = _words(stem)
-    found = []
-    for cam in sorted(cameras, key=lambda c: -len(_words(c))):
-        cw = _words(cam)
-        spans = [set(range(i, i + len(cw))) for i in range(len(words) - len(cw) + 1)
-                 if cw and words[i : i + len(cw)] == cw]
-        free = [span for span in spans if not any(span <= used for _, used in found)]
-        if free:
-            found.append((cam, free[0]))
-    return [c for c, _ in found]
 
 
 def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",

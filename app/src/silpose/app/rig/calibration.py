@@ -44,7 +44,7 @@ __all__ = [
 #: (after its ``_<name>`` suffix is removed) and Pose2Sim/anipose.
 FIELD_ALIASES: dict[str, tuple[str, ...]] = {
     "camera matrix": ("cameramatrix", "k", "m", "intrinsic", "intrinsics", "intrinsicmatrix", "matrix", "mtx",
-                      "kmatrix", "cameraintrinsics"),
+                      "kmatrix", "cameraintrinsics", "calibrationmatrix"),
     "distortion": ("distortioncoefficients", "distortioncoeffs", "distcoeffs", "distcoeff", "distcoefs", "distcoef", "dist",
                    "d", "distortion", "distortions"),
     "rotation": ("rotationvector", "rotationvectors", "rvec", "rvecs", "rvector", "rotation", "r", "rot",
@@ -93,6 +93,8 @@ class CalibratedCamera:
         t: (3,) world->camera translation in calibration units.
         size: (width, height) pixels, or None when the file does not say.
         source: the file it came from; ``where`` prefixes field names in errors (e.g. ``cam_01.``).
+        group: the set of poses it belongs to when a file holds several per camera (Human3.6M's subjects
+            ``S1`` ... in a JSON of intrinsics and per-subject extrinsics); None otherwise.
     """
 
     name: str
@@ -103,6 +105,7 @@ class CalibratedCamera:
     size: tuple[int, int] | None
     source: str
     where: str = ""
+    group: str | None = None
 
     def field_name(self, name: str) -> str:
         """``"<file>: field <where><name>"``, the start of an error about one of its fields."""

@@ -40,9 +40,9 @@ def import_command(
                                                         "commas (e.g. 00_* for CMU Panoptic's HD cameras).")] = None,
     unit: Annotated[Optional[str], typer.Option(help="The calibration's length unit: mm, cm, m, or metres per unit "
                                                      "(default m).")] = None,
-    image_size: Annotated[Optional[str], typer.Option(help="WIDTHxHEIGHT for cameras whose file has no image size "
-                                                           "(default: read an image or video of the camera next to "
-                                                           "the file).")] = None,
+    image_size: Annotated[Optional[str], typer.Option(help="WIDTHxHEIGHT for cameras whose file has no image size, "
+                                                           "or per camera: cam1=1000x1002,1000x1000 (default: read an "
+                                                           "image or video of the camera next to the file).")] = None,
     up: Annotated[str, typer.Option(help="The calibration axis pointing up: auto (the cameras' image up), +x, -x, +y, "
                                          "-y, +z or -z.")] = "auto",
     origin: Annotated[str, typer.Option(help="auto (the centre of the floor region the cameras see) or X,Y,Z in the "

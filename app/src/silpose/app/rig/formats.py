@@ -156,7 +156,26 @@ def read_calibrations(paths, fmt: str = "auto", translation: str = "auto", camer
     if cameras is not None:
         cams = select_cameras(cams, cameras)
         notes.append(f"kept {len(cams)} camera(s) matching --cameras {cameras}")
+    cams = _one_group(cams, notes)
     return Calibrations(cams, formats, rig, sources, notes)
+
+
+def _one_group(cams: list[CalibratedCamera], notes: list[str]) -> list[CalibratedCamera]:
+    """Cameras of a file holding several poses per camera (``group/name``, e.g. Human3.6M's subjects) must come
+    from one group (``--cameras 'S9/*'``); they then take their plain names."""
+    grouped = [c for c in cams if c.group is not None]
+    groups = sorted({c.group for c in grouped})
+    if len(groups) > 1:
+        raise RigError(f"{grouped[0].source}: the file holds the cameras' poses for {len(groups)} groups "
+                       f"({', '.join(groups)}): keep one with --cameras '{groups[0]}/*'")
+    if not groups:
+        return cams
+    plain = [c.name[len(c.group) + 1:] if c.group is not None and c.name.startswith(c.group + "/") else c.name
+             for c in cams]
+    if len(set(plain)) != len(plain):
+        return cams
+    notes.append(f"cameras of group {groups[0]} named {', '.join(plain)}")
+    return [dataclasses.replace(c, name=n, group=None) for c, n in zip(cams, plain)]
 
 
 def select_cameras(cams: list[CalibratedCamera], patterns: str) -> list[CalibratedCamera]:

@@ -4,11 +4,13 @@ Calibration files rarely state the image size. In order:
 
 1. the file's own size (``image_size``, ``image_width`` + ``image_height``, Pose2Sim ``size``,
    EasyMocap ``W_``/``H_``); ``--image-size`` must then agree with it;
-2. ``--image-size WxH``;
+2. ``--image-size WxH``, or per camera ``--image-size 54138969=1000x1002,1000x1000`` (``name=WxH`` entries,
+   and optionally one bare ``WxH`` for the cameras not named);
 3. an image or a video of that camera near the calibration file: in its folder or up to two
    folders below, a file whose stem, or whose folder, is the camera's name (spelling-insensitive:
-   ``cam_01`` matches ``cam01.mp4`` and ``images/cam_01/000000.jpg``); failing that, the images and
-   videos in the calibration file's own folder if they all have one size.
+   ``cam_01`` matches ``cam01.mp4`` and ``images/cam_01/000000.jpg``) or holds it as whole words
+   (:func:`silpose.app.camera_names.camera_in_stem`: Human3.6M's ``Walking.54138969.mp4``); failing that,
+   the images and videos in the calibration file's own folder if they all have one size.
 
 Otherwise a one-line error says what to pass.
 """
@@ -22,9 +24,10 @@ import cv2
 
 from silpose.shared.camera import RigError
 
+from ..camera_names import camera_in_stem
 from .calibration import CalibratedCamera, normalise_key
 
-__all__ = ["parse_image_size", "media_size", "find_media", "resolve_image_size", "MEDIA_SUFFIXES"]
+__all__ = ["parse_image_size", "parse_image_sizes", "media_size", "find_media", "resolve_image_size", "MEDIA_SUFFIXES"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v")
@@ -42,6 +45,35 @@ def parse_image_size(text: str, what: str = "--image-size") -> tuple[int, int]:
     if w <= 0 or h <= 0:
         raise RigError(f"{what}: width and height must be positive, got {text!r}")
     return w, h
+
+
+def parse_image_sizes(text: str, cameras, what: str = "--image-size") -> dict[str, tuple[int, int]]:
+    """``"54138969=1000x1002,1000x1000"`` -> the size of every camera in ``cameras`` that gets one: named
+    entries for their cameras, a bare ``WxH`` for all others (module docstring). RigError for a name that is
+    not a camera, a camera named twice or two bare sizes."""
+    names = list(cameras)
+    out: dict[str, tuple[int, int]] = {}
+    default = None
+    for entry in (e.strip() for e in str(text).split(",")):
+        if not entry:
+            continue
+        name, eq, size = entry.rpartition("=")
+        if not eq:
+            if default is not None:
+                raise RigError(f"{what}: two sizes for the cameras not named ({text!r}); name them: cam=WxH")
+            default = parse_image_size(entry, what)
+            continue
+        name = name.strip()
+        if name not in names:
+            raise RigError(f"{what}: {name!r} is not a camera of the calibration ({', '.join(names)})")
+        if name in out:
+            raise RigError(f"{what}: camera {name!r} is given two sizes")
+        out[name] = parse_image_size(size, f"{what} {name}")
+    if default is None and not out:
+        raise RigError(f"{what}: expected WIDTHxHEIGHT or camera=WIDTHxHEIGHT entries separated by commas, got {text!r}")
+    if default is not None:
+        out = {n: out.get(n, default) for n in names}
+    return out
 
 
 def media_size(path: Path) -> tuple[int, int] | None:
@@ -75,7 +107,9 @@ def _media_near(folder: Path, depth: int = 2) -> list[Path]:
 def find_media(folder: Path, camera_name: str) -> list[Path]:
     """Images/videos near ``folder`` named after ``camera_name`` (stem or parent folder; module docstring)."""
     key = normalise_key(camera_name)
-    return [p for p in _media_near(folder) if key and key in (normalise_key(p.stem), normalise_key(p.parent.name))]
+    exact = [p for p in _media_near(folder) if key and key in (normalise_key(p.stem), normalise_key(p.parent.name))]
+    return exact or [p for p in _media_near(folder)
+                     if camera_in_stem(p.stem, [camera_name]) or camera_in_stem(p.parent.name, [camera_name])]
 
 
 def resolve_image_size(cam: CalibratedCamera, option: tuple[int, int] | None) -> tuple[tuple[int, int], str]:

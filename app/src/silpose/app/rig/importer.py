@@ -30,7 +30,7 @@ from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace, WorldTransform
 from .calibration import CalibratedCamera
 from .formats import read_calibrations
 from .frame import auto_up, axis_name, make_transform, parse_axis, parse_origin, parse_unit
-from .image_size import parse_image_size, resolve_image_size
+from .image_size import parse_image_sizes, resolve_image_size
 from .workspace import DEFAULT_FOOTPRINT_M, MIN_PERSON_FRACTION, VisibilityGrid, auto_workspace, visibility_grid
 
 __all__ = ["ImportOptions", "ImportResult", "import_rig", "write_rig", "parse_workspace_option", "MIN_PERSON_PX",
@@ -58,7 +58,8 @@ class ImportOptions:
         up: ``auto`` or ``+x`` ... ``-z`` (the calibration's axis pointing up).
         origin: ``auto`` or ``X,Y,Z`` in calibration units (its floor position becomes (0, 0)).
         floor_offset: the floor's coordinate along up, calibration units (0: the calibration plane).
-        image_size: ``WxH`` for cameras whose file has no size (None: look for media next to it).
+        image_size: ``WxH`` for cameras whose file has no size, or ``name=WxH`` entries per camera (and one bare
+            ``WxH`` for the others) (None: look for media next to it).
         workspace: ``auto``, ``WxH`` (metres, centred at the origin) or ``WxH@X,Y`` (centre X, Y metres).
         min_views: cameras that must see a person for ``auto`` (None: all).
         person_height: metres, the tallest person to keep in view.
@@ -129,10 +130,10 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     if read.rig is not None and o.unit not in (None, "m", "1", "1.0"):
         raise RigError(f"{read.sources[0]}: a silpose rig is in metres already; drop --unit")
     scale = 1.0 if o.unit is None else parse_unit(o.unit)
-    option_size = None if o.image_size is None else parse_image_size(o.image_size)
+    option_sizes = {} if o.image_size is None else parse_image_sizes(o.image_size, [c.name for c in calib])
     sizes = []
     for c in calib:
-        size, how = resolve_image_size(c, option_size)
+        size, how = resolve_image_size(c, option_sizes.get(c.name))
         sizes.append(size)
         if how != "the calibration file":
             notes.append(f"image size of {c.name}: {size[0]}x{size[1]} from {how}")

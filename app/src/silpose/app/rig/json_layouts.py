@@ -16,6 +16,9 @@ CMU Panoptic          ``{"cameras": [{name, type, resolution, K,       world -> 
 Human3.6M style       ``{"<id>": {R, T, fx, fy, cx, cy, k, p}}`` or     camera centre: ``x_cam = R (X - T)``
                       ``f`` / ``c`` pairs (VoxelPose's Shelf and
                       Campus files, 3d-pose-baseline's cameras)
+Human3.6M parameters  ``{"intrinsics": {cam: {calibration_matrix,     world -> camera (mm)
+                      distortion}}, "extrinsics": {"S1": {cam: {R,
+                      t}}}}`` (karfly/human36m-camera-parameters)
 generic               the spellings of :data:`.calibration.FIELD_ALIASES`  world -> camera
 ====================  ==============================================  =====================================
 
@@ -31,12 +34,19 @@ world-to-camera`` or ``camera-centre`` overrides it. A record with ``"world2cam"
 the camera -> world pose and is inverted; its 4x4 ``intrinsic`` is read as the 3x3 camera matrix it holds.
 Rotations are a Rodrigues vector or a matrix, as elsewhere.
 
+Files that keep intrinsics and poses apart are joined by camera key: every pose record (a rotation and a
+translation, no intrinsics) takes the intrinsics record of its own key. When a camera has poses in several
+groups (Human3.6M's subjects ``S1`` .. ``S11``), cameras are named ``group/camera`` and the import asks for
+one group (``--cameras 'S9/*'``), whose cameras then take their plain names
+(:func:`.formats.read_calibrations`).
+
 A record is named by its ``name`` field, else by its key (``"0"`` .. in VoxelPose's files) or its index in
 a list; records in a list are read in order. A record with intrinsics but no pose is an error naming it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -183,26 +193,41 @@ def _split_distortion(record: dict, where: str) -> tuple[np.ndarray | None, bool
     return distortion(coeffs if radial.size > 3 else coeffs[:5], f"{where}distortion"), rk is not None or pk is not None
 
 
-def _has_pose(reader: FieldReader) -> bool:
-    return bool(reader.matches("rotation")) and bool(reader.matches("translation"))
-
-
-def _is_record(node) -> bool:
-    if not isinstance(node, dict):
-        return False
+def _has_intrinsics(node: dict) -> bool:
     keys = _scalar_keys(node)
-    split = all(k in keys for k in ("fx", "fy", "cx", "cy")) or (
-        _first(keys, _FOCAL) is not None and _first(keys, _CENTRE) is not None)
-    if split:
+    if all(k in keys for k in ("fx", "fy", "cx", "cy")) or (
+            _first(keys, _FOCAL) is not None and _first(keys, _CENTRE) is not None):
         return True
     reader = FieldReader(tuple(node), lambda k: _value(node[k]), "")
     return any(isinstance(_intrinsic_3x3(_value(node[k])), np.ndarray) and _intrinsic_3x3(_value(node[k])).size == 9
                for k in reader.matches("camera matrix"))
 
 
-def _find_records(node, path: tuple[str, ...], depth: int, out: list) -> None:
-    if _is_record(node):
-        out.append((path, node))
+def _has_pose(reader: FieldReader) -> bool:
+    return bool(reader.matches("rotation")) and bool(reader.matches("translation"))
+
+
+def _kind(node) -> str | None:
+    """``"camera"`` (intrinsics and a pose), ``"intrinsics"`` (no pose), ``"pose"`` (a numeric rotation and
+    translation, no intrinsics) or None."""
+    if not isinstance(node, dict):
+        return None
+    reader = FieldReader(tuple(node), lambda k: _value(node[k]), "")
+    if _has_intrinsics(node):
+        return "camera" if _has_pose(reader) else "intrinsics"
+    if not _has_pose(reader):
+        return None
+    rot = [_value(node[k]) for k in reader.matches("rotation")]
+    tra = [_value(node[k]) for k in reader.matches("translation")]
+    numeric = all(isinstance(v, np.ndarray) for v in rot + tra)
+    return "pose" if numeric and all(v.size in (3, 9) for v in rot) and all(v.size == 3 for v in tra) else None
+
+
+def _find_records(node, path: tuple[str, ...], depth: int, out: dict) -> None:
+    """Fill ``out[kind]`` with ``(path, record)`` of every camera, intrinsics and pose record (:func:`_kind`)."""
+    kind = _kind(node)
+    if kind is not None:
+        out.setdefault(kind, []).append((path, node))
         return
     if depth >= MAX_DEPTH:
         return
@@ -214,11 +239,45 @@ def _find_records(node, path: tuple[str, ...], depth: int, out: list) -> None:
             _find_records(v, path + (str(i),), depth + 1, out)
 
 
+def _joined(source: str, found: dict, notes: list[str] | None) -> list[tuple[tuple[str, ...], dict, str | None]]:
+    """Records of files that keep intrinsics and poses apart (Human3.6M's camera-parameters.json: ``intrinsics``
+    per camera, ``extrinsics`` per subject and camera): each pose record joined with the intrinsics record of
+    the same key, as ``(pose path, merged record, group)``; the group (the pose's parent key) only when the
+    file holds several per camera."""
+    intrinsics = {}
+    for path, rec in found.get("intrinsics", []):
+        key = path[-1] if path else ""
+        intrinsics[key] = rec
+        name = rec.get("name")
+        if isinstance(name, str):
+            intrinsics.setdefault(name, rec)
+    poses = found.get("pose", [])
+    groups = sorted({path[-2] if len(path) >= 2 else "" for path, _ in poses})
+    out, used = [], set()
+    for path, pose in poses:
+        key = path[-1] if path else ""
+        if key not in intrinsics:
+            raise RigError(f"{source}: the pose at {_where(path)[:-1] or 'the top level'} has no intrinsics: no camera "
+                           f"record named {key!r} with a camera matrix (K / matrix / calibration_matrix)")
+        used.add(id(intrinsics[key]))
+        merged = {**intrinsics[key], **pose}
+        if not isinstance(merged.get("name"), str):
+            merged["name"] = key
+        group = (path[-2] if len(path) >= 2 else "") if len(groups) > 1 else None
+        if group is not None:
+            merged["name"] = f"{group}/{merged['name']}"
+        out.append((path, merged, group))
+    unused = [p[-1] for p, rec in found.get("intrinsics", []) if id(rec) not in used]
+    if unused and notes is not None:
+        notes.append(f"{source}: intrinsics without a pose left out: {', '.join(unused)}")
+    return out
+
+
 def _where(path: tuple[str, ...]) -> str:
     """``cameras[3].`` / ``0.``: the record's place in the file, as error prefixes use it."""
     out = ""
     for part in path:
-        out += f"[{part}]" if part.isdigit() and out else part
+        out += f"[{part}]" if part.isdigit() and out else ("." if out else "") + part
     return f"{out}." if out else ""
 
 
@@ -263,22 +322,29 @@ def read_json_calibration(path: str | Path, translation: str = "auto",
         raise RigError(f"--translation: must be one of {', '.join(TRANSLATIONS)}, got {translation!r}")
     source = str(path)
     data = load_json(path)
-    records: list = []
-    _find_records(data, (), 0, records)
+    found: dict = {}
+    _find_records(data, (), 0, found)
+    records = [(path, rec, None) for path, rec in found.get("camera", [])]
+    if found.get("pose") and found.get("intrinsics"):
+        records += _joined(source, found, notes)
+    else:
+        records += [(path, rec, None) for path, rec in found.get("intrinsics", [])]  # missing pose: an error below
     if not records:
         raise RigError(f"{source}: no camera found in this JSON file (silpose looks for objects with a camera "
                        "matrix K / matrix / intrinsic (or fx, fy, cx, cy), a rotation R / rotation / rvec and a "
-                       "translation t / T / translation, as in anipose, AIST++, CMU Panoptic or VoxelPose files)")
+                       "translation t / T / translation, as in anipose, AIST++, CMU Panoptic or VoxelPose files, "
+                       "or intrinsics and extrinsics per camera name, as in Human3.6M's camera-parameters.json)")
     cams, centred = [], []
-    for rec_path, record in records:
+    for rec_path, record, group in records:
         cam, centre = _record_camera(source, rec_path, record, translation)
+        cam = dataclasses.replace(cam, group=group)
         if centre:
-            cam = CalibratedCamera(cam.name, cam.K, cam.dist, cam.R, -cam.R @ cam.t, cam.size, cam.source, cam.where)
+            cam = dataclasses.replace(cam, t=-cam.R @ cam.t)
             centred.append(cam.name)
         flag = record.get("world2cam", record.get("world_to_camera"))
         if flag is False:  # XRPrimer: the record holds camera -> world
             R_w2c = cam.R.T
-            cam = CalibratedCamera(cam.name, cam.K, cam.dist, R_w2c, -R_w2c @ cam.t, cam.size, cam.source, cam.where)
+            cam = dataclasses.replace(cam, R=R_w2c, t=-R_w2c @ cam.t)
         cams.append(cam)
     if notes is not None and centred and translation == "auto":
         notes.append(f"{source}: read the translation of {', '.join(centred)} as the camera centre (Human3.6M-style "
