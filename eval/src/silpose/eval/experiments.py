@@ -275,14 +275,19 @@ class Evaluation:
         """q / K (rounded, >= 1): the 4-view model's latent dimensions per modelled view."""
         return max(1, int(round(int(self.model.n_latent) / len(self.model.layout_.views))))
 
+    def train_normalised(self) -> np.ndarray:
+        """(N_train, K, n, 2) the training contours normalised (``silpose.shared.contours.normalise``; computed
+        once: the baselines and E6's nearest neighbours share it)."""
+        if not hasattr(self, "_train_norm"):
+            self._train_norm = normalise(self.data.train_contours)[0]
+        return self._train_norm
+
     def regressor(self, kind: str, views: Sequence[int]):
         """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached)."""
         key = (kind, tuple(views))
         if key not in self._regressors:
-            if not hasattr(self, "_train_norm"):
-                self._train_norm = normalise(self.data.train_contours)[0]
             self._regressors[key] = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
-                self._train_norm, self.data.train_joints, size=self._size(self.data.train_contours, views)
+                self.train_normalised(), self.data.train_joints, size=self._size(self.data.train_contours, views)
             )
         return self._regressors[key]
 

@@ -158,7 +158,7 @@ def missing_view_vs_nn(ev) -> list[dict]:
     if K < 2:
         return []
     noisy = ev.noisy(ev.config.noise)
-    train_norm = normalise(d.train_contours)[0]
+    train_norm = ev.train_normalised()
     test_norm = normalise(noisy)[0]
     out = []
     for k in range(K):
