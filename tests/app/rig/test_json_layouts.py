@@ -83,6 +83,10 @@ def test_panoptic_cameras_list_with_hd_selected(tmp_path, known_calibration, che
     renamed = [type(c)(f"00_{i:02d}", c.K, c.dist, c.R, c.t, c.size, c.source) for i, c in enumerate(known_calibration)]
     check_same_projections(result.rig, renamed)
     assert any("kept 4 camera(s) matching --cameras 00_*" in n for n in result.notes)
+    assert not any("cameras: each is a view" in n for n in result.notes)
+    dome = panoptic_layout(known_calibration * 5, extra_vga=0)  # 20 HD cameras (copies): a warning, not an error
+    many = import_rig([_write(tmp_path / "dome.json", dome)], options())
+    assert any(n.startswith("warning: 20 cameras: each is a view") and "--cameras" in n for n in many.notes)
     with pytest.raises(RigError, match=r"--cameras: '02_\*' matches none of the cameras \(00_00, 00_01"):
         read_calibrations([path], cameras="00_00,02_*")
 

@@ -34,8 +34,11 @@ from .image_size import parse_image_sizes, resolve_image_size
 from .workspace import DEFAULT_FOOTPRINT_M, MIN_PERSON_FRACTION, VisibilityGrid, auto_workspace, visibility_grid
 
 __all__ = ["ImportOptions", "ImportResult", "import_rig", "write_rig", "parse_workspace_option", "MIN_PERSON_PX",
+           "MANY_CAMERAS",
            "MIN_CAMERA_HEIGHT_M", "MAX_CAMERA_HEIGHT_M"]
 
+#: More cameras than this in one import get a warning pointing to --cameras (a dataset's whole dome).
+MANY_CAMERAS = 16
 #: Smallest image height (px) of a 1.75 m person at the workspace centre (a wrong unit gives ~0).
 MIN_PERSON_PX = 20.0
 #: Degrees: when the cameras' image-up directions are this far from the chosen up on average, say so.
@@ -127,6 +130,10 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     calib = read.cameras
     notes = [f"read {len(calib)} camera(s) ({', '.join(c.name for c in calib)}) as {'/'.join(sorted(set(read.formats)))} "
              f"from {', '.join(read.sources)}", *read.notes]
+    if len(calib) > MANY_CAMERAS:
+        notes.append(f"warning: {len(calib)} cameras: each is a view the generator renders and 400 dimensions of the "
+                     f"model's shape vector; keep the ones you record with --cameras (e.g. CMU Panoptic's HD cameras: "
+                     f"--cameras '00_*')")
     if read.rig is not None and o.unit not in (None, "m", "1", "1.0"):
         raise RigError(f"{read.sources[0]}: a silpose rig is in metres already; drop --unit")
     scale = 1.0 if o.unit is None else parse_unit(o.unit)
