@@ -234,3 +234,11 @@ def test_per_camera_image_sizes_and_dataset_video_names_next_to_the_file(tmp_pat
         import_rig([path], options(image_size=f"nope={w}x{h}"))
     with pytest.raises(RigError, match=r"--image-size: two sizes for the cameras not named"):
         import_rig([path], options(image_size=f"{w}x{h},{w}x{h}"))
+
+
+def test_pose_nested_in_the_camera_record(tmp_path, known_calibration, check_same_projections):
+    layout = {c.name: {"K": np.asarray(c.K).tolist(), "dist": np.asarray(c.dist).tolist(), "image_size": list(c.size),
+                       "extrinsics": {"rvec": rotation_to_rvec(c.R).tolist(), "tvec": np.asarray(c.t).tolist()}}
+              for c in known_calibration}
+    path = _write(tmp_path / "cams.json", layout)
+    check_same_projections(import_rig([path], options()).rig, known_calibration)

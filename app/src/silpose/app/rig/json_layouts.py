@@ -40,6 +40,9 @@ groups (Human3.6M's subjects ``S1`` .. ``S11``), cameras are named ``group/camer
 one group (``--cameras 'S9/*'``), whose cameras then take their plain names
 (:func:`.formats.read_calibrations`).
 
+A record whose pose sits in one object inside it (``{"K": ..., "extrinsics": {"R": ..., "t": ...}}``) is read as
+one camera.
+
 A record is named by its ``name`` field, else by its key (``"0"`` .. in VoxelPose's files) or its index in
 a list; records in a list are read in order. A record with intrinsics but no pose is an error naming it.
 """
@@ -226,6 +229,10 @@ def _kind(node) -> str | None:
 def _find_records(node, path: tuple[str, ...], depth: int, out: dict) -> None:
     """Fill ``out[kind]`` with ``(path, record)`` of every camera, intrinsics and pose record (:func:`_kind`)."""
     kind = _kind(node)
+    if kind == "intrinsics":  # the pose one level down: {"K": ..., "extrinsics": {"R": ..., "t": ...}}
+        nested = [v for v in node.values() if _kind(v) == "pose"]
+        if len(nested) == 1:
+            node, kind = {**{k: v for k, v in node.items() if v is not nested[0]}, **nested[0]}, "camera"
     if kind is not None:
         out.setdefault(kind, []).append((path, node))
         return
