@@ -7,6 +7,7 @@
     easymocap     intri.yml + extri.yml
     pose2sim      Pose2Sim / anipose Calib.toml
     skeletool     Skeletool / Captury .calibration (MPI-INF-3DHP, DynaCap)
+    colmap        COLMAP sparse models: cameras.txt + images.txt, or cameras.bin + images.bin
     json_layouts  JSON calibrations of other tools (anipose/AIST++, CMU Panoptic, Human3.6M-style, XRPrimer)
     formats       format detection, reading several files into one camera list
     image_size    from the file, --image-size, or an image/video next to it

@@ -14,9 +14,8 @@ from silpose.shared.cli import fail
 
 app = typer.Typer(
     name="rig",
-    help="Camera rigs: import a calibration (OpenCV, EasyMocap, Pose2Sim/anipose, Skeletool, JSON of datasets, silpose) "
-         "as a rig "
-         "file; show a rig.",
+    help="Camera rigs: import a calibration (OpenCV, EasyMocap, Pose2Sim/anipose, Skeletool, COLMAP, JSON of datasets, "
+         "silpose) as a rig file; show a rig.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -27,11 +26,12 @@ app = typer.Typer(
 def import_command(
     calib: Annotated[List[Path], typer.Argument(help=(
         "Calibration file(s): OpenCV .xml/.yml/.yaml (one per camera or one for all), EasyMocap intri.yml + "
-        "extri.yml, Pose2Sim/anipose .toml, Skeletool/Captury .calibration (MPI-INF-3DHP), a JSON calibration "
+        "extri.yml, Pose2Sim/anipose .toml, Skeletool/Captury .calibration (MPI-INF-3DHP), a COLMAP sparse model's "
+        "cameras.txt + images.txt (or .bin; either file), a JSON calibration "
         "(anipose/AIST++, CMU Panoptic, Human3.6M-style as VoxelPose's Shelf/Campus), or a silpose rig .json."))],
     out: Annotated[Path, typer.Option("--out", "-o", help="The rig file to write (JSON).")],
-    fmt: Annotated[str, typer.Option("--format", help="auto, opencv, easymocap, pose2sim, skeletool, json or "
-                                                      "silpose.")] = "auto",
+    fmt: Annotated[str, typer.Option("--format", help="auto, opencv, easymocap, pose2sim, skeletool, "
+                                                      "colmap, json or silpose.")] = "auto",
     translation: Annotated[str, typer.Option(help="What the files' translations are: auto (world->camera, x_cam = R X "
                                                   "+ t, except Human3.6M-style JSON records, whose T is the camera "
                                                   "centre), world-to-camera, or camera-centre (x_cam = R (X - t)).")

@@ -7,14 +7,18 @@ format         files                                             reader
 ``easymocap``  ``intri.yml`` + ``extri.yml``                     :func:`.easymocap.read_easymocap`
 ``pose2sim``   ``*.toml`` (Pose2Sim, anipose)                    :func:`.pose2sim.read_pose2sim`
 ``skeletool``  ``*.calibration`` (MPI-INF-3DHP, DynaCap)         :func:`.skeletool.read_skeletool`
+``colmap``     ``cameras.txt`` + ``images.txt``                  :func:`.colmap.read_colmap`
+               (or ``.bin``) of a COLMAP sparse model
 ``json``       other tools' ``*.json`` (anipose/AIST++, CMU      :func:`.json_layouts.read_json_calibration`
                Panoptic, Human3.6M-style as VoxelPose's)
 ``silpose``    ``rig.json`` (``silpose rig import``)             :func:`silpose.shared.camera.load_rig`
 =============  ================================================  ==========================================
 
 ``auto`` picks by name and suffix: ``intri*.yml`` / ``extri*.yml`` -> easymocap, ``.toml`` -> pose2sim,
-``.calibration`` (or a file starting with the Skeletool header) -> skeletool, ``.json`` -> silpose when it is
-shaped like a rig file (:func:`silpose.shared.camera.is_rig_dict`), else json; other FileStorage suffixes -> opencv.
+``.calibration`` (or a file starting with the Skeletool header) -> skeletool, ``cameras.txt`` / ``images.txt`` /
+``cameras.bin`` / ``images.bin`` (any case) -> colmap, ``.json`` -> silpose when it is shaped like a rig file
+(:func:`silpose.shared.camera.is_rig_dict`), else json; other FileStorage suffixes -> opencv. A pair of files
+(EasyMocap's, COLMAP's) is read once, whichever of its files are given.
 
 ``translation`` (``--translation``): ``auto`` reads every format's translation as world -> camera, except the
 Human3.6M-style JSON records (:mod:`.json_layouts`); ``camera-centre`` reads it as the camera's position in the
@@ -34,6 +38,7 @@ import numpy as np
 from silpose.shared.camera import Rig, RigError, load_rig
 
 from .calibration import CalibratedCamera
+from .colmap import colmap_pair, is_colmap, read_colmap
 from .easymocap import easymocap_pair, is_easymocap, read_easymocap
 from .json_layouts import TRANSLATIONS, is_silpose_rig_json, read_json_calibration
 from .opencv import read_opencv
@@ -42,7 +47,7 @@ from .skeletool import is_skeletool, read_skeletool
 
 __all__ = ["FORMATS", "detect_format", "read_calibrations", "select_cameras", "Calibrations"]
 
-FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "skeletool", "json", "silpose")
+FORMATS = ("auto", "opencv", "easymocap", "pose2sim", "skeletool", "colmap", "json", "silpose")
 _OPENCV_SUFFIXES = (".xml", ".yml", ".yaml")
 
 
@@ -56,12 +61,15 @@ def detect_format(path: str | Path) -> str:
         return "pose2sim"
     if is_skeletool(p):
         return "skeletool"
+    if is_colmap(p):
+        return "colmap"
     if suffix == ".json":
         return "silpose" if is_silpose_rig_json(p) else "json"
     if suffix in _OPENCV_SUFFIXES:
         return "opencv"
     raise RigError(f"{p}: unknown calibration format (suffix {suffix or 'none'}); silpose reads OpenCV .xml/.yml/.yaml, "
-                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, Skeletool .calibration, JSON calibrations (anipose/AIST++, CMU Panoptic, "
+                   "EasyMocap intri.yml + extri.yml, Pose2Sim/anipose .toml, Skeletool .calibration, "
+                   "COLMAP cameras.txt + images.txt (or .bin), JSON calibrations (anipose/AIST++, CMU Panoptic, "
                    "Human3.6M-style) and silpose rig .json (or pass --format)")
 
 
@@ -126,6 +134,13 @@ def read_calibrations(paths, fmt: str = "auto", translation: str = "auto", camer
             if skipped:
                 notes.append(f"{pair[0]}: camera(s) {', '.join(skipped)} have intrinsics but no extrinsics in "
                              f"{pair[1]}; left out")
+        elif kind == "colmap":
+            pair = tuple(str(q) for q in colmap_pair(p))
+            if pair in seen_pairs:
+                continue
+            seen_pairs.add(pair)
+            got = read_colmap(p, notes)
+            sources += list(pair)
         elif kind == "pose2sim":
             got = read_pose2sim(p)
             sources.append(str(p))

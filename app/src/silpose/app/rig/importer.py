@@ -54,7 +54,7 @@ class ImportOptions:
     """The choices of ``silpose rig import`` (strings as typed; parsed by :func:`import_rig`).
 
     Attributes:
-        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``skeletool``, ``json`` or ``silpose``.
+        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``skeletool``, ``colmap``, ``json`` or ``silpose``.
         translation: ``auto``, ``world-to-camera`` or ``camera-centre`` (:mod:`.formats`).
         cameras: comma-separated camera names or ``fnmatch`` patterns to keep (None: all).
         unit: ``mm``, ``cm``, ``m`` ... or metres per unit (None: metres).
@@ -137,6 +137,9 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     if read.rig is not None and o.unit not in (None, "m", "1", "1.0"):
         raise RigError(f"{read.sources[0]}: a silpose rig is in metres already; drop --unit")
     scale = 1.0 if o.unit is None else parse_unit(o.unit)
+    # a structure-from-motion model has no known unit, up or floor: errors about them say so
+    sfm = (" (a COLMAP model's unit, up and floor are arbitrary unless it was aligned with colmap model_aligner)"
+           if "colmap" in read.formats else "")
     option_sizes = {} if o.image_size is None else parse_image_sizes(o.image_size, [c.name for c in calib])
     sizes = []
     for c in calib:
@@ -174,19 +177,19 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
                 "file is that camera's frame (as anipose and Pose2Sim write without a floor reference), so it does "
                 "not say where the floor is; pass --floor-offset with the floor's coordinate along up, about minus "
                 f"that camera's height ({axis_name(up)} is up; in the file's units: --floor-offset -1500 for a camera "
-                "1.5 m up with --unit mm), and --unit if the distances are not in metres"
+                f"1.5 m up with --unit mm), and --unit if the distances are not in metres{sfm}"
             )
         if z < MIN_CAMERA_HEIGHT_M:
             raise RigError(
                 f"{c.source}: camera {c.name!r} is {abs(z):.2f} m {'below' if z < 0 else 'above'} the floor: silpose "
                 f"takes the calibration plane as the floor and {axis_name(up)} as up; pass --up, or --floor-offset "
-                "if the board was not on the floor, or --unit if the distances are not in metres"
+                f"if the board was not on the floor, or --unit if the distances are not in metres{sfm}"
             )
     heights = np.array([cam.center[2] for cam in cams])
     if np.all(heights > MAX_CAMERA_HEIGHT_M):
         raise RigError(
             f"{read.sources[0]}: the cameras stand {np.median(heights):.0f} m above the floor: the calibration is "
-            "probably not in metres; pass --unit (mm, cm, m or metres per unit)"
+            f"probably not in metres; pass --unit (mm, cm, m or metres per unit){sfm}"
         )
     k = len(cams)
     min_views = k if o.min_views is None else int(o.min_views)
@@ -242,7 +245,7 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
         px = float(np.linalg.norm(head - feet))
         if px < MIN_PERSON_PX:
             raise RigError(f"{rig.where}: camera {cam.name!r} shows a 1.75 m person at the workspace centre only "
-                           f"{px:.2f} px tall: is the unit right (--unit mm, cm, m)?")
+                           f"{px:.2f} px tall: is the unit right (--unit mm, cm, m){sfm}?")
     return ImportResult(rig, notes, grid)
 
 
