@@ -42,7 +42,10 @@ def camera_row(cam: Camera, rig: Rig, height: float = PERSON_HEIGHT_M) -> dict[s
     c = cam.center
     f, az, el = _view(cam)
     cx, cy = rig.workspace.center
-    feet, head = cam.project(np.array([[cx, cy, 0.0], [cx, cy, FIGURE_HEIGHT_M]]))
+    person = np.array([[cx, cy, 0.0], [cx, cy, FIGURE_HEIGHT_M]])
+    feet, head = cam.project(person)
+    # not in view: behind the camera, or beyond its lens model (project() gives NaN there)
+    person_px = float(np.linalg.norm(head - feet)) if np.all(cam.to_camera(person)[:, 2] > 0) else float("nan")
     dist = "none" if not np.any(cam.dist) else " ".join(f"{v:.4g}" for v in cam.dist)
     return {
         "camera": cam.name,
@@ -54,7 +57,7 @@ def camera_row(cam: Camera, rig: Rig, height: float = PERSON_HEIGHT_M) -> dict[s
         "image": f"{cam.width}x{cam.height}",
         "distortion": dist,
         f"sees workspace to {height:g} m": _sees(cam, rig, height),
-        f"{FIGURE_HEIGHT_M:g} m person at centre": f"{np.linalg.norm(head - feet):.0f} px",
+        f"{FIGURE_HEIGHT_M:g} m person at centre": f"{person_px:.0f} px" if np.isfinite(person_px) else "not in view",
     }
 
 
