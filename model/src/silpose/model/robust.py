@@ -23,6 +23,10 @@ the component weights are recomputed, so the winning component can change.
 point among indices p - window .. p + window (an arc-length shift from a blob or shadow elsewhere
 on the contour otherwise makes every later point an outlier).
 
+After the passes, excursions (loops a shadow or blob adds to the outline; ``silpose.model.excursions``) are
+trimmed and slides of the points along the outline (``silpose.model.reindex``) undone against the robust
+reconstruction, and the changed frames inferred again.
+
 Adaptive observation noise (``noise_scale``, :func:`frame_noise_variance`). The model's s^2 is one
 number for every input; a corrupted frame deserves less trust in its contour details than a clean
 one. After the Gaussian pass each frame's residual scale is measured (per coordinate,
@@ -51,6 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .excursions import ExcursionSettings
+from .reindex import ReindexSettings
 
 __all__ = ["RobustSettings", "NOISE_LEVELS", "frame_noise_variance", "point_weights", "snap_correspondences"]
 
@@ -65,7 +70,10 @@ class RobustSettings:
     noise_scale: adaptive observation noise (:func:`frame_noise_variance`); None = the model's s^2;
     excursion_passes: times the observed contours' excursions (shadows, blobs, bitten holes) are trimmed
         against the robust reconstruction and the changed frames inferred again (``silpose.model.excursions``;
-        0 = never); excursions: their thresholds.
+        0 = never); excursions: their thresholds;
+    reindex_passes: times a significant slide of the observed points along their outline (a bite, blob or shadow
+        elsewhere on it) is undone against the robust reconstruction and the changed frames inferred again
+        (``silpose.model.reindex``; after the excursions; 0 = never); reindex: its settings.
     """
 
     iterations: int = 8
@@ -75,6 +83,8 @@ class RobustSettings:
     noise_scale: float | None = 10.0
     excursion_passes: int = 2
     excursions: ExcursionSettings = field(default_factory=ExcursionSettings)
+    reindex_passes: int = 1
+    reindex: ReindexSettings = field(default_factory=ReindexSettings)
 
     def __post_init__(self) -> None:
         if int(self.iterations) < 1:
@@ -87,6 +97,8 @@ class RobustSettings:
             raise ValueError(f"robust window must be >= 0, got {self.window}")
         if int(self.excursion_passes) < 0:
             raise ValueError(f"robust excursion_passes must be >= 0, got {self.excursion_passes}")
+        if int(self.reindex_passes) < 0:
+            raise ValueError(f"robust reindex_passes must be >= 0, got {self.reindex_passes}")
         if self.noise_scale is not None and not (np.isfinite(self.noise_scale) and self.noise_scale > 0):
             raise ValueError(f"robust noise_scale must be finite and > 0 (or None), got {self.noise_scale}")
 

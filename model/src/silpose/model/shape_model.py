@@ -42,6 +42,7 @@ from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
 from .plausibility import PlausibilityCalibration, convex_in_every_view, view_subsets
 from .provenance import manifest_sha256
 from .excursions import trim_excursions
+from .reindex import reindex_contours
 from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 from .untangle import untangle as untangle_contours
 from .shards import split_global_rows
@@ -111,8 +112,10 @@ class InferenceResult:
         excursions_trimmed: (N, K) bool, views whose excursions (shadows, blobs, bitten holes) robust inference
             trimmed before its final pass (``silpose.model.excursions``; ``robust_weights`` then index the trimmed
             contour), else None.
+        reindexed: (N, K) bool, views whose points robust inference slid back along their outline before its final
+            pass (``silpose.model.reindex``), else None.
         robust_input_px: (N, K, n, 2) the observed contours robust inference's final pass started from: the input
-            with those excursions trimmed (``robust_weights`` index these points), else None.
+            with those excursions trimmed and slides undone (``robust_weights`` index these points), else None.
     """
 
     joints: np.ndarray
@@ -133,6 +136,7 @@ class InferenceResult:
     log_marginal_robust: np.ndarray | None = None
     noise_variance: np.ndarray | None = None
     excursions_trimmed: np.ndarray | None = None
+    reindexed: np.ndarray | None = None
     robust_input_px: np.ndarray | None = None
 
 
@@ -515,14 +519,22 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             res, comp = self._infer_robust(c_mod, present, cen_true, sc_true, s2, settings, want)
             observed_lm = res.log_marginal.copy()  # _replace_rows below writes into res's arrays
             trimmed = np.zeros(present.shape, dtype=bool)
+            reindexed = np.zeros(present.shape, dtype=bool)
             work = c_mod
-            for _ in range(int(settings.excursion_passes)):  # shadows, blobs, holes (silpose.model.excursions)
-                new, changed = trim_excursions(work, res.contours_px, present, settings.excursions)
+            # shadows, blobs, holes (silpose.model.excursions), then slides along the outline (silpose.model.reindex)
+            steps = ([(trim_excursions, settings.excursions, trimmed)] * int(settings.excursion_passes)
+                     + [(reindex_contours, settings.reindex, reindexed)] * int(settings.reindex_passes))
+            settled = set()  # a step that changed nothing would change nothing on its next pass either
+            for step, step_settings, done in steps:
+                if step in settled:
+                    continue
+                new, changed = step(work, res.contours_px, present, step_settings)
                 rows = np.flatnonzero(changed.any(axis=1))
                 if rows.size == 0:
-                    break
+                    settled.add(step)
+                    continue
                 work = np.where(changed[..., None, None], new, work)
-                trimmed |= changed
+                done |= changed
                 again, again_comp = self._infer_robust(work[rows], present[rows], cen_true[rows], sc_true[rows], s2,
                                                        settings, want)
                 _replace_rows(res, again, rows)
@@ -530,6 +542,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                     comp[rows] = again_comp
             res.log_marginal = observed_lm  # of the input as observed, excursions and all
             res.excursions_trimmed = trimmed
+            res.reindexed = reindexed
             res.robust_input_px = np.asarray(work, dtype=np.float64)
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
