@@ -54,6 +54,16 @@ def test_a_cyclic_shift_is_undone_exactly():
         np.testing.assert_allclose(out[0, 0], clean, atol=1e-9)
 
 
+def test_batches_larger_than_a_block_match_view_by_view():
+    clean = _outline(_figure())
+    shifts = np.arange(300) % 7 - 3  # 300 views: more than one block of views; shift 0 is left alone
+    observed = np.stack([np.roll(clean, -s, axis=0) for s in shifts]).reshape(100, 3, N, 2)
+    recon = np.broadcast_to(clean, observed.shape)
+    out, changed = reindex_contours(observed, recon, np.ones((100, 3), bool))
+    np.testing.assert_array_equal(changed.ravel(), shifts != 0)
+    np.testing.assert_allclose(out, recon, atol=1e-9)
+
+
 def test_a_smooth_slide_is_undone():
     clean = _outline(_figure())
     t = 2 * np.pi * np.arange(N) / N
