@@ -51,3 +51,20 @@ def dense_conditioning(p, X_obs, obs, noise=0.0) -> dict:
 def dense_reference():
     """:func:`dense_conditioning`, the dense reference of Gaussian conditioning."""
     return dense_conditioning
+
+
+@pytest.fixture
+def moved_in_place():
+    """f(clean (n, 2) outline) -> (jittered, patched): 1 px Gaussian jitter (seed 3), and points 40..69 pushed
+    8 px out along the normals with a half-sine profile. Both move points without sliding them along the
+    outline (the evaluation's contour noise), which outline repairs must leave alone."""
+    from silpose.shared.contours import outward_normals
+
+    def make(clean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        jittered = clean + np.random.default_rng(3).normal(0, 1.0, clean.shape)
+        patched = clean.copy()
+        profile = np.sin(np.pi * (np.arange(30) + 0.5) / 30)
+        patched[40:70] += 8.0 * profile[:, None] * outward_normals(clean)[40:70]
+        return jittered, patched
+
+    return make

@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .observed_views import observed_views
+
 __all__ = ["ExcursionSettings", "point_to_polygon_distance", "excursion_runs", "trim_excursions"]
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
@@ -184,22 +186,12 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     Returns:
         (contours (N, K, n, 2) float64 with the excursions trimmed, changed (N, K) bool).
     """
-    c = np.asarray(contours_px, dtype=np.float64)
-    rec = np.asarray(recon_px, dtype=np.float64)
-    present = np.asarray(present, dtype=bool)
-    out = c.copy()
-    changed = np.zeros(present.shape, dtype=bool)
-    usable = present & np.isfinite(rec).all(axis=(2, 3)) & np.isfinite(c).all(axis=(2, 3))
-    rows, views = np.nonzero(usable)
-    if rows.size == 0:
-        return out, changed
-    pts, polys = c[rows, views], rec[rows, views]
-    centred = pts - pts.mean(axis=1, keepdims=True)
-    scales = np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1))  # the normalisation scale (px)
-    far = _far_points(pts, polys, settings.threshold * scales)  # (V, n)
+    ov = observed_views(contours_px, recon_px, present)
+    if ov.rows.size == 0:
+        return ov.contours, ov.changed
+    far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
     for j in np.flatnonzero(far.any(axis=1)):
-        trimmed = _trim_view(pts[j], polys[j], far[j], float(scales[j]), settings)
+        trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings)
         if trimmed is not None:
-            out[rows[j], views[j]] = trimmed
-            changed[rows[j], views[j]] = True
-    return out, changed
+            ov.set(j, trimmed)
+    return ov.contours, ov.changed

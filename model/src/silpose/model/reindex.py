@@ -51,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .observed_views import observed_views
+
 __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "resample_by_index", "reindex_contours"]
 
 #: views per block of :func:`index_offsets` in :func:`reindex_contours` (a block holds n x (2w + 1) x 2 floats
@@ -165,39 +167,25 @@ def resample_by_index(points: np.ndarray, positions: np.ndarray) -> np.ndarray:
 
 def reindex_contours(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
                      settings: ReindexSettings = ReindexSettings()) -> tuple[np.ndarray, np.ndarray]:
-    """Undo the significant slides of observed contours against their reconstructions (module doc).
+    """Undo the significant slides of observed contours against their reconstructions (module doc); the
+    arguments and the usable views are those of :func:`~silpose.model.observed_views.observed_views`, and
+    ``settings`` its thresholds.
 
-    Args:
-        contours_px: (N, K, n, 2) observed contours, px (absent views may hold NaN).
-        recon_px: (N, K, n, 2) their reconstructions, px.
-        present: (N, K) bool, observed views.
-        settings: thresholds.
     Returns:
-        (contours (N, K, n, 2) float64, resampled where a slide was significant; changed (N, K) bool).
+        (contours (N, K, n, 2) float64, resampled by index where a slide was significant; changed (N, K) bool).
     """
-    c = np.asarray(contours_px, dtype=np.float64)
-    rec = np.asarray(recon_px, dtype=np.float64)
-    present = np.asarray(present, dtype=bool)
-    out = c.copy()
-    changed = np.zeros(present.shape, dtype=bool)
-    usable = present & np.isfinite(rec).all(axis=(2, 3)) & np.isfinite(c).all(axis=(2, 3))
-    rows, views = np.nonzero(usable)
-    if rows.size == 0:
-        return out, changed
-    n = c.shape[2]
-    pts, polys = c[rows, views], rec[rows, views]
-    centred = pts - pts.mean(axis=1, keepdims=True)
-    scales = np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1))  # the normalisation scale (px)
+    ov = observed_views(contours_px, recon_px, present)
+    n = ov.contours.shape[2]
     window = settings.window_points(n)
     gate = settings.min_chi2_per_point * n
-    for start in range(0, len(rows), _BLOCK_VIEWS):
+    for start in range(0, ov.rows.size, _BLOCK_VIEWS):
         block = slice(start, start + _BLOCK_VIEWS)
-        offsets, distances = index_offsets(pts[block], polys[block], window)
+        offsets, distances = index_offsets(ov.points[block], ov.recon[block], window)
         for j, (d, e) in enumerate(zip(offsets, distances), start=start):
-            if not scales[j] > 0:
+            if not ov.scales[j] > 0:
                 continue
-            slide, chi2 = fit_slide(d, e, settings.sigma * scales[j], int(settings.harmonics), settings.offset_floor * n)
+            slide, chi2 = fit_slide(d, e, settings.sigma * ov.scales[j], int(settings.harmonics),
+                                    settings.offset_floor * n)
             if chi2 > gate:
-                out[rows[j], views[j]] = resample_by_index(pts[j], np.arange(n) - slide)
-                changed[rows[j], views[j]] = True
-    return out, changed
+                ov.set(j, resample_by_index(ov.points[j], np.arange(n) - slide))
+    return ov.contours, ov.changed
