@@ -116,17 +116,22 @@ def test_infer_dataset_parquet_and_json_match_the_api(trained, dataset, tmp_path
     plain = model.infer(test.contours, hypotheses=3)
     np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), single_answer(plain.joints, plain.hypotheses), atol=1e-6)
     assert [len(f["hypotheses"]) for f in doc["frames"]] == list((plain.hypotheses.component >= 0).sum(axis=1))
-    assert all(f["views_trimmed"] == [] for f in doc["frames"])  # --no-robust trims nothing
+    assert all(f["views_trimmed"] == [] and f["views_reindexed"] == [] for f in doc["frames"])  # --no-robust: none
     # the views whose excursions robust inference trimmed, by camera name, in both formats
     names = model.rig_.names
     assert list(table["views_trimmed"]) == [",".join(names[k] for k in np.flatnonzero(r)) for r in ref.excursions_trimmed]
+    assert list(table["views_reindexed"]) == [",".join(names[k] for k in np.flatnonzero(r)) for r in ref.reindexed]
     from silpose.app.writers import write_joints
     ref.excursions_trimmed = np.zeros_like(ref.views_present)
     ref.excursions_trimmed[1, [0, 2]] = True
+    ref.reindexed = np.zeros_like(ref.views_present)
+    ref.reindexed[2, 1] = True
     write_joints(tmp_path / "t.parquet", [f"f{i}" for i in range(6)], ref, names)
     write_joints(tmp_path / "t.json", [f"f{i}" for i in range(6)], ref, names)
     assert list(pq.read_table(tmp_path / "t.parquet")["views_trimmed"].to_pylist()) == ["", f"{names[0]},{names[2]}"] + [""] * 4
     assert json.loads((tmp_path / "t.json").read_text())["frames"][1]["views_trimmed"] == [names[0], names[2]]
+    assert list(pq.read_table(tmp_path / "t.parquet")["views_reindexed"].to_pylist()) == ["", "", names[1]] + [""] * 3
+    assert [f["views_reindexed"] for f in json.loads((tmp_path / "t.json").read_text())["frames"]][1:3] == [[], [names[1]]]
 
 
 def test_infer_png_folders_with_missing_views(trained, dataset, tmp_path):

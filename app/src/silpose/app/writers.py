@@ -7,7 +7,8 @@
   that hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
   ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
   model has no calibration), ``views_trimmed`` (the views whose outline robust inference cut a shadow,
-  blob or hole from, ``silpose.model.excursions``; comma-separated, empty when none), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
+  blob or hole from, ``silpose.model.excursions``; comma-separated, empty when none), ``views_reindexed``
+  (the views whose points it slid back along their outline, ``silpose.model.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
 
@@ -114,8 +115,8 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
     head = np.degrees(heading(joints))
     plaus = _optional(result.plausibility, n)
     hyp = result.hypotheses
-    trimmed = (np.zeros(result.views_present.shape, dtype=bool) if result.excursions_trimmed is None
-               else np.asarray(result.excursions_trimmed, dtype=bool))
+    trimmed, reindexed = (np.zeros(result.views_present.shape, dtype=bool) if flags is None else
+                          np.asarray(flags, dtype=bool) for flags in (result.excursions_trimmed, result.reindexed))
     if path.suffix.lower() == ".json":
         doc = {
             "model": model_path,
@@ -128,6 +129,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
                     **({"sample_id": int(sample_id[i])} if sample_id is not None else {}),
                     "views_present": [names[k] for k in np.flatnonzero(result.views_present[i])],
                     "views_trimmed": [names[k] for k in np.flatnonzero(trimmed[i])],
+                    "views_reindexed": [names[k] for k in np.flatnonzero(reindexed[i])],
                     **({"status": str(status[i])} if status is not None else {}),
                     "plausibility": None if not np.isfinite(plaus[i]) else float(plaus[i]),
                     "heading_deg": None if not np.isfinite(head[i]) else float(head[i]),
@@ -153,6 +155,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
     cols["n_views_present"] = pa.array(result.views_present.sum(1).astype(np.int32))
     cols["views_present"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in result.views_present])
     cols["views_trimmed"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in trimmed])
+    cols["views_reindexed"] = pa.array([",".join(names[k] for k in np.flatnonzero(r)) for r in reindexed])
     if status is not None:
         cols["status"] = pa.array([str(x) for x in status])
     cols["plausibility"] = pa.array(plaus.astype(np.float32))

@@ -37,7 +37,7 @@ def infer(
     offsets: Annotated[Optional[str], typer.Option("--offsets", help="With --videos: per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,
-    robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted and the loops such blobs add to an outline cut (column views_trimmed). Default: on, except for --videos --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
+    robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --videos --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on with --frames, off otherwise (--videos always chooses along each person's track).")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes, camera frames or recordings.
