@@ -12,12 +12,13 @@ cannot undo a slide: the slid points lie *on* the body's outline, just at the wr
 1. each observed point i is matched to the nearest reconstructed point among indices i - w .. i + w
    (``window``, a fraction of the n points), giving an offset ``d_i`` (points) and a distance ``e_i`` (px);
 2. the slide is a smooth periodic function of the position along the outline,
-   ``d(t) = a_0 + sum_{h <= H} (a_h cos h t + b_h sin h t)``, ``t = 2 pi i / n``, fitted by weighted least
-   squares with weights ``1 / (1 + (e_i / sigma)^2)`` (``sigma`` a fraction of the view's scale), refitted
+   ``d(t) = a_0 + sum_{h <= H} (a_h cos h t + b_h sin h t)``, ``t = 2 pi i / n``, fitted by least squares
+   on rows scaled by ``w_i = 1 / (1 + (e_i / sigma)^2)`` (``sigma`` a fraction of the view's scale), refitted
    twice without the points whose residual exceeds 3 robust scales;
 3. the fit is used only when it is significant: ``chi2 = a^T (A^T W A) a / s^2 > min_chi2_per_point * n``,
-   with ``s^2`` the weighted residual variance plus a floor (``offset_floor`` of the outline, squared);
-   a clean input's reconstruction slides a little too, which the gate leaves alone;
+   ``W = diag(w)``, ``s^2 = sum w r^2 / (sum w - 2H - 1)`` plus a floor (``offset_floor`` of the outline,
+   squared);
+   a clean input's reconstruction slides a little too, and the gate leaves most of that alone;
 4. the input is resampled *by index* at ``i - d(i)`` (cyclic linear interpolation), so that its point i
    corresponds to reconstructed point i; the frame is then inferred again.
 
