@@ -18,8 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from silpose.datagen.clips import CACHE_ENV, prepare_motion
-from silpose.datagen.motion_config import motion_from_dict
+from silpose.datagen.motion.clips import CACHE_ENV, prepare_motion
+from silpose.datagen.motion.config import motion_from_dict
 from silpose.datagen.testing import write_synthetic_bvh
 
 from .generation import bench_config, run_pool

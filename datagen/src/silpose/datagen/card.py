@@ -166,7 +166,7 @@ def _motion_section(motion: dict, loaded: dict) -> str:
     return "\n".join([
         "Poses come from motion-capture clips (BVH), imported by Blender's own importer and retargeted onto every "
         "generated body: bone directions, pelvis and chest orientation from the clip, bone lengths from the "
-        "subject's own proportions, feet put back on the floor (`silpose.datagen.retarget`). Each row's `gait` "
+        "subject's own proportions, feet put back on the floor (`silpose.datagen.motion.retarget`). Each row's `gait` "
         "column holds `clip` (the # below), `frame` (0-based BVH frame), `mirror` (1: left/right mirrored), "
         f"`heading` (radians) and `x`, `y` (metres). Mirror augmentation: {'on' if motion.get('mirror') else 'off'}. "
         "A clip is drawn with probability proportional to weight x frames used, then one of its used frames "

@@ -37,11 +37,11 @@ def gen(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, claim_folder
 
-    from .bvh_check import BvhError
-    from .clips import ClipError
+    from .motion.bvh_check import BvhError
+    from .motion.clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
-    from .joint_maps import JointMapError
+    from .motion.joint_maps import JointMapError
     from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError

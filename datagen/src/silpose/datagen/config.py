@@ -17,7 +17,7 @@ Keys (all validated; errors are one line naming the file and the field)::
     [workspace]                 # optional: overrides the rig's workspace (metres, silpose's frame)
     center = [0.0, 0.0]
     size = [3.0, 3.0]
-    [motion]                    # optional: poses from motion-capture clips (.motion_config)
+    [motion]                    # optional: poses from motion-capture clips (.motion.config)
     source = "bvh"              # "procedural" (default, the walk cycle) | "bvh"
     bvh = ["clips/*.bvh"]
 
@@ -41,9 +41,9 @@ import numpy as np
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
-from .blender_scene import ENGINES
-from .clips import PreparedMotion, prepare_motion
-from .motion_config import MotionConfig, MotionConfigError, motion_from_dict
+from .blender.scene import ENGINES
+from .motion.clips import PreparedMotion, prepare_motion
+from .motion.config import MotionConfig, MotionConfigError, motion_from_dict
 from .renderers import MASK_RENDERERS
 
 SPLITS = ("train", "test")

@@ -21,10 +21,10 @@ from silpose.shared.contours import extract_contours, normalise
 from silpose.shared.seeds import SPLIT_CODE
 from silpose.shared.skeleton import N_JOINTS
 
-from .bvh_motion import BvhMotion
+from .motion.bvh_motion import BvhMotion
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 
-from .motion import WALK, MotionSource, WalkMotion
+from .motion.source import WALK, MotionSource, WalkMotion
 from .render import RenderResult, Renderer, rendering
 from .renderers import MASK_RENDERERS, renderer_from_config
 from .scene import SampleScene, draw_scene, joints_visible

@@ -38,11 +38,11 @@ def gen_frames(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, check_folder
 
-    from ..bvh_check import BvhError
-    from ..clips import ClipError
+    from ..motion.bvh_check import BvhError
+    from ..motion.clips import ClipError
     from ..config import ConfigError
     from ..executor import ExecutorError
-    from ..joint_maps import JointMapError
+    from ..motion.joint_maps import JointMapError
     from ..manifest import LockError
     from ..shards import GenerationError
     from .config import load_frames_config
