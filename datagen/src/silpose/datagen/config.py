@@ -43,6 +43,7 @@ from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
 from .blender.scene import ENGINES
 from .motion.clips import PreparedMotion, prepare_motion
+from .motion.mix import PreparedLibrary, prepare_library
 from .motion.config import MotionConfig, MotionConfigError, motion_from_dict
 from .renderers import MASK_RENDERERS
 
@@ -90,17 +91,19 @@ class GenConfig:
     source: str = ""
     workspace_spec: dict | None = None
     motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
-    prepared: PreparedMotion | None = field(default=None, repr=False)
+    prepared: PreparedMotion | PreparedLibrary | None = field(default=None, repr=False)
 
     def with_motion(self, workers: int | None = None) -> "GenConfig":
         """This config with its motion-capture clips imported and checked (itself if procedural)."""
-        if not self.motion.is_bvh or self.prepared is not None:
+        if not self.motion.uses_clips or self.prepared is not None:
             return self
+        if self.motion.source == "library":
+            return replace(self, prepared=prepare_library(self.motion))
         return replace(self, prepared=prepare_motion(self.motion, workers=workers))
 
-    def _prepared(self) -> PreparedMotion | None:
-        if self.motion.is_bvh and self.prepared is None:
-            raise ValueError(f"{self.source}: [motion] source = \"bvh\": call with_motion() first (imports the clips)")
+    def _prepared(self) -> PreparedMotion | PreparedLibrary | None:
+        if self.motion.uses_clips and self.prepared is None:
+            raise ValueError(f"{self.source}: [motion] source = {self.motion.source!r}: call with_motion() first (imports the clips)")
         return self.prepared
 
     def to_dict(self) -> dict:

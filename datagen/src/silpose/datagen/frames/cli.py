@@ -43,6 +43,7 @@ def gen_frames(
     from ..config import ConfigError
     from ..executor import ExecutorError
     from ..motion.joint_maps import JointMapError
+    from ..motion.library import LibraryError
     from ..manifest import LockError
     from ..shards import GenerationError
     from .config import load_frames_config
@@ -54,7 +55,7 @@ def gen_frames(
         check_folder(target, "gen-frames", recognise=lambda p: read_identity(p) is not None)
         summary = generate_frames(config, fcfg, target, workers=workers, progress=progress)
     except (ConfigError, FramesError, GenerationError, LockError, DatasetError, ExecutorError, RigError,
-            OutputFolderError, BvhError, ClipError, JointMapError) as exc:
+            OutputFolderError, BvhError, ClipError, JointMapError, LibraryError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         _fail("interrupted; rerun the same command to resume", 130)
