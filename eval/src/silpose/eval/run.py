@@ -31,6 +31,7 @@ from . import figures, inference_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
+from .groups import sample_groups, write_group_report
 from .inference_eval import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
 from .tables import fmt
@@ -219,7 +220,12 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
     }
     t1 = time.perf_counter()
+    groups = sample_groups(test_dir if test_dir is not None else data_dir)
+    if groups:
+        ev.notes.append("every pose table per activity group of the test clips: groups.md")
     written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}")
+    if groups:
+        written["groups"] = write_group_report(ev.frame(), groups, out_dir, title or f"silpose evaluation — {Path(data_dir).name}")
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
