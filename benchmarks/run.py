@@ -53,8 +53,8 @@ SECTIONS: dict[str, Section] = {
     ),
     "motion": Section(
         "motion", {"n_samples": 200}, {"n_samples": 16, "synthetic_frames": 60, "shard_size": 8},
-        "generation with poses from motion-capture clips (BVH, retargeted) vs the procedural walk: ms per sample, "
-        "and the one-off Blender import of the clips",
+        "generation with poses from motion-capture clips (BVH, retargeted) and from the bundled motion library "
+        "(the motions preset) vs the procedural walk: ms per sample, and the one-off Blender import of the clips",
     ),
     "pipeline": Section(
         "pipeline", {"n_samples": 1000, "workers": 2},
