@@ -72,6 +72,13 @@ SECTIONS: dict[str, Section] = {
         "MPPCA EM per iteration (vs its BLAS floor) and full fit vs sklearn GaussianMixture(full); "
         "held-out log-lik; peak memory",
     ),
+    "em_scale": Section(
+        "em_scale", {},
+        {"n": 3000, "d": 300, "q": 8, "m": 70, "shard_rows": 500, "n_test": 500, "max_iter": 5, "init_rows": 1000,
+         "compare_shards": 1},
+        "MPPCA streaming fit at the motions scale (N 100k, d 1657, M 200, sparse E-step): total time, time per "
+        "iteration vs the exact E-step, peak RSS",
+    ),
     "inference": Section(
         "inference", {}, {"frames": 2000, "repeats": 1, "latency_calls": 50},
         "batched frames/s (4, 3, 1 views) and single-frame latency of ShapeStructureModel.infer vs its BLAS floor",
