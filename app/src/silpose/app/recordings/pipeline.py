@@ -302,6 +302,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     cam_list = list(cams.values())
     stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     step = 0
+    gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
         if opt.overlays:
@@ -317,16 +318,18 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 t0 = time.perf_counter()
                 seen = dict(zip(cams, stepper()))
                 timings["cameras"] += time.perf_counter() - t0
-                if any(s.status == VIEW_ENDED for s in seen.values()):
-                    ended = [c for c, s in seen.items() if s.status == VIEW_ENDED]
-                    early = step < total if total >= 0 else len(ended) < len(seen)  # unknown length: unequal ends
-                    if early:
-                        msg = f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
-                        warnings.append(msg + (f" (expected {total})" if total >= 0 else "") + ": stopping there")
-                        if warn:
-                            warn(warnings[-1])
-                    done = True
-                    break
+                ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
+                if ended:
+                    gone.update(ended)
+                    if len(gone) == len(seen):  # no camera left: the recording is over
+                        done = True
+                        break
+                    msg = (f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
+                           + (f" (expected {total})" if total >= 0 else "")
+                           + ": a missing view ('video ended') from there on, the other cameras go on")
+                    warnings.append(msg)
+                    if warn:
+                        warn(msg)
                 people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings, pool.map if pool else map)
                 seen_chunk.append(seen)
                 for c in names:
@@ -369,11 +372,16 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         for c in cams.values():
             c.reader.close()
     for c in cams.values():
-        line = c.diagnosis(opt.masks)
-        if line:
+        for line in (c.reader.summary(), c.diagnosis(opt.masks)):
+            if not line:
+                continue
             warnings.append(line)
             if warn:
                 warn(line)
+    if total >= 0 and step < total:
+        warnings.append(f"every camera's video ended after {step} of {total} frames")
+        if warn:
+            warn(warnings[-1])
     tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
     n_persons = len(tracks)
     if n_persons == 0:
