@@ -57,8 +57,9 @@ from .floor import FloorGrid
 from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
-from .silhouettes import MASK_THRESHOLD, MaskBinariser, background_from_clips, background_from_first_frames
-from .sources import CameraReader, holds_background_clips, open_recording, parse_offsets
+from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work_size
+from .silhouettes import MASK_THRESHOLD, MaskBinariser, at_size, background_from_clips, background_from_first_frames
+from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, grounded)
@@ -86,7 +87,8 @@ class RecordingOptions:
     down-weighted); None = on for colour videos (silpose's segmentation leaves holes, blobs and shadows), off
     for mask videos (measured on the lab recording of :mod:`silpose.datagen.lab`, M 10 q 30 model: world-frame
     error 5.8 cm without, 6.3 cm with; 115 vs 87 time steps/s). hypotheses: top-K kept per person-frame, the single answer chosen online along each
-    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean.
+    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
+    processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     """
 
     masks: bool = False
@@ -105,6 +107,7 @@ class RecordingOptions:
     contours: bool = False
     robust: bool | None = None
     hypotheses: int = TOP_K
+    work_person_px: int = WORK_PERSON_PX
 
 
 @dataclass
@@ -160,7 +163,7 @@ def _shown(source) -> str:
 class _Camera:
     """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread)."""
 
-    def __init__(self, reader: CameraReader, silhouettes, min_area: int, keep_frame: bool):
+    def __init__(self, reader: CameraReader | ThreadedReader, silhouettes, min_area: int, keep_frame: bool):
         self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
         self.ended = False
         self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
@@ -254,13 +257,24 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     for w in warnings:
         if warn:
             warn(w)
+
+    lay = model.fitted_layout()
+    modelled = [names[v] for v in lay.views]
+    n_pts = lay.n_points
+    # every camera at its working resolution (module .resolution): geometry, masks and overlays at that size,
+    # contours scaled back to the rig camera's pixels for the model
+    work = [work_camera(c, work_size(c, workspace.center, opt.work_person_px)) for c in rig]
+    sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
+               for c, s in recording.sources.items()}
+    grid = FloorGrid(work, workspace.bounds)
     start = 0
     if opt.masks:
         silhouettes = MaskBinariser()
     elif opt.background is not None:
-        silhouettes = background_from_clips(Path(opt.background), rig, list(recording.sources), opt.segment_params)
+        silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
+                                            {c.name: (c.width, c.height) for c in work})
     else:
-        silhouettes = background_from_first_frames(recording.sources, int(opt.background_frames), opt.segment_params)
+        silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
         start = int(opt.background_frames)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
@@ -269,17 +283,13 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
     # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
     first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
-
-    lay = model.fitted_layout()
-    modelled = [names[v] for v in lay.views]
-    n_pts = lay.n_points
-    grid = FloorGrid(list(rig), workspace.bounds)
     fps = recording.fps
     tracker = Tracker(min_hits=opt.min_hits,
                       max_misses=opt.max_misses if opt.max_misses is not None else max(3, int(round(0.5 * (fps or 25.0)))))
     lag = tracker.min_hits * (tracker.max_misses + 1)
-    cams = {c: _Camera(CameraReader(s, silhouettes.grey, start), silhouettes, opt.min_area, keep_frame=not opt.masks)
-            for c, s in recording.sources.items()}
+    cams = {c: _Camera(ThreadedReader(CameraReader(s, silhouettes.grey, start)), silhouettes,
+                       _scaled_area(opt.min_area, rig[names.index(c)], work[names.index(c)]), keep_frame=not opt.masks)
+            for c, s in sources.items()}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {
@@ -306,7 +316,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
         if opt.overlays:
-            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in rig}, fps)
+            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in work}, fps)
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -330,7 +340,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     warnings.append(msg)
                     if warn:
                         warn(msg)
-                people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings, pool.map if pool else map)
+                people += _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                                       pool.map if pool else map)
                 seen_chunk.append(seen)
                 for c in names:
                     s = seen.get(c)
@@ -346,7 +357,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
             if overlays is not None:
                 t0 = time.perf_counter()
-                _draw_chunk(overlays, rig, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
+                _draw_chunk(overlays, rig, work, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
                             first_frame)
                 timings["overlays"] += time.perf_counter() - t0
             t0 = time.perf_counter()
@@ -399,27 +410,33 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     return summary
 
 
-def _camera_views(cam, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
-    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) px, NaN where unused).
-    Runs in a worker thread (OpenCV's labelling and contour tracing release the GIL)."""
+def _scaled_area(area_px: int, cam, work) -> int:
+    """A minimum blob area in ``cam``'s pixels, in ``work``'s (its working resolution)."""
+    return max(1, int(round(area_px * work.width * work.height / (cam.width * cam.height))))
+
+
+def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
+    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) in ``cam``'s px, NaN
+    where unused), from the masks at ``work``'s resolution. Runs in a worker thread (OpenCV's labelling and
+    contour tracing release the GIL)."""
     P = len(positions)
     cont = np.full((P, n_pts, 2), np.nan)
     if s is None:
         return [VIEW_NO_VIDEO] * P, cont
     if s.blobs is None or s.blobs.empty:
         return [s.status or VIEW_EMPTY] * P, cont
-    labels, status = assign_views(cam, s.blobs, positions)
+    labels, status = assign_views(work, s.blobs, positions)
     for d in range(P):
         if status[d] == VIEW_OK:
             pts = blob_contour(s.blobs, labels[d], n_pts)
             if pts is None:
                 status[d] = VIEW_EMPTY
             else:
-                cont[d] = pts
+                cont[d] = to_rig_px(pts, cam, work)
     return status, cont
 
 
-def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
+def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
                  mapper=map) -> list[_Person]:
     """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
 
@@ -438,7 +455,7 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
         xy = det.positions[idx]
-        return np.any(list(mapper(lambda k: grounded(rig[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
+        return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
             np.zeros(len(idx), bool)
 
     links = tracker.update(step, det.positions, feet_seen)
@@ -446,7 +463,8 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     t0 = time.perf_counter()
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
-    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), where, n_pts), range(len(names))))
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts),
+                          range(len(names))))
     out = []
     for track, d in links:
         if d < 0:
@@ -551,9 +569,9 @@ def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_track
     return keep
 
 
-def _draw_chunk(overlays: OverlayVideos, rig, names, modelled, step0: int, seen_chunk, people, rows: PersonRows, world,
-                first_frame: int) -> None:
-    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`)."""
+def _draw_chunk(overlays: OverlayVideos, rig, work, names, modelled, step0: int, seen_chunk, people, rows: PersonRows,
+                world, first_frame: int) -> None:
+    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`), at the cameras' working size."""
     by_step: dict[int, list[int]] = {}
     for i, p in enumerate(people):
         if np.all(np.isfinite(p.floor)):
@@ -562,16 +580,16 @@ def _draw_chunk(overlays: OverlayVideos, rig, names, modelled, step0: int, seen_
         step = step0 + j
         idx = by_step.get(step, [])
         for k, c in enumerate(names):
-            cam = rig[k]
+            cam, wcam = rig[k], work[k]
             s = seen.get(c)
             items = []
             for i in idx:
                 p = people[i]
-                outline = p.contours[k] if np.all(np.isfinite(p.contours[k])) else None
-                recon = rows.contours[i, modelled.index(c)] if c in modelled else None
-                jp = cam.project(world[i]) if np.all(np.isfinite(world[i])) else None
-                top = cam.project(np.array([p.floor[0], p.floor[1], 2.0]))
+                outline = to_work_px(p.contours[k], cam, wcam) if np.all(np.isfinite(p.contours[k])) else None
+                recon = to_work_px(rows.contours[i, modelled.index(c)], cam, wcam) if c in modelled else None
+                jp = wcam.project(world[i]) if np.all(np.isfinite(world[i])) else None
+                top = wcam.project(np.array([p.floor[0], p.floor[1], 2.0]))
                 items.append({"person": p.track.person, "status": rows.view_status[i, k], "outline": outline,
                               "recon": recon, "joints_px": jp, "anchor_px": top})
-            overlays.write(c, draw_frame(None if s is None else s.background, (cam.width, cam.height), c,
+            overlays.write(c, draw_frame(None if s is None else s.background, (wcam.width, wcam.height), c,
                                          step + first_frame, items))

@@ -20,6 +20,7 @@ Masks are (H, W) uint8 in {0, 1}; :class:`MaskBinariser` and :class:`ColourSegme
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -98,16 +99,27 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> 
     return model
 
 
-def background_from_clips(folder: Path, rig, cameras, params: dict | None = None) -> ColourSegmenter:
+def background_from_clips(folder: Path, rig, cameras, params: dict | None = None,
+                          sizes: dict[str, tuple[int, int]] | None = None) -> ColourSegmenter:
     """Background models of ``cameras`` learnt from the empty-room clips in ``folder`` (same layout and
     names as the videos folder: ``<camera>.mp4``, ``<camera>/`` frames, or ``<camera>/background.avi`` in a
-    camera folder holding several videos)."""
+    camera folder holding several videos), at each camera's working size ``sizes`` (width, height; None:
+    the rig camera's size)."""
     clips = open_recording(folder, rig, role="background")
     absent = [c for c in cameras if c not in clips.sources]
     if absent:
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "
                              f"{folder / (absent[0] + '.mp4')})")
-    return ColourSegmenter({c: _fit_stream(clips.sources[c], MAX_BACKGROUND_FRAMES, params or {}) for c in cameras})
+    sources = {c: at_size(clips.sources[c], (sizes or {}).get(c)) for c in cameras}
+    return ColourSegmenter({c: _fit_stream(sources[c], MAX_BACKGROUND_FRAMES, params or {}) for c in cameras})
+
+
+def at_size(source: CameraSource, size: tuple[int, int] | None) -> CameraSource:
+    """``source`` read at ``size`` (width, height): its frames resized when that is not their own size."""
+    if size is None:
+        return source
+    size = (int(size[0]), int(size[1]))
+    return dataclasses.replace(source, resize_to=None if size == (source.width, source.height) else size)
 
 
 def background_from_first_frames(sources: dict[str, CameraSource], n: int, params: dict | None = None) -> ColourSegmenter:

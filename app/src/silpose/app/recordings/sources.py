@@ -50,6 +50,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import queue
+import threading
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -359,7 +361,8 @@ class CameraReader:
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if self.source.resize_to is not None:
-            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_LINEAR)
+            shrink = self.source.resize_to[0] < img.shape[1]  # averaging the merged pixels: no aliasing
+            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
         return img
 
     def _next(self) -> np.ndarray | None:
@@ -393,3 +396,51 @@ class CameraReader:
         if self.cap is not None:
             self.cap.release()
             self.cap = None
+
+
+class ThreadedReader:
+    """A :class:`CameraReader` decoding in its own thread, ``depth`` frames ahead: the camera's decoding
+    (FFmpeg releases the GIL) overlaps the other cameras' and the segmentation. Same ``read`` / ``summary``
+    / ``close`` as the reader it wraps; an exception in the thread is raised by the next ``read``."""
+
+    def __init__(self, reader: CameraReader, depth: int = 4):
+        self.reader = reader
+        self.source = reader.source
+        self._queue: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"read-{reader.source.camera}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                img = self.reader.read()
+                self._put(img)
+                if img is None:
+                    return
+        except BaseException as exc:  # handed to the consumer
+            self._put(exc)
+
+    def _put(self, item) -> None:
+        while not self._stop.is_set():
+            try:
+                self._queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def read(self) -> np.ndarray | None:
+        if not self._thread.is_alive() and self._queue.empty():
+            return None
+        item = self._queue.get()
+        if isinstance(item, BaseException):
+            raise item
+        return item
+
+    def summary(self) -> str | None:
+        return self.reader.summary()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.reader.close()
