@@ -2,7 +2,7 @@
 
 Layout of ``silpose infer MODEL --videos DIR``::
 
-    DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig (or holding the name), or
+    DIR/<camera>.mp4 | .avi | .mkv | .mov | ...    one video per camera, named as in the rig (or holding the name), or
     DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order), or
     DIR/<camera>/video.avi                         a camera folder holding videos: its only video, or the one
                                                    named ``video`` (``background`` for ``--background DIR``)
@@ -61,10 +61,8 @@ import numpy as np
 
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
-from ..inputs.images import IMAGE_SUFFIXES
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 
-#: video file suffixes read as cameras (case-insensitive)
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
 #: optional camera -> file mapping inside the videos folder
 MAPPING_FILE = "cameras.toml"
 #: relative frame-rate difference tolerated between cameras
