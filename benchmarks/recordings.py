@@ -87,7 +87,8 @@ def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: in
     import cv2
     import numpy as np
 
-    from silpose.app.recordings.resolution import work_camera
+    import dataclasses
+
     from silpose.datagen.lab import LAB_FPS, unpack_masks
     from silpose.model.persistence import load_model, save_model
     from silpose.segment.composite import background_frames, composite_frame, room
@@ -96,7 +97,13 @@ def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: in
     masks = unpack_masks(np.load(lab / "truth.npz")).any(axis=1)[:n_frames]  # (T, K, H, W)
     m = load_model(model)
     rig = m.rig_
-    big = [work_camera(c, (scale * c.width, scale * c.height)) for c in rig]
+    def scaled(c):  # the camera whose pixels are scale x scale blocks of c's (pixel centres: (x + 0.5) s - 0.5)
+        K = np.array(c.K, float)
+        K[:2] *= scale
+        K[:2, 2] += 0.5 * scale - 0.5
+        return dataclasses.replace(c, K=K, width=scale * c.width, height=scale * c.height)
+
+    big = [scaled(c) for c in rig]
     videos, clips = dst / "colour", dst / "empty"
     videos.mkdir(parents=True, exist_ok=True)
     clips.mkdir(parents=True, exist_ok=True)

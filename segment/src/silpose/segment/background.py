@@ -270,6 +270,32 @@ class BackgroundModel:
         self._prepare(colour)
         return self
 
+    def absorb(self, frame, where) -> BackgroundModel:
+        """Make the pixels ``where`` ((H, W) bool) background, with the values they have in ``frame`` ((H, W) or
+        (H, W, 3) uint8, the background's kind): an object that was not in the background frames and stays
+        (a moved chair, someone standing still at the back). The standard deviations are kept. A later
+        :meth:`partial_fit` recomputes the statistics from its sums and forgets what was absorbed. Returns self."""
+        self._check_fitted()
+        arr = as_single_frame(frame, "frame")
+        self._check_shape(arr.shape[:2], "frame")
+        where = np.asarray(where, bool)
+        self._check_shape(where.shape, "where")
+        if not where.any():
+            return self
+        gray = to_gray(arr[None])[0]
+        self.mean_ = self.mean_.copy()
+        self.mean_[where] = gray[where]
+        colour = None
+        if self.colour_mean_ is not None:
+            cm = self.colour_mean_.copy()
+            if arr.ndim == 3:
+                cm[where] = arr[where]
+            else:
+                cm[where] = gray[where][:, None]
+            colour = (cm, self.colour_std_)
+        self._prepare(colour)
+        return self
+
     def _finalise(self) -> None:
         n = self.n_frames_seen_
         # Exact integer numerator: var = (N S2 - S1^2) / N^2 (no cancellation, no float drift).

@@ -27,6 +27,14 @@ becomes a person leaves no rows. Input problems found before the run (a folder, 
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
 (an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
 
+Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
+standing still at the back -- is foreground that no person explains. Per camera, a pixel that stays foreground
+outside the image box of every person detected on the floor (:func:`~.views.body_box`: the cylinder of
+radius 0.9 m and height 2.2 m standing at their floor point) for :data:`ABSORB_S` seconds in a row becomes
+background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). People in the
+workspace are protected by their box, however still they stand; clutter touching a person's box is absorbed
+outside it, so their blob again fits their box.
+
 At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
 90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
 cause -- mask videos storing foreground as 1 instead of 255, inverted masks (people black on white), the wrong
@@ -58,15 +66,18 @@ from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
 from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work_size
-from .silhouettes import MASK_THRESHOLD, MaskBinariser, at_size, background_from_clips, background_from_first_frames
+from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
+                          background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
-                    assign_views, grounded)
+                    assign_views, body_box, grounded)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
 DEFAULT_MIN_AREA_PX = 150
+#: seconds: foreground that stays this long outside every detected person's body box becomes background
+ABSORB_S = 2.0
 #: a camera whose masks are empty, or mostly foreground, in at least this share of its frames gets a warning
 #: naming the likely cause (0/1 or inverted mask videos, a wrong background clip)
 MASK_DIAGNOSIS_SHARE = 0.9
@@ -76,8 +87,8 @@ MASK_DIAGNOSIS_SHARE = 0.9
 class RecordingOptions:
     """Options of :func:`run_recording` (``silpose infer --videos``).
 
-    masks: the videos are foreground masks (else colour, segmented against ``background`` clips or the
-    first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
+    masks: the videos are foreground masks (else colour, segmented against ``background`` clips -- or the
+    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
     overlay videos; noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
@@ -89,6 +100,8 @@ class RecordingOptions:
     error 5.8 cm without, 6.3 cm with; 115 vs 87 time steps/s). hypotheses: top-K kept per person-frame, the single answer chosen online along each
     track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
+    absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
+    (module docstring; 0: never).
     """
 
     masks: bool = False
@@ -108,6 +121,7 @@ class RecordingOptions:
     robust: bool | None = None
     hypotheses: int = TOP_K
     work_person_px: int = WORK_PERSON_PX
+    absorb_s: float = ABSORB_S
 
 
 @dataclass
@@ -161,10 +175,15 @@ def _shown(source) -> str:
 
 
 class _Camera:
-    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread)."""
+    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread); ``settle()``
+    (main thread, between steps) makes static clutter background (module docstring)."""
 
-    def __init__(self, reader: CameraReader | ThreadedReader, silhouettes, min_area: int, keep_frame: bool):
+    def __init__(self, reader: CameraReader | ThreadedReader, silhouettes, min_area: int, keep_frame: bool,
+                 cam=None, absorb_frames: int = 0):
         self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
+        self.cam, self.absorb_frames = cam, int(absorb_frames)
+        self.age: np.ndarray | None = None  # frames each pixel has been foreground outside every person's box
+        self.absorbed = 0  # pixels made background
         self.ended = False
         self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
         self.brightest_empty = 0  # the highest grey level of a frame whose mask came out empty
@@ -185,6 +204,29 @@ class _Camera:
         elif 2 * int(blobs.area[1:].sum()) > mask.size:
             self.crowded += 1
         return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask)
+
+    def settle(self, seen: _Seen, people_xy: np.ndarray) -> None:
+        """Foreground outside every detected person's body box (:func:`~.views.body_box`, at floor points
+        ``people_xy`` (P, 2)) for ``absorb_frames`` frames in a row becomes background (colour videos only)."""
+        models = getattr(self.silhouettes, "models", None)
+        if self.absorb_frames <= 0 or models is None or seen.mask is None or seen.background is None:
+            return
+        loose = seen.mask.astype(bool)
+        if len(people_xy):
+            h, w = loose.shape
+            for x0, y0, x1, y1 in body_box(self.cam, people_xy):
+                a, b = max(0, int(np.floor(x0))), min(w, int(np.ceil(x1)) + 1)
+                c, d = max(0, int(np.floor(y0))), min(h, int(np.ceil(y1)) + 1)
+                if a < b and c < d:
+                    loose[c:d, a:b] = False
+        if self.age is None:
+            self.age = np.zeros(loose.shape, np.uint16)
+        self.age = np.where(loose, np.minimum(self.age, 65534) + 1, 0).astype(np.uint16)
+        ready = self.age >= self.absorb_frames
+        if int(ready.sum()) >= self.min_area:
+            models[self.reader.source.camera].absorb(seen.background, ready)
+            self.absorbed += int(ready.sum())
+            self.age[ready] = 0
 
     def diagnosis(self, masks: bool) -> str | None:
         """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
@@ -270,6 +312,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     start = 0
     if opt.masks:
         silhouettes = MaskBinariser()
+    elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():
+        silhouettes = background_from_recording(sources, opt.segment_params)
     elif opt.background is not None:
         silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
                                             {c.name: (c.width, c.height) for c in work})
@@ -287,8 +331,10 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     tracker = Tracker(min_hits=opt.min_hits,
                       max_misses=opt.max_misses if opt.max_misses is not None else max(3, int(round(0.5 * (fps or 25.0)))))
     lag = tracker.min_hits * (tracker.max_misses + 1)
+    absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
     cams = {c: _Camera(ThreadedReader(CameraReader(s, silhouettes.grey, start)), silhouettes,
-                       _scaled_area(opt.min_area, rig[names.index(c)], work[names.index(c)]), keep_frame=not opt.masks)
+                       _scaled_area(opt.min_area, rig[names.index(c)], work[names.index(c)]), keep_frame=not opt.masks,
+                       cam=work[names.index(c)], absorb_frames=absorb)
             for c, s in sources.items()}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -340,8 +386,12 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     warnings.append(msg)
                     if warn:
                         warn(msg)
-                people += _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
-                                       pool.map if pool else map)
+                found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                                            pool.map if pool else map)
+                people += found
+                for c, cam in cams.items():
+                    if seen[c].status is None:
+                        cam.settle(seen[c], where)
                 seen_chunk.append(seen)
                 for c in names:
                     s = seen.get(c)
@@ -437,7 +487,7 @@ def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int)
 
 
 def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
-                 mapper=map) -> list[_Person]:
+                 mapper=map) -> tuple[list[_Person], np.ndarray]:
     """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
 
     Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
@@ -463,6 +513,7 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     t0 = time.perf_counter()
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
+    near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
     per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts),
                           range(len(names))))
     out = []
@@ -475,7 +526,7 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _ in per_cam],
                                np.stack([c[i] for _, c in per_cam])))
     timings["views"] += time.perf_counter() - t0
-    return out
+    return out, near
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,

@@ -363,6 +363,14 @@ class CameraReader:
             img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
         return img
 
+    def seek(self, frame: int) -> None:
+        """Move to frame ``frame`` of the recording (after the source's offset): the next :meth:`read` gives it
+        (a video seeks from its previous key frame; an approximate position is fine for sampling)."""
+        self.index = self.source.skip + int(frame)
+        self.ended_at = None
+        if self.cap is not None:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
+
     def _next(self) -> np.ndarray | None:
         if self.ended_at is not None:
             return None
