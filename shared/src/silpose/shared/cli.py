@@ -14,19 +14,9 @@ from importlib.metadata import entry_points
 
 import typer
 
+from .version import silpose_version
+
 ENTRY_POINT_GROUP = "silpose.commands"
-DISTRIBUTION = "silpose-shared"  # the distribution that installs the ``silpose`` command
-
-
-def silpose_version() -> str:
-    """The installed silpose version (the ``silpose-shared`` distribution's; every package shares it).
-    Reports and dataset cards record it; ``silpose --version`` prints it."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version(DISTRIBUTION)
-    except PackageNotFoundError:  # running from a source tree that was never installed
-        return "unknown"
 
 
 def _print_version(value: bool) -> None:
