@@ -21,7 +21,7 @@ def gen(
     executor: Annotated[str, typer.Option(help="local (spawn process pool) or ray.")] = "local",
     rig: Annotated[
         Optional[Path],
-        typer.Option("--rig", help="Rig file (rig.json from `silpose rig import`); replaces the config's \\[rig]."),
+        typer.Option("--rig", help="Rig file (rig.json from `silpose rig import`); replaces the config's [rig]."),
     ] = None,
     renderer: Annotated[Optional[str], typer.Option(help="Override the config: raster or blender.")] = None,
     blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,

@@ -35,7 +35,7 @@ def evaluate(
                                                    "motion-capture clips); each gets its own report folder under "
                                                    "--out, and test_sets.md puts them side by side."),
 ) -> None:
-    """Run experiments E1-E5 of the paper (section 6) and E6 (issue 12) and write reports/<name>/: summary.md, results.parquet,
+    """Run experiments E1-E5 of the paper (section 6) and E6 (how honest the inference is) and write reports/<name>/: summary.md, results.parquet,
     headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
 
     When data/<name>/frames holds a frames dataset (camera frames + truth), also segments the frames and

@@ -299,7 +299,9 @@ def markdown_summary(df, settings: dict, title: str, figures: list[str] | None =
                      sections: list[str] | None = None, baseline_timing: dict | None = None) -> str:
     """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings; ``sections``
     (Markdown lines, e.g. E6's) go after E4."""
-    parts = [f"# {title}", "",
+    from silpose.shared.version import silpose_version
+
+    parts = [f"# {title}", "", f"silpose {silpose_version()}.", "",
              "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment "
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "
              "one-sided Chamfer distance D(true clean contour -> reconstruction), px (paper eq. 5), via an exact "

@@ -26,6 +26,7 @@ from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
 from silpose.shared.rig_symmetry import RigMirror
+from silpose.shared.version import silpose_version
 
 from . import figures, inference_figures, plots
 from .errors import EvalInputError
@@ -142,7 +143,8 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
                                                        caption + " — example nearest the median pose error")
     if ev.extra.get("E6"):
         written.update(inference_figures.write_e6_figures(ev, out))
-    head = _jsonable({**headline(df), **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
+    head = _jsonable({"silpose_version": silpose_version(), **headline(df),
+                      **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
                       "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,
                       "baseline_timing": ev.extra.get("baseline_timing", {}),
                       "mlp_baseline": ev.extra.get("mlp_baseline", {})})

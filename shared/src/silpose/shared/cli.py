@@ -14,20 +14,36 @@ from importlib.metadata import entry_points
 
 import typer
 
+from .version import silpose_version
+
 ENTRY_POINT_GROUP = "silpose.commands"
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        print(f"silpose {silpose_version()}")
+        raise typer.Exit(0)
+
+
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the silpose version and exit."),
+) -> None:
+    """Infer 3D body structure from multi-view silhouettes: generate data in Blender, fit the shape+structure
+    prior (mixture of PPCA), infer joints, evaluate."""
 
 
 def build_app() -> typer.Typer:
     app = typer.Typer(
         name="silpose",
-        help=(
-            "Infer 3D body structure from multi-view silhouettes: generate data in Blender, "
-            "fit the shape+structure prior (mixture of PPCA), infer joints, evaluate."
-        ),
         no_args_is_help=True,
         add_completion=False,
         pretty_exceptions_enable=False,
+        # click's plain help: it rewraps paragraphs to the terminal and never cuts an option name or a default
+        # (rich's option table squeezed them into "--structure-weig…" at 80 columns); docs/conventions.md
+        rich_markup_mode=None,
     )
+    app.callback()(_root)
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
         try:
             func = ep.load()
@@ -35,10 +51,30 @@ def build_app() -> typer.Typer:
             print(f"silpose: cannot load command {ep.name!r} from {ep.value}: {exc}", file=sys.stderr)
             continue
         if isinstance(func, typer.Typer):  # a group of subcommands (e.g. ``silpose rig import``)
-            app.add_typer(func, name=ep.name)
+            _whole_summaries(func)
+            app.add_typer(func, name=ep.name, short_help=summary(func.info.help))
         else:
-            app.command(name=ep.name)(func)
+            app.command(name=ep.name, short_help=summary(func.__doc__))(func)
     return app
+
+
+def _whole_summaries(group: typer.Typer) -> None:
+    """Give every subcommand of ``group`` (recursively) its whole first paragraph as the command list's line."""
+    for info in group.registered_commands:
+        if info.short_help is None:
+            info.short_help = summary(info.help or getattr(info.callback, "__doc__", None))
+    for sub in group.registered_groups:
+        _whole_summaries(sub.typer_instance)
+
+
+def summary(doc: object) -> str | None:
+    """A command's first paragraph on one line: the command list shows it whole, wrapped to the terminal
+    (click would cut it at about 45 characters with "...")."""
+    if not isinstance(doc, str) or not doc.strip():
+        return None
+    import inspect
+
+    return " ".join(inspect.cleandoc(doc).split("\n\n")[0].split())
 
 
 def fail(command: str, message: str, code: int = 2) -> None:

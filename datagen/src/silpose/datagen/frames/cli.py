@@ -19,7 +19,7 @@ def _fail(message: str, code: int = 2) -> None:
 
 
 def gen_frames(
-    preset: Annotated[str, typer.Argument(help="Preset name in configs/ (smoke, default, paper) or a TOML file; its \\[frames] section sets the sizes.")] = "default",
+    preset: Annotated[str, typer.Argument(help="Preset name in configs/ (smoke, default, paper) or a TOML file; its [frames] section sets the sizes.")] = "default",
     samples: Annotated[Optional[int], typer.Option("--samples", "-n", help="Person frames: test samples 0..N-1 (overrides frames.samples).")] = None,
     background: Annotated[Optional[int], typer.Option("--background", "-b", help="Empty-room frames per camera (overrides frames.background).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Frames dataset folder (default: data/<name>/frames).")] = None,
