@@ -212,3 +212,48 @@ def test_motions_preset_poses_go_beyond_walking_default_does_not():
     walk, _ = _poses("default", "train", 200)
     assert variety(walk).mean() == 0.0
     assert any(s.motion["clip"] == 0 for s in scenes)  # the procedural walk is mixed in
+
+
+SMALL = """name = "motions-small"
+seed = 3
+renderer = "raster"
+shard_size = 6
+n_points = 200
+max_redraws = 50
+[splits]
+train = 12
+test = 6
+[motion]
+source = "library"
+procedural_walk = 0.2
+mirror = true
+[motion.weights]
+sit = 3.0
+climb = 3.0
+"""
+
+
+def test_rendered_motions_dataset_validates_and_indexes_its_clip_list(tmp_path):
+    from silpose.datagen.config import load_config as load
+    from silpose.datagen.pipeline import generate
+    from silpose.datagen.validate import validate_dataset
+    from silpose.shared.dataset import list_shards, load_split, read_metadata
+
+    (tmp_path / "small.toml").write_text(SMALL)
+    generate(load(tmp_path / "small.toml"), tmp_path / "ds", workers=1, progress=False, preview=False, card=True)
+    report = validate_dataset(tmp_path / "ds")
+    assert report.ok, report.format()
+    for s in report.splits.values():
+        assert s["joints_inside"] == 1.0 and s["contour_dist_max"] <= 0.75
+    for split in ("train", "test"):
+        meta = read_metadata(list_shards(tmp_path / "ds", split)[0])["config"]["motion"]
+        clips = meta["clips"]
+        assert clips[0]["id"] == "procedural-walk" and {"id", "group", "split", "licence"} <= set(clips[1])
+        gait = load_split(tmp_path / "ds", split, columns=["gait"]).gait
+        idx = np.asarray(gait["clip"], int)
+        assert set(gait) == set(MIX_FIELDS) and np.all((idx >= 0) & (idx < len(clips)))
+        assert all(clips[i]["split"] == split for i in idx if i)  # held-out subjects' clips only in test
+        if split == "test":
+            assert not np.any(idx == 0)
+    card = (tmp_path / "ds" / "README.md").read_text()
+    assert CMU_ACKNOWLEDGEMENT in card and "| group | train clips | test clips |" in card

@@ -19,8 +19,7 @@ from ..manifest import sha256_file
 from .bvh_check import BvhError, check_structure
 from .clips import cache_root, entry_dir, import_into_cache, read_entry
 from .joint_maps import JointMapError, resolve_map
-from .library import (DEFAULT_FPS, LIBRARY_FILES, Library, LibraryError, check_writable, derive_clip, load_library,
-                      write_library)
+from .library import DEFAULT_FPS, Library, LibraryError, check_writable, derive_clip, load_library, write_library
 
 
 @dataclass(frozen=True)
@@ -147,5 +146,3 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
     write_library(folder, rows, arrays, fps=fps, acknowledgement=acknowledgement or "")
     return report
 
-
-__all__ = ["ClipSource", "ImportReport", "import_clips", "cache_all", "LIBRARY_FILES"]

@@ -35,9 +35,6 @@ frame). At generation time no Blender import runs: render workers read the array
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,7 +42,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from silpose.shared.atomic import write_json_atomic
+from silpose.shared.atomic import TMP_GLOB, atomic_path, write_json_atomic
 
 from ..manifest import sha256_file
 from .clips import ClipArrays
@@ -259,7 +256,8 @@ def check_writable(folder: Path) -> None:
         return
     if not folder.is_dir():
         raise LibraryError(f"{folder}: not a folder")
-    foreign = sorted(p.name for p in folder.iterdir() if p.name not in LIBRARY_FILES)
+    foreign = sorted(p.name for p in folder.iterdir()
+                     if p.name not in LIBRARY_FILES and not p.match(TMP_GLOB))  # a killed write's leftovers are silpose's
     if foreign:
         raise LibraryError(f"{folder}: holds files silpose did not write ({', '.join(foreign[:3])}"
                            f"{' ...' if len(foreign) > 3 else ''}); give an empty or new folder")
@@ -268,12 +266,15 @@ def check_writable(folder: Path) -> None:
             _check_manifest(json.loads((folder / MANIFEST_NAME).read_text()), folder / MANIFEST_NAME)
         except json.JSONDecodeError:
             raise LibraryError(f"{folder / MANIFEST_NAME}: not a silpose motion library manifest") from None
+    for p in folder.glob(TMP_GLOB):  # only in a folder that is silpose's
+        p.unlink(missing_ok=True)
 
 
 def write_library(folder: str | Path, clips: list[dict], arrays: list[dict], fps: float = DEFAULT_FPS,
                   acknowledgement: str = "") -> Path:
-    """Write a library (module docstring) atomically: both files are written into a temporary folder
-    next to ``folder``, then moved in (frames first, manifest last, each by rename).
+    """Write a library (module docstring): each file atomically (temporary name, then rename), the
+    frames first and the manifest last; an interrupted write between the two is caught by
+    :func:`load_library` (frame rows that do not match the manifest).
 
     Args:
         clips: manifest rows (without ``frames``/``lengths``/``extent_m``, filled here).
@@ -298,15 +299,10 @@ def write_library(folder: str | Path, clips: list[dict], arrays: list[dict], fps
     })
     manifest = {"format": FORMAT, "version": VERSION, "acknowledgement": acknowledgement, "fps": fps,
                 "roles": list(ROLES), "parents": list(PARENTS), "clips": rows}
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
-        pq.write_table(table, tmp / FRAMES_NAME, compression="zstd", compression_level=19)
-        folder.mkdir(exist_ok=True)
-        os.replace(tmp / FRAMES_NAME, folder / FRAMES_NAME)
-        write_json_atomic(folder / MANIFEST_NAME, manifest)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    folder.mkdir(parents=True, exist_ok=True)
+    with atomic_path(folder / FRAMES_NAME) as tmp:
+        pq.write_table(table, tmp, compression="zstd", compression_level=19)
+    write_json_atomic(folder / MANIFEST_NAME, manifest)
     return folder
 
 
