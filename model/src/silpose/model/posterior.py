@@ -76,10 +76,12 @@ class Posterior:
         M = self.n_components
         flat = norm.reshape(n, -1)
         per_row = np.ndim(s2) > 0
-        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
+        if per_row:  # group by (pattern, noise): one integer per row, the pattern's bits then the noise level index
             levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
-            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
-            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
+            code = present.astype(np.int64) @ (np.int64(1) << np.arange(kmod, dtype=np.int64))
+            keys, inverse = np.unique(code + (level_of.reshape(-1).astype(np.int64) << kmod), return_inverse=True)
+            patterns = ((keys[:, None] >> np.arange(kmod)) & 1).astype(bool)
+            group_s2 = levels[keys >> kmod]
             inverse = inverse.reshape(-1)
         elif all_present or n == 1:
             patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)

@@ -43,6 +43,8 @@ __all__ = ["ExcursionSettings", "point_to_polygon_distance", "excursion_runs", "
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
+#: edges either side of a point's own index that :func:`_far_points` tries before all within n // 4
+_NEAR_EDGES = 4
 
 
 @dataclass(frozen=True)
@@ -78,10 +80,11 @@ def point_to_polygon_distance(points: np.ndarray, polygon: np.ndarray) -> np.nda
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance (broadcast shape) of points ``p`` (..., 2) to the segments ``a -> b`` (..., 2)."""
-    ab = b - a
-    ap = p - a
-    t = np.clip(np.sum(ap * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
-    return np.sqrt(np.sum((ap - t[..., None] * ab) ** 2, axis=-1))
+    abx, aby = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    apx, apy = p[..., 0] - a[..., 0], p[..., 1] - a[..., 1]  # coordinates apart: no reductions over an axis of 2
+    t = np.clip((apx * abx + apy * aby) / np.maximum(abx * abx + aby * aby, 1e-12), 0.0, 1.0)
+    dx, dy = apx - t * abx, apy - t * aby
+    return np.sqrt(dx * dx + dy * dy)
 
 
 def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
@@ -100,6 +103,14 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     if views.size == 0:
         return far
     w = max(n // 4, 1)
+    # the edges next to the point first: one within the limit settles it (not far) without the others
+    near = np.arange(-min(_NEAR_EDGES, w), min(_NEAR_EDGES, w) + 1)
+    for s in range(0, views.size, 4096):
+        vv, ii = views[s:s + 4096], idx[s:s + 4096]
+        j = (ii[:, None] + near[None, :]) % n
+        d = _segment_distance(points[vv, ii][:, None, :], polygon[vv[:, None], j], polygon[vv[:, None], (j + 1) % n])
+        far[vv, ii] = d.min(axis=1) > limit[vv, 0]
+    views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
     offsets = np.arange(-w, w + 1)
     edge_len = np.linalg.norm(np.roll(polygon, -1, axis=1) - polygon, axis=-1)  # (V, n) edge j -> j + 1
     for s in range(0, views.size, 4096):
