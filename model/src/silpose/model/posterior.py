@@ -48,11 +48,14 @@ class Posterior:
         self.n_components = int(mixture.weights_.shape[0])
         self._cache: dict = {}
 
-    def infer(self, inputs: Inputs, s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
+    def infer(self, inputs: Inputs, s2, components: bool = False,
+              only=None) -> tuple[InferenceResult, np.ndarray | None]:
         """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
 
         ``s2`` a float or (N,) one noise variance per frame (robust inference). With ``components`` also
-        returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None.
+        returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None. ``only``:
+        indices of the only mixture components to evaluate, the others being known to be negligible
+        (``Conditioner.__call__``'s ``components``); None = all.
         """
         layout = self.layout
         c_mod, present = inputs.contours, inputs.present
@@ -93,7 +96,8 @@ class Posterior:
         cmeans = None
         if len(patterns) == 1:  # the common case: no fancy-index copies
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
+            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components,
+                                                                     components=only)
             mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
                                            post.responsibilities, post.log_marginal)
             cmeans = post.component_means
@@ -108,7 +112,8 @@ class Posterior:
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
+                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components,
+                                                                      components=only)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal
                 if components:

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..features import normalise_contours
 from ..checks import Inputs
+from ..conditioning import GATE_NATS
 from ..posterior import Posterior
 from ..result import InferenceResult
 from .excursions import trim_excursions
@@ -24,6 +25,9 @@ __all__ = ["SETTLED_PX", "robust_passes", "robust_infer"]
 #: px: a frame whose reconstruction moved less than this in a reweighting pass has settled; later passes leave
 #: it alone (each would move it less again: the passes converge to the weighted conditioning's fixed point)
 SETTLED_PX = 1e-2
+#: a reweighting pass evaluates only the components whose posterior weight exceeded this (GATE_NATS below the
+#: best) for some of its frames in the pass before; the others count as 0 (their means and weights < e^-30)
+GATE_WEIGHT = float(np.exp(-GATE_NATS))
 
 
 def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
@@ -51,8 +55,12 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
         u_act = np.where(p_act[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
         pseudo = np.where(p_act[..., None, None], rec + u_act[..., None] * (matched - rec), c_mod[active])
         u[active] = u_act
+        # the components that matter: within GATE_NATS of some active frame's best in the pass before (all of them
+        # when the hypotheses need every component's mean)
+        only = np.flatnonzero((res.responsibilities[active] > GATE_WEIGHT).any(axis=0)) if not want else None
         part, part_comp = posterior.infer(inputs.take(active).with_contours(pseudo),
-                                          s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want)
+                                          s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
+                                          only=None if only is None or only.size == posterior.n_components else only)
         moved = np.abs(np.nan_to_num(part.contours_px - rec)).max(axis=(1, 2, 3))  # px
         if active.size == len(present):
             res, comp = part, part_comp
