@@ -80,7 +80,7 @@ SECTIONS: dict[str, Section] = {
         "iteration vs the exact E-step, peak RSS",
     ),
     "inference": Section(
-        "inference", {}, {"frames": 2000, "repeats": 1, "latency_calls": 50},
+        "inference", {}, {"frames": 2000, "repeats": 1, "latency_calls": 50, "big_components": 50, "big_frames": 200},
         "batched frames/s (4, 3, 1 views) and single-frame latency of ShapeStructureModel.infer vs its BLAS floor",
     ),
     "memory": Section(

@@ -45,6 +45,9 @@ __all__ = ["MixtureParams", "BatchPosterior", "RowsPosterior", "Conditioner", "c
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block of the batched products ...
 _CHUNK_VALUES = 1 << 21  # ... and fewer when M max(q, d_det) is large: each (M, rows, .) temporary <= 16 MB
+#: nats: a component whose log posterior weight is this far below a row's best adds less than e^-30 of that row's
+#: means and is left out of their products (Conditioner.__call__)
+GATE_NATS = 30.0
 
 
 @dataclass(frozen=True)
@@ -252,8 +255,9 @@ class Conditioner:
             out_dims = np.arange(d) if self.reconstruct else self.missing
             self.detail_pos = det if self.reconstruct else np.searchsorted(self.missing, det)
         Wo = W if self.reconstruct else W[:, out_dims, :]
-        self.B = np.ascontiguousarray(Wo.transpose(0, 2, 1).reshape(m * q, out_dims.size))  # stacked W_i^T (Mq, d_out)
-        self.means = mu if self.reconstruct else mu[:, out_dims]
+        # stacked W_i^T (Mq, d_out), then the means (M, d_out): [r_i x_hat_i, r_i] @ B is the mixture mean
+        self.B = np.concatenate([Wo.transpose(0, 2, 1).reshape(m * q, out_dims.size),
+                                 mu if self.reconstruct else mu[:, out_dims]])
         self.W_det = W[:, det, :]  # (M, d_det, q)
         self.mu_det = mu[:, det]
         self.Kinv = np.linalg.inv(self.K)
@@ -273,12 +277,17 @@ class Conditioner:
         return (np.matmul(np.matmul(self.W_det, self.Kinv), self.W_det.transpose(0, 2, 1))
                 + self.sig2[:, None, None] * np.eye(self.detail.size))
 
-    def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False) -> BatchPosterior:
+    def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False,
+                 components=None) -> BatchPosterior:
         """Posterior for observations X_obs (N, d_a) (or (d_a,) for one row), columns in ``observed`` order.
 
         ``return_components`` adds the component means of the detail dims (N, M, d_det); ``return_cov``
-        the mixture and per-component covariances of the detail dims (module doc). Raises ValueError
-        for a wrong shape, NaN or inf, or values so large that the log density overflows.
+        the mixture and per-component covariances of the detail dims (module doc). ``components``: indices of
+        the only components to evaluate (the others get responsibility 0 and NaN component means; the caller
+        knows they are negligible, e.g. more than :data:`GATE_NATS` below the best); None = all. Components whose
+        log posterior weight is more than :data:`GATE_NATS` below a row's best add nothing to the means: they are
+        left out of the output product where no row of a block needs them (relative change < M e^-30).
+        Raises ValueError for a wrong shape, NaN or inf, or values so large that the log density overflows.
         """
         X = np.asarray(X_obs, dtype=np.float64)
         if X.ndim == 1:
@@ -288,45 +297,62 @@ class Conditioner:
                              f"dim), got {np.shape(X_obs)}")
         if not np.all(np.isfinite(X)):
             raise ValueError("condition: X_obs contains NaN or inf; use condition_rows for per-row missing dims")
-        n, m, q, n_det = X.shape[0], self.m, self.q, self.detail.size
+        m_all, q, n_det = self.m, self.q, self.detail.size
+        if return_cov and components is not None:
+            raise ValueError("condition: return_cov needs every component (components=None)")
+        sub = _Subset(self, components)
+        m = sub.m
+        n = X.shape[0]
         mean = np.empty((n, self.B.shape[1]))
         best = np.empty((n, n_det))
         var = np.empty((n, n_det))
-        resp = np.empty((n, m))
+        resp = np.zeros((n, m_all)) if sub.idx is not None else np.empty((n, m_all))
         logm = np.empty(n)
-        cmeans = np.empty((n, m, n_det)) if (return_components or return_cov) else None
-        Kt = self.K  # (M, q, q)
-        WdT = self.W_det.transpose(0, 2, 1)  # (M, q, d_det)
+        want_cm = return_components or return_cov
+        cmeans = None
+        if want_cm:
+            cmeans = np.empty((n, m_all, n_det)) if sub.idx is None else np.full((n, m_all, n_det), np.nan)
         chunk = int(min(_CHUNK, max(64, _CHUNK_VALUES // max(1, m * max(q, n_det)))))
         for s in range(0, n, chunk):
             sl = slice(s, min(s + chunk, n))
             x = X[sl]
             b = x.shape[0]
-            Pm = x @ self.A  # (b, Mq + M): a @ P_i for every i, then a . mu_a,i (D^-1-weighted)
-            xh = Pm[:, : m * q].reshape(b, m, q).transpose(1, 0, 2) - self.c[:, None, :]  # x_hat (M, b, q)
+            Pm = x @ sub.A  # (b, Mq + M): a @ P_i for every i, then a . mu_a,i (D^-1-weighted)
+            # x_hat (M, b, q), contiguous per component for the batched products below
+            xh = np.ascontiguousarray(Pm[:, : m * q].reshape(b, m, q).transpose(1, 0, 2)) - sub.c[:, None, :]
             if self.invD_dims is None:
                 xx = np.einsum("ij,ij->i", x, x)
-                e2 = xx[:, None] - 2.0 * Pm[:, m * q :] + self.mu_sq[None, :]  # ||a - mu_a,i||^2  (b, M)
-                maha = e2 * self.invD[None, :]
+                e2 = xx[:, None] - 2.0 * Pm[:, m * q :] + sub.mu_sq[None, :]  # ||a - mu_a,i||^2  (b, M)
+                maha = e2 * sub.invD[None, :]
             else:
-                maha = (x * x) @ self.invD_dims.T - 2.0 * Pm[:, m * q :] + self.mu_sq[None, :]  # e^T D^-1 e
-            quad = np.sum(np.matmul(xh, Kt) * xh, axis=2).T  # u^T K^-1 u = x_hat^T K x_hat  (b, M)
-            logp = self.log_norm[None, :] - 0.5 * (maha - quad)
+                maha = (x * x) @ sub.invD_dims.T - 2.0 * Pm[:, m * q :] + sub.mu_sq[None, :]  # e^T D^-1 e
+            quad = np.sum(np.matmul(xh, sub.K) * xh, axis=2).T  # u^T K^-1 u = x_hat^T K x_hat  (b, M)
+            logp = sub.log_norm[None, :] - 0.5 * (maha - quad)
             top = logp.max(axis=1, keepdims=True)  # log-sum-exp, stable
             r = np.exp(logp - top)
             tot = r.sum(axis=1, keepdims=True)
             r /= tot
             lm = (top + np.log(tot))[:, 0]
-            H = (xh * r.T[:, :, None]).transpose(1, 0, 2).reshape(b, m * q)  # [r_i x_hat_i]
-            mean[sl] = H @ self.B + r @ self.means
-            cm = self.mu_det[:, None, :] + np.matmul(xh, WdT)  # per-component means of the detail dims (M, b, d_det)
-            best[sl] = cm[np.argmax(r, axis=1), np.arange(b)]
+            act = np.flatnonzero(((logp - top) > -GATE_NATS).any(axis=0))  # components any row needs
+            if act.size == m:
+                act = slice(None)
+            ra, xa = r[:, act], xh[act]
+            k = ra.shape[1]
+            G = np.empty((b, k * q + k))  # [r_i x_hat_i, r_i]
+            G[:, : k * q] = (xa * ra.T[:, :, None]).transpose(1, 0, 2).reshape(b, k * q)
+            G[:, k * q :] = ra
+            np.matmul(G, sub.B if isinstance(act, slice) else sub.B[sub.rows(act)], out=mean[sl])
+            # per-component means of the detail dims (M, b, d_det): those of the components in use
+            cm = sub.mu_det[act, None, :] + np.matmul(xa, sub.WdT[act])
+            best[sl] = cm[np.argmax(ra, axis=1), np.arange(b)]
             dev = cm - mean[sl][:, self.detail_pos][None]
-            var[sl] = r @ self.var_det + np.einsum("bm,mbj->bj", r, dev * dev)  # law of total variance
-            resp[sl] = r
+            var[sl] = ra @ sub.var_det[act] + np.einsum("bm,mbj->bj", ra, dev * dev)  # law of total variance
+            sub.scatter(resp, sl, r)
             logm[sl] = lm
-            if cmeans is not None:
-                cmeans[sl] = cm.transpose(1, 0, 2)
+            if want_cm:
+                if not isinstance(act, slice):  # every component's mean was asked for
+                    cm = sub.mu_det[:, None, :] + np.matmul(xh, sub.WdT)
+                sub.scatter(cmeans, sl, cm.transpose(1, 0, 2))
         if not np.all(np.isfinite(logm)):
             row = int(np.flatnonzero(~np.isfinite(logm))[0])
             raise ValueError(f"condition: the log density of row {row} is not finite (X_obs values too large)")
@@ -340,6 +366,46 @@ class Conditioner:
             out.cov = (np.einsum("nm,mij->nij", resp, out.component_cov)
                        + np.einsum("nm,nmi,nmj->nij", resp, dev, dev))
         return out
+
+
+class _Subset:
+    """The per-component arrays of a :class:`Conditioner` restricted to ``components`` (None = all of them)."""
+
+    def __init__(self, cond: "Conditioner", components) -> None:
+        m, q = cond.m, cond.q
+        self.q = q
+        self.WdT = cond.W_det.transpose(0, 2, 1)  # (M, q, d_det)
+        names = ("c", "mu_sq", "log_norm", "K", "mu_det", "var_det")
+        if components is None:
+            self.idx, self.m, self.A, self.B = None, m, cond.A, cond.B
+            self.invD, self.invD_dims = cond.invD, cond.invD_dims
+            for name in names:
+                setattr(self, name, getattr(cond, name))
+            return
+        idx = np.asarray(components, dtype=np.intp).reshape(-1)
+        if idx.size == 0 or idx.min() < 0 or idx.max() >= m or np.unique(idx).size != idx.size:
+            raise ValueError(f"condition: components must be distinct indices in [0, {m}), got {idx}")
+        self.idx, self.m = idx, idx.size
+        cols = np.concatenate([(idx[:, None] * q + np.arange(q)[None, :]).reshape(-1), m * q + idx])
+        self.A = np.ascontiguousarray(cond.A[:, cols])
+        self.B = cond.B[cols]
+        self.invD = None if cond.invD is None else cond.invD[idx]
+        self.invD_dims = None if cond.invD_dims is None else cond.invD_dims[idx]
+        self.WdT = self.WdT[idx]
+        for name in names:
+            setattr(self, name, getattr(cond, name)[idx])
+
+    def rows(self, act: np.ndarray) -> np.ndarray:
+        """Rows of this subset's B for its components ``act``: their W^T blocks, then their means."""
+        return np.concatenate([(act[:, None] * self.q + np.arange(self.q)[None, :]).reshape(-1), self.m * self.q + act])
+
+    def scatter(self, out: np.ndarray, sl: slice, values: np.ndarray) -> None:
+        """``out[sl]`` = ``values`` (b, M_subset, ...) at this subset's components."""
+        if self.idx is None:
+            out[sl] = values
+        else:
+            out[sl, self.idx] = values
+
 
 
 def condition(model_or_params, X_obs, observed, noise_variance=0.0, *, detail=None, reconstruct: bool = False,

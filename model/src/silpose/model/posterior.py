@@ -48,11 +48,14 @@ class Posterior:
         self.n_components = int(mixture.weights_.shape[0])
         self._cache: dict = {}
 
-    def infer(self, inputs: Inputs, s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
+    def infer(self, inputs: Inputs, s2, components: bool = False,
+              only=None) -> tuple[InferenceResult, np.ndarray | None]:
         """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
 
         ``s2`` a float or (N,) one noise variance per frame (robust inference). With ``components`` also
-        returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None.
+        returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None. ``only``:
+        indices of the only mixture components to evaluate, the others being known to be negligible
+        (``Conditioner.__call__``'s ``components``); None = all.
         """
         layout = self.layout
         c_mod, present = inputs.contours, inputs.present
@@ -76,10 +79,12 @@ class Posterior:
         M = self.n_components
         flat = norm.reshape(n, -1)
         per_row = np.ndim(s2) > 0
-        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
+        if per_row:  # group by (pattern, noise): one integer per row, the pattern's bits then the noise level index
             levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
-            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
-            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
+            code = present.astype(np.int64) @ (np.int64(1) << np.arange(kmod, dtype=np.int64))
+            keys, inverse = np.unique(code + (level_of.reshape(-1).astype(np.int64) << kmod), return_inverse=True)
+            patterns = ((keys[:, None] >> np.arange(kmod)) & 1).astype(bool)
+            group_s2 = levels[keys >> kmod]
             inverse = inverse.reshape(-1)
         elif all_present or n == 1:
             patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
@@ -91,7 +96,8 @@ class Posterior:
         cmeans = None
         if len(patterns) == 1:  # the common case: no fancy-index copies
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
+            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components,
+                                                                     components=only)
             mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
                                            post.responsibilities, post.log_marginal)
             cmeans = post.component_means
@@ -106,7 +112,8 @@ class Posterior:
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
+                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components,
+                                                                      components=only)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal
                 if components:

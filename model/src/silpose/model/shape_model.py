@@ -71,6 +71,9 @@ __all__ = ["ShapeStructureModel", "InferenceResult", "ModelNotFittedError"]
 # the default preset's 1,800 fitted walkers and their 1,800 mirror images give M 15, q 40 (200 held-out walkers,
 # robust, seeds 0/1/2: clean 2.77/2.90/3.12 cm, standard noise 3.82/3.83/4.32 cm, against 3.68 and 4.55 for
 # M 10, q 30 without mirrors; 20x40, 15x50 and 25x30 with mirrors were within 0.1-0.3 cm of 15x40).
+# n_fits (ShapeStructureModel): single fits on small data carry about +-10 % of joint error from their k-means start
+# alone (default preset, 200 held-out walkers, 5 seeds, standard noise, robust inference: 4.53-5.49 cm); 5 fits
+# pooled gave 4.40, clean 3.27 against 3.40-3.92.
 DEFAULT_N_COMPONENTS = 60
 DEFAULT_N_LATENT = 40
 DEFAULT_STRUCTURE_WEIGHT = 30.0
@@ -99,11 +102,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             raw root-relative joints), or None = "stature" when ``fit`` gets a rig, else "metres".
         n_fits: EM fits from the seeds random_state, random_state + 1, ..., pooled into one mixture of
             n_fits x n_components components, each fit's weights divided by n_fits
-            (:func:`silpose.model.mppca.pool_mixtures`): the prior is the average of the fits' densities.
-            Single fits on small data carry about +-10 % of joint error from their k-means start alone
-            (default preset, 200 held-out walkers, 5 seeds, standard noise, robust inference: 4.53-5.49 cm);
-            5 fits pooled gave 4.40, clean 3.27 against 3.40-3.92. Inference costs as much as a mixture
-            of n_fits x n_components components. In-memory fits only.
+            (:func:`silpose.model.mppca.pool_mixtures`): the prior is the average of the fits' densities
+            (measured: the module's comment on the defaults). Inference costs as much as a mixture of
+            n_fits x n_components components. In-memory fits only.
         noise_dof: correct the components' noise variances for the degrees of freedom their fit used
             (``MPPCA(noise_dof=True)``): the maximum-likelihood ones are biased low when a component has few
             rows for its q (the train / held-out log-likelihood gap of issue 12); the joints hardly change.
@@ -203,18 +204,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         seed = self.random_state
         if fit_index and seed is not None:  # fit i of n_fits starts from seed + i
             seed = int(seed) + int(fit_index)
-        return MPPCA(
-            n_components=int(self.n_components),
-            n_latent=int(self.n_latent),
-            tol=float(self.tol),
-            max_iter=int(self.max_iter),
-            n_init=int(self.n_init),
-            init_params=init_params,
-            noise_dof=bool(self.noise_dof),
-            random_state=seed,
-            callback=self.callback,
-            verbose=self.verbose,
-        )
+        return MPPCA(n_components=int(self.n_components), n_latent=int(self.n_latent), tol=float(self.tol),
+                     max_iter=int(self.max_iter), n_init=int(self.n_init), init_params=init_params,
+                     noise_dof=bool(self.noise_dof), random_state=seed, callback=self.callback, verbose=self.verbose)
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3).

@@ -43,6 +43,8 @@ __all__ = ["ExcursionSettings", "point_to_polygon_distance", "excursion_runs", "
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
+#: edges either side of a point's own index that :func:`_far_points` tries before all within n // 4
+_NEAR_EDGES = 4
 
 
 @dataclass(frozen=True)
@@ -78,10 +80,11 @@ def point_to_polygon_distance(points: np.ndarray, polygon: np.ndarray) -> np.nda
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance (broadcast shape) of points ``p`` (..., 2) to the segments ``a -> b`` (..., 2)."""
-    ab = b - a
-    ap = p - a
-    t = np.clip(np.sum(ap * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0.0, 1.0)
-    return np.sqrt(np.sum((ap - t[..., None] * ab) ** 2, axis=-1))
+    abx, aby = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    apx, apy = p[..., 0] - a[..., 0], p[..., 1] - a[..., 1]  # coordinates apart: no reductions over an axis of 2
+    t = np.clip((apx * abx + apy * aby) / np.maximum(abx * abx + aby * aby, 1e-12), 0.0, 1.0)
+    dx, dy = apx - t * abx, apy - t * aby
+    return np.sqrt(dx * dx + dy * dy)
 
 
 def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
@@ -100,12 +103,36 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     if views.size == 0:
         return far
     w = max(n // 4, 1)
-    offsets = np.arange(-w, w + 1)
+    # the edges next to the point first: one within the limit settles it (not far) without the others
+    near = np.arange(-min(_NEAR_EDGES, w), min(_NEAR_EDGES, w) + 1)
     for s in range(0, views.size, 4096):
         vv, ii = views[s:s + 4096], idx[s:s + 4096]
-        j = (ii[:, None] + offsets[None, :]) % n
+        j = (ii[:, None] + near[None, :]) % n
         d = _segment_distance(points[vv, ii][:, None, :], polygon[vv[:, None], j], polygon[vv[:, None], (j + 1) % n])
         far[vv, ii] = d.min(axis=1) > limit[vv, 0]
+    views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
+    offsets = np.arange(-w, w + 1)
+    edge_len = np.linalg.norm(np.roll(polygon, -1, axis=1) - polygon, axis=-1)  # (V, n) edge j -> j + 1
+    for s in range(0, views.size, 4096):
+        vv, ii = views[s:s + 4096], idx[s:s + 4096]
+        j = (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 1) edges searched
+        p = points[vv, ii][:, None, :]
+        # a point of edge j is within half its length of one of its ends: edges whose nearer end is farther than
+        # the limit plus half their length (with a margin for rounding) cannot bring the point within the limit
+        dv = np.sqrt(np.sum((polygon[vv[:, None], j] - p) ** 2, axis=-1))  # (P, 2w + 1) to each edge's start
+        nearer = np.minimum(dv, np.roll(dv, -1, axis=1))
+        nearer[:, -1] = np.minimum(dv[:, -1], np.linalg.norm(polygon[vv, (j[:, -1] + 1) % n] - p[:, 0], axis=-1))
+        lim = limit[vv]
+        check = nearer - 0.5 * edge_len[vv[:, None], j] <= lim * (1.0 + 1e-9) + 1e-12
+        pi, ej = np.nonzero(check)
+        if pi.size == 0:
+            far[vv, ii] = True
+            continue
+        jj = j[pi, ej]
+        d = _segment_distance(p[pi, 0], polygon[vv[pi], jj], polygon[vv[pi], (jj + 1) % n])
+        within = np.zeros(vv.size, dtype=bool)
+        within[pi[d <= lim[pi, 0]]] = True
+        far[vv, ii] = ~within
     return far
 
 
@@ -174,6 +201,41 @@ def _trim_view(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scale: float,
                     axis=1)
 
 
+def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: np.ndarray,
+                     settings: ExcursionSettings) -> np.ndarray:
+    """Indices of the views (V, n, 2) that may have an excursion: every run of every view tested at once with
+    :func:`_trim_view`'s criteria, its arc from cumulative edge lengths (a margin of 1e-9 covers their rounding;
+    :func:`_trim_view` decides). Views whose far points cover the whole outline are candidates."""
+    v, n = far.shape
+    whole = far.all(axis=1)
+    f3 = np.tile(far, 3)  # (V, 3n): runs starting in the middle copy end within it
+    start = far & ~np.roll(far, 1, axis=1) & ~whole[:, None]
+    rv, s = np.nonzero(start)
+    if rv.size == 0:
+        return np.flatnonzero(whole)
+    pos = np.arange(3 * n)
+    next_out = np.minimum.accumulate(np.where(f3, 3 * n, pos[None, :])[:, ::-1], axis=1)[:, ::-1]
+    s3 = s + n
+    length = next_out[rv, s3] - s3  # points in the run
+    a, b = (s - 1) % n, (s + length) % n
+    edges = np.linalg.norm(np.roll(pts, -1, axis=1) - pts, axis=-1)  # (V, n) edge i -> i + 1
+    cum = np.concatenate([np.zeros((v, 1)), np.cumsum(np.tile(edges, 3), axis=1)], axis=1)
+    arc = cum[rv, s3 + length] - cum[rv, s3 - 1]  # edges a -> first, ..., last -> b
+    chord = np.linalg.norm(pts[rv, b] - pts[rv, a], axis=-1)
+    near = (np.arange(-(n // 4), n // 4 + 1))[None, :]
+
+    def nearest(i):  # _nearest_vertex of pts[rv, i] among rec[rv] within n // 4 of i
+        j = (i[:, None] + near) % n
+        return j[np.arange(j.shape[0]), np.argmin(np.sum((rec[rv[:, None], j] - pts[rv, i][:, None, :]) ** 2, axis=-1),
+                                                  axis=1)]
+
+    span = (nearest(b) - nearest(a)) % n
+    tol = 1e-9 * (arc + 1.0)
+    ok = ((span <= n // 2) & ((length + 1) - span >= 2) & (arc + tol > settings.ratio * chord)
+          & (arc - chord + tol > settings.extra * scales[rv]))
+    return np.union1d(np.unique(rv[ok]), np.flatnonzero(whole))
+
+
 def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
                     settings: ExcursionSettings = ExcursionSettings()) -> tuple[np.ndarray, np.ndarray]:
     """Replace the excursions of observed contours by their chords (module doc).
@@ -190,7 +252,7 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     if ov.rows.size == 0:
         return ov.contours, ov.changed
     far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
-    for j in np.flatnonzero(far.any(axis=1)):
+    for j in _candidate_views(ov.points, ov.recon, far, ov.scales, settings):
         trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings)
         if trimmed is not None:
             ov.set(j, trimmed)

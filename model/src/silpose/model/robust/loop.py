@@ -1,7 +1,8 @@
 """The robust inference loop (``silpose.model.robust``): reweighted passes, then the repairs of the input.
 
 :func:`robust_passes` runs the Gaussian pass, the adaptive noise and ``settings.iterations`` reweighted passes
-of one batch (:mod:`silpose.model.robust.weights`); :func:`robust_infer` then trims the observed contours'
+of one batch (:mod:`silpose.model.robust.weights`), each pass on the frames whose reconstruction still moved
+more than :data:`SETTLED_PX` in the pass before; :func:`robust_infer` then trims the observed contours'
 excursions (:mod:`silpose.model.robust.excursions`) and undoes their slides along the outline
 (:mod:`silpose.model.robust.reindex`) against the robust reconstruction, inferring the changed frames again.
 """
@@ -12,13 +13,21 @@ import numpy as np
 
 from ..features import normalise_contours
 from ..checks import Inputs
+from ..conditioning import GATE_NATS
 from ..posterior import Posterior
 from ..result import InferenceResult
 from .excursions import trim_excursions
 from .reindex import reindex_contours
 from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 
-__all__ = ["robust_passes", "robust_infer"]
+__all__ = ["SETTLED_PX", "robust_passes", "robust_infer"]
+
+#: px: a frame whose reconstruction moved less than this in a reweighting pass has settled; later passes leave
+#: it alone (each would move it less again: the passes converge to the weighted conditioning's fixed point)
+SETTLED_PX = 1e-2
+#: a reweighting pass evaluates only the components whose posterior weight exceeded this (GATE_NATS below the
+#: best) for some of its frames in the pass before; the others count as 0 (their means and weights < e^-30)
+GATE_WEIGHT = float(np.exp(-GATE_NATS))
 
 
 def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
@@ -36,13 +45,32 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
         res, comp = posterior.infer(inputs, s2_rows, components=False)
     else:
         s2_rows = s2
+    s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
+    u = np.zeros(present.shape + (c_mod.shape[2],))
+    active = np.arange(len(present))  # frames whose reconstruction still moves
     for it in range(int(settings.iterations)):
-        matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
-        u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
-        pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
-                          c_mod)
-        last = it == int(settings.iterations) - 1
-        res, comp = posterior.infer(inputs.with_contours(pseudo), s2_rows, components=want and last)
+        rec = res.contours_px[active]
+        matched, dist = snap_correspondences(c_mod[active], rec, int(settings.window))
+        p_act = present[active]
+        u_act = np.where(p_act[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
+        pseudo = np.where(p_act[..., None, None], rec + u_act[..., None] * (matched - rec), c_mod[active])
+        u[active] = u_act
+        # the components that matter: within GATE_NATS of some active frame's best in the pass before (all of them
+        # when the hypotheses need every component's mean)
+        only = np.flatnonzero((res.responsibilities[active] > GATE_WEIGHT).any(axis=0)) if not want else None
+        part, part_comp = posterior.infer(inputs.take(active).with_contours(pseudo),
+                                          s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
+                                          only=None if only is None or only.size == posterior.n_components else only)
+        moved = np.abs(np.nan_to_num(part.contours_px - rec)).max(axis=(1, 2, 3))  # px
+        if active.size == len(present):
+            res, comp = part, part_comp
+        else:
+            res.put(active, part)
+            if want:
+                comp[active] = part_comp
+        active = active[moved >= SETTLED_PX]  # settled frames keep this pass's answer (module doc)
+        if active.size == 0:
+            break
     if settings.noise_scale is not None:
         res.noise_variance = s2_rows
     res.log_marginal_robust = res.log_marginal

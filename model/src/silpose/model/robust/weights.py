@@ -146,7 +146,8 @@ def snap_correspondences(observed_px: np.ndarray, recon_px: np.ndarray, window: 
     obs = np.asarray(observed_px, dtype=np.float64)
     rec = np.asarray(recon_px, dtype=np.float64)
     if window <= 0:
-        return obs, np.linalg.norm(obs - rec, axis=-1)
+        dx, dy = obs[..., 0] - rec[..., 0], obs[..., 1] - rec[..., 1]
+        return obs, np.sqrt(dx * dx + dy * dy)
     n = obs.shape[-2]
     idx = (np.arange(n)[:, None] + np.arange(-window, window + 1)[None, :]) % n  # (n, 2w+1)
     cand = obs[..., idx, :]  # (..., n, 2w+1, 2)
