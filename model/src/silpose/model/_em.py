@@ -145,9 +145,9 @@ class SparseEStep:
     """Settings of the sparse E-step: ``n_candidates`` K components per row, the responsibility
     ``threshold`` (nats below the row's best), and the gate's ``refresh`` period (iterations)."""
 
-    n_candidates: int = 8
+    n_candidates: int = 4
     threshold: float = 30.0
-    refresh: int = 5
+    refresh: int = 10
 
 
 _GATE_ROWS = 1024  # rows per block of the gate's dense float32 product (rows x M (q + 1) values)

@@ -105,7 +105,7 @@ class MPPCA(DensityMixin, BaseEstimator):
 
     def __init__(self, n_components=5, n_latent=None, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
                  reg_variance=1e-6, init_params=None, noise_dof=False, random_state=None, callback=None, verbose=0,
-                 e_step="auto", n_candidates=8, resp_threshold=30.0, gate_refresh=5):
+                 e_step="auto", n_candidates=4, resp_threshold=30.0, gate_refresh=10):
         self.n_components = n_components
         self.n_latent = n_latent
         self.tol = tol
