@@ -74,10 +74,11 @@ _RING = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                   np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], axis=1)
 
 
-def body_box(cam, xy: np.ndarray) -> np.ndarray:
-    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder standing at floor points ``xy`` (P, 2)."""
+def body_box(cam, xy: np.ndarray, radius: float = BODY_RADIUS_M) -> np.ndarray:
+    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder of ``radius`` metres standing at floor points ``xy``
+    (P, 2)."""
     xy = np.asarray(xy, float).reshape(-1, 2)
-    ring = xy[:, None, :] + BODY_RADIUS_M * _RING[None]  # (P, 12, 2)
+    ring = xy[:, None, :] + radius * _RING[None]  # (P, 12, 2)
     pts = np.concatenate([np.concatenate([ring, np.zeros(ring.shape[:2] + (1,))], -1),
                           np.concatenate([ring, np.full(ring.shape[:2] + (1,), BODY_HEIGHT_M)], -1)], axis=1)
     px = cam.project(pts)
