@@ -28,9 +28,11 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 (an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
 
 Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
-standing still at the back -- is foreground that no person explains. Per camera, a pixel that stays foreground
-outside the image box of every person detected on the floor (:func:`~.views.body_box`: the cylinder of
-radius 0.9 m and height 2.2 m standing at their floor point) for :data:`ABSORB_S` seconds in a row becomes
+standing still at the back -- is foreground that no person explains. Per camera, a pixel that has been
+foreground outside the image box of every person detected on the floor (:func:`~.views.body_box`: the
+cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor point) for
+:data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
+either; a frame where it is background does -- becomes
 background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). People in the
 workspace are protected by their box, however still they stand; clutter touching a person's box is absorbed
 outside it, so their blob again fits their box.
@@ -76,8 +78,14 @@ from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, ST
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
 DEFAULT_MIN_AREA_PX = 150
+#: metres: floor detections this close to the floor grid's outer edge are not people in the room but someone
+#: beyond it (people standing at the back: the rays through them cross the grid's last cells)
+EDGE_M = 0.15
 #: seconds: foreground that stays this long outside every detected person's body box becomes background
 ABSORB_S = 2.0
+#: metres: radius of the cylinder around each detected person that is never made background: the body and
+#: the arms' swing (half the view test's 0.9 m, so a box on the floor beside someone's path is absorbed)
+PROTECT_RADIUS_M = 0.45
 #: a camera whose masks are empty, or mostly foreground, in at least this share of its frames gets a warning
 #: naming the likely cause (0/1 or inverted mask videos, a wrong background clip)
 MASK_DIAGNOSIS_SHARE = 0.9
@@ -211,18 +219,20 @@ class _Camera:
         models = getattr(self.silhouettes, "models", None)
         if self.absorb_frames <= 0 or models is None or seen.mask is None or seen.background is None:
             return
-        loose = seen.mask.astype(bool)
+        fg = seen.mask.astype(bool)
+        loose = fg.copy()
         if len(people_xy):
             h, w = loose.shape
-            for x0, y0, x1, y1 in body_box(self.cam, people_xy):
+            for x0, y0, x1, y1 in body_box(self.cam, people_xy, PROTECT_RADIUS_M):
                 a, b = max(0, int(np.floor(x0))), min(w, int(np.ceil(x1)) + 1)
                 c, d = max(0, int(np.floor(y0))), min(h, int(np.ceil(y1)) + 1)
                 if a < b and c < d:
                     loose[c:d, a:b] = False
         if self.age is None:
             self.age = np.zeros(loose.shape, np.uint16)
-        self.age = np.where(loose, np.minimum(self.age, 65534) + 1, 0).astype(np.uint16)
-        ready = self.age >= self.absorb_frames
+        # foreground outside every box ages; inside a box it keeps its age; background starts again from 0
+        self.age = np.where(loose, np.minimum(self.age, 65534) + 1, np.where(fg, self.age, 0)).astype(np.uint16)
+        ready = loose & (self.age >= self.absorb_frames)  # never where a person may be now (their colours)
         if int(ready.sum()) >= self.min_area:
             models[self.reader.source.camera].absorb(seen.background, ready)
             self.absorbed += int(ready.sum())
@@ -501,6 +511,11 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
         masks.append(s.mask if ok else None)
         blobs.append(s.blobs if ok else None)
     det = grid.locate(masks)
+    if len(det.positions):  # a peak on the search area's edge is someone beyond it (their hull reaches in)
+        xy = det.positions
+        inner = ((xy[:, 0] > grid.xs[0] + EDGE_M) & (xy[:, 0] < grid.xs[-1] - EDGE_M)
+                 & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
+        det = type(det)(det.positions[inner], det.scores[inner])
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took

@@ -36,22 +36,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..view_status import (VIEW_BORDER, VIEW_CLUTTER, VIEW_EMPTY, VIEW_ENDED, VIEW_MERGED, VIEW_NO_VIDEO,  # noqa: F401
+                           VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_PARTIAL, VIEW_STATUSES)
 from .blobs import Blobs
 from .floor import COLUMN_HEIGHTS
 
-VIEW_OK = "ok"
-VIEW_MERGED = "merged"
-VIEW_CLUTTER = "clutter"
-VIEW_BORDER = "border"
-VIEW_PARTIAL = "partial"
-VIEW_NOT_SEEN = "not seen"
-VIEW_EMPTY = "empty mask"
-VIEW_NO_VIDEO = "no video"
-VIEW_ENDED = "video ended"
-VIEW_NOT_MODELLED = "not modelled"
-#: every per-view status, in report order
-VIEW_STATUSES = (VIEW_OK, VIEW_MERGED, VIEW_CLUTTER, VIEW_BORDER, VIEW_PARTIAL, VIEW_NOT_SEEN, VIEW_EMPTY, VIEW_NO_VIDEO,
-                 VIEW_ENDED, VIEW_NOT_MODELLED)
 #: metres: radius of the cylinder a person's blob must fit in: arms, stride, and someone seated with their
 #: legs forward and the chair under them (0.6 m marked every view of a seated person in a public 4-camera
 #: recording "merged": the feet and chair legs reach 0.7 m from the head's vertical)
@@ -74,10 +63,11 @@ _RING = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                   np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], axis=1)
 
 
-def body_box(cam, xy: np.ndarray) -> np.ndarray:
-    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder standing at floor points ``xy`` (P, 2)."""
+def body_box(cam, xy: np.ndarray, radius: float = BODY_RADIUS_M) -> np.ndarray:
+    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder of ``radius`` metres standing at floor points ``xy``
+    (P, 2)."""
     xy = np.asarray(xy, float).reshape(-1, 2)
-    ring = xy[:, None, :] + BODY_RADIUS_M * _RING[None]  # (P, 12, 2)
+    ring = xy[:, None, :] + radius * _RING[None]  # (P, 12, 2)
     pts = np.concatenate([np.concatenate([ring, np.zeros(ring.shape[:2] + (1,))], -1),
                           np.concatenate([ring, np.full(ring.shape[:2] + (1,), BODY_HEIGHT_M)], -1)], axis=1)
     px = cam.project(pts)
