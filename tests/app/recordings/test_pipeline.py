@@ -237,3 +237,19 @@ def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_p
     assert all(same)
     assert not np.array_equal(_flat(tables["robust"].column("joints")), _flat(tables["plain"].column("joints")),
                               equal_nan=True)
+
+
+def test_a_refused_recording_leaves_no_output_folder(tiny_model_file, tmp_path):
+    """Colour videos without a background are refused before any frame: --out is not left behind holding
+    only silpose's marker, and the error is the only line."""
+    from typer.testing import CliRunner
+
+    from silpose.shared.cli import build_app
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    out = tmp_path / "out"
+    res = CliRunner().invoke(build_app(), ["infer", str(tiny_model_file), "--videos", str(videos), "--out", str(out)])
+    assert res.exit_code == 2
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("silpose infer: error: "), res.stderr
+    assert not out.exists()
