@@ -32,7 +32,6 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
 
 from __future__ import annotations
 
-import itertools
 import time
 import warnings
 from contextlib import contextmanager
@@ -42,6 +41,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
+from silpose.model.plausibility import view_subsets
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.stature import REFERENCE_STATURE, estimate_stature
 from silpose.shared.contours import normalise
@@ -68,11 +68,6 @@ DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
 )
 
 Progress = Callable[[str, int, int], None]  # (task description, completed, total)
-
-
-def view_subsets(n_views: int) -> list[tuple[int, ...]]:
-    """Every non-empty subset of views, largest first: 4; 3 (each left out); 2; 1."""
-    return [s for r in range(n_views, 0, -1) for s in itertools.combinations(range(n_views), r)]
 
 
 def views_label(views: Sequence[int]) -> str:
