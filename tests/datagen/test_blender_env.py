@@ -29,3 +29,9 @@ def test_spawned_workers_get_the_variables(tmp_path, monkeypatch):
     assert got["SILPOSE_CACHE_DIR"] == str(cache)  # the driver's silpose cache, not moved by XDG_CACHE_HOME
     assert got["BLENDER_USER_CONFIG"] == str(cache / "blender" / "config")
     assert got["XDG_CACHE_HOME"] == str(cache / "blender" / "cache")
+
+
+def test_the_cache_variable_is_the_clips_cache_variable():
+    from silpose.datagen import blender_env, clips
+
+    assert blender_env.CACHE_ENV == clips.CACHE_ENV

@@ -14,7 +14,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["blender_environment", "use_silpose_blender_dirs"]
+__all__ = ["blender_environment", "use_silpose_blender_dirs", "CACHE_ENV"]
+
+#: silpose's cache folder variable, as :mod:`silpose.datagen.clips` reads it (not imported from there: clips
+#: imports the executor, which imports this module).
+CACHE_ENV = "SILPOSE_CACHE_DIR"
 
 #: Blender's user-folder variables and the subfolder of ``<silpose cache>/blender/`` each one gets.
 BLENDER_DIRS = {
@@ -29,8 +33,6 @@ BLENDER_DIRS = {
 def blender_environment(environ=None) -> dict[str, str]:
     """The variables :func:`use_silpose_blender_dirs` sets, given the environment ``environ`` (default
     ``os.environ``); those ``environ`` sets already are left out."""
-    from .clips import CACHE_ENV
-
     environ = os.environ if environ is None else environ
     silpose_cache = Path(environ.get(CACHE_ENV) or Path(environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
                          / "silpose")  # as clips.cache_root() resolves it, for this environment
