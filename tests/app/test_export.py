@@ -115,7 +115,7 @@ def test_c3d_reads_back_with_the_c3d_library(recording, tmp_path):
 
 
 def test_bvh_reads_back_with_blenders_importer(recording, tmp_path):
-    from silpose.datagen.blender_bvh import import_clip
+    from silpose.datagen.blender.bvh import import_clip
     from silpose.datagen.executor import spawned_map
 
     path, world, _ = recording

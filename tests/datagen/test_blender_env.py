@@ -32,6 +32,7 @@ def test_spawned_workers_get_the_variables(tmp_path, monkeypatch):
 
 
 def test_the_cache_variable_is_the_clips_cache_variable():
-    from silpose.datagen import blender_env, clips
+    from silpose.datagen import blender_env
+    from silpose.datagen.motion import clips
 
     assert blender_env.CACHE_ENV == clips.CACHE_ENV

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from silpose.model.persistence import save_model
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import DatasetError, iter_shards, load_split, read_shard
@@ -74,7 +75,7 @@ CORRUPTIONS = ["truncated_half", "truncated_footer", "flipped_contours", "flippe
 def model_file(clean_dataset, tmp_path_factory):
     """A small model fitted on the clean dataset (for ``silpose infer`` and ``silpose eval``)."""
     root, _ = clean_dataset
-    model = ShapeStructureModel(1, 2, n_init=1, max_iter=5).fit_dataset(load_split(root, "train"))
+    model = fit_dataset(ShapeStructureModel(1, 2, n_init=1, max_iter=5), load_split(root, "train"))
     return save_model(tmp_path_factory.mktemp("drill-model") / "tiny.npz", model)
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from silpose.model.persistence import load_model, save_model
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.dataset import load_split
 
@@ -58,7 +59,7 @@ version = _ns["version"]
 @pytest.fixture(scope="module")
 def first_model(clean_dataset):
     root, _ = clean_dataset
-    return ShapeStructureModel(1, 2, n_init=1, max_iter=5).fit_dataset(load_split(root, "train"))
+    return fit_dataset(ShapeStructureModel(1, 2, n_init=1, max_iter=5), load_split(root, "train"))
 
 
 def _arrays(model) -> dict:

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import array_shapes, arrays
 
 from silpose.model.conditioning import condition, condition_rows
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.dataset import load_split
 
@@ -28,7 +29,7 @@ ODD = [np.nan, np.inf, -np.inf, 1e300, -1e300, 1e15, -1e15, 1e-300, 0.0, -0.0]
 def fitted(clean_dataset):
     root, _ = clean_dataset
     train, test = load_split(root, "train"), load_split(root, "test")
-    model = ShapeStructureModel(2, 3, n_init=1, max_iter=10).fit_dataset(train)
+    model = fit_dataset(ShapeStructureModel(2, 3, n_init=1, max_iter=10), train)
     return model, test.contours.astype(np.float64)
 
 

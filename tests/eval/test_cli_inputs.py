@@ -7,6 +7,7 @@ import pytest
 from typer.testing import CliRunner
 
 from silpose.model.persistence import save_model
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split
@@ -16,7 +17,7 @@ from silpose.shared.dataset import load_split
 def model_path(stick_dataset, tmp_path_factory):
     path = tmp_path_factory.mktemp("eval-inputs") / "m.npz"
     model = ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=10, random_state=0)
-    save_model(path, model.fit_dataset(load_split(stick_dataset, "train")))
+    save_model(path, fit_dataset(model, load_split(stick_dataset, "train")))
     return path
 
 

@@ -15,6 +15,7 @@ from silpose.shared import metrics
 from silpose.eval.baselines import ChanceBaseline
 from silpose.eval.noise import STANDARD_NOISE, apply_noise
 from silpose.model.persistence import load_model, save_model
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.cli import build_app
 from silpose.shared.contours import normalise
@@ -29,8 +30,8 @@ ARTEFACTS = ("results.parquet", "headline.json", "summary.md", "e1_single_vs_mul
 def evaluated(stick_dataset, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("eval")
     train = load_split(stick_dataset, "train")
-    model = ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=30, tol=1e-3, random_state=0).fit_dataset(
-        train)
+    model = fit_dataset(ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=30, tol=1e-3,
+                                            random_state=0), train)
     model.calibrate_plausibility(train.contours[:20])  # as silpose train does with its held-out part
     save_model(tmp / "m.npz", model)
     out = tmp / "report"

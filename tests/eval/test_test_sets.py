@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from silpose.model.persistence import save_model
+from silpose.app.training import fit_dataset
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.cli import build_app
 from silpose.shared.dataset import load_split
@@ -20,8 +21,8 @@ from silpose.shared.dataset import load_split
 @pytest.fixture(scope="module")
 def model_file(stick_dataset, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("testsets")
-    model = ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=20, tol=1e-3, random_state=0).fit_dataset(
-        load_split(stick_dataset, "train"))
+    model = fit_dataset(ShapeStructureModel(n_components=2, n_latent=4, n_init=1, max_iter=20, tol=1e-3,
+                                            random_state=0), load_split(stick_dataset, "train"))
     save_model(tmp / "m.npz", model)
     return tmp / "m.npz"
 

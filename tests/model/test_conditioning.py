@@ -1,10 +1,10 @@
-"""Conditional inference (silpose.model.conditioning): equals dense Gaussian conditioning (the
+"""Gaussian conditioning of a mixture of PPCA (silpose.model.conditioning): equals dense Gaussian conditioning (the
 ``dense_reference`` fixture, tests/model/conftest.py); marginalises missing dims."""
 
 import numpy as np
 import pytest
 
-from silpose.model.conditioning import MixtureParams, Posterior, Conditioner, condition, condition_rows
+from silpose.model.conditioning import MixtureParams, BatchPosterior, Conditioner, condition, condition_rows
 from silpose.model.mppca import MPPCA
 
 
@@ -28,7 +28,7 @@ def test_condition_equals_dense_gaussian_conditioning(noise_kind, observed_kind,
     observed = np.isin(np.arange(d), obs) if observed_kind == "mask" else obs
     res = condition(p, X_obs, observed, noise, return_components=True, return_cov=True)
     ref = dense_reference(p, X_obs, obs, noise)
-    assert isinstance(res, Posterior) and res.reconstruction is None
+    assert isinstance(res, BatchPosterior) and res.reconstruction is None
     np.testing.assert_array_equal(res.missing, np.setdiff1d(np.arange(d), obs))
     for key in ("mean", "best_mean", "component_means", "responsibilities", "variance", "cov", "component_cov"):
         np.testing.assert_allclose(getattr(res, key), ref[key], rtol=1e-9, atol=1e-11, err_msg=key)

@@ -1,4 +1,4 @@
-"""Excursions (shadows, blobs, bitten holes) trimmed from observed contours (silpose.model.excursions)."""
+"""Excursions (shadows, blobs, bitten holes) trimmed from observed contours (silpose.model.robust.excursions)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from silpose.model.excursions import ExcursionSettings, excursion_runs, point_to_polygon_distance, trim_excursions
+from silpose.model.robust.excursions import ExcursionSettings, excursion_runs, point_to_polygon_distance, trim_excursions
 from silpose.model.robust import RobustSettings
 from silpose.shared.contours import extract_contour
 

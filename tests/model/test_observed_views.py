@@ -1,10 +1,10 @@
-"""The usable observed views of a batch (silpose.model.observed_views): which views, their scale, the output."""
+"""The usable observed views of a batch (silpose.model.robust.observed_views): which views, their scale, the output."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from silpose.model.observed_views import observed_views
+from silpose.model.robust.observed_views import observed_views
 from silpose.shared.contours import normalise
 
 

@@ -1,5 +1,5 @@
 """Re-indexing: slides of observed points along their outline, undone against a reconstruction
-(silpose.model.reindex), and its place in robust inference."""
+(silpose.model.robust.reindex), and its place in robust inference."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from silpose.model.reindex import (ReindexSettings, fit_slide, index_offsets, reindex_contours,
+from silpose.model.robust.reindex import (ReindexSettings, fit_slide, index_offsets, reindex_contours,
                                    resample_by_index)
 from silpose.model.robust import RobustSettings
 from silpose.shared.contours import extract_contour

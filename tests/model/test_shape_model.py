@@ -180,20 +180,20 @@ def test_conditioner_cache_is_bounded_by_bytes_and_changes_no_result(fitted, mon
     """Conditioners are cached per view pattern and s^2, least recently used out once their bytes pass the
     budget (a large-M model's conditioner holds tens of MB): the cache stays within it, and inference is the
     same whether a conditioner came from the cache or was rebuilt."""
-    import silpose.model.shape_model as shape_model
+    import silpose.model.posterior as posterior
 
     model, _, test = fitted
     patterns = [np.array([True, True, False]), np.array([True, False, True]), np.array([False, True, True])]
     present = np.stack([patterns[i % 3] for i in range(len(test.contours))])
-    model._conditioner_cache = None
+    model._posterior = None
     reference = model.infer(test.contours, present)
-    one = model._conditioner(patterns[0], model.noise_variance).nbytes
-    monkeypatch.setattr(shape_model, "_CONDITIONER_CACHE_BYTES", int(2.5 * one))
-    model._conditioner_cache = None
+    one = model.posterior().conditioner(patterns[0], model.noise_variance).nbytes
+    monkeypatch.setattr(posterior, "CACHE_BYTES", int(2.5 * one))
+    model._posterior = None
     for _ in range(2):
         res = model.infer(test.contours, present)
-        cached = model._conditioner_cache[1]
+        cached = model.posterior()._cache
         assert 1 <= len(cached) <= 2 and sum(c.nbytes for c in cached.values()) <= 2.5 * one
         np.testing.assert_allclose(res.joints, reference.joints, rtol=1e-12)
         np.testing.assert_allclose(res.contours_px, reference.contours_px, rtol=1e-12)
-    model._conditioner_cache = None
+    model._posterior = None

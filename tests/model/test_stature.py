@@ -94,7 +94,7 @@ def test_stature_frame_model_round_trip_and_scaling(smoke_split, tmp_path, monke
     """A 'stature'-frame model is the default with a rig, survives save/load, and its root-relative joints
     (and their std) are the structure-block answer times stature / 1.75 m: doubling the measured stature
     with the same contours doubles them exactly."""
-    from silpose.model import shape_model
+    from silpose.model import posterior
     from silpose.model.persistence import load_model, save_model
     from silpose.model.shape_model import ShapeStructureModel
 
@@ -108,8 +108,8 @@ def test_stature_frame_model_round_trip_and_scaling(smoke_split, tmp_path, monke
     assert loaded.layout_.joint_frame == "stature"
     a = m.infer(s.contours[:5])
     np.testing.assert_array_equal(a.joints, loaded.infer(s.contours[:5]).joints)
-    real = shape_model.estimate_stature
-    monkeypatch.setattr(shape_model, "estimate_stature", lambda *args, **kw: 2.0 * real(*args, **kw))
+    real = posterior.estimate_stature
+    monkeypatch.setattr(posterior, "estimate_stature", lambda *args, **kw: 2.0 * real(*args, **kw))
     b = m.infer(s.contours[:5])
     np.testing.assert_allclose(b.joints - b.joints[:, :1], 2.0 * (a.joints - a.joints[:, :1]), rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(b.joint_std, 2.0 * a.joint_std, rtol=1e-12)

@@ -18,19 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.model.hypotheses import Hypotheses, temporal_choice
+from silpose.model.hypotheses import temporal_choice
 from silpose.model.persistence import load_model
-from silpose.model.shape_model import InferenceResult, ShapeStructureModel
-from silpose.shared.skeleton import N_JOINTS
+from silpose.model.result import InferenceResult
+from silpose.model.shape_model import ShapeStructureModel
 
 from .errors import InferenceInputError
 from .inputs.dataset import is_dataset, read_dataset_input
 from .inputs.silhouettes import read_png_input
 from .writers import sibling, write_contours, write_joints
-
-_ARRAY_FIELDS = ("joints", "joints_best", "joint_std", "contours_norm", "contours_px", "centroid", "scale",
-                 "views_present", "responsibilities", "log_marginal")
-_OPTIONAL_FIELDS = ("plausibility", "implausible", "robust_weights", "log_marginal_robust", "noise_variance")
 
 #: frame statuses written by ``silpose infer`` (column ``status``)
 FRAME_OK = "ok"
@@ -63,56 +59,15 @@ class InferOptions:
 
 
 def nan_result(model: ShapeStructureModel, n: int, options: InferOptions | None = None) -> InferenceResult:
-    """An InferenceResult of ``n`` frames without any usable view: NaN everywhere, no view present.
-
-    With ``options``, the optional fields a result of those options has (plausibility when the model is
-    calibrated for its noise, hypotheses, robust weights) are there too: NaN, probabilities 0,
-    components -1, flags False.
-    """
-    lay = model.layout_
-    k, p, m = len(lay.views), lay.n_points, len(model.mixture_.weights_)
-    nan = lambda *shape: np.full((n,) + shape, np.nan)  # noqa: E731
-    res = InferenceResult(joints=nan(N_JOINTS, 3), joints_best=nan(N_JOINTS, 3), joint_std=nan(N_JOINTS, 3),
-                          contours_norm=nan(k, p, 2), contours_px=nan(k, p, 2), centroid=nan(k, 2), scale=nan(k),
-                          views_present=np.zeros((n, k), bool), responsibilities=nan(m), log_marginal=nan(),
-                          views=lay.views)
-    if options is None:
-        return res
-    s2 = model.noise_variance if options.noise_variance is None else options.noise_variance
-    cal = getattr(model, "plausibility_", None)
-    if cal is not None and cal.applies_to(s2):
-        res.plausibility, res.implausible = nan(), np.zeros(n, dtype=bool)
-    if options.robust:
-        res.robust_weights, res.log_marginal_robust, res.noise_variance = np.zeros((n, k, p)), nan(), nan()
-    if options.hypotheses > 0:
-        kh = int(options.hypotheses)
-        res.hypotheses = Hypotheses(nan(kh, N_JOINTS, 3), np.zeros((n, kh)), np.full((n, kh), -1, dtype=np.intp),
-                                    nan(kh), np.zeros(n, dtype=np.intp))
-    return res
+    """An InferenceResult of ``n`` frames without any usable view: NaN everywhere, no view present, and the
+    fields a result of ``options`` has (``ShapeStructureModel.empty_result``)."""
+    return model.empty_result(n, **(options or InferOptions()).infer_kwargs())
 
 
 def merge_results(parts: list[InferenceResult], order: list[np.ndarray], n: int) -> InferenceResult:
-    """One n-row InferenceResult from ``parts`` whose rows go to indices ``order[i]``.
-
-    Optional fields (plausibility, hypotheses, robust weights) are kept when every part has them.
-    """
-    ref = parts[0]
-
-    def merged(get):
-        a = get(ref)
-        out = np.empty((n,) + a.shape[1:], a.dtype)
-        for p, idx in zip(parts, order):
-            out[idx] = get(p)
-        return out
-
-    res = InferenceResult(**{f: merged(lambda r, f=f: getattr(r, f)) for f in _ARRAY_FIELDS}, views=ref.views)
-    for f in _OPTIONAL_FIELDS:
-        if all(getattr(p, f) is not None for p in parts):
-            setattr(res, f, merged(lambda r, f=f: getattr(r, f)))
-    if all(p.hypotheses is not None for p in parts):
-        res.hypotheses = Hypotheses(*(merged(lambda r, a=a: getattr(r.hypotheses, a))
-                                      for a in ("joints", "probability", "component", "heading", "chosen")))
-    return res
+    """One n-row InferenceResult from ``parts`` whose rows go to indices ``order[i]`` (``InferenceResult.merge``:
+    every field any part has is kept)."""
+    return InferenceResult.merge(parts, order, n)
 
 
 def infer_rows(model: ShapeStructureModel, contours: np.ndarray, present: np.ndarray,

@@ -23,6 +23,7 @@ Writes ``<model>.npz`` (:mod:`silpose.model.persistence`) and its training repor
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -35,7 +36,6 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from silpose.model.augment import Roughness, training_rows
 from silpose.model.persistence import is_model_file, save_model
-from silpose.model.provenance import check_split_hashes, manifest_sha256
 from silpose.model.selection import is_real_em, unit_weight_loglik, validation_split, view_errors
 from silpose.model.selection import select as run_selection
 from silpose.model.shape_model import (
@@ -80,7 +80,7 @@ MIRROR_MODES = ("auto", "on", "off")
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
-from silpose.shared.dataset import load_split, read_shard
+from silpose.shared.dataset import DatasetError, list_shards, load_split, read_shard
 from silpose.shared.memory import release_freed_memory
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.output_dir import claim_files
@@ -520,3 +520,75 @@ def report_markdown(r: dict, selection) -> str:
                   f"{100 * how.get('error_tolerance', 0):.0f} % of the best, then the fewest parameters.", "",
                   selection.to_markdown()]
     return "\n".join(lines) + "\n"
+
+# ---------------------------------------------------------------- provenance: where a model's training data came from
+# manifest_sha256 digests a dataset folder's manifest.json; the trainer (and fit_dataset) store it, with the folder
+# and the generator config, in the model's dataset_info_, which silpose.model.persistence writes into the model file;
+# check_split_hashes makes sure the shards a model is trained on are the ones the manifest hashed (as silpose
+# validate does).
+
+
+def file_sha256(path: str | Path) -> str:
+    """Hex sha256 of a file's bytes (read in 1 MiB blocks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def manifest_sha256(root: str | Path) -> str | None:
+    """sha256 of ``<root>/manifest.json``, or None when the dataset folder has no manifest."""
+    manifest = Path(root) / "manifest.json"
+    return file_sha256(manifest) if manifest.is_file() else None
+
+
+def check_split_hashes(root: str | Path, split: str) -> int:
+    """Check ``split``'s shards in ``root`` against the sha256 values of ``root/manifest.json``.
+
+    A dataset without a manifest, or with one that lists no shards, is not checked (returns 0).
+    Otherwise every shard of the split on disk must be listed with its sha256 and match it, and every
+    listed shard of the split must exist; a shard edited after generation (even only its footer,
+    which the page checksums do not cover) raises :class:`~silpose.shared.dataset.DatasetError`
+    naming the file. Returns the number of shards checked.
+    """
+    root = Path(root)
+    path = root / "manifest.json"
+    if not path.is_file():
+        return 0
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise DatasetError(f"{path}: not valid JSON ({exc})") from None
+    listed = manifest.get("shards") if isinstance(manifest, dict) else None
+    if not isinstance(listed, list) or not listed:
+        return 0
+    hashes = {s.get("file"): s.get("sha256") for s in listed if isinstance(s, dict) and s.get("split") == split}
+    shards = list_shards(root, split)
+    for shard in shards:
+        if shard.name not in hashes:
+            raise DatasetError(f"{shard}: not listed in {path} (a shard of another run?); regenerate the dataset")
+        if file_sha256(shard) != hashes[shard.name]:
+            raise DatasetError(f"{shard}: sha256 differs from {path}: the shard was modified after generation; "
+                               "regenerate it (silpose gen) or check it with silpose validate")
+    missing = sorted(set(hashes) - {p.name for p in shards})
+    if missing:
+        raise DatasetError(f"{root / missing[0]}: listed in {path} but missing")
+    return len(shards)
+
+
+def fit_dataset(model, split):
+    """Fit ``model`` (a ShapeStructureModel) on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints
+    and rig) and record in ``dataset_info_`` (which the model file stores) the dataset folder, the sha256 of its
+    ``manifest.json`` (when present) and the generator config. Returns the model."""
+    model.fit(split.contours, split.joints, rig=split.rig)
+    info: dict = {"n_samples": int(len(split.joints))}
+    files = list(getattr(split, "files", []) or [])
+    if files:
+        root = files[0].parent
+        info["root"] = str(root)
+        info["manifest_sha256"] = manifest_sha256(root)
+        info["config_name"] = (split.metadata.get("config") or {}).get("name")
+        info["generator_config"] = split.metadata.get("config")
+    model.dataset_info_ = info
+    return model

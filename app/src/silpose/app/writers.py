@@ -7,8 +7,8 @@
   that hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
   ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
   model has no calibration), ``views_trimmed`` (the views whose outline robust inference cut a shadow,
-  blob or hole from, ``silpose.model.excursions``; comma-separated, empty when none), ``views_reindexed``
-  (the views whose points it slid back along their outline, ``silpose.model.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
+  blob or hole from, ``silpose.model.robust.excursions``; comma-separated, empty when none), ``views_reindexed``
+  (the views whose points it slid back along their outline, ``silpose.model.robust.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
 

@@ -4,7 +4,7 @@ Blender reads its user configuration, scripts and data files from ``~/.config/bl
 (thumbnails, Mesa's shader cache of the Workbench engine) to ``~/.cache``. A silpose worker is not a
 Blender session of the user's: before any bpy import, :func:`use_silpose_blender_dirs` points Blender's
 ``BLENDER_USER_*`` variables and ``XDG_CACHE_HOME`` at ``<silpose cache>/blender/`` (the cache folder of
-:func:`silpose.datagen.clips.cache_root`: ``$SILPOSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/silpose``, else
+:func:`silpose.datagen.motion.clips.cache_root`: ``$SILPOSE_CACHE_DIR``, else ``$XDG_CACHE_HOME/silpose``, else
 ``~/.cache/silpose``), and pins ``SILPOSE_CACHE_DIR`` to that folder so the worker's own silpose cache does
 not move with ``XDG_CACHE_HOME``. Variables the user set already are kept. docs/conventions.md, "Blender".
 """
@@ -16,7 +16,7 @@ from pathlib import Path
 
 __all__ = ["blender_environment", "use_silpose_blender_dirs", "CACHE_ENV"]
 
-#: silpose's cache folder variable, as :mod:`silpose.datagen.clips` reads it (not imported from there: clips
+#: silpose's cache folder variable, as :mod:`silpose.datagen.motion.clips` reads it (not imported from there: clips
 #: imports the executor, which imports this module).
 CACHE_ENV = "SILPOSE_CACHE_DIR"
 

@@ -1,7 +1,7 @@
 """BVH export of joints through Blender's own exporter, driven from a process that never imports bpy.
 
 :func:`export_bvh` builds the job (the 19-joint skeleton, the joints per frame in the BVH's axes, the frame
-rate) and runs :func:`silpose.datagen.blender_bvh_export.write_bvh` in one spawned worker
+rate) and runs :func:`silpose.datagen.blender.bvh_writer.write_bvh` in one spawned worker
 (:func:`silpose.datagen.executor.spawned_map`), which fits the armature to the joints and calls
 ``bpy.ops.export_anim.bvh``. The file is written to a temporary name and renamed (:mod:`silpose.shared.atomic`).
 
@@ -29,7 +29,7 @@ __all__ = ["export_bvh", "BvhExportError", "Y_UP_FROM_Z_UP", "fill_missing"]
 
 #: silpose (x, y, z up) -> BVH (x, y up, z): a proper rotation about x.
 Y_UP_FROM_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-WORKER = "silpose.datagen.blender_bvh_export:write_bvh"
+WORKER = "silpose.datagen.blender.bvh_writer:write_bvh"
 
 
 class BvhExportError(ValueError):

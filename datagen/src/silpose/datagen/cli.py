@@ -37,11 +37,12 @@ def gen(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, claim_folder
 
-    from .bvh_check import BvhError
-    from .clips import ClipError
+    from .motion.bvh_check import BvhError
+    from .motion.clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
-    from .joint_maps import JointMapError
+    from .motion.joint_maps import JointMapError
+    from .motion.library import LibraryError
     from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError
@@ -56,7 +57,7 @@ def gen(
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
     except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError,
-            BvhError, ClipError, JointMapError) as exc:
+            BvhError, ClipError, JointMapError, LibraryError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)

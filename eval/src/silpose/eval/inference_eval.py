@@ -145,7 +145,8 @@ def robust_rows(ev) -> dict:
             if len(views) == K:
                 summary.setdefault(label, {})["mppca robust"] = float(np.mean(s["pose_cm"]))
         summary.setdefault(label, {})["mppca"] = float(np.mean(ev.score_model(ev.model, noisy, tuple(range(K)))["pose_cm"]))
-        summary[label]["knn"] = float(np.mean(ev.score_regressor("knn", tuple(range(K)), noisy)["pose_cm"]))
+        for kind in ("knn", "mlp"):
+            summary[label][kind] = float(np.mean(ev.score_regressor(kind, tuple(range(K)), noisy)["pose_cm"]))
     return summary
 
 
@@ -295,12 +296,12 @@ def e6_markdown(e6: dict) -> list[str]:
         clean = rb.get("clean", {})
         rows = []
         for label, v in rb.items():
-            rows.append([label, fmt(v.get("mppca")), fmt(v.get("mppca robust")), fmt(v.get("knn")),
+            rows.append([label, fmt(v.get("mppca")), fmt(v.get("mppca robust")), fmt(v.get("knn")), fmt(v.get("mlp")),
                          fmt(v.get("mppca", np.nan) / clean.get("mppca", np.nan)),
                          fmt(v.get("mppca robust", np.nan) / clean.get("mppca robust", np.nan))])
         lines += ["Robust inference (`silpose.model.robust`: Tukey-weighted contour points, iteratively reweighted "
                   "conditioning), all views; its rows are also in E3's table as `mppca robust`.", "",
-                  markdown_table(["noise", "MPPCA pose (cm)", "MPPCA robust pose (cm)", "kNN pose (cm)",
+                  markdown_table(["noise", "MPPCA pose (cm)", "MPPCA robust pose (cm)", "kNN pose (cm)", "MLP pose (cm)",
                                   "MPPCA / its clean", "robust / its clean"], rows), ""]
     mv = e6.get("missing_view") or []
     if mv:

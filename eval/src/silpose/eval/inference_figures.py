@@ -9,7 +9,7 @@ Each figure states how its example was chosen (never the best case silently):
   the three skeletons in 3D.
 - ``e6_robust_mask.png``: "mask strong", 4 views; the example at the 75th percentile of the pose-error
   gain of robust over Gaussian inference. Per view: the corrupted input, where robust inference cut
-  loops from it the input it used (``silpose.model.excursions``), the points it down-weighted below 0.5,
+  loops from it the input it used (``silpose.model.robust.excursions``), the points it down-weighted below 0.5,
   the Gaussian and the robust reconstructions over the true clean contour; below, the skeletons.
 - ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.garbage``: two people
   merged, a box, an all-white frame), every view's mask with its contour and the model's
@@ -144,7 +144,7 @@ def robust_figure(ev, path: Path, label: str = "mask strong") -> Path | None:
         _contour_axes(ax, [(d.test_contours[i, k], ":", "gray", "true clean"), (noisy[i, k], "-", "black", "corrupted input"),
                            (gauss.contours_px[i, k], "-", "tab:red", "Gaussian"),
                            (rob.contours_px[i, k], "-", "tab:green", "robust")], f"view {k}")
-        used = rob.robust_input_px[i, k]  # the input with its excursions cut (silpose.model.excursions)
+        used = rob.robust_input_px[i, k]  # the input with its excursions cut (silpose.model.robust.excursions)
         if rob.excursions_trimmed[i, k]:
             ax.plot(*np.vstack([used, used[:1]]).T, "--", color="tab:blue", lw=0.9, label="input, loops cut")
         low = rob.robust_weights[i, k] < 0.5

@@ -7,11 +7,14 @@ I/O (those live in ``silpose.app``). Modules, lowest first::
     shards            row blocks EM maps over (ShardSource, ArrayShards)
     mppca             MPPCA, the scikit-learn style estimator (paper eq. 3)
     conditioning      Gaussian conditioning of an MPPCA: condition, Conditioner (the one inference path)
-    checks            input checks of the shape model
     stature           metric stature from calibrated silhouettes
     features          FeatureLayout, contour normalisation, shape_vectors (paper eq. 4)
+    hypotheses        top-K pose hypotheses and the choice among them
+    result            InferenceResult: what infer returns, its row operations (take, put, merge, nan_like)
+    posterior         Posterior: conditioning on the present views, its cache of Conditioners
+    checks            input checks of the shape model
+    robust            robust inference: per-point weights, excursions, re-indexing, the loop
     streaming         DatasetShards: a dataset's Parquet shards as EM row blocks (locally or on Ray)
-    provenance        digests of the training data recorded in a model file
     shape_model       ShapeStructureModel: fit, fit_stream, infer (paper sections 3-4)
     persistence       save_model / load_model: the one-file .npz model, no pickle
     selection         validation grid search over q, M, structure weight and noise
@@ -20,17 +23,20 @@ I/O (those live in ``silpose.app``). Modules, lowest first::
 
 from __future__ import annotations
 
-from .conditioning import Conditioner, MixtureParams, Posterior, RowsPosterior, condition, condition_rows
+from .conditioning import BatchPosterior, Conditioner, MixtureParams, RowsPosterior, condition, condition_rows
 from .features import FeatureLayout
 from .mppca import MPPCA
 from .persistence import ModelFileError, load_model, read_header, save_model
 from .selection import SelectionResult, select
-from .shape_model import InferenceResult, ShapeStructureModel
+from .posterior import Posterior
+from .result import InferenceResult
+from .shape_model import ShapeStructureModel
 
 __all__ = [
     "MPPCA",
     "Conditioner",
     "MixtureParams",
+    "BatchPosterior",
     "Posterior",
     "RowsPosterior",
     "condition",

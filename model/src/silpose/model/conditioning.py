@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MixtureParams", "Posterior", "RowsPosterior", "Conditioner", "condition", "condition_rows"]
+__all__ = ["MixtureParams", "BatchPosterior", "RowsPosterior", "Conditioner", "condition", "condition_rows"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block of the batched products ...
@@ -81,7 +81,7 @@ class MixtureParams:
 
 
 @dataclass
-class Posterior:
+class BatchPosterior:
     """Posterior of a batch of N observations (M components, d dims, ``detail`` dims d_det).
 
     :attr:`mean` (N, d_miss): the mixture posterior mean E[b | a] of the missing dims. With
@@ -173,8 +173,8 @@ class Conditioner:
         detail: (d_det,) indices of missing dims for which ``best_mean`` and ``variance`` (and on request
             the component means and covariances) are returned; None = every missing dim.
         reconstruct: also reconstruct the observed dims: the posterior mean of all d dims
-            (``Posterior.reconstruction``); False = the missing dims only.
-        detail_only: the posterior mean of the ``detail`` dims only (``Posterior.missing_mean`` is then
+            (``BatchPosterior.reconstruction``); False = the missing dims only.
+        detail_only: the posterior mean of the ``detail`` dims only (``BatchPosterior.missing_mean`` is then
             (N, d_det)); the output product shrinks to O(N d_det q M). Excludes ``reconstruct``.
 
     Attributes: ``observed`` (d_a,), ``missing`` (d_miss,), ``detail`` (d_det,) indices.
@@ -273,7 +273,7 @@ class Conditioner:
         return (np.matmul(np.matmul(self.W_det, self.Kinv), self.W_det.transpose(0, 2, 1))
                 + self.sig2[:, None, None] * np.eye(self.detail.size))
 
-    def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False) -> Posterior:
+    def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False) -> BatchPosterior:
         """Posterior for observations X_obs (N, d_a) (or (d_a,) for one row), columns in ``observed`` order.
 
         ``return_components`` adds the component means of the detail dims (N, M, d_det); ``return_cov``
@@ -330,7 +330,7 @@ class Conditioner:
         if not np.all(np.isfinite(logm)):
             row = int(np.flatnonzero(~np.isfinite(logm))[0])
             raise ValueError(f"condition: the log density of row {row} is not finite (X_obs values too large)")
-        out = Posterior(mean if self.reconstruct else None, None if self.reconstruct else mean, best, var, resp,
+        out = BatchPosterior(mean if self.reconstruct else None, None if self.reconstruct else mean, best, var, resp,
                         logm, self.missing, self.detail)
         if return_components:
             out.component_means = cmeans
@@ -343,13 +343,13 @@ class Conditioner:
 
 
 def condition(model_or_params, X_obs, observed, noise_variance=0.0, *, detail=None, reconstruct: bool = False,
-              return_components: bool = False, return_cov: bool = False) -> Posterior:
+              return_components: bool = False, return_cov: bool = False) -> BatchPosterior:
     """Posterior of a mixture of PPCA given observations of some dims: ``Conditioner(...)(X_obs, ...)``.
 
     model_or_params: fitted MPPCA or :class:`MixtureParams`. X_obs (N, d_a): observed values, columns
     in the order of ``observed``, a (d,) bool mask or (d_a,) index array. noise_variance: scalar or
-    (d_a,) observation-noise variance added to the model noise of the observed dims. Returns a
-    :class:`Posterior` (module doc for the equations).
+    (d_a,) observation-noise variance added to the model noise of the observed dims. Returns
+    a :class:`BatchPosterior` (module doc for the equations).
     """
     return Conditioner(model_or_params, observed, noise_variance, detail, reconstruct)(
         X_obs, return_components=return_components, return_cov=return_cov)

@@ -51,7 +51,7 @@ forward half of the Viterbi path, without looking ahead.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -120,10 +120,10 @@ class Hypotheses:
     """
 
     joints: np.ndarray
-    probability: np.ndarray
+    probability: np.ndarray = field(metadata={"fill": 0.0})  # fills: frames without a view (silpose.model.result)
     component: np.ndarray
     heading: np.ndarray
-    chosen: np.ndarray
+    chosen: np.ndarray = field(metadata={"fill": 0})
 
     @property
     def k(self) -> int:

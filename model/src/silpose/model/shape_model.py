@@ -4,17 +4,14 @@ Training vectors are built by :class:`~silpose.model.features.FeatureLayout` (pa
 the modelled views' normalised contours followed by the weighted root-relative joints. A mixture
 of PPCA (:class:`silpose.model.mppca.MPPCA`, paper eq. 3) is the prior density.
 
-Inference (paper section 4): the observed dimensions are the *present views'* contour
-coordinates; the missing dimensions are the absent views' contours and the whole structure block.
-Missing dimensions are marginalised by dropping their rows, never zero-filled; rows with different
-missing-view patterns are grouped and conditioned separately. Every modelled view gets a
-reconstruction: missing views from the conditional mean, present views from their Bayesian
-reconstruction ``mu_a + W_a E[x | a]`` (the shape model of [8]). The numerics are the exact Gaussian
-conditioning of :mod:`silpose.model.conditioning` (the tests check it against dense conditioning).
-
 Fitting: :meth:`ShapeStructureModel.fit` on arrays in memory, :meth:`~ShapeStructureModel.fit_stream`
 out of core over a dataset's Parquet shards (:mod:`silpose.model.streaming`, locally or on Ray);
 both build the vectors with :func:`silpose.model.features.shape_vectors` and run the same EM.
+
+Inference (paper section 4): :meth:`ShapeStructureModel.infer` checks its inputs
+(:mod:`silpose.model.checks`), conditions on the present views (:class:`~silpose.model.posterior.Posterior`),
+optionally robustly (:mod:`silpose.model.robust`), and adds plausibility, hypotheses and untangled contours
+to the :class:`~silpose.model.result.InferenceResult`.
 
 The model is a scikit-learn estimator: ``fit(X, y)`` with X the multi-view pixel contours (N, K, n, 2)
 and y the joints, ``predict(X)`` the joints, ``score(X, y)`` the negative mean joint error (cm), and
@@ -24,7 +21,6 @@ and y the joints, ``predict(X)`` the joints, ``score(X, y)`` the negative mean j
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
@@ -34,20 +30,19 @@ from sklearn.exceptions import NotFittedError
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.skeleton import N_JOINTS
 
-from .checks import check_contours, check_factors, check_present
-from .conditioning import Conditioner
-from .features import FeatureLayout, denormalise_contours, normalise_contours, shape_vectors
-from .hypotheses import Hypotheses, consensus_choice, heading, top_hypotheses
+from .checks import check_contours, check_views, model_inputs
+from .features import FeatureLayout, shape_vectors
+from .hypotheses import consensus_choice, top_hypotheses
 from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
-from .plausibility import PlausibilityCalibration, convex_in_every_view, view_subsets
-from .provenance import manifest_sha256
-from .excursions import trim_excursions
-from .reindex import reindex_contours
-from .robust import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
-from .untangle import untangle as untangle_contours
+from .plausibility import PlausibilityCalibration, convex_in_every_view
+from .posterior import Posterior
+from .result import InferenceResult
+from .robust import RobustSettings, robust_infer
 from .shards import split_global_rows
-from .stature import REFERENCE_STATURE, estimate_stature
 from .streaming import DatasetShards
+from .untangle import untangle as untangle_contours
+
+__all__ = ["ShapeStructureModel", "InferenceResult", "ModelNotFittedError"]
 
 # Defaults. History: chosen 2026-11-22 by validation joint error on the `default` preset (M 20, q 40, w 30,
 # s2 0.03 in the stature joint frame; grids in git history). Re-measured 2026-11-30 (issue 12) after the
@@ -81,72 +76,6 @@ DEFAULT_N_LATENT = 40
 DEFAULT_STRUCTURE_WEIGHT = 30.0
 DEFAULT_NOISE_VARIANCE = 0.03
 _FEATURE_BLOCK = 4096  # rows per block of features()
-_CONDITIONER_CACHE_BYTES = 256 << 20  # cached Conditioners of one model (ShapeStructureModel._conditioner)
-
-
-@dataclass
-class InferenceResult:
-    """Output of :meth:`ShapeStructureModel.infer` for N frames and K modelled views.
-
-    Attributes:
-        joints: (N, 19, 3) root-relative joints, metres, mixture posterior mean.
-        joints_best: (N, 19, 3) the most probable component's conditional mean, metres.
-        joint_std: (N, 19, 3) posterior standard deviation per coordinate, metres.
-        contours_norm: (N, K, n, 2) reconstructed normalised contours of every modelled view.
-        contours_px: (N, K, n, 2) reconstructions in pixels; NaN where the view's normalisation is unknown.
-        centroid: (N, K, 2) px normalisation centroid used (NaN where unknown).
-        scale: (N, K) px normalisation scale used (NaN where unknown).
-        views_present: (N, K) bool, which modelled views were observed.
-        responsibilities: (N, M) component posteriors given the observed rows.
-        log_marginal: (N,) log density of the observed rows under the prior (nats; with robust inference
-            still that of the observed input).
-        views: rig indices of the K modelled views.
-        plausibility: (N,) % of held-out training inputs with the same view subset whose log marginal is
-            lower (``silpose.model.plausibility``); None when the model has no calibration for this noise.
-        implausible: (N,) bool, plausibility below the calibration's flag percentile; None as above.
-        hypotheses: the top-K hypotheses (``infer(hypotheses=K)``), else None.
-        robust_weights: (N, K, n) final per-point weights of robust inference (0 for absent views), else None.
-        log_marginal_robust: (N,) log density of the last robust pass's pseudo-observations, else None.
-        noise_variance: (N,) observation noise s^2 each frame was conditioned with by robust inference's
-            adaptive noise (``silpose.model.robust``), else None (the model's or the given s^2).
-        excursions_trimmed: (N, K) bool, views whose excursions (shadows, blobs, bitten holes) robust inference
-            trimmed before its final pass (``silpose.model.excursions``; ``robust_weights`` then index the trimmed
-            contour), else None.
-        reindexed: (N, K) bool, views whose points robust inference slid back along their outline before its final
-            pass (``silpose.model.reindex``), else None.
-        robust_input_px: (N, K, n, 2) the observed contours robust inference's final pass started from: the input
-            with those excursions trimmed and slides undone (``robust_weights`` index these points), else None.
-    """
-
-    joints: np.ndarray
-    joints_best: np.ndarray
-    joint_std: np.ndarray
-    contours_norm: np.ndarray
-    contours_px: np.ndarray
-    centroid: np.ndarray
-    scale: np.ndarray
-    views_present: np.ndarray
-    responsibilities: np.ndarray
-    log_marginal: np.ndarray
-    views: tuple[int, ...] = field(default=())
-    plausibility: np.ndarray | None = None
-    implausible: np.ndarray | None = None
-    hypotheses: Hypotheses | None = None
-    robust_weights: np.ndarray | None = None
-    log_marginal_robust: np.ndarray | None = None
-    noise_variance: np.ndarray | None = None
-    excursions_trimmed: np.ndarray | None = None
-    reindexed: np.ndarray | None = None
-    robust_input_px: np.ndarray | None = None
-
-
-def _replace_rows(full: InferenceResult, part: InferenceResult, rows: np.ndarray) -> None:
-    """Write ``part`` (the results of frames ``rows`` of ``full``, inferred again) into ``full``, per-frame field by field."""
-    n = len(full.joints)
-    for name in full.__dataclass_fields__:
-        value, new = getattr(full, name), getattr(part, name)
-        if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == n and isinstance(new, np.ndarray):
-            value[rows] = new
 
 
 class ModelNotFittedError(NotFittedError, RuntimeError):
@@ -331,10 +260,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         n_rig = c.shape[1]
         if rig is not None and len(rig) != n_rig:
             raise ValueError(f"rig has {len(rig)} cameras but contours_px has {n_rig} views")
-        views = tuple(range(n_rig)) if self.views is None else tuple(int(v) for v in self.views)
-        bad = [v for v in views if not 0 <= v < n_rig]
-        if bad:
-            raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
+        views = check_views(self.views, n_rig)
         self.layout_ = FeatureLayout(views, c.shape[2], N_JOINTS, float(self.structure_weight),
                                      self._resolve_joint_frame(rig))
         self.n_rig_views_ = n_rig
@@ -381,10 +307,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         if int(self.n_fits) != 1:
             raise ValueError(f"n_fits = {self.n_fits}: pooled fits need the in-memory fit (fit), not the streaming one")
         n_rig = source.n_rig_views
-        views = tuple(range(n_rig)) if self.views is None else tuple(int(v) for v in self.views)
-        bad = [v for v in views if not 0 <= v < n_rig]
-        if bad:
-            raise ValueError(f"views {bad} do not exist: the data have {n_rig} views (0..{n_rig - 1})")
+        views = check_views(self.views, n_rig)
         layout = FeatureLayout(views, source.n_points, N_JOINTS, float(self.structure_weight),
                                self._resolve_joint_frame(source.rig))
         source = source.with_layout(layout)
@@ -402,24 +325,6 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(self.mixture_.n_fit_samples_)
-        return self
-
-    def fit_dataset(self, split) -> "ShapeStructureModel":
-        """Fit on a ``silpose.shared.dataset.DatasetSplit`` (its contours, joints and rig).
-
-        Records the dataset folder and the sha256 of its ``manifest.json`` (when present) in
-        ``dataset_info_``, which persistence stores in the model file.
-        """
-        self.fit(split.contours, split.joints, rig=split.rig)
-        info: dict = {"n_samples": int(len(split.joints))}
-        files = list(getattr(split, "files", []) or [])
-        if files:
-            root = files[0].parent
-            info["root"] = str(root)
-            info["manifest_sha256"] = manifest_sha256(root)
-            info["config_name"] = (split.metadata.get("config") or {}).get("name")
-            info["generator_config"] = split.metadata.get("config")
-        self.dataset_info_ = info
         return self
 
     # ------------------------------------------------------------------ scoring
@@ -511,301 +416,50 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         if int(hypotheses) < 0:
             raise ValueError(f"hypotheses must be >= 0, got {hypotheses}")
         settings = RobustSettings() if robust is True else (robust or None)
-        present, c_mod, cen_true, sc_true = self._prepare(contours_px, views_present, input_views, centroid, scale)
+        inputs = model_inputs(self.fitted_layout(), self.n_rig_views_, contours_px, views_present, input_views,
+                              centroid, scale)
+        posterior = self.posterior()
         want = hypotheses > 0  # component means (hypotheses) come from the last pass only
         if settings is None:
-            res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=want)
+            res, comp = posterior.infer(inputs, s2, components=want)
         else:
-            res, comp = self._infer_robust(c_mod, present, cen_true, sc_true, s2, settings, want)
-            observed_lm = res.log_marginal.copy()  # _replace_rows below writes into res's arrays
-            trimmed = np.zeros(present.shape, dtype=bool)
-            reindexed = np.zeros(present.shape, dtype=bool)
-            work = c_mod
-            # shadows, blobs, holes (silpose.model.excursions), then slides along the outline (silpose.model.reindex)
-            steps = ([(trim_excursions, settings.excursions, trimmed)] * int(settings.excursion_passes)
-                     + [(reindex_contours, settings.reindex, reindexed)] * int(settings.reindex_passes))
-            settled = set()  # a step that changed nothing would change nothing on its next pass either
-            for step, step_settings, done in steps:
-                if step in settled:
-                    continue
-                new, changed = step(work, res.contours_px, present, step_settings)
-                rows = np.flatnonzero(changed.any(axis=1))
-                if rows.size == 0:
-                    settled.add(step)
-                    continue
-                work = np.where(changed[..., None, None], new, work)
-                done |= changed
-                again, again_comp = self._infer_robust(work[rows], present[rows], cen_true[rows], sc_true[rows], s2,
-                                                       settings, want)
-                _replace_rows(res, again, rows)
-                if comp is not None:
-                    comp[rows] = again_comp
-            res.log_marginal = observed_lm  # of the input as observed, excursions and all
-            res.excursions_trimmed = trimmed
-            res.reindexed = reindexed
-            res.robust_input_px = np.asarray(work, dtype=np.float64)
+            res, comp = robust_infer(posterior, inputs, s2, settings, want)
         cal = getattr(self, "plausibility_", None)
         if cal is not None and cal.applies_to(s2):
-            res.plausibility = cal.percentile(res.log_marginal, present)
+            res.plausibility = cal.percentile(res.log_marginal, inputs.present)
             # a likelihood percentile cannot flag a smooth blob: convex silhouettes are flagged too
-            res.implausible = cal.implausible(res.plausibility) | convex_in_every_view(c_mod, present)
+            res.implausible = cal.implausible(res.plausibility) | convex_in_every_view(inputs.contours, inputs.present)
         if hypotheses > 0:
             hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
             if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
-                hyp.chosen = consensus_choice(hyp, self._pair_headings(c_mod, present, s2))
+                hyp.chosen = consensus_choice(hyp, posterior.pair_headings(inputs, s2))
             res.hypotheses = hyp
         if untangle:
             res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
         return res
 
-    def _infer_robust(self, c_mod: np.ndarray, present: np.ndarray, cen_true: np.ndarray, sc_true: np.ndarray,
-                      s2: float, settings: RobustSettings, want: bool) -> tuple[InferenceResult, np.ndarray | None]:
-        """Robust inference (``silpose.model.robust``) of prepared inputs (:meth:`_prepare`): the Gaussian pass,
-        the adaptive noise, then ``settings.iterations`` reweighted passes; returns the last pass's result (with
-        ``log_marginal`` that of the input, ``log_marginal_robust``, ``robust_weights``, ``noise_variance``) and,
-        with ``want``, its component means (as :meth:`_infer_prepared`)."""
-        res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2, components=False)
-        observed_lm = res.log_marginal
-        if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
-            with np.errstate(invalid="ignore", over="ignore"):
-                norm_obs = normalise_contours(c_mod)[0]
-            s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-            res, comp = self._infer_prepared(c_mod, present, cen_true, sc_true, s2_rows, components=False)
-        else:
-            s2_rows = s2
-        for it in range(int(settings.iterations)):
-            matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
-            u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
-            pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
-                              c_mod)
-            last = it == int(settings.iterations) - 1
-            res, comp = self._infer_prepared(pseudo, present, cen_true, sc_true, s2_rows, components=want and last)
-        if settings.noise_scale is not None:
-            res.noise_variance = s2_rows
-        res.log_marginal_robust = res.log_marginal
-        res.log_marginal = observed_lm
-        res.robust_weights = u
-        return res, comp
-
-    def _prepare(self, contours_px, views_present, input_views, centroid, scale):
-        """Inputs in the model's view order: (present (N, K), contours (N, K, n, 2) px, true centroid
-        (N, K, 2) and scale (N, K) where given (NaN otherwise)); shapes and values checked."""
+    def empty_result(self, n: int, noise_variance: float | None = None, *, hypotheses: int = 0,
+                     robust: bool | RobustSettings = False, **_ignored) -> InferenceResult:
+        """The result :meth:`infer` with these options would give ``n`` frames without any observed view (they
+        cannot be inferred): NaN, no view present, the option's fields at their fill values
+        (:meth:`InferenceResult.nan <silpose.model.result.InferenceResult.nan>`). Other ``infer`` options are
+        accepted and ignored."""
         layout = self.fitted_layout()
-        c_in = check_contours(contours_px, "contours_px", n_points=layout.n_points)
-        n, k_in = c_in.shape[:2]
-        cols = self._input_columns(k_in, input_views)  # (K,) input column of each modelled view or -1
-        present_in = check_present(views_present, n, k_in)
-        kmod = layout.n_views
-        cen_in, sc_in = check_factors(centroid, scale, n, k_in)
-        if np.array_equal(cols, np.arange(k_in)):  # input columns are the modelled views, in order: no copies
-            present, c_mod = present_in, c_in
-            cen_true = cen_in if cen_in is not None else np.full((n, kmod, 2), np.nan)
-            sc_true = sc_in if sc_in is not None else np.full((n, kmod), np.nan)
-        else:
-            present = np.zeros((n, kmod), dtype=bool)
-            c_mod = np.full((n, kmod, layout.n_points, 2), np.nan)
-            cen_true = np.full((n, kmod, 2), np.nan)
-            sc_true = np.full((n, kmod), np.nan)
-            for p, col in enumerate(cols):
-                if col < 0:
-                    continue
-                present[:, p] = present_in[:, col]
-                c_mod[:, p] = c_in[:, col]
-                if cen_in is not None:
-                    cen_true[:, p] = cen_in[:, col]
-                    sc_true[:, p] = sc_in[:, col]
-        all_present = bool(present.all())
-        finite = np.isfinite(c_mod).all() if all_present else np.isfinite(c_mod).all(axis=(2, 3))[present].all()
-        if not finite:
-            bad = ~np.isfinite(c_mod).all(axis=(2, 3)) & present
-            r, p = np.argwhere(bad)[0]
-            raise ValueError(
-                f"contours_px has NaN/inf in an observed view: frame {r}, view {layout.views[p]} "
-                f"({int(bad.sum())} observed views affected); mark such views absent in views_present"
-            )
-        none = ~present.any(axis=1)
-        if none.any():
-            raise ValueError(
-                f"every modelled view is missing in {int(none.sum())} frame(s) (first: frame "
-                f"{int(np.flatnonzero(none)[0])}); at least one of views {layout.views} must be observed"
-            )
-        return present, c_mod, cen_true, sc_true
+        s2 = self.noise_variance if noise_variance is None else noise_variance
+        cal = getattr(self, "plausibility_", None)
+        return InferenceResult.nan(n, layout.views, layout.n_points, int(self.mixture_.weights_.shape[0]),
+                                   plausibility=cal is not None and cal.applies_to(s2), hypotheses=int(hypotheses),
+                                   robust=bool(robust))
 
-    def _infer_prepared(self, c_mod: np.ndarray, present: np.ndarray, cen_true: np.ndarray, sc_true: np.ndarray,
-                        s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
-        """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
-
-        Inputs in the model's view order (:meth:`_prepare`); ``s2`` a float or (N,) one noise variance per
-        frame (robust inference). With ``components`` also returns each component's conditional mean of the
-        joints (N, M, 19, 3) metres, else None.
-        """
+    def posterior(self) -> Posterior:
+        """The :class:`~silpose.model.posterior.Posterior` of the fitted mixture (kept with its cache of
+        conditioners until the mixture, layout or rig change)."""
         layout = self.fitted_layout()
-        n, kmod = present.shape
-        all_present = bool(present.all())
-        # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
-        with np.errstate(invalid="ignore", over="ignore"):
-            norm, cen, sc = normalise_contours(c_mod)
-        overflow = present & ~(np.isfinite(sc) & np.isfinite(cen).all(axis=-1))  # (N, K): O(N K) check
-        if overflow.any():
-            r, p = np.argwhere(overflow)[0]
-            raise ValueError(
-                f"contours_px values too large to normalise (overflow) in an observed view: frame {r}, view "
-                f"{layout.views[p]}; pixel coordinates must be finite and of image size"
-            )
-        if not all_present:  # keep the known factors for absent views
-            cen = np.where(present[..., None], cen, cen_true)
-            sc = np.where(present, sc, sc_true)
-
-        d = layout.dim
-        M = int(self.mixture_.weights_.shape[0])
-        flat = norm.reshape(n, -1)
-        per_row = np.ndim(s2) > 0
-        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
-            levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
-            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
-            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
-            inverse = inverse.reshape(-1)
-        elif all_present or n == 1:
-            patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
-        else:
-            patterns, inverse = np.unique(present, axis=0, return_inverse=True)
-            inverse = inverse.reshape(-1)
-        if not per_row:
-            group_s2 = np.full(len(patterns), float(s2))
-        cmeans = None
-        if len(patterns) == 1:  # the common case: no fancy-index copies
-            x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self._conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
-            mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
-                                           post.responsibilities, post.log_marginal)
-            cmeans = post.component_means
-        else:
-            mean = np.empty((n, d))
-            best = np.empty((n, layout.structure_dim))
-            var = np.empty((n, layout.structure_dim))
-            resp = np.empty((n, M))
-            logm = np.empty(n)
-            if components:
-                cmeans = np.empty((n, M, layout.structure_dim))
-            for g, pattern in enumerate(patterns):
-                rows = np.flatnonzero(inverse == g)
-                x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self._conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
-                mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
-                resp[rows], logm[rows] = post.responsibilities, post.log_marginal
-                if components:
-                    cmeans[rows] = post.component_means
-
-        rec, joints = layout.split(mean)
-        w = layout.structure_weight
-        joints_best = best.reshape(n, layout.n_joints, 3) / w
-        # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
-        joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
-        comp_joints = None if cmeans is None else cmeans.reshape(n, M, layout.n_joints, 3) / w
-        if layout.joint_frame == "stature":  # back from "a 1.75 m walker" to this walker's metres
-            factor = self._stature(c_mod, present) / REFERENCE_STATURE
-            joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
-            if comp_joints is not None:
-                comp_joints = comp_joints * factor[:, None, None, None]
-        px = denormalise_contours(rec, cen, sc)
-        res = InferenceResult(
-            joints=joints,
-            joints_best=joints_best,
-            joint_std=joint_std,
-            contours_norm=rec,
-            contours_px=px,
-            centroid=cen,
-            scale=sc,
-            views_present=present,
-            responsibilities=resp,
-            log_marginal=logm,
-            views=layout.views,
-        )
-        return res, comp_joints
-
-    def _pair_headings(self, c_mod: np.ndarray, present: np.ndarray, s2: float) -> np.ndarray:
-        """(N, V) headings (radians) of the posterior mean joints given each pair of present views (V = K (K - 1) / 2
-        columns, NaN where a view of the pair is absent); frames with fewer than 3 present views get no votes
-        (all NaN). See :func:`~silpose.model.hypotheses.consensus_choice`."""
-        layout = self.fitted_layout()
-        n, kmod = present.shape
-        pairs = [s for s in view_subsets(kmod) if len(s) == 2]
-        votes = np.full((n, len(pairs)), np.nan)
-        voting = present.sum(axis=1) >= 3
-        if not voting.any():
-            return votes
-        with np.errstate(invalid="ignore", over="ignore"):
-            norm, _, _ = normalise_contours(c_mod)
-        flat = norm.reshape(n, -1)
-        for j, pair in enumerate(pairs):
-            pattern = np.zeros(kmod, dtype=bool)
-            pattern[list(pair)] = True
-            rows = np.flatnonzero(voting & present[:, pattern].all(axis=1))
-            if rows.size == 0:
-                continue
-            x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-            post = self._conditioner(pattern, s2, structure_only=True)(x_obs)
-            votes[rows, j] = heading(post.missing_mean.reshape(rows.size, layout.n_joints, 3))
-        return votes
-
-    def _stature(self, contours_mod: np.ndarray, present: np.ndarray) -> np.ndarray:
-        """(N,) metres: stature measured from the present modelled views (``silpose.model.stature``)."""
-        if self.rig_ is None:
-            raise ValueError("this model's joints are in the 'stature' frame but it has no camera rig")
-        cams = [self.rig_[v] for v in self.fitted_layout().views]
-        return estimate_stature(contours_mod, cams, present)
-
-    def _conditioner(self, pattern: np.ndarray, s2: float, structure_only: bool = False) -> Conditioner:
-        """Cached :class:`~silpose.model.conditioning.Conditioner` for one present-view pattern and s^2.
-
-        Its q x q factorisations depend only on the pattern and s^2, so they are computed once per
-        (pattern, s^2) and fitted mixture; repeated single-frame calls then cost O((d_obs + d) q M).
-        ``structure_only``: a conditioner whose mean covers the joints only (``Posterior.missing_mean``,
-        (N, 57)), for the consensus votes.
-        """
-        cache = getattr(self, "_conditioner_cache", None)
-        if cache is None or cache[0] is not self.mixture_:
-            cache = (self.mixture_, {})
-            self._conditioner_cache = cache
-        key = (np.asarray(pattern, dtype=bool).tobytes(), s2, bool(structure_only))
-        post = cache[1].pop(key, None)
-        if post is None:
-            layout = self.fitted_layout()
-            det = np.arange(layout.structure_slice.start, layout.structure_slice.stop)
-            post = Conditioner(
-                self.mixture_, layout.observed_mask(pattern), s2, detail=det,
-                reconstruct=not structure_only, detail_only=structure_only,
-            )
-        cache[1][key] = post  # most recently used last
-        # bounded by bytes, least recently used first out: one conditioner holds O(d M q) floats (about 60 MB
-        # for M 60, q 40 on 4 views), and a run may visit 2 (2^K - 1) view patterns per s^2
-        total = sum(c.nbytes for c in cache[1].values())
-        while total > _CONDITIONER_CACHE_BYTES and len(cache[1]) > 1:
-            total -= cache[1].pop(next(iter(cache[1]))).nbytes
+        post = getattr(self, "_posterior", None)
+        if post is None or post.mixture is not self.mixture_ or post.layout is not layout or post.rig is not self.rig_:
+            post = Posterior(self.mixture_, layout, self.rig_)
+            self._posterior = post
         return post
-
-    def _input_columns(self, k_in: int, input_views: Sequence[int] | None) -> np.ndarray:
-        """(K_mod,) input column of each modelled view, -1 when the input does not contain it."""
-        layout = self.fitted_layout()
-        if input_views is None:
-            if k_in == self.n_rig_views_:
-                input_views = tuple(range(k_in))
-            elif k_in == layout.n_views:
-                input_views = layout.views
-            else:
-                raise ValueError(
-                    f"contours_px has {k_in} views; expected {layout.n_views} (the modelled views "
-                    f"{layout.views}) or {self.n_rig_views_} (all rig views), or pass input_views"
-                )
-        input_views = [int(v) for v in input_views]
-        if len(input_views) != k_in:
-            raise ValueError(f"input_views names {len(input_views)} views but contours_px has {k_in}")
-        unknown = [v for v in input_views if not 0 <= v < self.n_rig_views_]
-        if unknown:
-            raise ValueError(f"unknown view indices {unknown}: the model's rig has views 0..{self.n_rig_views_ - 1}")
-        if len(set(input_views)) != len(input_views):
-            raise ValueError(f"input_views has duplicates: {input_views}")
-        return np.array([input_views.index(v) if v in input_views else -1 for v in layout.views])
 
 
 def _joints_array(y, name: str) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The observed views of a batch that a reconstruction can be compared with, flattened for per-view repairs.
 
-Robust inference's repairs of an observed contour against its reconstruction (``silpose.model.excursions``,
-``silpose.model.reindex``) visit the same views: present, with finite points and a finite reconstruction.
+Robust inference's repairs of an observed contour against its reconstruction (``silpose.model.robust.excursions``,
+``silpose.model.robust.reindex``) visit the same views: present, with finite points and a finite reconstruction.
 :func:`observed_views` lists them once, with each view's normalisation scale (docs/conventions.md, "Contours":
 the RMS distance of its points from their centroid), and holds the output the repairs write into.
 """

@@ -5,7 +5,7 @@ model compares point i of the input with point i of its reconstruction. Anything
 a stretch of outline -- a hole bitten into it, a blob or a shadow stuck to it, a head outline that moves the
 start point -- slides every later point along the outline. Per-point robust weights (``silpose.model.robust``)
 cannot undo a slide: the slid points lie *on* the body's outline, just at the wrong index. Excursion trimming
-(``silpose.model.excursions``) removes the loops that add many points, not the few points a bite adds.
+(``silpose.model.robust.excursions``) removes the loops that add many points, not the few points a bite adds.
 
 :func:`reindex_contours` measures the slide against the robust reconstruction and resamples the input:
 
@@ -169,7 +169,7 @@ def resample_by_index(points: np.ndarray, positions: np.ndarray) -> np.ndarray:
 def reindex_contours(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
                      settings: ReindexSettings = ReindexSettings()) -> tuple[np.ndarray, np.ndarray]:
     """Undo the significant slides of observed contours against their reconstructions (module doc); the
-    arguments and the usable views are those of :func:`~silpose.model.observed_views.observed_views`, and
+    arguments and the usable views are those of :func:`~silpose.model.robust.observed_views.observed_views`, and
     ``settings`` its thresholds.
 
     Returns:

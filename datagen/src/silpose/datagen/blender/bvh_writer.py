@@ -24,7 +24,7 @@ def write_bvh(message: dict) -> None:
     import addon_utils
     from mathutils import Matrix, Vector
 
-    from .blender_scene import quiet_stdout
+    from .scene import quiet_stdout
 
     joints = np.asarray(message["joints"], float)
     names, parents = list(message["names"]), list(message["parents"])

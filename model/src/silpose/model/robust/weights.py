@@ -23,8 +23,8 @@ the component weights are recomputed, so the winning component can change.
 point among indices p - window .. p + window (an arc-length shift from a blob or shadow elsewhere
 on the contour otherwise makes every later point an outlier).
 
-After the passes, excursions (loops a shadow or blob adds to the outline; ``silpose.model.excursions``) are
-trimmed and slides of the points along the outline (``silpose.model.reindex``) undone against the robust
+After the passes, excursions (loops a shadow or blob adds to the outline; ``silpose.model.robust.excursions``) are
+trimmed and slides of the points along the outline (``silpose.model.robust.reindex``) undone against the robust
 reconstruction, and the changed frames inferred again.
 
 Adaptive observation noise (``noise_scale``, :func:`frame_noise_variance`). The model's s^2 is one
@@ -69,11 +69,11 @@ class RobustSettings:
     window: correspondence search half-width in contour points (0 = index correspondences);
     noise_scale: adaptive observation noise (:func:`frame_noise_variance`); None = the model's s^2;
     excursion_passes: times the observed contours' excursions (shadows, blobs, bitten holes) are trimmed
-        against the robust reconstruction and the changed frames inferred again (``silpose.model.excursions``;
+        against the robust reconstruction and the changed frames inferred again (``silpose.model.robust.excursions``;
         0 = never); excursions: their thresholds;
     reindex_passes: times a significant slide of the observed points along their outline (a bite, blob or shadow
         elsewhere on it) is undone against the robust reconstruction and the changed frames inferred again
-        (``silpose.model.reindex``; after the excursions; 0 = never); reindex: its settings.
+        (``silpose.model.robust.reindex``; after the excursions; 0 = never); reindex: its settings.
     """
 
     iterations: int = 8

@@ -1,0 +1,189 @@
+"""The posterior of a fitted shape+structure model given observed views: the conditioning orchestration.
+
+Inference (paper section 4): the observed dimensions are the *present views'* contour coordinates; the
+missing dimensions are the absent views' contours and the whole structure block. Missing dimensions are
+marginalised by dropping their rows, never zero-filled; rows with different missing-view patterns (and, in
+robust inference, different noise levels) are grouped and conditioned separately. Every modelled view gets a
+reconstruction: missing views from the conditional mean, present views from their Bayesian reconstruction
+``mu_a + W_a E[x | a]`` (the shape model of [8]). The numerics are the exact Gaussian conditioning of
+:mod:`silpose.model.conditioning` (the tests check it against dense conditioning).
+
+:class:`Posterior` holds what one fitted mixture needs to answer: its layout, its rig (the 'stature' joint
+frame) and a cache of :class:`~silpose.model.conditioning.Conditioner` objects, one per present-view pattern
+and noise level. ``ShapeStructureModel.infer`` calls :meth:`Posterior.infer` once, robust inference
+(``silpose.model.robust``) once per pass.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .checks import Inputs
+from .conditioning import Conditioner
+from .features import FeatureLayout, denormalise_contours, normalise_contours
+from .hypotheses import heading
+from .plausibility import view_subsets
+from .result import InferenceResult
+from .stature import REFERENCE_STATURE, estimate_stature
+
+__all__ = ["Posterior"]
+
+#: bytes of the cached Conditioners of one Posterior
+CACHE_BYTES = 256 << 20
+
+
+class Posterior:
+    """Conditioning of one fitted mixture on observed views (module doc).
+
+    Args:
+        mixture: the fitted :class:`~silpose.model.mppca.MPPCA` (or its parameters).
+        layout: the shape-vector layout it was fitted on.
+        rig: the ``silpose.shared.camera.Rig`` (needed for the 'stature' joint frame), or None.
+    """
+
+    def __init__(self, mixture, layout: FeatureLayout, rig=None) -> None:
+        self.mixture = mixture
+        self.layout = layout
+        self.rig = rig
+        self.n_components = int(mixture.weights_.shape[0])
+        self._cache: dict = {}
+
+    def infer(self, inputs: Inputs, s2, components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
+        """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
+
+        ``s2`` a float or (N,) one noise variance per frame (robust inference). With ``components`` also
+        returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None.
+        """
+        layout = self.layout
+        c_mod, present = inputs.contours, inputs.present
+        n, kmod = present.shape
+        all_present = bool(present.all())
+        # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
+        with np.errstate(invalid="ignore", over="ignore"):
+            norm, cen, sc = normalise_contours(c_mod)
+        overflow = present & ~(np.isfinite(sc) & np.isfinite(cen).all(axis=-1))  # (N, K): O(N K) check
+        if overflow.any():
+            r, p = np.argwhere(overflow)[0]
+            raise ValueError(
+                f"contours_px values too large to normalise (overflow) in an observed view: frame {r}, view "
+                f"{layout.views[p]}; pixel coordinates must be finite and of image size"
+            )
+        if not all_present:  # keep the known factors for absent views
+            cen = np.where(present[..., None], cen, inputs.centroid)
+            sc = np.where(present, sc, inputs.scale)
+
+        d = layout.dim
+        M = self.n_components
+        flat = norm.reshape(n, -1)
+        per_row = np.ndim(s2) > 0
+        if per_row:  # group by (pattern, noise): the noise level index joins the pattern columns
+            levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
+            keys, inverse = np.unique(np.column_stack([present, level_of.reshape(-1)]), axis=0, return_inverse=True)
+            patterns, group_s2 = keys[:, :kmod].astype(bool), levels[keys[:, kmod]]
+            inverse = inverse.reshape(-1)
+        elif all_present or n == 1:
+            patterns, inverse = present[:1], np.zeros(n, dtype=np.intp)
+        else:
+            patterns, inverse = np.unique(present, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+        if not per_row:
+            group_s2 = np.full(len(patterns), float(s2))
+        cmeans = None
+        if len(patterns) == 1:  # the common case: no fancy-index copies
+            x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
+            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components)
+            mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
+                                           post.responsibilities, post.log_marginal)
+            cmeans = post.component_means
+        else:
+            mean = np.empty((n, d))
+            best = np.empty((n, layout.structure_dim))
+            var = np.empty((n, layout.structure_dim))
+            resp = np.empty((n, M))
+            logm = np.empty(n)
+            if components:
+                cmeans = np.empty((n, M, layout.structure_dim))
+            for g, pattern in enumerate(patterns):
+                rows = np.flatnonzero(inverse == g)
+                x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
+                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components)
+                mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
+                resp[rows], logm[rows] = post.responsibilities, post.log_marginal
+                if components:
+                    cmeans[rows] = post.component_means
+
+        rec, joints = layout.split(mean)
+        w = layout.structure_weight
+        joints_best = best.reshape(n, layout.n_joints, 3) / w
+        # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
+        joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
+        comp_joints = None if cmeans is None else cmeans.reshape(n, M, layout.n_joints, 3) / w
+        if layout.joint_frame == "stature":  # back from "a 1.75 m walker" to this walker's metres
+            factor = self.stature(c_mod, present) / REFERENCE_STATURE
+            joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
+            if comp_joints is not None:
+                comp_joints = comp_joints * factor[:, None, None, None]
+        px = denormalise_contours(rec, cen, sc)
+        res = InferenceResult(joints=joints, joints_best=joints_best, joint_std=joint_std, contours_norm=rec,
+                              contours_px=px, centroid=cen, scale=sc, views_present=present, responsibilities=resp,
+                              log_marginal=logm, views=layout.views)
+        return res, comp_joints
+
+    def pair_headings(self, inputs: Inputs, s2: float) -> np.ndarray:
+        """(N, V) headings (radians) of the posterior mean joints given each pair of present views (V = K (K - 1) / 2
+        columns, NaN where a view of the pair is absent); frames with fewer than 3 present views get no votes
+        (all NaN). See :func:`~silpose.model.hypotheses.consensus_choice`."""
+        layout = self.layout
+        present = inputs.present
+        n, kmod = present.shape
+        pairs = [s for s in view_subsets(kmod) if len(s) == 2]
+        votes = np.full((n, len(pairs)), np.nan)
+        voting = present.sum(axis=1) >= 3
+        if not voting.any():
+            return votes
+        with np.errstate(invalid="ignore", over="ignore"):
+            norm, _, _ = normalise_contours(inputs.contours)
+        flat = norm.reshape(n, -1)
+        for j, pair in enumerate(pairs):
+            pattern = np.zeros(kmod, dtype=bool)
+            pattern[list(pair)] = True
+            rows = np.flatnonzero(voting & present[:, pattern].all(axis=1))
+            if rows.size == 0:
+                continue
+            x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
+            post = self.conditioner(pattern, s2, structure_only=True)(x_obs)
+            votes[rows, j] = heading(post.missing_mean.reshape(rows.size, layout.n_joints, 3))
+        return votes
+
+    def stature(self, contours_mod: np.ndarray, present: np.ndarray) -> np.ndarray:
+        """(N,) metres: stature measured from the present modelled views (``silpose.model.stature``)."""
+        if self.rig is None:
+            raise ValueError("this model's joints are in the 'stature' frame but it has no camera rig")
+        cams = [self.rig[v] for v in self.layout.views]
+        return estimate_stature(contours_mod, cams, present)
+
+    def conditioner(self, pattern: np.ndarray, s2: float, structure_only: bool = False) -> Conditioner:
+        """Cached :class:`~silpose.model.conditioning.Conditioner` for one present-view pattern and s^2.
+
+        Its q x q factorisations depend only on the pattern and s^2, so they are computed once per
+        (pattern, s^2); repeated single-frame calls then cost O((d_obs + d) q M). ``structure_only``: a
+        conditioner whose mean covers the joints only (``BatchPosterior.missing_mean``, (N, 57)), for the
+        consensus votes.
+        """
+        cache = self._cache
+        key = (np.asarray(pattern, dtype=bool).tobytes(), s2, bool(structure_only))
+        post = cache.pop(key, None)
+        if post is None:
+            layout = self.layout
+            det = np.arange(layout.structure_slice.start, layout.structure_slice.stop)
+            post = Conditioner(
+                self.mixture, layout.observed_mask(pattern), s2, detail=det,
+                reconstruct=not structure_only, detail_only=structure_only,
+            )
+        cache[key] = post  # most recently used last
+        # bounded by bytes, least recently used first out: one conditioner holds O(d M q) floats (about 60 MB
+        # for M 60, q 40 on 4 views), and a run may visit 2 (2^K - 1) view patterns per s^2
+        total = sum(c.nbytes for c in cache.values())
+        while total > CACHE_BYTES and len(cache) > 1:
+            total -= cache.pop(next(iter(cache))).nbytes
+        return post

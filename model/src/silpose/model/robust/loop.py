@@ -1,0 +1,87 @@
+"""The robust inference loop (``silpose.model.robust``): reweighted passes, then the repairs of the input.
+
+:func:`robust_passes` runs the Gaussian pass, the adaptive noise and ``settings.iterations`` reweighted passes
+of one batch (:mod:`silpose.model.robust.weights`); :func:`robust_infer` then trims the observed contours'
+excursions (:mod:`silpose.model.robust.excursions`) and undoes their slides along the outline
+(:mod:`silpose.model.robust.reindex`) against the robust reconstruction, inferring the changed frames again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..features import normalise_contours
+from ..checks import Inputs
+from ..posterior import Posterior
+from ..result import InferenceResult
+from .excursions import trim_excursions
+from .reindex import reindex_contours
+from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
+
+__all__ = ["robust_passes", "robust_infer"]
+
+
+def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
+                  want: bool) -> tuple[InferenceResult, np.ndarray | None]:
+    """The Gaussian pass, the adaptive noise, then ``settings.iterations`` reweighted passes; returns the last
+    pass's result (with ``log_marginal`` that of the input, ``log_marginal_robust``, ``robust_weights``,
+    ``noise_variance``) and, with ``want``, its component means (``Posterior.infer``)."""
+    c_mod, present = inputs.contours, inputs.present
+    res, comp = posterior.infer(inputs, s2, components=False)
+    observed_lm = res.log_marginal
+    if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
+        with np.errstate(invalid="ignore", over="ignore"):
+            norm_obs = normalise_contours(c_mod)[0]
+        s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
+        res, comp = posterior.infer(inputs, s2_rows, components=False)
+    else:
+        s2_rows = s2
+    for it in range(int(settings.iterations)):
+        matched, dist = snap_correspondences(c_mod, res.contours_px, int(settings.window))
+        u = np.where(present[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
+        pseudo = np.where(present[..., None, None], res.contours_px + u[..., None] * (matched - res.contours_px),
+                          c_mod)
+        last = it == int(settings.iterations) - 1
+        res, comp = posterior.infer(inputs.with_contours(pseudo), s2_rows, components=want and last)
+    if settings.noise_scale is not None:
+        res.noise_variance = s2_rows
+    res.log_marginal_robust = res.log_marginal
+    res.log_marginal = observed_lm
+    res.robust_weights = u
+    return res, comp
+
+
+def robust_infer(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
+                 want: bool) -> tuple[InferenceResult, np.ndarray | None]:
+    """Robust inference of a batch (module doc): :func:`robust_passes`, then the excursions trimmed and the
+    slides undone, each changed frame inferred again. Sets ``excursions_trimmed``, ``reindexed`` and
+    ``robust_input_px``; ``log_marginal`` stays that of the input as observed."""
+    res, comp = robust_passes(posterior, inputs, s2, settings, want)
+    observed_lm = res.log_marginal.copy()  # put() below writes into res's arrays
+    present = inputs.present
+    trimmed = np.zeros(present.shape, dtype=bool)
+    reindexed = np.zeros(present.shape, dtype=bool)
+    work = inputs.contours
+    # shadows, blobs, holes (silpose.model.robust.excursions), then slides along the outline (.reindex)
+    steps = ([(trim_excursions, settings.excursions, trimmed)] * int(settings.excursion_passes)
+             + [(reindex_contours, settings.reindex, reindexed)] * int(settings.reindex_passes))
+    settled = set()  # a step that changed nothing would change nothing on its next pass either
+    for step, step_settings, done in steps:
+        if step in settled:
+            continue
+        new, changed = step(work, res.contours_px, present, step_settings)
+        rows = np.flatnonzero(changed.any(axis=1))
+        if rows.size == 0:
+            settled.add(step)
+            continue
+        work = np.where(changed[..., None, None], new, work)
+        done |= changed
+        again, again_comp = robust_passes(posterior, inputs.with_contours(work).take(rows), s2, settings, want)
+        res.put(rows, again)
+        if comp is not None:
+            comp[rows] = again_comp
+    res.log_marginal = observed_lm  # of the input as observed, excursions and all
+    res.excursions_trimmed = trimmed
+    res.reindexed = reindexed
+    res.robust_input_px = np.asarray(work, dtype=np.float64)
+    return res, comp
