@@ -15,7 +15,7 @@ Rows:
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
   1x single-threaded, 1x with overlay videos.
-- ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
+- ``accuracy``: the 1x run against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
 - ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
@@ -303,7 +303,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
     import numpy as np
 
     from silpose.datagen.lab import make_lab_recording, unpack_masks
-    from silpose.eval.recordings import clean_reference, read_rows, score_reference, score_rows
+    from benchmarks.recording_scores import clean_reference, read_rows, score_reference, score_rows
     from silpose.model.persistence import load_model
 
     with tempfile.TemporaryDirectory(prefix="silpose-bench-recordings-") as tmp:

@@ -62,6 +62,7 @@ def test_help_fits_80_columns_and_cuts_nothing(path, command):
     assert not wide, f"lines wider than {WIDTH}: {wide}"
     assert "…" not in shown
     assert "<bool>" not in shown
+    assert "\\[" not in shown, "a rich escape shown literally (plain help needs no backslash before [)"
     assert not re.search(r"\bissues? \d+", shown, re.I), "help cites an issue"
     words = set(re.findall(r"(?<![\w-])-{1,2}[A-Za-z][\w-]*", shown))
     ctx = _context(path, command)

@@ -3,7 +3,7 @@
 A tiny silhouette dataset (``silpose.datagen.testing.synthetic_record``: stick figures, real contour
 extraction) and a tiny model; the frames dataset is composited from the test split's TRUE masks
 (textured room per camera, cloth-coloured person, floor shadow, noise, flicker;
-``silpose.eval.frames_composite``) in the frames-dataset layout. References are computed here
+``benchmarks.frames_composite``) in the frames-dataset layout. References are computed here
 independently: background subtraction + contour extraction + ``model.infer`` called by hand, and
 IoU counted over pixel coordinate sets.
 """
@@ -58,7 +58,7 @@ def model_path(dataset, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def frames_dir(dataset):
-    from silpose.eval.frames_composite import write_composite_frames
+    from benchmarks.frames_composite import write_composite_frames
 
     return write_composite_frames(dataset, dataset / "frames", n_background=10, seed=1)
 

@@ -240,6 +240,22 @@ def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_p
                               equal_nan=True)
 
 
+def test_a_refused_recording_leaves_no_output_folder(tiny_model_file, tmp_path):
+    """Colour videos without a background are refused before any frame: --out is not left behind holding
+    only silpose's marker, and the error is the only line."""
+    from typer.testing import CliRunner
+
+    from silpose.shared.cli import build_app
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    out = tmp_path / "out"
+    res = CliRunner().invoke(build_app(), ["infer", str(tiny_model_file), "--videos", str(videos), "--out", str(out)])
+    assert res.exit_code == 2
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("silpose infer: error: "), res.stderr
+    assert not out.exists()
+
+
 def _mjpg_videos(folder, rig, tools, n):
     """Mask videos ``<camera>.avi`` (MJPG: an AVI whose frames still decode when the file is cut) of one
     cylinder walking across the room, n frames."""

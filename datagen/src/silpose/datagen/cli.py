@@ -25,7 +25,7 @@ def gen(
     ] = None,
     renderer: Annotated[Optional[str], typer.Option(help="Override the config: raster or blender.")] = None,
     blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,
-    seed: Annotated[Optional[int], typer.Option(help="Override the config's dataset seed.")] = None,
+    seed: Annotated[Optional[int], typer.Option(min=0, help="Override the config's dataset seed.")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar.")] = True,
     preview: Annotated[bool, typer.Option(help="Write preview.png and, with both splits, characters.png (shown in the card).")] = True,
 ) -> None:
@@ -86,7 +86,7 @@ def validate(
         print(f"{path}: readable silpose shard, {len(shard)} samples, {shard.n_views} views")
         return
     if not path.is_dir():
-        fail("validate", f"{path}: no such dataset folder or shard file", 1)
+        fail("validate", f"{path}: no such dataset folder or shard file")  # an input error: 2, as train says
     report = validate_dataset(path)
     print(report.format())
     if not report.ok:

@@ -34,7 +34,6 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
 
 from __future__ import annotations
 
-import itertools
 import time
 import warnings
 from contextlib import contextmanager
@@ -44,6 +43,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
+from silpose.model.plausibility import view_subsets
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.stature import REFERENCE_STATURE, estimate_stature
 from silpose.shared.contours import normalise
@@ -74,11 +74,6 @@ Progress = Callable[[str, int, int], None]  # (task description, completed, tota
 
 #: The regression baselines, in table order.
 REGRESSORS = ("knn", "ridge", "mlp")
-
-
-def view_subsets(n_views: int) -> list[tuple[int, ...]]:
-    """Every non-empty subset of views, largest first: 4; 3 (each left out); 2; 1."""
-    return [s for r in range(n_views, 0, -1) for s in itertools.combinations(range(n_views), r)]
 
 
 def views_label(views: Sequence[int]) -> str:

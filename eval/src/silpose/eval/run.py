@@ -49,7 +49,7 @@ def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool, test_d
     test_dir = data_dir if test_dir is None else Path(test_dir)
     for d in dict.fromkeys((data_dir, test_dir)):
         if not d.is_dir():
-            raise EvalInputError(f"dataset folder {d} not found: generate it first (`just gen {d.name}`)")
+            raise EvalInputError(f"{d}: no such dataset folder (generate it first: silpose gen {d.name})")
     try:
         train = load_split(data_dir, "train")
         test = load_split(test_dir, "test", with_masks=with_masks)
@@ -193,16 +193,16 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     """
     model_path = Path(model_path)
     if not Path(data_dir).is_dir():
-        raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {Path(data_dir).name}`)")
+        raise EvalInputError(f"{data_dir}: no such dataset folder (generate it first: silpose gen {Path(data_dir).name})")
     if not model_path.is_file():
-        raise EvalInputError(f"model file {model_path} not found: train it first (`just train {Path(data_dir).name}`)")
+        raise EvalInputError(f"{model_path}: no such model file (train it first: silpose train {Path(data_dir).name})")
     t0 = time.perf_counter()
     needs_masks = "E3" in config.experiments and any(s.needs_masks for s in config.sweep)
     data = load_data(data_dir, config.n_test, with_masks=needs_masks, test_dir=test_dir)
     try:
         model = load_model(model_path)
     except Exception as exc:  # persistence raises clear ValueErrors; keep its message
-        raise EvalInputError(f"cannot load the model {model_path}: {exc}") from exc
+        raise EvalInputError(str(exc) if str(exc).startswith(str(model_path)) else f"{model_path}: {exc}") from exc
     if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
         raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
                              f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")

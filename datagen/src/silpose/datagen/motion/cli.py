@@ -13,7 +13,7 @@ import typer
 
 from silpose.shared.cli import fail
 
-app = typer.Typer(help="The motion library: motion-capture clips silpose poses bodies with (`\\[motion] source = \"library\"`).",
+app = typer.Typer(help="The motion library: motion-capture clips silpose poses bodies with (`[motion] source = \"library\"`).",
                   no_args_is_help=True, add_completion=False)
 
 
