@@ -51,7 +51,7 @@ def no_partial_files(folder):
 def test_unknown_preset(tmp_path):
     r = silpose("gen", "nope", "--out", tmp_path / "ds")
     assert r.returncode != 0
-    assert error_line(r, "gen") == "silpose gen: error: nope: unknown preset; available presets: default, paper, smoke"
+    assert error_line(r, "gen") == "silpose gen: error: nope: unknown preset; available presets: default, motions, paper, smoke"
     assert no_partial_files(tmp_path / "ds")
 
 

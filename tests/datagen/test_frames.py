@@ -309,7 +309,7 @@ def test_bad_frames_values(tmp_path, edit, field):
 
 def test_bad_cli_input(tmp_path):
     line = _error_line(_cli("nope", "--out", tmp_path / "ds"))
-    assert line == "silpose gen-frames: error: nope: unknown preset; available presets: default, paper, smoke"
+    assert line == "silpose gen-frames: error: nope: unknown preset; available presets: default, motions, paper, smoke"
     line = _error_line(_cli("smoke", "--background", "1", "--out", tmp_path / "ds"))
     assert "frames.background" in line
     (tmp_path / "busy").mkdir()

@@ -8,7 +8,9 @@ repositories::
 
     git clone https://github.com/DragonForgedTheArtist/IClone-CMU-Mocap   # commit 79529f9
     git clone https://github.com/yuki-koyama/bvh11                         # commit c907217
-    python -m silpose.datagen.motion.cmu_library --iclone IClone-CMU-Mocap --bvh11 bvh11 --out LIBRARY_DIR
+    git clone https://github.com/jaanga/cookbook                           # commit 87b8826
+    python -m silpose.datagen.motion.cmu_library --iclone IClone-CMU-Mocap --bvh11 bvh11 --cookbook cookbook \
+        --out LIBRARY_DIR
 
 - ``IClone-CMU-Mocap`` (DragonForgedTheArtist): the AMC files converted to BVH (Credo LifeForms),
   a T-pose prepended (frame 0, dropped here), resampled to 60 fps and retargeted in iClone onto the
@@ -16,6 +18,9 @@ repositories::
   (the descriptions below come from it). Subjects 1, 2, 3, 5, 6, 7 are in the repository.
 - ``bvh11`` (Yuki Koyama, MIT): subject 131 from B. Hahne's 3dsMax-friendly BVH release
   (``hip-knee`` map, CMU units of 1/0.45 inch, 120 fps; frame 0 is a T-pose, dropped).
+- ``cookbook`` (jaanga): ``bvh-reader/bvh-cmu-daz``, the DAZ-friendly BVH release (``daz`` map,
+  centimetres, 120 fps; frame 0 a T-pose, dropped); only the subjects not in ``IClone-CMU-Mocap``
+  (8, 10, 13, 16) are used, so no CMU trial appears twice.
 
 Groups follow the clip's CMU description (:data:`GROUP`); the splits hold out whole subjects
 (:data:`TEST_SUBJECTS`): frames of one clip a few frames apart are near-copies, so a frame split
@@ -35,8 +40,10 @@ from .library import CMU_ACKNOWLEDGEMENT, CMU_LICENCE
 
 ICLONE = ("DragonForgedTheArtist/IClone-CMU-Mocap", "79529f962ade3274163af53cd92179cee2ed9407")
 BVH11 = ("yuki-koyama/bvh11", "c9072174fe89e0bf9776a092179b464ea39975e5")
+COOKBOOK = ("jaanga/cookbook", "87b8826d2367248bd7a88d083d5531017a216e97")
+COOKBOOK_SUBJECTS = frozenset({"8", "10", "13", "16"})
 #: Subjects held out for the test split (all their clips); every other subject is training.
-TEST_SUBJECTS = frozenset({"2", "3", "131"})
+TEST_SUBJECTS = frozenset({"2", "3", "8", "131"})
 
 #: Activity group of every clip that is not a plain walk (clip id -> group).
 GROUP: dict[str, str] = {
@@ -46,12 +53,13 @@ GROUP: dict[str, str] = {
     **{f"05_{k:02d}": "dance" for k in range(2, 21)}, "05_12": "arms", "05_14": "balance", "05_15": "balance",
     **{f"06_{k:02d}": "sports" for k in range(2, 16)},
     "131_03": "jump",
+    "10_02": "kick", "13_14": "everyday", "13_32": "jump", "16_36": "run",
 }
 #: Descriptions of subject 131 (the CMU index, as bvh11's resources/README.md quotes it).
 DESC_131 = {"131_01": "Start Walk Stop", "131_02": "Start Walk Stop", "131_03": "Start Hop Stop"}
 
 
-def cmu_sources(iclone: Path, bvh11: Path) -> list[ClipSource]:
+def cmu_sources(iclone: Path, bvh11: Path, cookbook: Path | None = None) -> list[ClipSource]:
     """The bundled library's clips (module docstring), in subject and trial order."""
     index = {}
     with open(iclone / "CMU data.csv", newline="") as f:
@@ -73,6 +81,16 @@ def cmu_sources(iclone: Path, bvh11: Path) -> list[ClipSource]:
             split="test" if "131" in TEST_SUBJECTS else "train", licence=CMU_LICENCE,
             source=f"github.com/{BVH11[0]}@{BVH11[1][:7]}:{p.relative_to(bvh11)}", scale=CMU_SCALE,
             joint_map="hip-knee", first=1))
+    for p in sorted((cookbook / "bvh-reader" / "bvh-cmu-daz").glob("*.bvh")) if cookbook else []:
+        s, t = p.stem.split("_")
+        cid, subject = f"{int(s):02d}_{int(t):02d}", str(int(s))
+        if subject not in COOKBOOK_SUBJECTS:
+            continue
+        out.append(ClipSource(
+            path=p, id=f"cmu_{cid}", subject=subject, description=index.get(cid, "Unknown"),
+            group=GROUP.get(cid, "walk"), split="test" if subject in TEST_SUBJECTS else "train", licence=CMU_LICENCE,
+            source=f"github.com/{COOKBOOK[0]}@{COOKBOOK[1][:7]}:{p.relative_to(cookbook)}", scale=0.01,
+            joint_map="daz", first=1))
     return out
 
 
@@ -80,10 +98,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--iclone", type=Path, required=True, help="checkout of DragonForgedTheArtist/IClone-CMU-Mocap")
     ap.add_argument("--bvh11", type=Path, required=True, help="checkout of yuki-koyama/bvh11")
+    ap.add_argument("--cookbook", type=Path, default=None, help="checkout of jaanga/cookbook")
     ap.add_argument("--out", type=Path, required=True, help="library folder (new, or a silpose library)")
     ap.add_argument("--workers", type=int, default=None)
     args = ap.parse_args(argv)
-    report = import_clips(cmu_sources(args.iclone, args.bvh11), args.out, workers=args.workers,
+    report = import_clips(cmu_sources(args.iclone, args.bvh11, args.cookbook), args.out, workers=args.workers,
                           acknowledgement=CMU_ACKNOWLEDGEMENT)
     for line in report.skipped:
         print(line, file=sys.stderr)

@@ -31,7 +31,9 @@ detected with ``"auto"`` (the first map whose required joints all exist in the c
 - ``cc-base``: Reallusion Character Creator / iClone exports (CC_Base_Hip, CC_Base_Waist,
   CC_Base_Spine01, CC_Base_Spine02, CC_Base_NeckTwist01, CC_Base_Head, CC_Base_L_Upperarm,
   CC_Base_L_Forearm, CC_Base_L_Hand, CC_Base_L_Thigh, CC_Base_L_Calf, CC_Base_L_Foot,
-  CC_Base_L_ToeBase, ...; twist, share, finger and face bones ignored).
+  CC_Base_L_ToeBase, ...; twist, share, finger and face bones ignored);
+- ``daz``: the DAZ-friendly BVH conversions of the CMU database (hip, abdomen, chest, neck, head,
+  lCollar, lShldr, lForeArm, lHand, lButtock, lThigh, lShin, lFoot; no toe joint).
 
 Any other skeleton: a user TOML file, one ``role = "BVH joint name"`` line per role
 (``joint_map = "my_map.toml"``, relative to the config file)::
@@ -100,8 +102,15 @@ BUILTIN_MAPS["cc-base"] = {
              {k: f"CC_Base_R_{v}" for k, v in (("shoulder", "Upperarm"), ("elbow", "Forearm"), ("wrist", "Hand"),
                                                 ("hip", "Thigh"), ("knee", "Calf"), ("ankle", "Foot"), ("toe", "ToeBase"))}),
 }
+BUILTIN_MAPS["daz"] = {
+    "pelvis": "hip", "neck": "neck", "head": "head",
+    **_sided({k: f"l{v}" for k, v in (("shoulder", "Shldr"), ("elbow", "ForeArm"), ("wrist", "Hand"), ("hip", "Thigh"),
+                                       ("knee", "Shin"), ("ankle", "Foot"))},
+             {k: f"r{v}" for k, v in (("shoulder", "Shldr"), ("elbow", "ForeArm"), ("wrist", "Hand"), ("hip", "Thigh"),
+                                       ("knee", "Shin"), ("ankle", "Foot"))}),
+}
 #: Order in which ``"auto"`` tries the built-in maps.
-AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base")
+AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz")
 
 
 class JointMapError(ValueError):

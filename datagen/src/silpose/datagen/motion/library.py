@@ -35,6 +35,7 @@ frame). At generation time no Blender import runs: render workers read the array
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -127,7 +128,9 @@ def derive(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     vec = P[:, 1:] - P[:, list(PARENTS[1:])]
     norm = np.linalg.norm(vec, axis=2)
     dirs = vec / np.where(norm > 1e-12, norm, np.nan)[..., None]
-    lengths = np.nanmedian(np.where(np.isfinite(norm), norm, np.nan), axis=0) if len(P) else np.zeros(N_BONES)
+    with warnings.catch_warnings():  # a role the clip lacks (toes) has no length: 0 below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        lengths = np.nanmedian(np.where(np.isfinite(norm), norm, np.nan), axis=0) if len(P) else np.zeros(N_BONES)
     lengths = np.where(np.isfinite(lengths), lengths, 0.0)
     yaw = np.array([heading_of(p[_IDX["l_hip"]] - p[_IDX["r_hip"]]) for p in P])
     root = np.concatenate([P[:, 0], yaw[:, None]], axis=1)
