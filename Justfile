@@ -46,3 +46,7 @@ bench *args: setup
 # the whole test suite (what CI runs)
 test *args: setup
     uv run --no-sync pytest "$@"
+
+# docs/results.md and the README's generated tables, from reports/*/headline.json and reports/bench/bench.json
+results: setup
+    uv run --no-sync python docs/results.py

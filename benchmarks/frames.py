@@ -3,7 +3,7 @@
 Section ``frames`` of ``python -m benchmarks.run``.
 
 The frames are composited (not timed) from the first ``n_frames`` test samples of the dataset
-(:func:`silpose.eval.frames_composite.write_composite_frames`: textured room, person from the true
+(:func:`benchmarks.frames_composite.write_composite_frames`: textured room, person from the true
 mask, floor shadow, noise, flicker) and written as PNG folders, then ``silpose infer --frames``'s
 pipeline (``run_frames_pipeline``) runs on them with the trained model. Rows: each stage (background
 fit, PNG decoding, segmentation, contour extraction, inference) and the total, as seconds, ms per
@@ -22,7 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from silpose.eval.frames_composite import write_composite_frames
+from benchmarks.frames_composite import write_composite_frames
 from silpose.model import load_model
 from silpose.app.frames_pipeline import run_frames_pipeline
 from silpose.shared.dataset import load_split

@@ -8,6 +8,10 @@ per sample). The ratio ``bvh_over_procedural`` (ms per sample) is the figure to 
 within 1.5x). The one-off import of the clips by Blender (into a fresh cache folder, timed) is its
 own row. Clips: ``clips`` (globs of BVH files, e.g. public motion-capture clips kept outside the
 repository) or, by default, the synthetic clip of ``silpose.datagen.testing`` (no third-party data).
+
+A third config poses the bodies from the bundled motion library as the ``motions`` preset does
+(``[motion] source = "library"``: the preset's groups, weights and procedural-walk share; no
+Blender import): ``library_over_procedural`` is its ratio (issue: within 1.3x).
 """
 
 from __future__ import annotations
@@ -18,15 +22,16 @@ import tempfile
 import time
 from pathlib import Path
 
-from silpose.datagen.clips import CACHE_ENV, prepare_motion
-from silpose.datagen.motion_config import motion_from_dict
+from silpose.datagen.config import load_config
+from silpose.datagen.motion.clips import CACHE_ENV, prepare_motion
+from silpose.datagen.motion.config import motion_from_dict
 from silpose.datagen.testing import write_synthetic_bvh
 
 from .generation import bench_config, run_pool
 
 
 def run(n_samples: int = 200, processes: int = 1, clips: list[str] | None = None, scale: float = 0.01,
-        synthetic_frames: int = 240, shard_size: int = 100) -> list[dict]:
+        synthetic_frames: int = 240, shard_size: int = 100, library_preset: str | None = "motions") -> list[dict]:
     """Measure the clips' import and ms per sample with BVH poses vs the walk.
 
     Args:
@@ -34,6 +39,7 @@ def run(n_samples: int = 200, processes: int = 1, clips: list[str] | None = None
         processes: worker processes per config (1: per-process speed).
         clips: BVH globs; default a synthetic clip of ``synthetic_frames`` frames (written here).
         scale: metres per BVH unit of ``clips`` (the synthetic clip is written in centimetres).
+        library_preset: the preset whose ``[motion]`` library config is measured (None: skipped).
     Returns:
         rows ``{"name", "samples", "seconds", "samples_per_s", "ms_per_sample", "redraws"}`` for the
         walk and the clips (the latter with ``bvh_over_procedural``), and an ``import`` row
@@ -60,8 +66,12 @@ def run(n_samples: int = 200, processes: int = 1, clips: list[str] | None = None
                      "ms_per_frame": 1000 * import_s / max(1, sum(c.frames for c in prepared.clips))}]
             warmup = 5
             speed = {}
-            for name, cfg in (("procedural", bench_config("raster")),
-                              ("bvh", {**bench_config("raster"), "motion": prepared.worker()})):
+            configs = [("procedural", bench_config("raster")),
+                       ("bvh", {**bench_config("raster"), "motion": prepared.worker()})]
+            if library_preset:
+                lib = load_config(library_preset).with_motion().prepared
+                configs.append(("library", {**bench_config("raster"), "motion": lib.worker()}))
+            for name, cfg in configs:
                 res = run_pool(cfg, n_samples, processes, shard_size, warmup)
                 seconds = max(r["seconds"] for r in res)
                 speed[name] = 1000 * seconds * processes / n_samples
@@ -73,5 +83,8 @@ def run(n_samples: int = 200, processes: int = 1, clips: list[str] | None = None
                 os.environ.pop(CACHE_ENV, None)
             else:
                 os.environ[CACHE_ENV] = old
-    rows[-1]["bvh_over_procedural"] = speed["bvh"] / speed["procedural"]
+    for row in rows[1:]:
+        name = row["name"].split()[0]
+        if name != "procedural":
+            row[f"{name}_over_procedural"] = speed[name] / speed["procedural"]
     return rows

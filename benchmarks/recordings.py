@@ -15,7 +15,7 @@ Rows:
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
   1x single-threaded, 1x with overlay videos.
-- ``accuracy``: the 1x run against the truth (:mod:`silpose.eval.recordings`): people, identity switches,
+- ``accuracy``: the 1x run against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
 - ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
@@ -78,6 +78,89 @@ def _ping_pong(src: Path, dst: Path, repeat: int) -> int:
     return n
 
 
+def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: int,
+                      n_background: int = 20) -> tuple[Path, Path, str]:
+    """Colour videos of the lab recording at ``scale`` x the lab cameras' size (3: 1932x1458, more pixels than
+    1080p): the walkers' true masks upscaled and composited over a textured room with floor shadows and
+    noise (:mod:`silpose.segment.composite`), an empty-room clip per camera, and the model with its rig
+    scaled to that size; the first ``n_frames`` frames. Returns (videos, clips, model file)."""
+    import cv2
+    import numpy as np
+
+    import dataclasses
+
+    from silpose.datagen.lab import LAB_FPS, unpack_masks
+    from silpose.model.persistence import load_model, save_model
+    from silpose.segment.composite import background_frames, composite_frame, room
+    from silpose.shared.camera import Rig
+
+    masks = unpack_masks(np.load(lab / "truth.npz")).any(axis=1)[:n_frames]  # (T, K, H, W)
+    m = load_model(model)
+    rig = m.rig_
+    def scaled(c):  # the camera whose pixels are scale x scale blocks of c's (pixel centres: (x + 0.5) s - 0.5)
+        K = np.array(c.K, float)
+        K[:2] *= scale
+        K[:2, 2] += 0.5 * scale - 0.5
+        return dataclasses.replace(c, K=K, width=scale * c.width, height=scale * c.height)
+
+    big = [scaled(c) for c in rig]
+    videos, clips = dst / "colour", dst / "empty"
+    videos.mkdir(parents=True, exist_ok=True)
+    clips.mkdir(parents=True, exist_ok=True)
+    for k, cam in enumerate(big):
+        size = (cam.width, cam.height)
+        clean = room(k, size)
+        for path, frames in ((videos / f"{cam.name}.mp4",
+                              (composite_frame(cv2.resize(masks[f, k].view(np.uint8), size, interpolation=cv2.INTER_NEAREST),
+                                               k, f, clean=clean) for f in range(len(masks)))),
+                             (clips / f"{cam.name}.mp4", iter(background_frames(k, size, n_background)))):
+            w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), LAB_FPS, size)
+            for f in frames:
+                w.write(f)
+            w.release()
+    m.rig_ = Rig(tuple(big), rig.transform, rig.workspace, rig.source)
+    out = dst / "model-big.npz"
+    save_model(out, m)
+    return videos, clips, str(out)
+
+
+def decode_reference(videos: str, clips: str, n_background: int = 20) -> dict:
+    """Child side: the references of a colour run, timed on the same videos: decoding alone (every camera, one
+    thread, as the pipeline's reader threads do it), and OpenCV's MOG2 (shadow detection, learnt on the
+    empty-room clips, learning rate 0) on every decoded full-size frame. Seconds per time step."""
+    import time
+
+    import cv2
+
+    cv2.setNumThreads(1)
+    decode = mog = 0.0
+    steps = 0
+    for video in sorted(Path(videos).glob("*.mp4")):
+        sub = cv2.createBackgroundSubtractorMOG2(history=n_background, varThreshold=16, detectShadows=True)
+        cap = cv2.VideoCapture(str(Path(clips) / video.name))
+        while True:
+            ok, img = cap.read()
+            if not ok:
+                break
+            sub.apply(img)
+        cap.release()
+        cap = cv2.VideoCapture(str(video))
+        n = 0
+        while True:
+            t0 = time.thread_time()
+            ok, img = cap.read()
+            decode += time.thread_time() - t0
+            if not ok:
+                break
+            t0 = time.thread_time()
+            sub.apply(img, learningRate=0)
+            mog += time.thread_time() - t0
+            n += 1
+        cap.release()
+        steps = max(steps, n)
+    return {"steps": steps, "decode_cpu_ms_per_step": 1000 * decode / steps, "mog2_cpu_ms_per_step": 1000 * mog / steps}
+
+
 def peak_rss_bytes() -> int:
     """This process's peak resident set size: ``VmHWM`` (Linux), else ``ru_maxrss``."""
     import resource
@@ -92,7 +175,8 @@ def peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None) -> dict:
+def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,
+            background: str | None = None, work_person_px: int | None = None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -106,7 +190,9 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
 
     baseline = psutil.Process().memory_info().rss
     cpu0, t0 = time.process_time(), time.perf_counter()
-    s = run_recording(m, videos, out, RecordingOptions(masks=True, overlays=overlays, threads=threads, robust=robust))
+    extra = {} if work_person_px is None else {"work_person_px": work_person_px}
+    s = run_recording(m, videos, out, RecordingOptions(masks=background is None, background=background, overlays=overlays,
+                                                       threads=threads, robust=robust, **extra))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
@@ -210,13 +296,14 @@ def _floor_rows(lab: Path, rig) -> list[dict]:
 
 
 def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int = 200, model: str | None = None,
-        threads: int | None = None) -> list[dict]:
+        threads: int | None = None, colour_scale: int = 3, colour_frames: int = 60, runs: list | None = None) -> list[dict]:
     """Make the inputs, measure (module docstring). ``model``: a model file of the lab rig (None: train one on
-    ``train`` walkers, the full-size hyperparameters when ``train`` >= 400, else tiny ones)."""
+    ``train`` walkers, the full-size hyperparameters when ``train`` >= 400, else tiny ones). ``runs``: the labels
+    of the runs to make (None: all; ``"colour"`` is the colour run and its references)."""
     import numpy as np
 
     from silpose.datagen.lab import make_lab_recording, unpack_masks
-    from silpose.eval.recordings import clean_reference, read_rows, score_reference, score_rows
+    from benchmarks.recording_scores import clean_reference, read_rows, score_reference, score_rows
     from silpose.model.persistence import load_model
 
     with tempfile.TemporaryDirectory(prefix="silpose-bench-recordings-") as tmp:
@@ -225,26 +312,45 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
         if model is None:
             (tmp / "train").mkdir()
             model = str(_train(tmp / "train", train, n_points, MODEL if train >= 400 else TINY_MODEL))
-        long_frames = _ping_pong(lab / "masks", tmp / "long", repeat)
+        wanted = (lambda label: runs is None or label in runs)
+        long_frames = _ping_pong(lab / "masks", tmp / "long", repeat) if wanted(f"{repeat}x") else 0
         rows = []
-        for label, videos, overlays, thr, robust in (
-                ("1x", lab / "masks", False, threads, None), (f"{repeat}x", tmp / "long", False, threads, None),
-                (f"{repeat}x, --robust", tmp / "long", False, threads, True),
-                ("1x single-threaded", lab / "masks", False, 0, None),
-                ("1x with overlays", lab / "masks", True, threads, None)):
+        plan = [("1x", lab / "masks", False, threads, None, {}), (f"{repeat}x", tmp / "long", False, threads, None, {}),
+                (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
+                ("1x single-threaded", lab / "masks", False, 0, None, {}),
+                ("1x with overlays", lab / "masks", True, threads, None, {})]
+        if wanted("colour"):
+            videos, clips, big_model = _colour_recording(lab, tmp / "big", colour_scale, model, colour_frames)
+            size = f"{colour_scale * 644}x{colour_scale * 486}"
+            plan += [(f"colour 4 x {size}", videos, False, threads, None, {"background": str(clips), "model": big_model}),
+                     (f"colour 4 x {size} with overlays", videos, True, threads, None,
+                      {"background": str(clips), "model": big_model})]
+            ref = subproc.call(__name__, "decode_reference", dict(videos=str(videos), clips=str(clips)))
+            if ref.error:
+                raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
+            rows.append({"name": "reference", "run": f"colour 4 x {size}: decode alone / MOG2 alone, 1 thread",
+                         **ref.value})
+        first = None
+        for label, videos, overlays, thr, robust, extra in plan:
+            if not (wanted(label) or (label.startswith("colour") and wanted("colour"))):
+                continue
             out = tmp / f"out-{len(rows)}"
-            res = subproc.call(__name__, "measure", dict(model=model, videos=str(videos), out=str(out),
-                                                          overlays=overlays, threads=thr, robust=robust))
+            res = subproc.call(__name__, "measure", dict(model=extra.get("model", model), videos=str(videos), out=str(out),
+                                                          overlays=overlays, threads=thr, robust=robust,
+                                                          background=extra.get("background")))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})
             if label == "1x":
                 first = out
-        big = next(r for r in rows if r["run"] == f"{repeat}x")
-        one = rows[0]
-        big["peak_mb_vs_1x"] = big["peak_mb"] / one["peak_mb"]
-        big["steps_vs_1x"] = big["steps"] / one["steps"]
-        assert big["steps"] == long_frames
+        if wanted(f"{repeat}x") and wanted("1x"):
+            big = next(r for r in rows if r["run"] == f"{repeat}x")
+            one = next(r for r in rows if r["run"] == "1x")
+            big["peak_mb_vs_1x"] = big["peak_mb"] / one["peak_mb"]
+            big["steps_vs_1x"] = big["steps"] / one["steps"]
+            assert big["steps"] == long_frames
+        if first is None:
+            return rows
         truth = np.load(lab / "truth.npz")
         sc = score_rows(read_rows(first / "joints.parquet"), truth["joints"])
         ref = score_reference(clean_reference(load_model(model), unpack_masks(truth)), truth["joints"])

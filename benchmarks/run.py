@@ -53,8 +53,8 @@ SECTIONS: dict[str, Section] = {
     ),
     "motion": Section(
         "motion", {"n_samples": 200}, {"n_samples": 16, "synthetic_frames": 60, "shard_size": 8},
-        "generation with poses from motion-capture clips (BVH, retargeted) vs the procedural walk: ms per sample, "
-        "and the one-off Blender import of the clips",
+        "generation with poses from motion-capture clips (BVH, retargeted) and from the bundled motion library "
+        "(the motions preset) vs the procedural walk: ms per sample, and the one-off Blender import of the clips",
     ),
     "pipeline": Section(
         "pipeline", {"n_samples": 1000, "workers": 2},
@@ -71,6 +71,13 @@ SECTIONS: dict[str, Section] = {
         {"n": 2000, "d": 417, "q": 10, "m": 3, "gmm_iters": 1, "n_init": 1, "iter_runs": 3},
         "MPPCA EM per iteration (vs its BLAS floor) and full fit vs sklearn GaussianMixture(full); "
         "held-out log-lik; peak memory",
+    ),
+    "em_scale": Section(
+        "em_scale", {},
+        {"n": 3000, "d": 300, "q": 8, "m": 70, "shard_rows": 500, "n_test": 500, "max_iter": 5, "init_rows": 1000,
+         "compare_shards": 1},
+        "MPPCA streaming fit at the motions scale (N 100k, d 1657, M 200, sparse E-step): total time, time per "
+        "iteration vs the exact E-step, peak RSS",
     ),
     "inference": Section(
         "inference", {}, {"frames": 2000, "repeats": 1, "latency_calls": 50, "big_components": 50, "big_frames": 200},

@@ -38,7 +38,7 @@ def test_load_frames_errors_name_the_folder_or_file(tmp_path):
         load_frames(tmp_path / "a_file.png")
     empty = tmp_path / "empty"
     empty.mkdir()
-    with pytest.raises(FramesInputError, match=r"^folder: no png/jpg/jpeg images in .*empty"):
+    with pytest.raises(FramesInputError, match=r"^folder: no png/jpg/jpeg/bmp/tif/tiff images in .*empty"):
         load_frames(empty)
 
     bad = tmp_path / "bad"

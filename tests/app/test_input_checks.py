@@ -154,3 +154,11 @@ def test_infer_reads_jpeg_and_bmp_mask_folders_like_png_ones(generated, model, t
     cv2.imwrite(str(tmp_path / "jpg" / names[0] / "0000.png"), test.masks[0, 0] * 255)
     code, output = silpose("infer", model, tmp_path / "jpg", "--out", tmp_path / "twice.parquet")
     assert code == 2 and "frame '0000' is also 0000.jpg" in output
+
+
+def test_infer_says_a_file_is_not_an_input_folder(model, tmp_path):
+    notes = tmp_path / "notes.md"
+    notes.write_text("# notes\n")
+    code, output = silpose("infer", model, notes, "-o", tmp_path / "j.parquet")
+    assert code == 2
+    assert f"{notes}: a file, but the input is a dataset folder" in output and "no such folder" not in output

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from silpose.datagen.blender_camera import BlenderCameraParams, from_blender, to_blender
+from silpose.datagen.blender.camera import BlenderCameraParams, from_blender, to_blender
 from silpose.datagen.raster import (
     fill_triangles_cv2,
     fill_triangles_exact,

@@ -167,7 +167,7 @@ def test_calibration_projects_onto_blender_render(pool):
     the centroid of the sphere's image; for a 5 cm sphere ~7 m away that differs from the
     projected centre by < 0.01 px (perspective), far below the 0.1 px tolerance.
     """
-    from silpose.datagen.blender_scene import render_sphere_targets
+    from silpose.datagen.blender.scene import render_sphere_targets
 
     rng = np.random.default_rng(4)
     candidates = np.c_[rng.uniform(-1.4, 1.4, (200, 2)), rng.uniform(0.1, 1.8, 200)]

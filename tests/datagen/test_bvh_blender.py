@@ -12,8 +12,8 @@ import sys
 import numpy as np
 import pytest
 
-from silpose.datagen.bvh_motion import BvhMotion
-from silpose.datagen.clips import ClipError, ensure_cached, read_entry
+from silpose.datagen.motion.bvh_motion import BvhMotion
+from silpose.datagen.motion.clips import ClipError, ensure_cached, read_entry
 from silpose.datagen.config import load_config
 from silpose.datagen.pipeline import generate
 from silpose.datagen.scene import draw_scene

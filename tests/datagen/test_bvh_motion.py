@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from silpose.datagen.bvh_check import BvhError, check_structure
+from silpose.datagen.motion.bvh_check import BvhError, check_structure
 from silpose.datagen.config import ConfigError, load_config
-from silpose.datagen.joint_maps import BUILTIN_MAPS, REQUIRED_ROLES, JointMapError, load_map_file, resolve_map
-from silpose.datagen.motion_config import CMU_SCALE
-from silpose.datagen.retarget import clip_points, heading_of, polyline_point, retarget_frame, swing
+from silpose.datagen.motion.joint_maps import BUILTIN_MAPS, REQUIRED_ROLES, JointMapError, load_map_file, resolve_map
+from silpose.datagen.motion.config import CMU_SCALE
+from silpose.datagen.motion.retarget import clip_points, heading_of, polyline_point, retarget_frame, swing
 from silpose.datagen.subjects import segment_lengths
 from silpose.datagen.testing import SYNTH_SKELETON, synthetic_clip_positions, write_synthetic_bvh
 from silpose.datagen.walk import rest_skeleton
@@ -304,7 +304,7 @@ class _Clip:
 
 
 def test_draws_follow_the_weights_and_the_motion_stream():
-    from silpose.datagen.bvh_motion import BvhMotion
+    from silpose.datagen.motion.bvh_motion import BvhMotion
     from silpose.datagen.scene import draw_sample_parameters
     from silpose.datagen.walk import GAIT_FIELDS
 
@@ -333,7 +333,7 @@ def _fill_cache(root, path, unit=0.01, n_frames=4):
     independent forward kinematics, in the file's unit)."""
     import json
 
-    from silpose.datagen.clips import entry_dir
+    from silpose.datagen.motion.clips import entry_dir
     from silpose.datagen.manifest import sha256_file
 
     pos, ends = synthetic_clip_positions(n_frames)
@@ -349,8 +349,8 @@ def _fill_cache(root, path, unit=0.01, n_frames=4):
 
 
 def test_prepared_clips_record_their_identity_and_pose_subjects(tmp_path, monkeypatch):
-    from silpose.datagen.bvh_motion import BvhMotion
-    from silpose.datagen.clips import ClipError
+    from silpose.datagen.motion.bvh_motion import BvhMotion
+    from silpose.datagen.motion.clips import ClipError
     from silpose.datagen.manifest import sha256_file
 
     monkeypatch.setenv("SILPOSE_CACHE_DIR", str(tmp_path / "cache"))

@@ -177,7 +177,7 @@ def test_driver_modules_never_import_blender():
         "names = [m.name for m in pkgutil.walk_packages(silpose.datagen.__path__, 'silpose.datagen.')]\n"
         "for name in names:\n"
         "    importlib.import_module(name)\n"
-        "assert {'silpose.datagen.blender_scene', 'silpose.datagen.renderers', 'silpose.datagen.frames.render'} <= set(names)\n"
+        "assert {'silpose.datagen.blender.scene', 'silpose.datagen.renderers', 'silpose.datagen.frames.render'} <= set(names)\n"
         "assert 'bpy' not in sys.modules, 'bpy imported'\n"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

@@ -90,3 +90,88 @@ def test_size_factors_scale_targets_and_predictions():
     nearest = cdist(x_test.reshape(4, -1), x_train.reshape(30, -1)).argmin(axis=1)
     want = root_relative(y_train)[nearest] / s_train[nearest, None, None] * s_test[:, None, None]
     np.testing.assert_allclose(reg.predict(x_test, size=s_test), want, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- the MLP baseline
+from silpose.eval.baselines import MLPSettings, ViewDropoutMLP, fit_mlp, group_split, masked_features  # noqa: E402
+from silpose.eval.experiments import walker_groups  # noqa: E402
+
+_SMALL_MLP = MLPSettings(hidden=(64, 64), max_epochs=150, patience=15, batch_size=64, learning_rate=3e-3)
+
+
+def test_group_split_never_puts_a_walker_on_both_sides():
+    groups = np.repeat(np.arange(50), 6)  # a walker's clean, noisy and mirrored copies
+    np.random.default_rng(0).shuffle(groups)
+    tr, va = group_split(groups, 0.2, random_state=1)
+    assert len(tr) + len(va) == len(groups) and len(np.intersect1d(tr, va)) == 0
+    assert set(groups[tr]).isdisjoint(groups[va])
+    assert 0.1 < len(set(groups[va])) / 50 < 0.3
+
+
+def test_mlp_beats_ridge_on_a_nonlinear_map_and_splits_by_walker():
+    """y = sin(3 x0) x1 + |x2| is nonlinear: the MLP's held-out error is well below ridge's; the rows it
+    validated on belong to walkers it did not train on."""
+    rng = np.random.default_rng(0)
+    n_walkers, copies = 300, 3
+    base = rng.uniform(-1, 1, (n_walkers, 4))
+    x = np.concatenate([base + 0.02 * rng.standard_normal(base.shape) for _ in range(copies)])
+    groups = np.tile(np.arange(n_walkers), copies)
+
+    def target(v):
+        return np.stack([np.sin(3 * v[:, 0]) * v[:, 1] + np.abs(v[:, 2]), v[:, 3] ** 2], axis=1)
+
+    y = target(x)
+    mlp = fit_mlp(x, y, groups, _SMALL_MLP)
+    assert set(groups[mlp.train_rows_]).isdisjoint(groups[mlp.val_rows_])
+    xt = rng.uniform(-1, 1, (500, 4))
+    err_mlp = np.sqrt(np.mean((mlp.predict(xt) - target(xt)) ** 2))
+    from sklearn.linear_model import RidgeCV
+
+    err_ridge = np.sqrt(np.mean((RidgeCV().fit(x, y).predict(xt) - target(xt)) ** 2))
+    assert err_mlp < 0.5 * err_ridge
+    assert 1 <= mlp.best_epoch_ <= mlp.n_epochs_ <= _SMALL_MLP.max_epochs
+
+
+def test_mlp_inputs_are_scaled_by_one_global_factor():
+    """Features with very different spreads keep their ratio after scaling (no per-feature standardisation)."""
+    rng = np.random.default_rng(1)
+    x = rng.standard_normal((200, 3)) * np.array([10.0, 1.0, 0.01])
+    y = x[:, :2]
+    mlp = fit_mlp(x, y, np.arange(200), MLPSettings(hidden=(8,), max_epochs=2, patience=1, batch_size=32))
+    assert np.ndim(mlp.x_scale_) == 0
+    tr = mlp.train_rows_
+    assert mlp.x_scale_ == pytest.approx(np.sqrt(np.mean((x[tr] - x[tr].mean(axis=0)) ** 2)))
+
+
+def test_masked_features_zero_absent_views_and_flag_them():
+    c = np.arange(2 * 3 * 4 * 2, dtype=float).reshape(2, 3, 4, 2) + 1
+    present = np.array([[True, False, True], [False, True, False]])
+    f = masked_features(c, present)
+    assert f.shape == (2, 3 * 8 + 3)
+    np.testing.assert_array_equal(f[:, -3:], present.astype(float))
+    body = f[:, :-3].reshape(2, 3, 8)
+    np.testing.assert_array_equal(body[~present], 0.0)
+    np.testing.assert_array_equal(body[present], c.reshape(2, 3, 8)[present])
+
+
+def test_view_dropout_mlp_predicts_joints_from_any_subset():
+    """Joints that are a linear function of view 0's contour: the MLP given view 0 (alone or with others) is
+    far closer than given view 1 alone, which carries no information."""
+    rng = np.random.default_rng(2)
+    n = 400
+    c = rng.standard_normal((n, 2, 3, 2))
+    A = rng.standard_normal((6, 57)) * 0.05
+    joints = (c[:, 0].reshape(n, 6) @ A).reshape(n, 19, 3)
+    present = rng.random((n, 2)) < 0.7
+    present[~present.any(axis=1), 0] = True
+    reg = ViewDropoutMLP(_SMALL_MLP).fit(c, present, joints, np.arange(n))
+    truth = root_relative(joints)
+    err = {v: metrics.pose_error_cm(reg.predict(c, v), truth).mean() for v in ((0,), (1,), (0, 1))}
+    assert err[(0,)] < 0.5 * err[(1,)] and err[(0, 1)] < 0.5 * err[(1,)]
+
+
+def test_walker_groups_join_rows_with_equal_subject_parameters():
+    subject = {"height": np.array([1.7, 1.8, 1.7, 1.7]), "skirt": np.array([np.nan, 0.2, np.nan, 0.3])}
+    g = walker_groups(subject, 4)
+    assert g[0] == g[2] and len({g[0], g[1], g[3]}) == 3
+    np.testing.assert_array_equal(walker_groups({}, 3), np.arange(3))

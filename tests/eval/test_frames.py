@@ -3,7 +3,7 @@
 A tiny silhouette dataset (``silpose.datagen.testing.synthetic_record``: stick figures, real contour
 extraction) and a tiny model; the frames dataset is composited from the test split's TRUE masks
 (textured room per camera, cloth-coloured person, floor shadow, noise, flicker;
-``silpose.eval.frames_composite``) in the frames-dataset layout. References are computed here
+``benchmarks.frames_composite``) in the frames-dataset layout. References are computed here
 independently: background subtraction + contour extraction + ``model.infer`` called by hand, and
 IoU counted over pixel coordinate sets.
 """
@@ -58,7 +58,7 @@ def model_path(dataset, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def frames_dir(dataset):
-    from silpose.eval.frames_composite import write_composite_frames
+    from benchmarks.frames_composite import write_composite_frames
 
     return write_composite_frames(dataset, dataset / "frames", n_background=10, seed=1)
 
@@ -121,7 +121,7 @@ def test_missing_camera_folder_is_a_missing_view(model_path, frames_dir, tmp_pat
     doc = json.loads(out.read_text())
     assert all(f["views_present"] == ["cam0", "cam1", "cam3"] for f in doc["frames"])
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
-    assert seg["counts"]["cam2"]["no camera"] == N_TEST and seg["counts"]["cam0"]["ok"] == N_TEST
+    assert seg["counts"]["cam2"]["no video"] == N_TEST and seg["counts"]["cam0"]["ok"] == N_TEST
     ref, _ = _reference(load_model(model_path), partial, drop=("cam2",))
     np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), single_answer(ref.joints, ref.hypotheses), atol=1e-5)
 
@@ -137,7 +137,7 @@ def test_empty_segmentation_is_a_missing_view_for_that_frame(model_path, frames_
     assert table["views_present"][2] == "cam0,cam2,cam3" and np.isfinite(got).all()
     assert (table["n_views_present"].to_numpy() == [4, 4, 3, 4, 4, 4]).all()
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
-    assert seg["frames"][2]["status"][1] in ("empty", "too small")
+    assert seg["frames"][2]["status"][1] in ("empty mask", "too small")
 
 
 def test_overlays_are_written(model_path, frames_dir, tmp_path):

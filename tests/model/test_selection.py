@@ -130,3 +130,17 @@ def test_bad_grid():
         select(data.contours, data.joints, grid={"q": (1,)})
     with pytest.raises(ValueError, match="empty"):
         select(data.contours, data.joints, grid={"n_latent": ()})
+
+
+def test_group_validation_split_holds_out_whole_groups():
+    from silpose.model.selection import validation_split_groups
+
+    groups = np.repeat(np.arange(20), np.arange(1, 21))  # uneven group sizes, 210 rows
+    tr, va = validation_split_groups(groups, 0.2, seed=3)
+    assert len(tr) + len(va) == len(groups) and len(va) > 0 and len(tr) > 0
+    assert set(groups[tr]).isdisjoint(groups[va])
+    assert 0.1 < len(va) / len(groups) <= 0.3
+    tr2, va2 = validation_split_groups(groups, 0.2, seed=3)
+    np.testing.assert_array_equal(va, va2)
+    with pytest.raises(ValueError, match="2 groups"):
+        validation_split_groups(np.zeros(5), 0.2)

@@ -2,7 +2,7 @@
 
 The recording (:mod:`silpose.datagen.lab`: lossy mask videos, and colour videos composited from the same
 masks with an empty-room clip) and the model (a small one trained on a dataset rendered for the lab rig)
-are session fixtures (``conftest.py``); Blender runs in spawned workers. Scores: :mod:`silpose.eval.recordings`.
+are session fixtures (``conftest.py``); Blender runs in spawned workers. Scores: :mod:`benchmarks.recording_scores`.
 """
 
 import json
@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from silpose.app.recordings.pipeline import RecordingOptions, run_recording
 from silpose.datagen.lab import LAB_TRANSFORM, unpack_masks
-from silpose.eval.recordings import clean_reference, read_rows, score_reference, score_rows
+from benchmarks.recording_scores import clean_reference, read_rows, score_reference, score_rows
 from silpose.model.persistence import load_model
 from silpose.shared.cli import build_app
 

@@ -10,7 +10,7 @@ from silpose.app.recordings.floor import FloorGrid
 from silpose.app.recordings.placement import body_point, place_contours, place_roots, root_height
 from silpose.app.recordings.silhouettes import binarise
 from silpose.app.recordings.tracking import Tracker
-from silpose.app.recordings.views import (VIEW_BORDER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK,
+from silpose.app.recordings.views import (VIEW_BORDER, VIEW_CLUTTER, VIEW_EMPTY, VIEW_MERGED, VIEW_NOT_SEEN, VIEW_OK,
                                           VIEW_PARTIAL, assign_views)
 from silpose.app.recordings.writers import PersonRows, RecordingWriter
 from silpose.datagen.lab import lossy
@@ -89,11 +89,12 @@ def test_views_ok_merged_border_not_seen(rig, tools):
     m = (tools.cylinder_masks(rig, [a, b, c])[1] > 0).view(np.uint8)
     labels, status = assign_views(cam, find_blobs(m, 50), np.stack([a, b, c]))
     assert status == [VIEW_MERGED, VIEW_MERGED, VIEW_OK] and labels[0] == labels[1] != labels[2]
-    # a blob bigger than a person's cylinder (someone undetected next to them) is not theirs alone
+    # a blob bigger than a person's cylinder (a prop, someone undetected next to them) is not theirs alone, and
+    # not "merged" either (no second tracked person shares it)
     m2 = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8).copy()
     x, y = np.round(cam.project(np.r_[c, 1.0])).astype(int)
     m2[y - 10 : y + 10, x : x + 160] = 1
-    assert assign_views(cam, find_blobs(m2, 50), c[None])[1] == [VIEW_MERGED]
+    assert assign_views(cam, find_blobs(m2, 50), c[None])[1] == [VIEW_CLUTTER]
     m3 = (tools.cylinder_masks(rig, [c])[1] > 0).view(np.uint8)
     assert assign_views(cam, find_blobs(np.zeros_like(m), 50), c[None])[1] == [VIEW_EMPTY]
     assert assign_views(cam, find_blobs(m3, 50), np.array([[-1.2, 1.2]]))[1] == [VIEW_NOT_SEEN]

@@ -163,7 +163,7 @@ def test_videos_excludes_other_inputs(tiny_model_file, two_cylinders, tmp_path):
     assert res.exit_code != 0 and "--masks needs --videos" in res.output
 
 
-def test_a_video_shorter_than_its_header_stops_the_run_with_a_warning(rig, tiny_model, tools, tmp_path, monkeypatch):
+def test_a_video_shorter_than_its_header_is_a_missing_view_from_there_on(rig, tiny_model, tools, tmp_path, monkeypatch):
     from silpose.app.recordings import sources
 
     videos = tmp_path / "v"
@@ -177,7 +177,8 @@ def test_a_video_shorter_than_its_header_stops_the_run_with_a_warning(rig, tiny_
 
     monkeypatch.setattr(sources.CameraReader, "read", read)
     s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=True))
-    assert s.n_steps == 6 and any("cam1.mp4 ended after 6 frames (expected 10)" in w for w in s.warnings)
+    assert s.n_steps == 10 and any("cam1.mp4 ended after 6 frames (expected 10)" in w for w in s.warnings)
+    assert s.camera_status["cam1"]["video ended"] == 4 and s.camera_status["cam0"]["video ended"] == 0
     assert (tmp_path / "o" / "joints.parquet").is_file() and (tmp_path / "o" / "overlays" / "cam0.mp4").is_file()
 
 
@@ -237,3 +238,64 @@ def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_p
     assert all(same)
     assert not np.array_equal(_flat(tables["robust"].column("joints")), _flat(tables["plain"].column("joints")),
                               equal_nan=True)
+
+
+def test_a_refused_recording_leaves_no_output_folder(tiny_model_file, tmp_path):
+    """Colour videos without a background are refused before any frame: --out is not left behind holding
+    only silpose's marker, and the error is the only line."""
+    from typer.testing import CliRunner
+
+    from silpose.shared.cli import build_app
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    out = tmp_path / "out"
+    res = CliRunner().invoke(build_app(), ["infer", str(tiny_model_file), "--videos", str(videos), "--out", str(out)])
+    assert res.exit_code == 2
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("silpose infer: error: "), res.stderr
+    assert not out.exists()
+
+
+def _mjpg_videos(folder, rig, tools, n):
+    """Mask videos ``<camera>.avi`` (MJPG: an AVI whose frames still decode when the file is cut) of one
+    cylinder walking across the room, n frames."""
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    frames = np.stack([tools.cylinder_masks(rig, [p]) for p in tools.walk((-0.8, -0.3), (0.8, 0.3), n)], 1)
+    for k, cam in enumerate(rig):
+        w = cv2.VideoWriter(str(folder / f"{cam.name}.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25.0,
+                            (cam.width, cam.height), isColor=False)
+        for f in frames[k]:
+            w.write(f)
+        w.release()
+
+
+def test_a_truncated_camera_file_loses_only_that_camera(rig, tiny_model, tools, tmp_path, capfd):
+    """One of four mask videos cut to a third of its bytes: the other three cameras go on to the end; the cut
+    camera is "video ended" for the rest, its decoder noise stays off the terminal and is summarised in one
+    line. (Before: the run stopped at the cut camera's last frame, and FFmpeg printed "overread" lines.)"""
+    n = 24
+    videos = tmp_path / "v"
+    _mjpg_videos(videos, rig, tools, n)
+    cut = videos / "cam2.avi"
+    data = cut.read_bytes()
+    cut.write_bytes(data[: len(data) // 3])
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    err = capfd.readouterr().err
+    ended = s.camera_status["cam2"]["video ended"]
+    assert s.n_steps == n and 0 < ended < n  # every step processed; cam2 lost only after its cut
+    assert all(s.camera_status[c]["video ended"] == 0 for c in ("cam0", "cam1", "cam3"))
+    assert sum(s.views_hist) >= n - 3  # the walker is still found in the frames after the cut
+    assert any("cam2.avi: decoding stopped at frame" in w and f"of the {n}" in w for w in s.warnings)
+    assert "overread" not in err and "@ 0x" not in err
+
+
+def test_an_unreadable_camera_file_is_a_missing_view_in_every_frame(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    tools.write_mask_videos(videos, rig, [tools.walk((-0.5, 0.0), (0.5, 0.0), 8)])
+    (videos / "cam3.mp4").write_bytes(b"not a video" * 50)
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    assert s.n_steps == 8 and s.camera_status["cam3"]["no video"] == 8
+    assert any(w.startswith(str(videos / "cam3.mp4") + ": OpenCV (FFmpeg) cannot open this video")
+               and w.endswith("a missing view in every frame") for w in s.warnings)

@@ -40,7 +40,7 @@ def test_matches_videos_to_cameras_and_warns_for_a_missing_one(rig, tools, tmp_p
     assert any("cam2" in w and "missing view" in w for w in rec.warnings)
 
 
-def test_offsets_shift_frames_and_unequal_lengths_stop_at_the_shortest(rig, tools, tmp_path):
+def test_offsets_shift_frames_and_unequal_lengths_run_to_the_longest(rig, tools, tmp_path):
     tools.write_video(tmp_path / "cam0.mp4", _numbered(12))
     tools.write_video(tmp_path / "cam1.mp4", _numbered(10))
     rec = open_recording(tmp_path, rig, {"cam1": -2})  # cam1's frame i - 2 is cam0's frame i
@@ -52,7 +52,8 @@ def test_offsets_shift_frames_and_unequal_lengths_stop_at_the_shortest(rig, tool
     r0.close(), r1.close()
     tools.write_video(tmp_path / "cam2.mp4", _numbered(7))
     rec = open_recording(tmp_path, rig)
-    assert rec.n_steps == 7 and any("unequal length" in w and "cam2.mp4" in w for w in rec.warnings)
+    assert rec.n_steps == 12 and any("unequal length" in w and "cam2.mp4 7" in w and "video ended" in w
+                                     for w in rec.warnings)
 
 
 def test_mapping_file_names_the_videos(rig, tools, tmp_path):

@@ -13,16 +13,14 @@ import numpy as np
 
 from silpose.shared.contours import EmptyMaskError, extract_contour
 
-#: the view was used
-STATUS_OK = "ok"
-#: no frames for this camera: a missing view in every frame
-STATUS_NO_CAMERA = "no camera"
-#: the segmentation found no foreground: a missing view for this frame
-STATUS_EMPTY = "empty"
-#: the largest blob is under ``min_area`` px: a missing view for this frame
-STATUS_SMALL = "too small"
-#: the model does not use this camera
-STATUS_NOT_MODELLED = "not modelled"
+from .view_status import VIEW_EMPTY, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_OK, VIEW_TOO_SMALL
+
+# the statuses of the frames pipeline, in the vocabulary every camera input shares (:mod:`.view_status`)
+STATUS_OK = VIEW_OK
+STATUS_NO_CAMERA = VIEW_NO_VIDEO
+STATUS_EMPTY = VIEW_EMPTY
+STATUS_SMALL = VIEW_TOO_SMALL
+STATUS_NOT_MODELLED = VIEW_NOT_MODELLED
 #: every status, in report order
 STATUSES = (STATUS_OK, STATUS_NO_CAMERA, STATUS_EMPTY, STATUS_SMALL, STATUS_NOT_MODELLED)
 #: default smallest usable blob, pixels (smaller blobs are noise, not a person)

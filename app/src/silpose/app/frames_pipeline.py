@@ -14,7 +14,7 @@ view's contour (:mod:`.inference`).
 Missing views: a camera without a frames entry is missing for every frame; a frame whose
 segmentation is empty, or whose largest blob is smaller than ``min_area`` pixels, is missing in
 that view for that frame. The model marginalises missing views. Every (frame, camera) status is
-recorded (``ok``, ``no camera``, ``empty``, ``too small``; ``not modelled`` for a camera the
+recorded (``ok``, ``no video``, ``empty mask``, ``too small``; ``not modelled`` for a camera the
 model was not trained on) and written to ``<out stem>.segmentation.json``; a frame with no usable
 view gets NaN joints and ``n_views_present = 0``. ``--save-overlays`` draws one figure per frame
 (:mod:`.overlays`).

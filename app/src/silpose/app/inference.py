@@ -137,6 +137,9 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
     out = Path(out)
     if out.suffix.lower() not in (".parquet", ".json"):
         raise InferenceInputError(f"{out}: the joints file must end in .parquet or .json")
+    if input_path.is_file():
+        raise InferenceInputError(f"{input_path}: a file, but the input is a dataset folder or a folder of per-camera "
+                                  "folders of silhouette images")
     if not input_path.is_dir():
         raise InferenceInputError(f"{input_path}: no such folder")
     if is_dataset(input_path):

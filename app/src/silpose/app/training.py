@@ -85,6 +85,7 @@ from silpose.shared.memory import release_freed_memory
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.output_dir import claim_files
 from silpose.shared.rig_symmetry import RigMirror, rig_mirrors
+from silpose.shared.version import silpose_version
 
 from .errors import TrainingError
 
@@ -377,6 +378,7 @@ def run_training(
         "roughness": None if roughness is None else roughness.to_dict(),
         "mirrors": [m.to_dict() for m in mirrors],
         "notes": notes,
+        "silpose_version": silpose_version(),
     }
     _, report_json, report_md = report_paths(out)
     write_text_atomic(report_json, json.dumps(report, indent=2))
@@ -466,6 +468,7 @@ def report_markdown(r: dict, selection) -> str:
     lines = [
         f"# Training report: {Path(r['model']).name}",
         "",
+        f"- silpose {r.get('silpose_version', 'unknown')}",
         f"- data: `{r['dataset']['root']}` train split, {r['n_fit']} samples fitted, {r['n_heldout']} held out "
         f"(manifest sha256 `{r['dataset']['manifest_sha256']}`)",
         f"- model: M = {hp['n_components']} components, q = {hp['n_latent']}, structure weight "

@@ -150,8 +150,50 @@ def _gait_section(workspace: Workspace) -> str:
     return "\n".join(rows) + "\n"
 
 
+def _library_section(motion: dict, loaded: dict) -> str:
+    """The clips of a motion-library dataset, by activity group: identity, split, licence, usage;
+    then the library's acknowledgement."""
+    clips = motion["clips"]
+    lib = motion.get("library", {})
+    counts = {s: np.bincount(np.asarray(d.gait["clip"], np.int64), minlength=len(clips)) for s, d in loaded.items()}
+    groups = sorted({c["group"] for c in clips}, key=lambda g: (g != "walk", g))
+    rows = ["| group | # | clip | subject | description | split | frames | weight per frame | licence | source | "
+            + " | ".join(f"{s} samples" for s in loaded) + " |", "|" + "---|" * (10 + len(loaded))]
+    summary = ["| group | train clips | test clips | " + " | ".join(f"{s} samples" for s in loaded) + " |",
+               "|" + "---|" * (3 + len(loaded))]
+    for g in groups:
+        idx = [i for i, c in enumerate(clips) if c["group"] == g]
+        summary.append(f"| {g} | {sum(clips[i]['split'] == 'train' for i in idx)} | "
+                       f"{sum(clips[i]['split'] == 'test' for i in idx)} | "
+                       + " | ".join(str(int(sum(counts[s][i] for i in idx))) for s in loaded) + " |")
+        for i in idx:
+            c = clips[i]
+            rows.append(f"| {g} | {i} | {c['id']} | {c.get('subject', '-')} | {c.get('description', '') or '-'} | "
+                        f"{c['split']} | {c['frames']} | {c['weight']:.3g} | {c['licence'] or '-'} | "
+                        f"{('`' + c['source'] + '`') if c.get('source') else '-'} | "
+                        + " | ".join(str(int(counts[s][i])) for s in loaded) + " |")
+    weights = ", ".join(f"{k} {v:g}" for k, v in (motion.get("weights") or {}).items()) or "1 each"
+    return "\n".join([
+        "Poses come from silpose's motion library (per-frame bone directions and root motion of motion-capture "
+        "clips, read once by Blender's BVH importer when the library was built; `silpose motions list`) mixed with "
+        f"the procedural walk (share {motion.get('procedural_walk', 0):g}), retargeted onto every generated body: "
+        "bone directions, pelvis and chest orientation from the clip, bone lengths from the subject's own "
+        "proportions, feet put back on the floor (`silpose.datagen.motion.retarget`). Splits hold out subjects: "
+        "train samples draw from the train clips, test samples from the test clips (other people). Each row's "
+        "`gait` column holds `clip` (the # below; 0 = the procedural walk), `frame` (0-based BVH frame), `mirror`, "
+        "and the walk's parameters (0 for a clip frame, except `heading`, `x`, `y`). A group is drawn with "
+        f"probability proportional to its weight ({weights}; groups {', '.join(motion.get('groups') or ['all'])}), "
+        f"then one of its frames uniformly. Mirror augmentation: {'on' if motion.get('mirror') else 'off'}. "
+        f"Library frames sha256 `{str(lib.get('frames_sha256', ''))[:16]}`, {lib.get('fps', '?')} fps.\n",
+        *summary, "", *rows, "",
+        *([f"**Acknowledgement.** {lib['acknowledgement']}\n"] if lib.get("acknowledgement") else []),
+    ])
+
+
 def _motion_section(motion: dict, loaded: dict) -> str:
     """The clips of a motion-capture dataset: identity, frames used, weights, licences, usage."""
+    if motion.get("source") == "library":
+        return _library_section(motion, loaded)
     clips = motion["clips"]
     rows = ["| # | clip | file | frames | fps | frames used (first, last, stride) | weight | joint map | "
             "vertical extent m | licence / source | note | sha256 | " + " | ".join(f"{s} samples" for s in loaded) + " |",
@@ -166,7 +208,7 @@ def _motion_section(motion: dict, loaded: dict) -> str:
     return "\n".join([
         "Poses come from motion-capture clips (BVH), imported by Blender's own importer and retargeted onto every "
         "generated body: bone directions, pelvis and chest orientation from the clip, bone lengths from the "
-        "subject's own proportions, feet put back on the floor (`silpose.datagen.retarget`). Each row's `gait` "
+        "subject's own proportions, feet put back on the floor (`silpose.datagen.motion.retarget`). Each row's `gait` "
         "column holds `clip` (the # below), `frame` (0-based BVH frame), `mirror` (1: left/right mirrored), "
         f"`heading` (radians) and `x`, `y` (metres). Mirror augmentation: {'on' if motion.get('mirror') else 'off'}. "
         "A clip is drawn with probability proportional to weight x frames used, then one of its used frames "

@@ -21,11 +21,11 @@ def gen(
     executor: Annotated[str, typer.Option(help="local (spawn process pool) or ray.")] = "local",
     rig: Annotated[
         Optional[Path],
-        typer.Option("--rig", help="Rig file (rig.json from `silpose rig import`); replaces the config's \\[rig]."),
+        typer.Option("--rig", help="Rig file (rig.json from `silpose rig import`); replaces the config's [rig]."),
     ] = None,
     renderer: Annotated[Optional[str], typer.Option(help="Override the config: raster or blender.")] = None,
     blender_engine: Annotated[Optional[str], typer.Option(help="Override the config: workbench or cycles.")] = None,
-    seed: Annotated[Optional[int], typer.Option(help="Override the config's dataset seed.")] = None,
+    seed: Annotated[Optional[int], typer.Option(min=0, help="Override the config's dataset seed.")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar.")] = True,
     preview: Annotated[bool, typer.Option(help="Write preview.png and, with both splits, characters.png (shown in the card).")] = True,
 ) -> None:
@@ -37,11 +37,12 @@ def gen(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, claim_folder
 
-    from .bvh_check import BvhError
-    from .clips import ClipError
+    from .motion.bvh_check import BvhError
+    from .motion.clips import ClipError
     from .config import ConfigError, load_config
     from .executor import ExecutorError
-    from .joint_maps import JointMapError
+    from .motion.joint_maps import JointMapError
+    from .motion.library import LibraryError
     from .manifest import LockError, is_dataset_folder
     from .pipeline import generate
     from .shards import GenerationError
@@ -56,7 +57,7 @@ def gen(
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
     except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError,
-            BvhError, ClipError, JointMapError) as exc:
+            BvhError, ClipError, JointMapError, LibraryError) as exc:
         fail("gen", str(exc))
     except KeyboardInterrupt:
         fail("gen", "interrupted; rerun the same command to resume", 130)
@@ -85,7 +86,7 @@ def validate(
         print(f"{path}: readable silpose shard, {len(shard)} samples, {shard.n_views} views")
         return
     if not path.is_dir():
-        fail("validate", f"{path}: no such dataset folder or shard file", 1)
+        fail("validate", f"{path}: no such dataset folder or shard file")  # an input error: 2, as train says
     report = validate_dataset(path)
     print(report.format())
     if not report.ok:

@@ -17,7 +17,7 @@ Keys (all validated; errors are one line naming the file and the field)::
     [workspace]                 # optional: overrides the rig's workspace (metres, silpose's frame)
     center = [0.0, 0.0]
     size = [3.0, 3.0]
-    [motion]                    # optional: poses from motion-capture clips (.motion_config)
+    [motion]                    # optional: poses from motion-capture clips (.motion.config)
     source = "bvh"              # "procedural" (default, the walk cycle) | "bvh"
     bvh = ["clips/*.bvh"]
 
@@ -41,9 +41,10 @@ import numpy as np
 from silpose.shared.camera import Rig, RigError, default_rig, load_rig
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
-from .blender_scene import ENGINES
-from .clips import PreparedMotion, prepare_motion
-from .motion_config import MotionConfig, MotionConfigError, motion_from_dict
+from .blender.scene import ENGINES
+from .motion.clips import PreparedMotion, prepare_motion
+from .motion.mix import PreparedLibrary, prepare_library
+from .motion.config import MotionConfig, MotionConfigError, motion_from_dict
 from .renderers import MASK_RENDERERS
 
 SPLITS = ("train", "test")
@@ -90,17 +91,19 @@ class GenConfig:
     source: str = ""
     workspace_spec: dict | None = None
     motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
-    prepared: PreparedMotion | None = field(default=None, repr=False)
+    prepared: PreparedMotion | PreparedLibrary | None = field(default=None, repr=False)
 
     def with_motion(self, workers: int | None = None) -> "GenConfig":
         """This config with its motion-capture clips imported and checked (itself if procedural)."""
-        if not self.motion.is_bvh or self.prepared is not None:
+        if not self.motion.uses_clips or self.prepared is not None:
             return self
+        if self.motion.source == "library":
+            return replace(self, prepared=prepare_library(self.motion))
         return replace(self, prepared=prepare_motion(self.motion, workers=workers))
 
-    def _prepared(self) -> PreparedMotion | None:
-        if self.motion.is_bvh and self.prepared is None:
-            raise ValueError(f"{self.source}: [motion] source = \"bvh\": call with_motion() first (imports the clips)")
+    def _prepared(self) -> PreparedMotion | PreparedLibrary | None:
+        if self.motion.uses_clips and self.prepared is None:
+            raise ValueError(f"{self.source}: [motion] source = {self.motion.source!r}: call with_motion() first (imports the clips)")
         return self.prepared
 
     def to_dict(self) -> dict:

@@ -26,6 +26,8 @@ import psutil
 
 from silpose.shared.ray_tasks import cancel_pending, task_failure_message
 
+from .blender_env import use_silpose_blender_dirs
+
 DEFAULT_RENDER = "silpose.datagen.worker:render_samples"
 #: Shard tasks a worker runs before it is replaced (bounds memory growth in long runs).
 DEFAULT_MAX_TASKS_PER_CHILD = 20
@@ -53,6 +55,7 @@ def _resolve(target: str):
 
 def run_task(target: str, config: dict, split: str, indices: list[int]) -> dict:
     """Worker side: render one shard with ``target`` and time it."""
+    use_silpose_blender_dirs()  # before the renderer imports bpy (a Ray worker comes here first)
     t0 = time.perf_counter()
     records = _resolve(target)(config, split, list(indices))
     seconds = time.perf_counter() - t0
@@ -112,6 +115,7 @@ def _worker_loop(conn, max_tasks: int, call) -> None:
     """Worker side of :func:`spawned_map`: answer up to ``max_tasks`` messages received on ``conn``
     with ``call(message)``; stop on ``None`` or when the driver is gone."""
     ignore_interrupt()
+    use_silpose_blender_dirs()  # Blender's user folders in silpose's cache, before any bpy import
     for _ in range(max_tasks):
         try:
             message = conn.recv()

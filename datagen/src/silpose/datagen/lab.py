@@ -14,7 +14,7 @@ end to end against known joints:
 - :class:`Walker`: a person walking back and forth between two floor points at constant speed; its
   body and gait style are those of test sample ``index`` (:func:`silpose.datagen.scene.draw_sample_parameters`,
   so test-split builds and clothing), its pose at time ``t`` is the procedural walk
-  (:class:`silpose.datagen.motion.WalkMotion`) at the phase its travelled distance gives.
+  (:class:`silpose.datagen.motion.source.WalkMotion`) at the phase its travelled distance gives.
 - :func:`render_lab`: the spawned-worker entry point (Blender): every frame, each walker is rendered
   ALONE through the renderer registry (``raster`` by default), and the cameras' masks are the OR of
   the walkers' masks. Written: ``masks/<camera>.mp4`` (the OR, 0/255, each frame through JPEG at quality
@@ -43,7 +43,7 @@ from silpose.shared.atomic import atomic_open, atomic_path
 from silpose.shared.camera import Camera, Rig, look_at
 from silpose.shared.rig_frame import Workspace, WorldTransform
 
-from .motion import WALK
+from .motion.source import WALK
 from .render import rendering
 from .renderers import renderer_from_config
 from .scene import SampleScene, draw_sample_parameters

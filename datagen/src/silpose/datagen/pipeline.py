@@ -146,7 +146,7 @@ def build_manifest(config: GenConfig, out: Path, tasks, stats: dict, workers: in
             "dataset_seed": config.seed,
             "rule": "sample i of split s is a pure function of (dataset_seed, s, i): draw r uses numpy SeedSequence([dataset_seed, split_code, i, r]) with split_code train=0, test=1; rejected draws are counted in redraws",
             **({"motion_rule": f"motion-capture draws (clip, frame, mirror, heading, x, y) use SeedSequence([{MOTION_STREAM}, dataset_seed, split_code, i, r])"}
-               if config.motion.is_bvh else {}),
+               if config.motion.uses_clips else {}),
         },
         "counts": dict(config.splits),
         "redraws": redraws,

@@ -20,9 +20,18 @@ PREVIEW_NAME = "preview.png"
 
 
 def pick_samples(root: Path, split: str, n_samples: int):
-    """The first shard's ``n_samples`` evenly spaced samples, as a DatasetSplit slice."""
+    """The first shard's ``n_samples`` evenly spaced samples, as a DatasetSplit slice; for a
+    motion-library dataset the first sample of as many different activity groups as there are
+    rows (then evenly spaced ones), so the sheet shows the variety."""
     path, shard = next(iter_shards(root, split, with_masks=True))
     idx = np.linspace(0, len(shard) - 1, min(n_samples, len(shard))).round().astype(int)
+    clips = (shard.metadata.get("config", {}).get("motion") or {}).get("clips")
+    if clips and all("group" in c for c in clips) and "clip" in shard.gait:
+        c = np.asarray(shard.gait["clip"], np.int64)
+        group = ["procedural walk" if k == 0 else clips[k]["group"] if 0 <= k < len(clips) else "?" for k in c]
+        first = list({g: i for i, g in reversed(list(enumerate(group))) if g != "procedural walk"}.values())[::-1]
+        first = sorted(first)[:n_samples]
+        idx = np.array(first + [i for i in idx if i not in first][: n_samples - len(first)], int)
     return shard, idx
 
 
@@ -33,6 +42,10 @@ def _clip_label(shard, i: int) -> str:
         return ""
     c, f = int(shard.gait["clip"][i]), int(shard.gait["frame"][i])
     name = clips[c]["name"] if 0 <= c < len(clips) else f"clip {c}"
+    if 0 <= c < len(clips) and "group" in clips[c]:  # a motion-library dataset: say the activity group too
+        if c == 0:
+            return "\nprocedural walk"
+        name = f"{clips[c]['group']}: {name}"
     return f"\n{name[:22]} f{f}{' m' if shard.gait.get('mirror', [0] * (i + 1))[i] else ''}"
 
 

@@ -1,7 +1,7 @@
 """The renderers and the registry that maps config names to them.
 
 Every renderer implements :class:`render.Renderer` and builds the sample's body once through
-the Blender adapter (:func:`blender_scene.posed_body`):
+the Blender adapter (:func:`blender.scene.posed_body`):
 
 - ``raster``: Blender's posed mesh projected with the rig and filled at pixel centres by
   :mod:`.raster` (no Blender render; ~7x faster than Workbench, and a check of the calibration).
@@ -22,7 +22,7 @@ import numpy as np
 
 from silpose.shared.camera import Rig
 
-from . import blender_scene as bs
+from .blender import scene as bs
 from .frames.render import TexturedRenderer
 from .raster import project_vertices, rasterize_projected
 from .render import RenderResult, Renderer, check_scene_rig
@@ -76,10 +76,10 @@ class RasterRenderer(MaskRenderer):
 
 
 class BlenderRenderer(MaskRenderer):
-    """``blender``: Blender's own render of the body, alpha > 0.5 (:func:`blender_scene.render_masks`).
+    """``blender``: Blender's own render of the body, alpha > 0.5 (:func:`blender.scene.render_masks`).
 
     Args:
-        engine: ``"workbench"`` or ``"cycles"`` (:data:`blender_scene.ENGINES`).
+        engine: ``"workbench"`` or ``"cycles"`` (:data:`blender.scene.ENGINES`).
     """
 
     name = "blender"

@@ -23,7 +23,7 @@ import numpy as np
 from silpose.shared.camera import Rig
 from silpose.shared.seeds import SPLIT_CODE, derive_rng
 
-from .motion import WALK, MotionSource, Pose, WalkMotion
+from .motion.source import WALK, MotionSource, Pose, WalkMotion
 from .subjects import joint_radius_array, sample_subject
 
 #: Pixels kept free between the person and the image border.

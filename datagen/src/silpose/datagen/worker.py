@@ -21,10 +21,11 @@ from silpose.shared.contours import extract_contours, normalise
 from silpose.shared.seeds import SPLIT_CODE
 from silpose.shared.skeleton import N_JOINTS
 
-from .bvh_motion import BvhMotion
+from .motion.bvh_motion import BvhMotion
+from .motion.mix import MixedMotion
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 
-from .motion import WALK, MotionSource, WalkMotion
+from .motion.source import WALK, MotionSource, WalkMotion
 from .render import RenderResult, Renderer, rendering
 from .renderers import MASK_RENDERERS, renderer_from_config
 from .scene import SampleScene, draw_scene, joints_visible
@@ -51,14 +52,17 @@ def check_worker_config(config: dict) -> tuple[int, Rig, int, int]:
     return int(config["seed"]), rig, n_points, max_redraws
 
 
-def motion_from_config(config: dict, workspace: Workspace = DEFAULT_WORKSPACE) -> MotionSource:
-    """The worker config's motion source on ``workspace`` (the rig's): the walk, or ``BvhMotion``
-    for a ``motion`` entry."""
+def motion_from_config(config: dict, workspace: Workspace = DEFAULT_WORKSPACE, split: str = "train") -> MotionSource:
+    """The worker config's motion source on ``workspace`` (the rig's): the walk, ``BvhMotion`` for
+    a ``motion`` entry of BVH clips, ``MixedMotion`` (the ``split``'s library clips and the walk)
+    for a motion library."""
     motion = config.get("motion")
     if motion is None:
         return WalkMotion(workspace)
+    if motion.get("source") == "library":
+        return MixedMotion.from_config(motion, split, workspace)
     if motion.get("source") != "bvh":
-        raise ValueError(f"config field motion.source: must be 'bvh' in a worker config, got {motion.get('source')!r}")
+        raise ValueError(f"config field motion.source: must be 'bvh' or 'library' in a worker config, got {motion.get('source')!r}")
     return BvhMotion.from_config(motion, workspace)
 
 
@@ -139,6 +143,6 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     if split not in SPLIT_CODE:
         raise ValueError(f"split must be one of {tuple(SPLIT_CODE)}, got {split!r}")
     seed, rig, n_points, max_redraws = check_worker_config(config)
-    motion = motion_from_config(config, rig.workspace)
+    motion = motion_from_config(config, rig.workspace, split)
     with rendering(renderer_from_config(config), rig) as renderer:
         return [render_sample(renderer, seed, split, index, rig, n_points, max_redraws, motion) for index in indices]

@@ -11,9 +11,15 @@ Modules (one concept each; import them directly, nothing heavy is imported here)
 - ``report``      summary.md with the paper's figures beside ours, headline numbers
 - ``plots``       box plots in the paper's style
 - ``figures``     E5 example figures (paper Figs. 6 and 7)
+- ``inference_eval`` E6, how honest the inference is: flips and top-K hypotheses, robust inference,
+  missing-view contours, self-intersections, plausibility flags
+- ``inference_figures`` E6 figures (a flip resolved, robust inference on a masked input, flagged garbage)
+- ``garbage``     inputs that are not a person, for E6's plausibility check
 - ``frames_eval`` segmentation quality on a camera-frames dataset and what it costs the pose
-- ``frames_composite`` a Blender-free frames dataset composited from true masks
 - ``errors``      ``EvalInputError``
 - ``run``         load data + model, run, write ``reports/<preset>/``
 - ``cli``         ``silpose eval [PRESET]``
+
+Helpers that serve only tests and benchmarks live in ``benchmarks/`` (``frames_composite``: a Blender-free
+frames dataset; ``recording_scores``: a recording's rows scored against its truth).
 """

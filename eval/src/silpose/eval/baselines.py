@@ -1,4 +1,4 @@
-"""Reference methods for E4 (paper §6; docs/conventions.md, "Evaluation protocol"): chance, kNN regression, ridge regression.
+"""Reference methods for E4 (paper §6; docs/conventions.md, "Evaluation protocol"): chance, kNN, ridge and MLP regression.
 
 - **Chance** (:class:`ChanceBaseline`): the paper's "random draw of pose parameters from the
   training set" — each test example gets one training pose drawn uniformly at random, root-
@@ -13,6 +13,19 @@
   When the MPPCA models joints per stature (``silpose.model.stature``), the regressors get the same
   information: they regress the joints divided by each walker's measured ``stature / 1.75 m`` and
   multiply their prediction by the stature measured from the observed views (``size=``).
+- **MLP** (:class:`ViewDropoutMLP`; :func:`fit_mlp`): a discriminative baseline, scikit-learn's
+  ``MLPRegressor`` (two hidden layers of 512 ReLU units, Adam) on the same inputs and targets. The
+  inputs are centred per feature but scaled by ONE global factor (per-feature standardisation would
+  amplify the noise on low-variance contour points); the targets likewise. The caller adds noisy
+  copies of the training contours (the eval's noise model) with ``groups`` naming each row's walker;
+  the validation split for early stopping is BY GROUP (``GroupShuffleSplit``), so a walker's clean,
+  noisy and mirrored copies never straddle it. Training stops when the validation error has not
+  improved for ``patience`` epochs; the best epoch's weights are kept. ONE network serves every view
+  subset (a per-subset network, as kNN and ridge have, would cost 15 fits for 4 views): its input is
+  every rig view's normalised contour, zero for an absent view, plus one presence flag per view, and
+  each training row is given a random subset (its size uniform in 1..K), so for a subset it sees the
+  same contours the kNN of that subset sees. ``ViewSubsetRegressor(kind="mlp")`` fits one network
+  for one subset instead.
 """
 
 from __future__ import annotations
@@ -20,13 +33,21 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
+import time
+import warnings
+from dataclasses import dataclass
+
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import RidgeCV
+from sklearn.model_selection import GroupShuffleSplit
 from sklearn.neighbors import KNeighborsRegressor
+from sklearn.neural_network import MLPRegressor
 
 from silpose.shared.seeds import CHANCE_STREAM, derive_rng
 from silpose.shared.skeleton import root_relative
 
-__all__ = ["ChanceBaseline", "ViewSubsetRegressor", "RIDGE_ALPHAS"]
+__all__ = ["ChanceBaseline", "ViewSubsetRegressor", "RIDGE_ALPHAS", "MLPSettings", "GlobalScaledMLP", "fit_mlp",
+           "group_split", "masked_features", "ViewDropoutMLP"]
 
 #: Ridge penalties tried by RidgeCV (training-data leave-one-out), normalised contour units.
 RIDGE_ALPHAS = tuple(float(a) for a in np.logspace(-3, 3, 13))
@@ -72,28 +93,156 @@ def _features(contours_norm: np.ndarray, views: Sequence[int]) -> np.ndarray:
     return c[:, list(views)].reshape(len(c), -1)
 
 
+@dataclass(frozen=True)
+class MLPSettings:
+    """The MLP baseline's settings: hidden layer sizes, epochs cap, early-stopping patience (epochs),
+    validation fraction (of the groups), L2 penalty, mini-batch size, Adam step size, seed."""
+
+    hidden: tuple[int, ...] = (512, 512)
+    max_epochs: int = 40
+    patience: int = 4
+    validation_fraction: float = 0.1
+    alpha: float = 1e-4
+    batch_size: int = 256
+    learning_rate: float = 1e-3
+    random_state: int = 0
+
+
+def group_split(groups: np.ndarray, fraction: float, random_state: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(train rows, validation rows) with about ``fraction`` of the distinct ``groups`` (N,) in validation and
+    no group in both (``sklearn.model_selection.GroupShuffleSplit``)."""
+    groups = np.asarray(groups)
+    if len(np.unique(groups)) < 2:
+        raise ValueError("the MLP's validation split needs at least 2 groups (walkers)")
+    split = GroupShuffleSplit(n_splits=1, test_size=fraction, random_state=random_state)
+    tr, va = next(split.split(np.zeros(len(groups)), groups=groups))
+    return np.sort(tr), np.sort(va)
+
+
+class GlobalScaledMLP:
+    """A fitted MLP with its input and output scaling: x -> (x - x_mean) / x_scale, y = y_mean + y_scale * net.
+
+    Attributes: ``net_`` (MLPRegressor), ``x_mean_`` (p,), ``x_scale_`` (float), ``y_mean_`` (t,),
+    ``y_scale_`` (float), ``n_epochs_``, ``best_epoch_``, ``val_rmse_`` (validation RMSE, target units,
+    of the kept weights), ``train_rows_`` / ``val_rows_`` (row indices of the split), ``fit_time_s_``.
+    """
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        z = ((np.asarray(x, dtype=np.float64) - self.x_mean_) / self.x_scale_).astype(np.float32)
+        return self.y_mean_ + self.y_scale_ * self.net_.predict(z).astype(np.float64)
+
+
+def fit_mlp(x: np.ndarray, y: np.ndarray, groups: np.ndarray, settings: MLPSettings = MLPSettings()) -> GlobalScaledMLP:
+    """Fit the MLP baseline on rows x (N, p), targets y (N, t), walkers ``groups`` (N,): one epoch per
+    ``partial_fit`` (float32), early stopping on the group-held-out validation rows. See the module doc."""
+    t0 = time.perf_counter()
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if x.ndim != 2 or y.ndim != 2 or len(x) != len(y) or len(groups) != len(x):
+        raise ValueError(f"fit_mlp: x (N, p), y (N, t), groups (N,) expected, got {x.shape}, {y.shape}, {np.shape(groups)}")
+    out = GlobalScaledMLP()
+    out.train_rows_, out.val_rows_ = group_split(groups, settings.validation_fraction, settings.random_state)
+    tr, va = out.train_rows_, out.val_rows_
+    out.x_mean_ = x[tr].mean(axis=0)
+    out.x_scale_ = float(np.sqrt(np.mean((x[tr] - out.x_mean_) ** 2))) or 1.0  # ONE factor for every feature
+    out.y_mean_ = y[tr].mean(axis=0)
+    out.y_scale_ = float(np.sqrt(np.mean((y[tr] - out.y_mean_) ** 2))) or 1.0
+    zx = ((x - out.x_mean_) / out.x_scale_).astype(np.float32)
+    zy = ((y - out.y_mean_) / out.y_scale_).astype(np.float32)
+    net = MLPRegressor(hidden_layer_sizes=settings.hidden, alpha=settings.alpha, batch_size=settings.batch_size,
+                       learning_rate_init=settings.learning_rate, random_state=settings.random_state, shuffle=True)
+    best, best_err, since = None, np.inf, 0
+    epoch = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        for epoch in range(1, settings.max_epochs + 1):
+            net.partial_fit(zx[tr], zy[tr])
+            err = float(np.sqrt(np.mean((net.predict(zx[va]) - zy[va]) ** 2)))
+            if err < best_err:
+                best_err, since, out.best_epoch_ = err, 0, epoch
+                best = ([w.copy() for w in net.coefs_], [b.copy() for b in net.intercepts_])
+            else:
+                since += 1
+                if since >= settings.patience:
+                    break
+    net.coefs_, net.intercepts_ = best
+    out.net_, out.n_epochs_ = net, epoch
+    out.val_rmse_ = best_err * out.y_scale_
+    out.fit_time_s_ = time.perf_counter() - t0
+    return out
+
+
+def masked_features(contours_norm: np.ndarray, present: np.ndarray) -> np.ndarray:
+    """(N, K n 2 + K): every view's normalised contour (N, K, n, 2), zeros where ``present`` (N, K) is
+    False, then the K presence flags (0/1)."""
+    c = np.asarray(contours_norm, dtype=np.float64)
+    p = np.asarray(present, dtype=bool)
+    if c.ndim != 4 or p.shape != c.shape[:2]:
+        raise ValueError(f"contours_norm (N, K, n, 2) and present (N, K) expected, got {c.shape} and {p.shape}")
+    x = np.where(p[:, :, None, None], c, 0.0).reshape(len(c), -1)
+    return np.concatenate([x, p.astype(np.float64)], axis=1)
+
+
+class ViewDropoutMLP:
+    """The MLP baseline for every view subset at once (module doc): inputs :func:`masked_features`,
+    targets root-relative joints (/ size), fitted by :func:`fit_mlp`.
+
+    Fitted attributes: ``estimator_`` (:class:`GlobalScaledMLP`), ``fit_time_s_``, ``n_rows_``.
+    """
+
+    def __init__(self, settings: MLPSettings = MLPSettings()) -> None:
+        self.settings = settings
+
+    def fit(self, contours_norm: np.ndarray, present: np.ndarray, joints: np.ndarray, groups: np.ndarray,
+            size: np.ndarray | None = None) -> "ViewDropoutMLP":
+        """contours_norm (N, K, n, 2), present (N, K) bool (the views each row is given), joints (N, 19, 3)
+        metres, groups (N,) walker of each row, size optional (N,) stature factors (targets divided by it)."""
+        t0 = time.perf_counter()
+        y = root_relative(np.asarray(joints, dtype=np.float64))
+        if size is not None:
+            y = y / np.asarray(size, dtype=np.float64)[:, None, None]
+        self.estimator_ = fit_mlp(masked_features(contours_norm, present), y.reshape(len(y), -1), groups, self.settings)
+        self.n_rows_ = int(len(y))
+        self.fit_time_s_ = time.perf_counter() - t0
+        return self
+
+    def predict(self, contours_norm: np.ndarray, views: Sequence[int], size: np.ndarray | None = None) -> np.ndarray:
+        """(N, 19, 3) metres from the ``views`` of contours_norm (N, K, n, 2); size: (N,) factors to multiply by."""
+        c = np.asarray(contours_norm)
+        present = np.zeros(c.shape[:2], bool)
+        present[:, list(views)] = True
+        pred = self.estimator_.predict(masked_features(c, present)).reshape(len(c), 19, 3)
+        return pred if size is None else pred * np.asarray(size, dtype=np.float64)[:, None, None]
+
+
 class ViewSubsetRegressor:
-    """kNN or ridge regression from a view subset's normalised contours to root-relative joints.
+    """kNN, ridge or MLP regression from a view subset's normalised contours to root-relative joints.
 
     Args:
-        kind: "knn" or "ridge".
+        kind: "knn", "ridge" or "mlp".
         views: rig view indices used as input (sorted).
         n_neighbors: k for "knn".
         alphas: penalties for "ridge" (RidgeCV).
+        mlp: settings for "mlp" (:class:`MLPSettings`).
 
-    Fitted attributes: ``estimator_`` (the sklearn estimator).
+    Fitted attributes: ``estimator_`` (the sklearn estimator, or a :class:`GlobalScaledMLP`),
+    ``fit_time_s_``.
     """
 
     def __init__(self, kind: str, views: Sequence[int], n_neighbors: int = 5,
-                 alphas: Sequence[float] = RIDGE_ALPHAS) -> None:
+                 alphas: Sequence[float] = RIDGE_ALPHAS, mlp: MLPSettings = MLPSettings()) -> None:
         self.kind = kind
         self.views = tuple(sorted(int(v) for v in views))
         self.n_neighbors = n_neighbors
         self.alphas = tuple(alphas)
+        self.mlp = mlp
 
-    def fit(self, contours_norm: np.ndarray, joints: np.ndarray, size: np.ndarray | None = None) -> "ViewSubsetRegressor":
+    def fit(self, contours_norm: np.ndarray, joints: np.ndarray, size: np.ndarray | None = None,
+            groups: np.ndarray | None = None) -> "ViewSubsetRegressor":
         """contours_norm: (N, K, n, 2) normalised training contours; joints: (N, 19, 3) metres;
-        size: optional (N,) factors (stature / 1.75 m): the target becomes root-relative joints / size."""
+        size: optional (N,) factors (stature / 1.75 m): the target becomes root-relative joints / size;
+        groups: (N,) walker of each row, required for "mlp" (its validation split is by walker)."""
+        t0 = time.perf_counter()
         x = _features(contours_norm, self.views)
         y = root_relative(np.asarray(joints, dtype=np.float64))
         if size is not None:
@@ -103,9 +252,16 @@ class ViewSubsetRegressor:
             est = KNeighborsRegressor(n_neighbors=min(self.n_neighbors, len(x)), weights="distance")
         elif self.kind == "ridge":
             est = RidgeCV(alphas=self.alphas)
+        elif self.kind == "mlp":
+            if groups is None:
+                raise ValueError("the MLP baseline needs groups (the walker of each training row)")
+            self.estimator_ = fit_mlp(x, y, groups, self.mlp)
+            self.fit_time_s_ = time.perf_counter() - t0
+            return self
         else:
-            raise ValueError(f"kind must be 'knn' or 'ridge', got {self.kind!r}")
+            raise ValueError(f"kind must be 'knn', 'ridge' or 'mlp', got {self.kind!r}")
         self.estimator_ = est.fit(x, y)
+        self.fit_time_s_ = time.perf_counter() - t0
         return self
 
     def predict(self, contours_norm: np.ndarray, size: np.ndarray | None = None) -> np.ndarray:

@@ -12,7 +12,7 @@ from typing import List, Optional
 
 import typer
 
-from silpose.shared.cli import fail
+from silpose.shared.cli import fail, lazy_progress, show_progress
 
 
 def evaluate(
@@ -35,7 +35,7 @@ def evaluate(
                                                    "motion-capture clips); each gets its own report folder under "
                                                    "--out, and test_sets.md puts them side by side."),
 ) -> None:
-    """Run experiments E1-E5 of the paper (section 6) and E6 (issue 12) and write reports/<name>/: summary.md, results.parquet,
+    """Run experiments E1-E5 of the paper (section 6) and E6 (how honest the inference is) and write reports/<name>/: summary.md, results.parquet,
     headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
 
     When data/<name>/frames holds a frames dataset (camera frames + truth), also segments the frames and
@@ -44,7 +44,9 @@ def evaluate(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from silpose.shared.output_dir import OutputFolderError, check_folder, claim_folder
+    from contextlib import nullcontext
+
+    from silpose.shared.output_dir import OutputFolderError, check_folder, claimed_folder
 
     from .experiments import DEFAULT_SWEEP, EvalConfig
     from .noise import STANDARD_NOISE
@@ -79,13 +81,15 @@ def evaluate(
         sweep = tuple(s for s in DEFAULT_SWEEP if s.label in ("clean", "jitter 2px", "patches 8px", "mask strong"))
     config = EvalConfig(n_test=n_test, seed=seed, noise=noise, sweep=sweep, experiments=exps)
 
-    with Progress(TextColumn("[bold]{task.description:<42}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  TimeElapsedColumn(), console=console, transient=False) as progress:
+    progress = Progress(TextColumn("[bold]{task.description:<42}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                        TimeElapsedColumn(), console=console, transient=False)
+    with lazy_progress(progress):
         tasks: dict[str, int] = {}
 
         def on_step(what: str, done: int, total: int) -> None:
             key = what.split(":")[0]
             if key not in tasks:
+                show_progress(progress)
                 tasks[key] = progress.add_task(key, total=total)
             progress.update(tasks[key], completed=done, total=total, description=what[:42])
 
@@ -93,20 +97,22 @@ def evaluate(
             (t, out / t.name, f"silpose evaluation — model {model.name} on {t.name}") for t in test_data]
         rows = []
         try:
-            if data_dir.is_dir() and model.is_file():  # else run_evaluation says what is missing, writing nothing
-                claim_folder(out, "eval", recognise=is_report_folder)
-            for test_dir, run_out, title in runs:
-                ev, written = run_evaluation(data_dir, model, run_out, config, progress=on_step, title=title,
-                                             frames_dir=False if (no_frames or test_dir is not None) else frames,
-                                             test_dir=test_dir)
-                console.print(f"wrote {len(written)} artefacts to {run_out}/ in {sum(ev.timings.values()):.0f} s:")
-                for key, path in written.items():
-                    console.print(f"  {path}")
-                rows.append((run_out.name if test_dir is not None else name, headline(ev.frame()), len(ev.data.test_ids)))
+            # claimed for the run: a refused evaluation (bad model, bad data) leaves no folder behind
+            with (claimed_folder(out, "eval", recognise=is_report_folder) if data_dir.is_dir() and model.is_file()
+                  else nullcontext()):  # else run_evaluation says what is missing, writing nothing
+                for test_dir, run_out, title in runs:
+                    ev, written = run_evaluation(data_dir, model, run_out, config, progress=on_step, title=title,
+                                                 frames_dir=False if (no_frames or test_dir is not None) else frames,
+                                                 test_dir=test_dir)
+                    console.print(f"wrote {len(written)} artefacts to {run_out}/ in {sum(ev.timings.values()):.0f} s:")
+                    for key, path in written.items():
+                        console.print(f"  {path}")
+                    rows.append((run_out.name if test_dir is not None else name, headline(ev.frame()),
+                                 len(ev.data.test_ids)))
         except (EvalInputError, OutputFolderError) as exc:
-            progress.stop()
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(code=2) from None
+            if progress.live.is_started:
+                progress.stop()  # before the error line
+            fail("eval", str(exc))
     if test_data:
         console.print(f"  {write_test_sets(out, model, rows)}")
 

@@ -23,8 +23,10 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
 - **E3** noise sweep: each :class:`NoiseSpec` of ``config.sweep`` on the 4-view model with the
   input subsets ``config.sweep_inputs`` (default all views, and view 0 alone), and kNN/ridge with
   all views.
-- **E4** chance (one random training pose per example) and kNN / ridge regression fitted per view
-  subset (:mod:`silpose.eval.baselines`) on the standard noisy inputs of E2.
+- **E4** chance (one random training pose per example), kNN / ridge regression fitted per view
+  subset and the MLP baseline (one network for every subset, trained on clean and noisy copies of
+  the training contours; :mod:`silpose.eval.baselines`) on the standard noisy inputs of E2. Each
+  regressor's fitting time and prediction time per frame go to ``extra["baseline_timing"]``.
 - **E6** hypotheses and flips, robust inference, missing-view contours against a nearest
   neighbour, self-intersections and plausibility flags (:mod:`silpose.eval.inference_eval`); its
   robust rows join E3's.
@@ -32,22 +34,23 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
 
 from __future__ import annotations
 
-import itertools
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
+from silpose.model.plausibility import view_subsets
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.stature import REFERENCE_STATURE, estimate_stature
 from silpose.shared.contours import normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
+from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
 
-from .baselines import ChanceBaseline, ViewSubsetRegressor
+from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor
 from .inference_eval import run_e6
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
@@ -69,10 +72,8 @@ DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
 
 Progress = Callable[[str, int, int], None]  # (task description, completed, total)
 
-
-def view_subsets(n_views: int) -> list[tuple[int, ...]]:
-    """Every non-empty subset of views, largest first: 4; 3 (each left out); 2; 1."""
-    return [s for r in range(n_views, 0, -1) for s in itertools.combinations(range(n_views), r)]
+#: The regression baselines, in table order.
+REGRESSORS = ("knn", "ridge", "mlp")
 
 
 def views_label(views: Sequence[int]) -> str:
@@ -91,6 +92,8 @@ class EvalConfig:
         sweep: E3's noise settings.
         sweep_inputs: E3's input view subsets (None = all views and view 0 alone).
         knn_neighbors: k of the kNN baseline.
+        mlp: the MLP baseline's settings; mlp_noisy_copies: noisy copies of each training walker it is
+            trained on (besides the clean one; the test noise model ``noise``, other seeds).
         experiments: which of "E1".."E6" to run.
     """
 
@@ -100,6 +103,8 @@ class EvalConfig:
     sweep: tuple[NoiseSpec, ...] = DEFAULT_SWEEP
     sweep_inputs: tuple[tuple[int, ...], ...] | None = None
     knn_neighbors: int = 5
+    mlp: MLPSettings = field(default_factory=MLPSettings)
+    mlp_noisy_copies: int = 2
     experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6")
 
     def to_dict(self) -> dict:
@@ -110,6 +115,8 @@ class EvalConfig:
             "sweep": [s.to_dict() for s in self.sweep],
             "sweep_inputs": None if self.sweep_inputs is None else [list(v) for v in self.sweep_inputs],
             "knn_neighbors": self.knn_neighbors,
+            "mlp": {**asdict(self.mlp), "hidden": list(self.mlp.hidden)},
+            "mlp_noisy_copies": self.mlp_noisy_copies,
             "experiments": list(self.experiments),
         }
 
@@ -125,6 +132,8 @@ class EvalData:
             test_masks: (N, K, H, W) uint8 or None.
         test_length, test_area: (N, K) contour length and silhouette area, px (None if not stored).
         image_size: (K, 2) (height, width) px per view.
+        train_groups: (N_train,) walker of each training row (rows with identical subject parameters, and
+            a row's mirrored and ragged copies; None: one walker per row).
     """
 
     train_contours: np.ndarray
@@ -139,6 +148,7 @@ class EvalData:
     rig: object = None
     test_length: np.ndarray | None = None
     test_area: np.ndarray | None = None
+    train_groups: np.ndarray | None = None
 
     @property
     def n_views(self) -> int:
@@ -166,7 +176,17 @@ class EvalData:
             rig=test.rig,
             test_length=None if "contour_length" not in test.extra else np.asarray(test.extra["contour_length"][:n]),
             test_area=None if "area" not in test.extra else np.asarray(test.extra["area"][:n]),
+            train_groups=walker_groups(train.subject, len(train.sample_id)),
         )
+
+
+def walker_groups(subject: dict, n: int) -> np.ndarray:
+    """(n,) int walker index: rows whose subject parameters (dict of (n,) arrays; NaN = not applicable) are
+    all equal are one walker. Without parameters every row is its own walker."""
+    if not subject:
+        return np.arange(n)
+    cols = np.stack([np.nan_to_num(np.asarray(subject[k], np.float64), nan=-1e30) for k in sorted(subject)], axis=1)
+    return np.unique(cols, axis=0, return_inverse=True)[1].reshape(-1)
 
 
 @dataclass
@@ -283,13 +303,59 @@ class Evaluation:
         return self._train_norm
 
     def regressor(self, kind: str, views: Sequence[int]):
-        """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached)."""
+        """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached), or the
+        MLP baseline bound to the subset."""
         key = (kind, tuple(views))
+        if kind == "mlp":
+            return _BoundViews(self.mlp_baseline(), tuple(views))
         if key not in self._regressors:
-            self._regressors[key] = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
+            reg = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
                 self.train_normalised(), self.data.train_joints, size=self._size(self.data.train_contours, views)
             )
+            self._timing(kind)["fit_s"] += reg.fit_time_s_
+            self._regressors[key] = reg
         return self._regressors[key]
+
+    def _timing(self, kind: str) -> dict:
+        table = self.extra.setdefault("baseline_timing", {})
+        return table.setdefault(kind, {"fit_s": 0.0, "predict_s": 0.0, "frames": 0})
+
+    def mlp_baseline(self) -> ViewDropoutMLP:
+        """The MLP baseline (fitted on first use): the training walkers, clean and ``mlp_noisy_copies`` times
+        with the test noise model (noise seeds and view subsets from ``BASELINE_AUGMENT_STREAM``), each
+        row given a random view subset (its size uniform in 1..K); validation split by walker."""
+        if not hasattr(self, "_mlp"):
+            d, cfg = self.data, self.config
+            t0 = time.perf_counter()
+            n, K = len(d.train_joints), d.n_views
+            ids = np.arange(n)  # noise seeds (the noise stream's seed differs from the test noise's)
+            groups = np.arange(n) if d.train_groups is None else np.asarray(d.train_groups)
+            rng = derive_rng(cfg.seed, BASELINE_AUGMENT_STREAM)
+            copies = [d.train_contours]
+            for c in range(cfg.mlp_noisy_copies):
+                noise_seed = int(rng.integers(2**31 - 1))
+                copies.append(apply_noise(cfg.noise, d.train_contours, ids, noise_seed, masks=None)
+                              if not cfg.noise.needs_masks else d.train_contours)
+            px = np.concatenate(copies)
+            reps = len(copies)
+            present = np.zeros((len(px), K), bool)
+            sizes = rng.integers(1, K + 1, size=len(px))
+            for r, k in enumerate(sizes):
+                present[r, rng.choice(K, size=k, replace=False)] = True
+            size = None
+            if self._size(d.train_contours[:1], (0,)) is not None:  # per-stature joints: size from the given views
+                size = np.empty(len(px))
+                for pattern in np.unique(present, axis=0):
+                    rows = np.flatnonzero((present == pattern).all(axis=1))
+                    size[rows] = self._size(px[rows], tuple(np.flatnonzero(pattern)))
+            self._mlp = ViewDropoutMLP(cfg.mlp).fit(normalise(px)[0], present, np.concatenate([d.train_joints] * reps),
+                                                    np.tile(groups, reps), size=size)
+            self._timing("mlp")["fit_s"] += time.perf_counter() - t0
+            self.extra.setdefault("mlp_baseline", {}).update(
+                rows=int(len(px)), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
+                best_epoch=int(self._mlp.estimator_.best_epoch_),
+                val_rmse_m=float(self._mlp.estimator_.val_rmse_), net_fit_s=float(self._mlp.fit_time_s_))
+        return self._mlp
 
     def _size(self, contours_px: np.ndarray, views: Sequence[int]) -> np.ndarray | None:
         """(N,) stature / 1.75 m from ``views`` of (N, K, n, 2) pixel contours when the MPPCA models joints
@@ -302,7 +368,12 @@ class Evaluation:
 
     def score_regressor(self, kind: str, views: Sequence[int], noisy: np.ndarray) -> dict:
         """Root-relative pose errors (cm) of the ``kind`` regressor given ``views`` of ``noisy``."""
-        pred = self.regressor(kind, views).predict(normalise(noisy)[0], size=self._size(noisy, views))
+        reg = self.regressor(kind, views)
+        t0 = time.perf_counter()
+        pred = reg.predict(normalise(noisy)[0], size=self._size(noisy, views))
+        t = self._timing(kind)
+        t["predict_s"] += time.perf_counter() - t0
+        t["frames"] += len(pred)
         return {"pose_cm": pose_error_cm(pred, self.data.test_joints),
                 "pose_pa_cm": pose_error_procrustes_cm(pred, self.data.test_joints)}
 
@@ -314,6 +385,8 @@ class Evaluation:
                 t0 = time.perf_counter()
                 getattr(self, f"run_{name.lower()}")()
                 self.timings[name] = time.perf_counter() - t0
+        for t in self.extra.get("baseline_timing", {}).values():
+            t["ms_per_frame"] = 1e3 * t["predict_s"] / t["frames"] if t["frames"] else float("nan")
         return self
 
     def run_e1(self) -> None:
@@ -354,7 +427,7 @@ class Evaluation:
         skipped = [s.label for s in self.config.sweep if s not in specs]
         if skipped:
             self.notes.append(f"E3: skipped {skipped}: the test masks were not loaded")
-        total = len(specs) * (len(inputs) + 2)
+        total = len(specs) * (len(inputs) + len(REGRESSORS))
         step = 0
         for spec in specs:
             noisy = self.noisy(spec)
@@ -364,7 +437,7 @@ class Evaluation:
                 self._add(dict(experiment="E3", method="mppca", training="multi-view", trained_views=views_label(range(K)),
                                input_views=views_label(views), n_input_views=len(views), noise=spec.label), **s)
                 step += 1
-            for kind in ("knn", "ridge"):
+            for kind in REGRESSORS:
                 self._tick(f"E3: {spec.label}, {kind}", step, total)
                 s = self.score_regressor(kind, tuple(range(K)), noisy)
                 self._add(dict(experiment="E3", method=kind, training="multi-view", trained_views=views_label(range(K)),
@@ -389,8 +462,8 @@ class Evaluation:
                   pose_pa_cm=pose_error_procrustes_cm(pred, self.data.test_joints))
         subsets = view_subsets(K)
         for i, views in enumerate(subsets):
-            self._tick(f"E4: kNN and ridge, views {views_label(views)}", i, len(subsets))
-            for kind in ("knn", "ridge"):
+            self._tick(f"E4: kNN, ridge and MLP, views {views_label(views)}", i, len(subsets))
+            for kind in REGRESSORS:
                 s = self.score_regressor(kind, views, noisy)
                 self._add(dict(experiment="E4", method=kind, training="multi-view", trained_views=views_label(views),
                                input_views=views_label(views), n_input_views=len(views), noise=self.config.noise.label), **s)
@@ -407,6 +480,17 @@ class Evaluation:
             if col in df:
                 df[col] = df[col].astype(str)
         return df
+
+
+@dataclass(frozen=True)
+class _BoundViews:
+    """The MLP baseline bound to one view subset: ``predict(contours_norm, size)`` like a ViewSubsetRegressor."""
+
+    mlp: ViewDropoutMLP
+    views: tuple[int, ...]
+
+    def predict(self, contours_norm: np.ndarray, size: np.ndarray | None = None) -> np.ndarray:
+        return self.mlp.predict(contours_norm, self.views, size=size)
 
 
 @contextmanager

@@ -1,4 +1,4 @@
-"""E6 — how honest the inference is (issue 12): flips and top-K hypotheses, robust inference under
+"""E6 — how honest the inference is: flips and top-K hypotheses, robust inference under
 mask noise, missing-view contours against a nearest-neighbour baseline, self-intersecting
 reconstructions, plausibility flags on inputs that are not a person.
 
@@ -31,13 +31,12 @@ contour errors one-sided Chamfer D(true clean -> reconstruction) in px (:mod:`si
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 from sklearn.neighbors import NearestNeighbors
 
 from silpose.model.hypotheses import is_flip, single_answer
-from silpose.model.plausibility import CONVEX_SOLIDITY
+from silpose.model.plausibility import CONVEX_SOLIDITY, view_subsets
 from silpose.model.untangle import self_intersecting, untangle
 from silpose.shared.contours import denormalise, normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm
@@ -98,7 +97,7 @@ def flips(ev) -> list[dict]:
     noisy = ev.noisy(ev.config.noise)
     sizes = sorted({K, K - 1, 1} - {0}, reverse=True)
     for size in sizes:
-        subsets = [s for s in _subsets(K) if len(s) == size]
+        subsets = [s for s in view_subsets(K) if len(s) == size]
         if size == K - 1 and K > 1:
             subsets = [tuple(v for v in range(K) if v != k) for k in range(K)]  # each view left out in turn
         name = f"{size} view{'s' if size > 1 else ''}, {ev.config.noise.label}"
@@ -146,7 +145,8 @@ def robust_rows(ev) -> dict:
             if len(views) == K:
                 summary.setdefault(label, {})["mppca robust"] = float(np.mean(s["pose_cm"]))
         summary.setdefault(label, {})["mppca"] = float(np.mean(ev.score_model(ev.model, noisy, tuple(range(K)))["pose_cm"]))
-        summary[label]["knn"] = float(np.mean(ev.score_regressor("knn", tuple(range(K)), noisy)["pose_cm"]))
+        for kind in ("knn", "mlp"):
+            summary[label][kind] = float(np.mean(ev.score_regressor(kind, tuple(range(K)), noisy)["pose_cm"]))
     return summary
 
 
@@ -244,7 +244,7 @@ def plausibility(ev) -> dict:
             inputs.append((label, ev.noisy(specs[label])))
     for label, contours in inputs:
         for nv in range(K, 0, -1):
-            subsets = [s for s in _subsets(K) if len(s) == nv]
+            subsets = [s for s in view_subsets(K) if len(s) == nv]
             flagged = np.concatenate([model.infer(contours, _present(n, K, s)).implausible for s in subsets])
             genuine.append({"input": f"test, {label}", "n_views": nv, "n": int(flagged.size),
                             "flagged_pct": 100.0 * float(flagged.mean())})
@@ -254,8 +254,6 @@ def plausibility(ev) -> dict:
             "garbage": garbage, "genuine": genuine}
 
 
-def _subsets(k: int) -> list[tuple[int, ...]]:
-    return [s for r in range(k, 0, -1) for s in itertools.combinations(range(k), r)]
 
 
 def run_e6(ev) -> dict:
@@ -298,12 +296,12 @@ def e6_markdown(e6: dict) -> list[str]:
         clean = rb.get("clean", {})
         rows = []
         for label, v in rb.items():
-            rows.append([label, fmt(v.get("mppca")), fmt(v.get("mppca robust")), fmt(v.get("knn")),
+            rows.append([label, fmt(v.get("mppca")), fmt(v.get("mppca robust")), fmt(v.get("knn")), fmt(v.get("mlp")),
                          fmt(v.get("mppca", np.nan) / clean.get("mppca", np.nan)),
                          fmt(v.get("mppca robust", np.nan) / clean.get("mppca robust", np.nan))])
         lines += ["Robust inference (`silpose.model.robust`: Tukey-weighted contour points, iteratively reweighted "
                   "conditioning), all views; its rows are also in E3's table as `mppca robust`.", "",
-                  markdown_table(["noise", "MPPCA pose (cm)", "MPPCA robust pose (cm)", "kNN pose (cm)",
+                  markdown_table(["noise", "MPPCA pose (cm)", "MPPCA robust pose (cm)", "kNN pose (cm)", "MLP pose (cm)",
                                   "MPPCA / its clean", "robust / its clean"], rows), ""]
     mv = e6.get("missing_view") or []
     if mv:

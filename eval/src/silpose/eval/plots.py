@@ -110,7 +110,7 @@ def plot_e3(df, path) -> Path | None:
 
 
 def plot_e4(df, path) -> Path | None:
-    """E4: pose error of MPPCA, kNN and ridge per number of input views, plus chance."""
+    """E4: pose error of MPPCA, kNN, ridge and MLP per number of input views, plus chance."""
     e4 = select(df, experiment="E4")
     e2 = select(df, experiment="E2")
     if e4.empty:
@@ -122,12 +122,14 @@ def plot_e4(df, path) -> Path | None:
         if not e2.empty:
             data.append(select(e2, n_input_views=n)["pose_cm"])
             labels.append(f"MPPCA\n{n}v")
-        for m in ("knn", "ridge"):
-            data.append(select(e4, n_input_views=n, method=m)["pose_cm"])
-            labels.append(f"{m}\n{n}v")
+        for m in ("knn", "ridge", "mlp"):
+            g = select(e4, n_input_views=n, method=m)
+            if len(g):
+                data.append(g["pose_cm"])
+                labels.append(f"{m}\n{n}v")
     data.append(select(e4, method="chance")["pose_cm"])
     labels.append("chance")
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(max(8, 0.7 * len(labels)), 4))
-    paper_boxplot(ax, data, labels, "pose error (cm)", "E4: MPPCA vs kNN vs ridge vs chance")
+    paper_boxplot(ax, data, labels, "pose error (cm)", "E4: MPPCA vs kNN vs ridge vs MLP vs chance")
     return save_figure(fig, path)

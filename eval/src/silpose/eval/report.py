@@ -12,12 +12,15 @@ import json
 
 import numpy as np
 
-from .experiments import E1_PER_VIEW
+from .experiments import E1_PER_VIEW, REGRESSORS as BASELINES
 from .tables import QUARTILE_HEADERS, fmt, fmt_stats, markdown_table, select, stats
 
 __all__ = ["PAPER", "stats", "e1_comparison", "noise_comparison", "headline", "pct_per_px", "markdown_summary"]
 
 #: The paper's figures (Grauman et al. 2003, §6).
+#: Table names of the regression baselines.
+BASELINE_NAMES = {"knn": "kNN regression", "ridge": "ridge regression", "mlp": "MLP regression"}
+
 PAPER = {
     "pose_4_views_cm": 3.0,
     "pose_1_view_cm": 15.0,
@@ -103,9 +106,9 @@ def headline(df) -> dict:
             ahead = []
             for views, g in e2.groupby("input_views"):
                 m = g["pose_cm"].mean()
-                others = [select(e4, input_views=views, method=k)["pose_cm"].mean() for k in ("knn", "ridge")]
-                ahead.append({"views": views, "mppca": float(m), "knn": float(others[0]), "ridge": float(others[1]),
-                              "mppca_best": bool(m < min(others))})
+                others = {k: float(select(e4, input_views=views, method=k)["pose_cm"].mean()) for k in BASELINES}
+                ahead.append({"views": views, "mppca": float(m), **others,
+                              "mppca_best": bool(m < np.nanmin(list(others.values())))})
             h["mppca_vs_baselines_by_subset"] = ahead
     return h
 
@@ -122,7 +125,7 @@ def noise_comparison(df) -> dict:
     out: dict = {}
     for noise in dict.fromkeys(e3["noise"]):
         g = select(e3, noise=noise)
-        out[noise] = {m: float(select(g, method=m)["pose_cm"].mean()) for m in ("mppca", "mppca robust", "knn", "ridge")
+        out[noise] = {m: float(select(g, method=m)["pose_cm"].mean()) for m in ("mppca", "mppca robust", *BASELINES)
                       if len(select(g, method=m))}
     for method, key in (("mppca", "x_clean"), ("mppca robust", "x_clean_robust")):
         clean = out.get("clean", {}).get(method)
@@ -138,17 +141,18 @@ def _headline_md(df) -> list[str]:
     rows = []
     paper = {4: f"{PAPER['pose_4_views_cm']:.0f}", 1: f"{PAPER['pose_1_view_cm']:.0f}"}
     for n, st in sorted(h.get("pose_cm_by_n_views", {}).items(), key=lambda t: -t[0]):
-        knn = h.get("pose_mean_cm_by_method_and_n_views", {}).get(n, {}).get("knn", float("nan"))
+        by = h.get("pose_mean_cm_by_method_and_n_views", {}).get(n, {})
         rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–", "–", "–",
-                     fmt(knn), paper.get(n, "–")])
+                     fmt(by.get("knn", float("nan"))), fmt(by.get("mlp", float("nan"))), paper.get(n, "–")])
     n_all = max(h.get("pose_cm_by_n_views", {0: None}))
     for noise, v in h.get("pose_mean_cm_by_noise_all_views", {}).items():
         if noise == "clean" or noise.startswith("mask") or noise == "standard":
             rows.append([f"{n_all or 'all'} views, noise '{noise}'", fmt(v.get("mppca", float("nan"))),
                          f"{fmt(v.get('x_clean', float('nan')))}×", fmt(v.get("mppca robust", float("nan"))),
-                         f"{fmt(v.get('x_clean_robust', float('nan')))}×", fmt(v.get("knn", float("nan"))), "–"])
+                         f"{fmt(v.get('x_clean_robust', float('nan')))}×", fmt(v.get("knn", float("nan"))),
+                         fmt(v.get("mlp", float("nan"))), "–"])
     if "chance_cm" in h:
-        rows.append(["chance (random training pose)", fmt(h["chance_cm"]["mean"]), "–", "–", "–", "–",
+        rows.append(["chance (random training pose)", fmt(h["chance_cm"]["mean"]), "–", "–", "–", "–", "–",
                      f"{PAPER['chance_cm']:.0f}"])
     if not rows:
         return []
@@ -157,7 +161,7 @@ def _headline_md(df) -> list[str]:
             "silhouette (holes, blobs, a shadow) and re-extract the contour (E3, every view given). 'robust': "
             "the same inputs with robust inference (`silpose infer`'s default; E6).", "",
             markdown_table(["condition", "MPPCA (cm)", "× clean", "MPPCA robust (cm)", "× clean (robust)", "kNN (cm)",
-                            "paper (cm)"], rows), ""]
+                            "MLP (cm)", "paper (cm)"], rows), ""]
 
 
 def _e1_md(df) -> list[str]:
@@ -246,11 +250,11 @@ def _e3_md(df) -> list[str]:
              fmt(g["chamfer_px"].mean()) if "chamfer_px" in g and g["chamfer_px"].notna().any() else "–"]
             for (noise, method, views), g in e3.groupby(["noise", "method", "input_views"], sort=False)]
     return ["## E3 — noise types and magnitudes", "",
-            "Noise definitions and magnitudes: see 'Settings' below and `silpose.eval.noise`. kNN/ridge get all views.", "",
+            "Noise definitions and magnitudes: see 'Settings' below and `silpose.eval.noise`. kNN/ridge/MLP get all views.", "",
             markdown_table(["noise", "method", "input views", "n", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "Chamfer mean (px)"], rows), ""]
 
 
-def _e4_md(df) -> list[str]:
+def _e4_md(df, timing: dict | None = None) -> list[str]:
     e4 = select(df, experiment="E4")
     if e4.empty:
         return []
@@ -262,34 +266,48 @@ def _e4_md(df) -> list[str]:
             continue
         if not e2.empty:
             rows.append(["MPPCA (ours)", str(n), fmt_stats(stats(select(e2, n_input_views=n)["pose_cm"])), ""])
-        for m in ("knn", "ridge"):
-            rows.append([{"knn": "kNN regression", "ridge": "ridge regression"}[m], str(n),
-                         fmt_stats(stats(select(e4, n_input_views=n, method=m)["pose_cm"])), ""])
+        for m in BASELINES:
+            g = select(e4, n_input_views=n, method=m)
+            if len(g):
+                rows.append([BASELINE_NAMES[m], str(n), fmt_stats(stats(g["pose_cm"])), ""])
     out = ["## E4 — chance and baselines", "",
            "kNN (k=5, distance-weighted) and ridge (RidgeCV) regress root-relative joints on the observed views' "
            "normalised contours; one fitted per view subset on the clean training data; same noisy inputs as E2. "
            "When the MPPCA models joints per measured stature, so do they (joints / (stature / 1.75 m), "
-           "prediction times the stature measured from the observed views).", "",
+           "prediction times the stature measured from the observed views). The MLP (scikit-learn MLPRegressor, "
+           "hidden layers 512, 512) is ONE network for every view subset (absent views zeroed, presence flags), "
+           "trained on the clean training contours and noisy copies of them (the test noise model, other seeds), "
+           "inputs scaled by one global factor, early stopping on a validation split by walker.", "",
            markdown_table(["method", "input views", *[f"pose {h} (cm)" for h in QUARTILE_HEADERS], "paper mean (cm)"], rows), ""]
     h = headline(df).get("mppca_vs_baselines_by_subset", [])
     if h:
         out += ["Pose mean (cm) per view subset:", "",
-                markdown_table(["views", "MPPCA", "kNN", "ridge", "MPPCA best"],
-                       [[r["views"], fmt(r["mppca"]), fmt(r["knn"]), fmt(r["ridge"]), "yes" if r["mppca_best"] else "no"] for r in h]),
+                markdown_table(["views", "MPPCA", "kNN", "ridge", "MLP", "MPPCA best"],
+                       [[r["views"], fmt(r["mppca"]), *(fmt(r.get(k, float("nan"))) for k in BASELINES),
+                         "yes" if r["mppca_best"] else "no"] for r in h]),
                 ""]
+    if timing:
+        out += ["Baseline cost (fitting: all view subsets' regressors, or the one MLP with its noisy training copies; "
+                "prediction: per test frame, over every E3/E4/E6 call):", "",
+                markdown_table(["method", "fitting (s)", "prediction (ms / frame)"],
+                               [[BASELINE_NAMES[k], fmt(v["fit_s"]), fmt(v.get("ms_per_frame", float("nan")))]
+                                for k, v in timing.items()]), ""]
     return out
 
 
 def markdown_summary(df, settings: dict, title: str, figures: list[str] | None = None, notes: list[str] | None = None,
-                     sections: list[str] | None = None) -> str:
+                     sections: list[str] | None = None, baseline_timing: dict | None = None) -> str:
     """The whole ``summary.md``: one table per experiment, paper figures beside ours, settings; ``sections``
     (Markdown lines, e.g. E6's) go after E4."""
-    parts = [f"# {title}", "",
+    from silpose.shared.version import silpose_version
+
+    parts = [f"# {title}", "", f"silpose {silpose_version()}.", "",
              "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment "
              "(PA = similarity-Procrustes-aligned, a labelled extra, not the paper's measure). Contour error: "
              "one-sided Chamfer distance D(true clean contour -> reconstruction), px (paper eq. 5), via an exact "
              "Euclidean distance transform; missing views are placed with their true normalisation.", ""]
-    parts += _headline_md(df) + _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df) + list(sections or [])
+    parts += _headline_md(df) + _e1_md(df) + _e2_md(df, settings) + _e3_md(df) + _e4_md(df, baseline_timing)
+    parts += list(sections or [])
     if figures:
         parts += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + [""]
     if notes:

@@ -26,11 +26,13 @@ from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
 from silpose.shared.rig_symmetry import RigMirror
+from silpose.shared.version import silpose_version
 
 from . import figures, inference_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
+from .groups import sample_groups, write_group_report
 from .inference_eval import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
 from .tables import fmt
@@ -47,7 +49,7 @@ def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool, test_d
     test_dir = data_dir if test_dir is None else Path(test_dir)
     for d in dict.fromkeys((data_dir, test_dir)):
         if not d.is_dir():
-            raise EvalInputError(f"dataset folder {d} not found: generate it first (`just gen {d.name}`)")
+            raise EvalInputError(f"{d}: no such dataset folder (generate it first: silpose gen {d.name})")
     try:
         train = load_split(data_dir, "train")
         test = load_split(test_dir, "test", with_masks=with_masks)
@@ -85,6 +87,8 @@ def match_training_subset(data: EvalData, model) -> str:
         return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
     data.train_contours = data.train_contours[fit_idx]
     data.train_joints = data.train_joints[fit_idx]
+    if data.train_groups is not None:
+        data.train_groups = data.train_groups[fit_idx]
     config = getattr(model, "training_config_", None) or {}
     rough = config.get("roughness")
     mirrors = tuple(RigMirror.from_dict(m) for m in config.get("mirrors") or ())
@@ -93,6 +97,8 @@ def match_training_subset(data: EvalData, model) -> str:
         data.train_contours, data.train_joints = training_rows(
             data.train_contours, data.train_joints, fit_idx, rig=data.rig, mirrors=mirrors,
             roughness=Roughness(**rough) if rough else None, seed=seed)
+        if data.train_groups is not None:  # row r of the augmented rows copies sample r mod n_fit: the same walker
+            data.train_groups = data.train_groups[np.arange(len(data.train_joints)) % n_fit]
         if mirrors:
             extra += f", plus their mirrored people ({len(mirrors)} rig symmetr{'y' if len(mirrors) == 1 else 'ies'})"
         if rough:
@@ -137,13 +143,17 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
                                                        caption + " — example nearest the median pose error")
     if ev.extra.get("E6"):
         written.update(inference_figures.write_e6_figures(ev, out))
-    head = _jsonable({**headline(df), **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
-                      "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings})
+    head = _jsonable({"silpose_version": silpose_version(), **headline(df),
+                      **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
+                      "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,
+                      "baseline_timing": ev.extra.get("baseline_timing", {}),
+                      "mlp_baseline": ev.extra.get("mlp_baseline", {})})
     write_text_atomic(out / "headline.json", json.dumps(head, indent=2))
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
     md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes,
-                          sections=e6_markdown(ev.extra.get("E6") or {}))
+                          sections=e6_markdown(ev.extra.get("E6") or {}),
+                          baseline_timing=ev.extra.get("baseline_timing"))
     write_text_atomic(out / "summary.md", md)
     written["summary"] = out / "summary.md"
     return written
@@ -183,16 +193,16 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     """
     model_path = Path(model_path)
     if not Path(data_dir).is_dir():
-        raise EvalInputError(f"dataset folder {data_dir} not found: generate it first (`just gen {Path(data_dir).name}`)")
+        raise EvalInputError(f"{data_dir}: no such dataset folder (generate it first: silpose gen {Path(data_dir).name})")
     if not model_path.is_file():
-        raise EvalInputError(f"model file {model_path} not found: train it first (`just train {Path(data_dir).name}`)")
+        raise EvalInputError(f"{model_path}: no such model file (train it first: silpose train {Path(data_dir).name})")
     t0 = time.perf_counter()
     needs_masks = "E3" in config.experiments and any(s.needs_masks for s in config.sweep)
     data = load_data(data_dir, config.n_test, with_masks=needs_masks, test_dir=test_dir)
     try:
         model = load_model(model_path)
     except Exception as exc:  # persistence raises clear ValueErrors; keep its message
-        raise EvalInputError(f"cannot load the model {model_path}: {exc}") from exc
+        raise EvalInputError(str(exc) if str(exc).startswith(str(model_path)) else f"{model_path}: {exc}") from exc
     if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
         raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
                              f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")
@@ -219,7 +229,12 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
     }
     t1 = time.perf_counter()
+    groups = sample_groups(test_dir if test_dir is not None else data_dir)
+    if groups:
+        ev.notes.append("every pose table per activity group of the test clips: groups.md")
     written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}")
+    if groups:
+        written["groups"] = write_group_report(ev.frame(), groups, out_dir, title or f"silpose evaluation — {Path(data_dir).name}")
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
@@ -227,16 +242,20 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
 
 def test_sets_table(rows: list[tuple[str, dict, int]]) -> str:
     """Markdown table of several test sets' headline figures: ``rows`` = (name, headline, n_test)."""
-    head = ["test set", "n", "pose 4 views mean (cm)", "median", "pose 1 view mean (cm)", "kNN 4 views", "chance"]
+    head = ["test set", "n", "pose 4 views mean (cm)", "median", "pose 1 view mean (cm)", "kNN 4 views", "MLP 4 views",
+            "MLP 1 view", "chance"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for name, h, n in rows:
         by = h.get("pose_cm_by_n_views", {})
         n_views = max(by) if by else None
         four = by.get(n_views, {}) if n_views else {}
         one = by.get(1, {})
-        knn = (h.get("pose_mean_cm_by_method_and_n_views", {}).get(n_views, {}) or {}).get("knn")
+        by_method = h.get("pose_mean_cm_by_method_and_n_views", {})
+        knn = (by_method.get(n_views, {}) or {}).get("knn")
+        mlp, mlp1 = (by_method.get(n_views, {}) or {}).get("mlp"), (by_method.get(1, {}) or {}).get("mlp")
         chance = h.get("chance_cm", {}).get("mean")
-        cells = [name, str(n), fmt(four.get("mean")), fmt(four.get("median")), fmt(one.get("mean")), fmt(knn), fmt(chance)]
+        cells = [name, str(n), fmt(four.get("mean")), fmt(four.get("median")), fmt(one.get("mean")), fmt(knn), fmt(mlp),
+                 fmt(mlp1), fmt(chance)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -246,6 +265,7 @@ def write_test_sets(out_dir: str | Path, model_path: str | Path, rows: list[tupl
     out = Path(out_dir) / "test_sets.md"
     text = (f"# One model on several test sets\n\nModel `{model_path}`; each test set's full report is in its own "
             "folder. Pose error: mean Euclidean distance over the 19 joints, root-relative, cm, with the standard "
-            "test noise; chance = a random training pose; kNN = the k-nearest-neighbour baseline on all views.\n\n"
+            "test noise; chance = a random training pose; kNN = the k-nearest-neighbour baseline on all views; MLP = "
+            "the MLP regression baseline.\n\n"
             + test_sets_table(rows) + "\n")
     return write_text_atomic(out, text)

@@ -38,11 +38,11 @@ def component_log_density(X: np.ndarray, mean: np.ndarray, W: np.ndarray, s2: fl
     out = np.empty(X.shape[0])
     for sl in _chunks(X.shape[0]):
         E = X[sl] - mean
-        out[sl] = _log_density_terms(np.einsum("ij,ij->i", E, E), E @ W, W, s2)
+        out[sl] = log_density_terms(np.einsum("ij,ij->i", E, E), E @ W, W, s2)
     return out
 
 
-def _log_density_terms(sqn, z, W, s2):
+def log_density_terms(sqn, z, W, s2):
     """log N(e; 0, W W^T + s2 I) from ||e||^2 (N,) and z = W^T e (N, q); W (d, q)."""
     d, q = W.shape
     L = np.linalg.cholesky(W.T @ W + s2 * np.eye(q))  # M = L L^T
@@ -78,7 +78,7 @@ def log_prob_from_products(sqn, XW, Xmu, weights, means, components, noise_varia
         mu, W = means[i], components[i]
         sq_e = sqn - 2.0 * Xmu[:, i] + mu @ mu
         z = XW[:, i, :] - mu @ W
-        out[:, i] = log_w[i] + _log_density_terms(sq_e, z, W, float(noise_variance[i]))
+        out[:, i] = log_w[i] + log_density_terms(sq_e, z, W, float(noise_variance[i]))
     return out
 
 
@@ -120,7 +120,7 @@ def m_step_sums(X, sqn, resp, XW):
     return resp.sum(axis=0), X.T @ rhs, resp.T @ sqn
 
 
-def m_step_from_sums(r, G, sq, components, noise_variance, var_floor):
+def m_step_from_sums(r, G, sq, components, noise_variance, var_floor, centres=None):
     """One EM update of every component from the sums of ``m_step_sums`` (T&B 1999 eqs. C.20-C.23).
 
     r (M,), G (d, Mq+M), sq (M,) summed over all rows; components (M, d, q) and noise_variance (M,)
@@ -132,10 +132,14 @@ def m_step_from_sums(r, G, sq, components, noise_variance, var_floor):
         W_new = S W (s2 I + M^-1 W^T S W)^-1,            M = W^T W + s2 I
         s2_new = (tr S - tr(S W M^-1 W_new^T)) / d
     S itself (d x d) is never formed: only d x q and q x q matrices.
+    ``centres`` (M, d) or None: the sums were taken about these points c_i (x_n - c_i for component i,
+    ``silpose.model._em.shard_stats_sparse``); the formulas above then give the mean's offset from c_i,
+    and mu_i = c_i + offset.
     """
     m, d, q = components.shape
     counts = np.maximum(np.asarray(r, dtype=np.float64), 10.0 * np.finfo(float).eps)
     means = (G[:, m * q:] / counts).T
+    offsets = means  # the formulas' mu_i, relative to the centres
     W_new = np.empty_like(components)
     s2_new = np.empty(m)
     eye = np.eye(q)
@@ -147,6 +151,8 @@ def m_step_from_sums(r, G, sq, components, noise_variance, var_floor):
         A = s2 * eye + Minv @ (W.T @ SW)  # s2 I + M^-1 W^T S W
         W_new[i] = SW @ np.linalg.inv(A)  # S W A^-1
         s2_new[i] = max((trS - float(np.einsum("ij,ij->", SW @ Minv, W_new[i]))) / d, var_floor)
+    if centres is not None:
+        means = centres + offsets
     return counts, means, W_new, s2_new
 
 

@@ -31,6 +31,8 @@ _KMEANS_ROWS = 5000  # k-means initialisation is fitted on at most this many ran
 DEFAULT_INIT_ROWS = 5000  # fit_stream: rows of the initialisation subsample
 _FIT_BLOCK = 4096  # fit: rows per block of the in-memory EM passes (bounds the per-pass temporaries) ...
 _FIT_BLOCK_VALUES = 1 << 21  # ... and fewer when M (q + 1) is large: a block's (rows, M q + M) products stay <= 16 MB
+SPARSE_MIN_COMPONENTS = 64  # e_step="auto": the sparse E-step from this many components on
+_SPARSE_ROWS_PER_COMPONENT = 50  # sparse E-step: k-means and the initialisation see >= this many rows per component
 
 
 def fit_block_rows(n_components: int, n_latent: int) -> int:
@@ -73,6 +75,17 @@ class MPPCA(DensityMixin, BaseEstimator):
         iteration (the CLI turns it into a progress display). With n_init > 1 the count restarts
         at 1 for each short run, then the winning run continues from its own count.
     verbose : int, 0 silent, 1 prints one line per initialisation, 2 one per iteration.
+    e_step : {"auto", "exact", "sparse"}, how the E-step scores the rows. "exact" computes every row's
+        log density under every component in float64 (O(N d M q) per iteration). "sparse" (for M in the
+        hundreds; ``silpose.model._em.SparseEStep``) scores each row under ``n_candidates`` components
+        only: the top ones of a float32 gate over all M components, run at the first iteration and
+        every ``gate_refresh`` iterations (and before convergence is declared), kept in between;
+        within them, components more than ``resp_threshold`` nats below the row's best get no
+        responsibility; per-candidate products in float32, log densities and sums in float64. Its
+        log-likelihoods are lower bounds (the candidates' terms only). The sparse mode also gives
+        k-means and the initialisation at least 50 rows per component. "auto" = "sparse" from
+        ``SPARSE_MIN_COMPONENTS`` (64) components on, else "exact".
+    n_candidates, resp_threshold, gate_refresh : the sparse E-step's settings (above).
 
     Fitted attributes
     -----------------
@@ -91,7 +104,8 @@ class MPPCA(DensityMixin, BaseEstimator):
     """
 
     def __init__(self, n_components=5, n_latent=None, *, tol=1e-4, max_iter=200, n_init=3, init="kmeans",
-                 reg_variance=1e-6, init_params=None, noise_dof=False, random_state=None, callback=None, verbose=0):
+                 reg_variance=1e-6, init_params=None, noise_dof=False, random_state=None, callback=None, verbose=0,
+                 e_step="auto", n_candidates=4, resp_threshold=30.0, gate_refresh=10):
         self.n_components = n_components
         self.n_latent = n_latent
         self.tol = tol
@@ -104,6 +118,10 @@ class MPPCA(DensityMixin, BaseEstimator):
         self.random_state = random_state
         self.callback = callback
         self.verbose = verbose
+        self.e_step = e_step
+        self.n_candidates = n_candidates
+        self.resp_threshold = resp_threshold
+        self.gate_refresh = gate_refresh
 
     # ------------------------------------------------------------------ validation
     def _check_params(self, n_samples: int, n_features: int) -> None:
@@ -121,6 +139,13 @@ class MPPCA(DensityMixin, BaseEstimator):
             v = getattr(self, name)
             if not isinstance(v, numbers.Real) or not np.isfinite(v) or v < 0:
                 raise ValueError(f"MPPCA: {name} must be a finite number >= 0, got {v!r}")
+        if self.e_step not in ("auto", "exact", "sparse"):
+            raise ValueError(f"MPPCA: e_step must be 'auto', 'exact' or 'sparse', got {self.e_step!r}")
+        _int("n_candidates", 1)
+        _int("gate_refresh", 1)
+        v = self.resp_threshold
+        if not isinstance(v, numbers.Real) or not v > 0:
+            raise ValueError(f"MPPCA: resp_threshold must be a number > 0, got {v!r}")
         if self.init not in ("kmeans", "random"):
             raise ValueError(f"MPPCA: init must be 'kmeans' or 'random', got {self.init!r}")
         if self.callback is not None and not callable(self.callback):
@@ -135,6 +160,11 @@ class MPPCA(DensityMixin, BaseEstimator):
             raise ValueError(f"MPPCA: n_latent = {self.n_latent} must be smaller than n_features = "
                              f"{n_features}")
 
+    def _sparse_setup(self) -> "_em.SparseEStep | None":
+        """The sparse E-step's settings when ``e_step`` resolves to "sparse", else None (exact)."""
+        sparse = self.e_step == "sparse" or (self.e_step == "auto" and int(self.n_components) >= SPARSE_MIN_COMPONENTS)
+        return _em.SparseEStep(int(self.n_candidates), float(self.resp_threshold), int(self.gate_refresh)) if sparse else None
+
     def _latent_dim(self, n_features: int) -> int:
         """The latent dimension q a fit on ``n_features`` features uses (``n_latent``, or its default)."""
         return min(10, n_features - 1) if self.n_latent is None else int(self.n_latent)
@@ -148,7 +178,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         centred block by block in each pass), so besides X only one block's temporaries are held.
         """
         X = validate_data(self, X, dtype=np.float64, ensure_min_samples=1, ensure_min_features=1)
-        rows = fit_block_rows(int(self.n_components), self._latent_dim(X.shape[1]))
+        rows = _FIT_BLOCK if self._sparse_setup() else fit_block_rows(int(self.n_components), self._latent_dim(X.shape[1]))
         blocks = [X[i:i + rows] for i in range(0, X.shape[0], rows)]  # views, no copies
         return self._fit_source(ArrayShards(blocks).checked(), init_rows=None)
 
@@ -182,6 +212,9 @@ class MPPCA(DensityMixin, BaseEstimator):
         data_var = moments.m2 / (n * d)  # mean per-feature variance
         var_floor = max(self.reg_variance * data_var if data_var > 0 else self.reg_variance, 1e-300)
         src = source.centred(offset)
+        self._sparse = self._sparse_setup()
+        if self._sparse is not None and init_rows is not None:
+            init_rows = max(init_rows, _SPARSE_ROWS_PER_COMPONENT * int(self.n_components))
 
         # "em-EM" (Biernacki, Celeux & Govaert 2003, "Choosing starting values for the EM algorithm",
         # CSDA 41): n_init short runs from different starts, the best one continued to convergence.
@@ -212,7 +245,7 @@ class MPPCA(DensityMixin, BaseEstimator):
             self.noise_dof_factor_ = s2 / p.noise_variance
             self.n_underdetermined_ = int(under.sum())
             p = _em.Params(p.weights, p.means, p.components, s2)
-            stats = _em.reduce_sum(src.map(_em.shard_stats, p))  # the training log-likelihood of the final parameters
+            stats = self._pass(src, best, p)  # the training log-likelihood of the final parameters
             self.lower_bound_ = stats.loglik / stats.n
         self.weights_ = p.weights
         self.means_ = p.means + offset
@@ -270,7 +303,8 @@ class MPPCA(DensityMixin, BaseEstimator):
         if m == 1:
             return np.zeros(n, dtype=np.intp)
         if self.init == "kmeans":
-            rows = rng.choice(n, size=_KMEANS_ROWS, replace=False) if n > _KMEANS_ROWS else np.arange(n)
+            k_rows = _KMEANS_ROWS if self._sparse is None else max(_KMEANS_ROWS, _SPARSE_ROWS_PER_COMPONENT * m)
+            rows = rng.choice(n, size=k_rows, replace=False) if n > k_rows else np.arange(n)
             km = KMeans(n_clusters=m, n_init=1, random_state=int(rng.integers(2**31 - 1))).fit(X.take(rows))
             centres = km.cluster_centers_
         else:
@@ -298,12 +332,33 @@ class MPPCA(DensityMixin, BaseEstimator):
             del members
         return _em.Params(weights / weights.sum(), means, comps, s2)
 
-    @staticmethod
-    def _start(src: ShardSource, params: _em.Params) -> dict:
+    def _start(self, src: ShardSource, params: _em.Params) -> dict:
         """A run at ``params``: its first pass (E-step log-likelihood and M-step sums)."""
-        stats = _em.reduce_sum(src.map(_em.shard_stats, params))
+        run = dict(params=params, prev=None, initial=None, bounds=[], converged=False, cand=None, since_gate=0)
+        stats = self._pass(src, run, params)
         ll = stats.loglik / stats.n
-        return dict(params=params, stats=stats, prev=ll, initial=ll, bounds=[], converged=False)
+        run.update(stats=stats, prev=ll, initial=ll)
+        return run
+
+    def _pass(self, src: ShardSource, run: dict, params: _em.Params) -> _em.ShardStats:
+        """One pass over the shards under ``params``: E-step log-likelihood and M-step sums, added in shard
+        order. Sparse E-step: gates when the run has no candidates or ``gate_refresh`` passes used
+        them, else scores the run's candidates; updates ``run["cand"]``, ``run["since_gate"]`` and
+        ``run["gated"]``."""
+        if self._sparse is None:
+            return _em.reduce_sum(src.map(_em.shard_stats, params))
+        counts = src.shard_rows()
+        gate = run["cand"] is None or run["since_gate"] >= self._sparse.refresh
+        each = [(None,) if gate else (c,) for c in (run["cand"] or [None] * len(counts))]
+        filled = [s for s, n in enumerate(counts) if n]
+        total, cands = None, [None] * len(counts)
+        for s, (stats, cand) in zip(filled, src.map(_em.shard_stats_sparse, params, self._sparse, each=each)):
+            total = stats if total is None else total + stats  # one shard's sums held at a time
+            cands[s] = cand
+        if total is None:
+            raise ValueError("MPPCA: no data (no shard yielded any rows)")
+        run.update(cand=cands, since_gate=1 if gate else run["since_gate"] + 1, gated=gate)
+        return total
 
     def _iterate(self, src: ShardSource, run: dict, until: int, var_floor: float, run_idx: int) -> None:
         """Advance one run (dict from ``_start``) in place until ``until`` iterations in total or
@@ -313,7 +368,7 @@ class MPPCA(DensityMixin, BaseEstimator):
         while len(run["bounds"]) < until and not run["converged"]:
             it = len(run["bounds"]) + 1
             params = _em.m_step(run["stats"], run["params"], var_floor)  # T&B Appendix C
-            stats = _em.reduce_sum(src.map(_em.shard_stats, params))
+            stats = self._pass(src, run, params)
             cur = stats.loglik / stats.n
             run.update(params=params, stats=stats)
             run["bounds"].append(cur)
@@ -322,6 +377,8 @@ class MPPCA(DensityMixin, BaseEstimator):
             if self.callback is not None:
                 self.callback(it, cur)
             run["converged"] = abs(cur - run["prev"]) < self.tol
+            if run["converged"] and self._sparse is not None and not run["gated"]:
+                run["converged"], run["since_gate"] = False, self._sparse.refresh  # gate before stopping
             run["prev"] = cur
         if self.verbose >= 1:
             print(f"MPPCA run {run_idx}: {'converged' if run['converged'] else 'not converged'} after "

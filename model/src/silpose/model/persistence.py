@@ -115,6 +115,9 @@ def _read(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file")
+    if not zipfile.is_zipfile(path):  # else numpy's refusal to unpickle would be the message
+        raise ModelFileError(f"{path}: not a silpose model file (not an .npz archive: a model is what silpose train "
+                             "writes)")
     try:
         z = np.load(path, allow_pickle=False)
         if not isinstance(z, np.lib.npyio.NpzFile):

@@ -1,7 +1,9 @@
 """Model selection: q, M, the structure weight and the observation-noise variance on validation data.
 
 A validation split is carved from the *training* data (a seeded random permutation; the test
-split is never touched). For every (n_latent q, n_components M, structure_weight w) in a small grid
+split is never touched). With ``groups`` (e.g. the motion clip or subject of each row) the split
+holds out whole groups (:func:`validation_split_groups`), so the validation error is a held-out-group
+error, as the test split's held-out subjects need. For every (n_latent q, n_components M, structure_weight w) in a small grid
 a :class:`ShapeStructureModel` is fitted on the rest and scored on the validation samples by
 
 - the **joint error** (:func:`silpose.shared.metrics.pose_error_cm`: mean Euclidean distance over
@@ -53,6 +55,14 @@ DEFAULT_GRID: dict[str, tuple] = {
     "structure_weight": (30.0,),
     "noise_variance": (0.01, 0.03, 0.1),
 }
+#: A grid for varied motion (the ``motions`` preset): M in the hundreds, fitted with the MPPCA's sparse E-step
+#: (``silpose.model.mppca``, automatic from M 64 on).
+LARGE_GRID: dict[str, tuple] = {
+    "n_latent": (20, 30),
+    "n_components": (50, 100, 200),
+    "structure_weight": (30.0,),
+    "noise_variance": (0.03,),
+}
 #: Relative score margin within which a smaller model "matches the error" (:func:`choose`).
 DEFAULT_ERROR_TOLERANCE = 0.02
 #: Seed offset of the validation inputs' roughness stream (sample ids are the validation rows' indices).
@@ -75,6 +85,25 @@ def validation_split(n_samples: int, fraction: float, seed: int = 0) -> tuple[np
     perm = derive_rng(seed, VALIDATION_STREAM).permutation(n_samples)
     n_val = min(max(1, int(round(fraction * n_samples))), n_samples - 1)
     return np.sort(perm[n_val:]), np.sort(perm[:n_val])
+
+
+def validation_split_groups(groups: np.ndarray, fraction: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(train indices, validation indices) holding out whole groups: a seeded permutation of the distinct
+    ``groups`` (N,) (``derive_rng(seed, VALIDATION_STREAM)``), groups taken into validation until it has
+    about ``fraction`` of the rows; both parts non-empty, no group in both."""
+    if not 0.0 < fraction < 1.0:
+        raise ValueError(f"validation fraction must be in (0, 1), got {fraction}")
+    groups = np.asarray(groups)
+    uniq, inverse, counts = np.unique(groups, return_inverse=True, return_counts=True)
+    if len(uniq) < 2:
+        raise ValueError(f"need at least 2 groups to carve a validation split, got {len(uniq)}")
+    order = derive_rng(seed, VALIDATION_STREAM).permutation(len(uniq))
+    taken = np.cumsum(counts[order]) <= max(counts[order[0]], fraction * len(groups))
+    taken[-1] = False  # keep at least one group for training
+    val_groups = np.zeros(len(uniq), bool)
+    val_groups[order[taken]] = True
+    is_val = val_groups[inverse.reshape(-1)]
+    return np.flatnonzero(~is_val), np.flatnonzero(is_val)
 
 
 def unit_weight_loglik(model: ShapeStructureModel, values: np.ndarray) -> np.ndarray:
@@ -201,6 +230,7 @@ def select(
     noise_dof: bool = True,
     error_tolerance: float = DEFAULT_ERROR_TOLERANCE,
     progress: Callable[[int, int, dict], None] | None = None,
+    groups: np.ndarray | None = None,
 ) -> SelectionResult:
     """Grid search on a validation split carved from the training data (module doc).
 
@@ -219,6 +249,8 @@ def select(
         noise_dof: the fits' ``noise_dof`` (``ShapeStructureModel``).
         error_tolerance: relative score margin of :func:`choose`.
         progress: called as ``progress(i, n_fits, row)`` after each fit.
+        groups: optional (N,) group of each sample (clip, subject): the validation split holds out whole
+            groups (:func:`validation_split_groups`); None = a random split of the samples.
     Returns:
         :class:`SelectionResult` (rows for every grid point, the best one; ``extra["choice"]`` says how).
     """
@@ -231,7 +263,12 @@ def select(
             raise ValueError(f"grid[{k!r}] is empty")
     contours_px = np.asarray(contours_px, dtype=np.float64)
     joints = np.asarray(joints)
-    tr, va = validation_split(len(joints), val_fraction, seed)
+    if groups is None:
+        tr, va = validation_split(len(joints), val_fraction, seed)
+    else:
+        if len(groups) != len(joints):
+            raise ValueError(f"groups has {len(groups)} entries for {len(joints)} samples")
+        tr, va = validation_split_groups(groups, val_fraction, seed)
     c_fit, j_fit = contours_px[tr], joints[tr]
     if roughness is not None or mirrors:
         c_fit, j_fit = training_rows(c_fit, j_fit, tr, rig=rig, mirrors=tuple(mirrors), roughness=roughness, seed=seed)

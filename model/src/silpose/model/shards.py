@@ -27,8 +27,10 @@ class ShardSource:
         """Rows each shard yields (after any row selection), in shard order."""
         raise NotImplementedError
 
-    def map(self, fn: Callable, *args) -> Iterator:
-        """``fn(block (n_s, d) float64, *args)`` for every shard with rows, results in shard order."""
+    def map(self, fn: Callable, *args, each: Sequence[tuple] | None = None) -> Iterator:
+        """``fn(block (n_s, d) float64, *args)`` for every shard with rows, results in shard order.
+        ``each``: one tuple per shard (all shards, in order), passed first: ``fn(block, *each[s], *args)``
+        (per-shard state, e.g. the sparse E-step's candidate components)."""
         raise NotImplementedError
 
     def centred(self, offset: np.ndarray) -> "ShardSource":
@@ -93,10 +95,10 @@ class ArrayShards(ShardSource):
             X = X[self._rows[s]]
         return X if self._offset is None else X - self._offset
 
-    def map(self, fn: Callable, *args) -> Iterator:
+    def map(self, fn: Callable, *args, each: Sequence[tuple] | None = None) -> Iterator:
         for s, n in enumerate(self.shard_rows()):
             if n:
-                yield fn(self._block(s), *args)  # the block is freed when fn returns
+                yield fn(self._block(s), *(each[s] if each is not None else ()), *args)  # block freed on return
 
     def centred(self, offset: np.ndarray) -> "ArrayShards":
         base = 0.0 if self._offset is None else self._offset

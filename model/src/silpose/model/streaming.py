@@ -52,12 +52,13 @@ def load_shard_features(path: str, rows, layout: FeatureLayout, n_rig_views: int
     return shape_vectors(layout, n_rig_views, contours, joints, rig)
 
 
-def run_shard_task(path: str, rows, layout: FeatureLayout, n_rig_views: int, offset, fn: Callable, args: tuple):
-    """One EM task: ``fn(features of the shard - offset, *args)``. Runs in this process or in a Ray worker."""
+def run_shard_task(path: str, rows, layout: FeatureLayout, n_rig_views: int, offset, fn: Callable, args: tuple,
+                   first: tuple = ()):
+    """One EM task: ``fn(features of the shard - offset, *first, *args)``. Runs in this process or in a Ray worker."""
     X = load_shard_features(path, rows, layout, n_rig_views)
     if offset is not None:
         X -= offset
-    return fn(X, *args)
+    return fn(X, *first, *args)
 
 
 @dataclass(frozen=True)
@@ -141,13 +142,14 @@ class DatasetShards(ShardSource):
             raise ValueError(f"select: {len(rows)} row lists for {len(self.paths)} shards")
         return replace(self, rows=tuple(compose_rows(cur, r) for cur, r in zip(self.rows, rows)))
 
-    def map(self, fn: Callable, *args) -> Iterator:
+    def map(self, fn: Callable, *args, each: Sequence[tuple] | None = None) -> Iterator:
         todo = [s for s, n in enumerate(self.shard_rows()) if n]
         if self.executor == "ray":
-            yield from _ray_map(self, todo, fn, args)
+            yield from _ray_map(self, todo, fn, args, each)
             return
         for s in todo:
-            yield run_shard_task(self.paths[s], self.rows[s], self.layout, self.n_rig_views, self.offset, fn, args)
+            yield run_shard_task(self.paths[s], self.rows[s], self.layout, self.n_rig_views, self.offset, fn, args,
+                                 each[s] if each is not None else ())
 
 
 # ---------------------------------------------------------------------------- Ray
@@ -173,7 +175,7 @@ def start_ray(workers: int | None = None):
     return ray
 
 
-def _ray_map(src: DatasetShards, todo: list[int], fn: Callable, args: tuple) -> Iterator:
+def _ray_map(src: DatasetShards, todo: list[int], fn: Callable, args: tuple, each=None) -> Iterator:
     """Run ``run_shard_task`` for the shards ``todo`` as Ray tasks; yield results in shard order.
 
     At most ``limit`` tasks are ahead of the next result to yield, so at most ``limit`` results
@@ -190,7 +192,8 @@ def _ray_map(src: DatasetShards, todo: list[int], fn: Callable, args: tuple) -> 
         while nxt < len(todo):
             while sub < len(todo) and sub < nxt + limit:
                 s = todo[sub]
-                ref = remote.remote(src.paths[s], src.rows[s], layout_ref, src.n_rig_views, offset_ref, fn, args_ref)
+                ref = remote.remote(src.paths[s], src.rows[s], layout_ref, src.n_rig_views, offset_ref, fn, args_ref,
+                                    each[s] if each is not None else ())
                 pending[ref] = sub
                 sub += 1
             done, _ = ray.wait(list(pending), num_returns=1)

@@ -28,6 +28,19 @@
 4. Median filter (``median_size``), morphological open (``open_size``) then close
    (``close_size``), and the largest 8-connected blob (``largest_blob``), see :mod:`.cleanup`.
 
+Two additions for real rooms (not in the paper):
+
+- :meth:`BackgroundModel.fit_robust`: a background from frames in which people move about (a recording
+  where nobody left the room): the per-pixel median is the mean and 1.4826 x the median absolute deviation
+  the standard deviation, both robust to a person covering a pixel in less than half of the frames
+  (someone who stands still longer becomes background, which is what a static blob should become).
+- ``gain`` (per-frame lighting): before the comparison each frame is divided by its gain with respect
+  to the background, the median over a grid of pixels (every 4th row and column, where the background
+  is brighter than 16) of ``frame / background`` -- per channel for colour frames (a white-balance shift).
+  The median ignores the people as long as they cover less than half of the grid. A plate shot in the
+  morning and a recording in the afternoon, or a camera's auto-exposure, then no longer make the whole
+  frame foreground.
+
 Colour frames are BGR (``cv2.imread`` order) and are converted with ``cv2.cvtColor`` for the
 graylevel statistics and the NCC.
 
@@ -52,6 +65,8 @@ STAGES = ("candidates", "shadow_rejected", "median", "morphology", "final")
 
 _SUM3 = np.ones((1, 3), np.float32)  # cv2.transform matrix: sum of the 3 channels
 _BATCH_CHUNK = 64  # frames per vectorised chunk in partial_fit / segment_batch (bounds the temporaries)
+_GAIN_STEP = 4  # every 4th row and column are the pixels the gain is measured on
+_GAIN_MIN_LEVEL = 16.0  # graylevels: darker background pixels say little about the gain
 
 
 class BackgroundModel:
@@ -115,6 +130,9 @@ class BackgroundModel:
         ``data/smoke/frames``).
     largest_blob : bool, default True
         Keep only the largest 8-connected blob.
+    gain : bool, default False
+        Divide each frame by its gain with respect to the background before comparing (module
+        docstring): a lighting change between the background and the frames. Off: the paper's rule.
 
     Parameters are read by :meth:`fit` / :meth:`partial_fit` (sklearn convention): changing one
     afterwards takes effect at the next fit.
@@ -151,6 +169,7 @@ class BackgroundModel:
         open_size: int = 3,
         close_size: int = 5,
         largest_blob: bool = True,
+        gain: bool = False,
     ):
         self.k_sigma = k_sigma
         self.colour = colour
@@ -167,6 +186,7 @@ class BackgroundModel:
         self.open_size = open_size
         self.close_size = close_size
         self.largest_blob = largest_blob
+        self.gain = gain
 
     # ------------------------------------------------------------------ fitting
     def fit(self, frames) -> BackgroundModel:
@@ -190,6 +210,8 @@ class BackgroundModel:
         stack = as_frame_stack(frames, "frames")
         gray = to_gray(stack)
         is_colour = stack.ndim == 4
+        if hasattr(self, "n_frames_seen_") and self._s1 is None:
+            raise SegmentError("partial_fit: this background came from fit_robust (medians); call fit or fit_robust again")
         if not hasattr(self, "n_frames_seen_"):
             self.frame_shape_ = gray.shape[1:]
             self.n_frames_seen_ = 0
@@ -223,20 +245,77 @@ class BackgroundModel:
             self._finalise()
         return self
 
+    def fit_robust(self, frames) -> BackgroundModel:
+        """Learn the background from frames (N, H, W) or (N, H, W, 3) uint8, N >= 3, in which people may appear:
+        per-pixel median and 1.4826 x median absolute deviation (module docstring). Returns self; the model
+        cannot be extended with :meth:`partial_fit` afterwards."""
+        self._check_params()
+        stack = as_frame_stack(frames, "frames")
+        if stack.shape[0] < 3:
+            raise SegmentError(f"frames: a robust background needs at least 3 frames, got {stack.shape[0]}")
+        gray = to_gray(stack)
+        self.frame_shape_ = gray.shape[1:]
+        self.n_frames_seen_ = int(stack.shape[0])
+        self._s1 = self._s2 = None  # no running sums: partial_fit refuses
+        self._c1 = self._c2 = None
+
+        def med_mad(x):
+            med = np.median(x, axis=0)
+            return med, 1.4826 * np.median(np.abs(x - med[None].astype(np.float32)), axis=0)
+
+        self.mean_, self.std_ = (a.astype(np.float64) for a in med_mad(gray.astype(np.float32)))
+        colour = None
+        if self.colour and stack.ndim == 4:
+            colour = tuple(a.astype(np.float64) for a in med_mad(stack.astype(np.float32)))
+        self._prepare(colour)
+        return self
+
+    def absorb(self, frame, where) -> BackgroundModel:
+        """Make the pixels ``where`` ((H, W) bool) background, with the values they have in ``frame`` ((H, W) or
+        (H, W, 3) uint8, the background's kind): an object that was not in the background frames and stays
+        (a moved chair, someone standing still at the back). The standard deviations are kept. A later
+        :meth:`partial_fit` recomputes the statistics from its sums and forgets what was absorbed. Returns self."""
+        self._check_fitted()
+        arr = as_single_frame(frame, "frame")
+        self._check_shape(arr.shape[:2], "frame")
+        where = np.asarray(where, bool)
+        self._check_shape(where.shape, "where")
+        if not where.any():
+            return self
+        gray = to_gray(arr[None])[0]
+        self.mean_ = self.mean_.copy()
+        self.mean_[where] = gray[where]
+        colour = None
+        if self.colour_mean_ is not None:
+            cm = self.colour_mean_.copy()
+            if arr.ndim == 3:
+                cm[where] = arr[where]
+            else:
+                cm[where] = gray[where][:, None]
+            colour = (cm, self.colour_std_)
+        self._prepare(colour)
+        return self
+
     def _finalise(self) -> None:
         n = self.n_frames_seen_
         # Exact integer numerator: var = (N S2 - S1^2) / N^2 (no cancellation, no float drift).
         self.mean_ = self._s1 / n
         self.std_ = np.sqrt((n * self._s2 - self._s1 * self._s1) / float(n * n))
+        colour = None
+        if self._c1 is not None:
+            colour = (self._c1 / n, np.sqrt((n * self._c2 - self._c1 * self._c1) / float(n * n)))
+        self._prepare(colour)
+
+    def _prepare(self, colour: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """Thresholds and window statistics from ``mean_``, ``std_`` and the colour (mean, std) or None."""
         thr = self.k_sigma * np.maximum(self.std_, self.min_std)
         # Integer bounds, clipped to int16: |f - mean| > thr  <=>  f > floor(mean + thr) or f < ceil(mean - thr).
         self._upper = np.clip(np.floor(self.mean_ + thr), -1, 256).astype(np.int16)
         self._lower = np.clip(np.ceil(self.mean_ - thr), -1, 256).astype(np.int16)
         self.colour_mean_ = self.colour_std_ = None
         self._inv_var = None
-        if self._c1 is not None:
-            self.colour_mean_ = self._c1 / n
-            self.colour_std_ = np.sqrt((n * self._c2 - self._c1 * self._c1) / float(n * n))
+        if colour is not None:
+            self.colour_mean_, self.colour_std_ = colour
             # Colour candidates: sum_c (f_c - mean_c)^2 / max(std_c, min_std)^2 > 3 k^2.
             self._cmean32 = self.colour_mean_.astype(np.float32)
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
@@ -245,6 +324,10 @@ class BackgroundModel:
         if self.ncc_threshold is not None:
             noise = self.std_**2 if self.noise_correction else None
             self._bg = background_window_stats(self.mean_, self.ncc_window, self.min_texture, noise)
+        ref = self.colour_mean_ if self.colour_mean_ is not None else self.mean_
+        grid = ref[::_GAIN_STEP, ::_GAIN_STEP]
+        self._gain_ref = grid.astype(np.float32)
+        self._gain_ok = (grid > _GAIN_MIN_LEVEL) if grid.ndim == 2 else (grid > _GAIN_MIN_LEVEL).all(axis=-1)
 
     def _check_params(self) -> None:
         def fail(name, value, rule):
@@ -278,6 +361,8 @@ class BackgroundModel:
             fail("noise_correction", self.noise_correction, "must be True or False")
         if not isinstance(self.largest_blob, (bool, np.bool_)):
             fail("largest_blob", self.largest_blob, "must be True or False")
+        if not isinstance(self.gain, (bool, np.bool_)):
+            fail("gain", self.gain, "must be True or False")
         m = self.median_size
         if not (isinstance(m, (int, np.integer)) and (m <= 1 or m % 2 == 1)):
             fail("median_size", m, "must be an odd integer (or <= 1 to disable)")
@@ -346,8 +431,35 @@ class BackgroundModel:
                 out[k][start : start + _BATCH_CHUNK] = chunk[k]
         return out if return_stages else out["final"]
 
+    def frame_gain(self, frame) -> np.ndarray:
+        """The gain of one frame (H, W) or (H, W, 3) uint8 with respect to the background: a scalar for
+        graylevel frames, (3,) per channel for colour ones when the background is colour (module docstring)."""
+        self._check_fitted()
+        f = np.asarray(frame)[::_GAIN_STEP, ::_GAIN_STEP].astype(np.float32)
+        ref = self._gain_ref
+        if f.ndim == 3 and ref.ndim == 2:
+            f = f @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
+        elif f.ndim == 2 and ref.ndim == 3:
+            ref = ref @ np.array([0.114, 0.587, 0.299], np.float32)
+        ratio = f[self._gain_ok] / ref[self._gain_ok]
+        if not len(ratio):
+            return np.ones(ratio.shape[1:], np.float32)
+        return np.median(ratio, axis=0).astype(np.float32)
+
+    def _normalise_gain(self, stack: np.ndarray) -> np.ndarray:
+        out = np.empty_like(stack)
+        for i, f in enumerate(stack):
+            g = self.frame_gain(f)
+            if f.ndim == 3 and np.ndim(g) == 1:
+                out[i] = cv2.transform(f, np.diag(1.0 / np.maximum(g, 1e-3)).astype(np.float32))  # saturating
+            else:
+                cv2.convertScaleAbs(f, dst=out[i], alpha=float(1.0 / max(float(g), 1e-3)))
+        return out
+
     def _segment(self, stack: np.ndarray) -> dict[str, np.ndarray]:
         """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}."""
+        if self.gain:
+            stack = self._normalise_gain(stack)
         gray = to_gray(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
         if use_colour:

@@ -26,7 +26,8 @@ Errors are :class:`OutputFolderError`, one line naming the folder and the files 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from .atomic import FIGURE_SOFTWARE, write_json_atomic
@@ -40,6 +41,7 @@ __all__ = [
     "read_marker",
     "check_folder",
     "claim_folder",
+    "claimed_folder",
     "claim_files",
     "is_silpose_png",
     "claim_picture",
@@ -156,6 +158,28 @@ def claim_folder(folder: str | Path, command: str, *, recognise: Recogniser | No
             raise OutputFolderError(f"{folder}: cannot create the output folder ({exc.strerror or exc})") from None
         write_json_atomic(folder / MARKER, {"written_by": "silpose", "command": command, "format": MARKER_FORMAT})
     return folder
+
+
+@contextmanager
+def claimed_folder(folder: str | Path, command: str, *, recognise: Recogniser | None = None,
+                   data_root: str | Path | None = None) -> Iterator[Path]:
+    """:func:`claim_folder` for the length of a ``with`` block: when the block raises, a folder this claim
+    created, or a marker it added, is removed again if nothing else was written, so a refused command leaves
+    nothing behind."""
+    folder = Path(folder)
+    existed, marked = folder.exists(), (folder / MARKER).exists()
+    claim_folder(folder, command, recognise=recognise, data_root=data_root)
+    try:
+        yield folder
+    except BaseException:
+        try:
+            if not marked and [p.name for p in folder.iterdir()] == [MARKER]:
+                (folder / MARKER).unlink()
+                if not existed:
+                    folder.rmdir()
+        except OSError:
+            pass  # cleaning up must not hide the error being raised
+        raise
 
 
 def claim_files(paths: Iterable[str | Path], command: str, *, recognise: Recogniser) -> list[Path]:

@@ -40,6 +40,7 @@ __all__ = [
     "NOISE_KIND",
     "CHANCE_STREAM",
     "VALIDATION_STREAM",
+    "BASELINE_AUGMENT_STREAM",
     "derive_rng",
     "stream_code",
 ]
@@ -58,6 +59,8 @@ NOISE_KIND = {"background": 0, "frames": 1}
 CHANCE_STREAM = 29
 #: last key of the train / validation permutation of model selection.
 VALIDATION_STREAM = 7919
+#: first key of the eval's MLP-baseline training augmentation (noise seeds, view subsets).
+BASELINE_AUGMENT_STREAM = 0x5EED_3A1F
 
 
 def derive_rng(*keys: int) -> np.random.Generator:

@@ -23,7 +23,7 @@ def infer(
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Joints file: .parquet, or .json (default joints.parquet); with --videos an output folder (default <DIR>.silpose/).")] = None,
     split: Annotated[str, typer.Option(help="Split to read when INPUT is a dataset folder.")] = "test",
     save_contours: Annotated[bool, typer.Option("--contours", help="Also write reconstructed contours to <out stem>.contours.npz (with --videos: a contours_px column in joints.parquet).")] = False,
-    noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² (default: the model's).")] = None,
+    noise_variance: Annotated[Optional[float], typer.Option(min=0.0, help="Observation noise s² (default: the model's).")] = None,
     threshold: Annotated[int, typer.Option(min=0, max=254, help="PNG pixels brighter than this are foreground (images holding only 0 and 1 are read as 0/1 masks).")] = 127,
     frames: Annotated[Optional[Path], typer.Option("--frames", help="Camera frames folder: background/<camera>/ and frames/<camera>/ (PNG/JPG folders or .mp4/.avi videos); segmented by background subtraction.")] = None,
     save_overlays: Annotated[bool, typer.Option("--save-overlays", help="With --frames: one PNG per frame (frames, silhouettes with reconstructed contours, inferred stick figure; paper Fig. 9) in <out stem>.overlays/.")] = False,
@@ -131,21 +131,23 @@ def infer_videos(model, videos, out, masks, background, background_frames, offse
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from silpose.shared.output_dir import claim_folder
+    from silpose.shared.cli import lazy_progress, show_progress
+    from silpose.shared.output_dir import claimed_folder
 
     from ..recordings.pipeline import RecordingOptions, run_recording
 
     console = Console(stderr=True)
-    out = claim_folder(out if out is not None else Path(f"{Path(videos).name}.silpose"), "infer")
+    out = out if out is not None else Path(f"{Path(videos).name}.silpose")
     options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                offsets=offsets, overlays=overlays, min_area=min_area, noise_variance=noise_variance,
                                contours=contours, robust=robust)
-    with Progress(TextColumn("[bold]recording"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(), console=console,
-                  disable=not progress, transient=True) as bar:
+    with claimed_folder(out, "infer"), lazy_progress(Progress(  # a refused recording leaves nothing behind
+            TextColumn("[bold]recording"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[rate]} frames/s"),
+            TimeElapsedColumn(), console=console, disable=not progress, transient=True)) as bar:
         task = bar.add_task("frames", total=None, rate="-")
 
         def update(done: int, total: int) -> None:
+            show_progress(bar)
             elapsed = bar.tasks[0].elapsed or 0.0
             bar.update(task, completed=done, total=total if total >= 0 else None,
                        rate=f"{done / elapsed:.0f}" if elapsed > 0 else "-")

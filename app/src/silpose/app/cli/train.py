@@ -24,7 +24,7 @@ def train(
     n_components: Annotated[Optional[int], typer.Option("--components", "-M", min=1, help="Mixture components M.")] = None,
     n_latent: Annotated[Optional[int], typer.Option("--latent", "-q", min=1, help="Latent dimension q per component.")] = None,
     structure_weight: Annotated[Optional[float], typer.Option(help="Weight of the joint block in the shape vector.")] = None,
-    noise_variance: Annotated[Optional[float], typer.Option(help="Observation noise s² at inference (normalised units²).")] = None,
+    noise_variance: Annotated[Optional[float], typer.Option(min=0.0, help="Observation noise s² at inference (normalised units²).")] = None,
     views: Annotated[Optional[str], typer.Option(help="Views to model, comma-separated rig indices (default: all).")] = None,
     max_iter: Annotated[int, typer.Option(min=1, help="EM iterations per run at most.")] = 200,
     n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 1,
@@ -74,6 +74,8 @@ def train(
 
     from ..training import run_training
 
+    if not 0.0 < heldout < 1.0:
+        fail("train", f"the held-out fraction must be in (0, 1), got {heldout:g} (--heldout)")
     try:
         view_tuple = None if views is None else tuple(int(v) for v in views.split(",") if v.strip())
     except ValueError:

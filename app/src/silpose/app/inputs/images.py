@@ -13,10 +13,11 @@ import numpy as np
 
 from ..errors import FramesInputError
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-"""Image file suffixes :func:`load_frames` reads (case-insensitive)."""
-VIDEO_SUFFIXES = (".mp4", ".avi")
-"""Video file suffixes accepted for a camera (case-insensitive)."""
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+"""Image file suffixes read as frames (case-insensitive): the one list every camera input uses."""
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm")
+"""Video file suffixes read as a camera (case-insensitive; OpenCV's FFmpeg decodes them): the one list every
+camera input uses (frames folders, recordings, ``silpose rig import``'s image-size probe)."""
 
 
 def frame_size_text(shape) -> str:

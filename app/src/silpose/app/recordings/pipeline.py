@@ -27,6 +27,16 @@ becomes a person leaves no rows. Input problems found before the run (a folder, 
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
 (an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
 
+Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
+standing still at the back -- is foreground that no person explains. Per camera, a pixel that has been
+foreground outside the image box of every person detected on the floor (:func:`~.views.body_box`: the
+cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor point) for
+:data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
+either; a frame where it is background does -- becomes
+background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). People in the
+workspace are protected by their box, however still they stand; clutter touching a person's box is absorbed
+outside it, so their blob again fits their box.
+
 At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
 90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
 cause -- mask videos storing foreground as 1 instead of 255, inverted masks (people black on white), the wrong
@@ -57,15 +67,25 @@ from .floor import FloorGrid
 from .floorplan import write_floorplan
 from .overlay_video import OverlayVideos, draw_frame
 from .placement import place_contours, place_roots
-from .silhouettes import MASK_THRESHOLD, MaskBinariser, background_from_clips, background_from_first_frames
-from .sources import CameraReader, holds_background_clips, open_recording, parse_offsets
+from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work_size
+from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
+                          background_from_first_frames, background_from_recording)
+from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
 from .tracking import Track, Tracker
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
-                    assign_views, grounded)
+                    assign_views, body_box, grounded)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 #: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
 DEFAULT_MIN_AREA_PX = 150
+#: metres: floor detections this close to the floor grid's outer edge are not people in the room but someone
+#: beyond it (people standing at the back: the rays through them cross the grid's last cells)
+EDGE_M = 0.15
+#: seconds: foreground that stays this long outside every detected person's body box becomes background
+ABSORB_S = 2.0
+#: metres: radius of the cylinder around each detected person that is never made background: the body and
+#: the arms' swing (half the view test's 0.9 m, so a box on the floor beside someone's path is absorbed)
+PROTECT_RADIUS_M = 0.45
 #: a camera whose masks are empty, or mostly foreground, in at least this share of its frames gets a warning
 #: naming the likely cause (0/1 or inverted mask videos, a wrong background clip)
 MASK_DIAGNOSIS_SHARE = 0.9
@@ -75,8 +95,8 @@ MASK_DIAGNOSIS_SHARE = 0.9
 class RecordingOptions:
     """Options of :func:`run_recording` (``silpose infer --videos``).
 
-    masks: the videos are foreground masks (else colour, segmented against ``background`` clips or the
-    first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
+    masks: the videos are foreground masks (else colour, segmented against ``background`` clips -- or the
+    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
     overlay videos; noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
@@ -86,7 +106,10 @@ class RecordingOptions:
     down-weighted); None = on for colour videos (silpose's segmentation leaves holes, blobs and shadows), off
     for mask videos (measured on the lab recording of :mod:`silpose.datagen.lab`, M 10 q 30 model: world-frame
     error 5.8 cm without, 6.3 cm with; 115 vs 87 time steps/s). hypotheses: top-K kept per person-frame, the single answer chosen online along each
-    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean.
+    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
+    processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
+    absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
+    (module docstring; 0: never).
     """
 
     masks: bool = False
@@ -105,6 +128,8 @@ class RecordingOptions:
     contours: bool = False
     robust: bool | None = None
     hypotheses: int = TOP_K
+    work_person_px: int = WORK_PERSON_PX
+    absorb_s: float = ABSORB_S
 
 
 @dataclass
@@ -158,10 +183,15 @@ def _shown(source) -> str:
 
 
 class _Camera:
-    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread)."""
+    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread); ``settle()``
+    (main thread, between steps) makes static clutter background (module docstring)."""
 
-    def __init__(self, reader: CameraReader, silhouettes, min_area: int, keep_frame: bool):
+    def __init__(self, reader: CameraReader | ThreadedReader, silhouettes, min_area: int, keep_frame: bool,
+                 cam=None, absorb_frames: int = 0):
         self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
+        self.cam, self.absorb_frames = cam, int(absorb_frames)
+        self.age: np.ndarray | None = None  # frames each pixel has been foreground outside every person's box
+        self.absorbed = 0  # pixels made background
         self.ended = False
         self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
         self.brightest_empty = 0  # the highest grey level of a frame whose mask came out empty
@@ -182,6 +212,31 @@ class _Camera:
         elif 2 * int(blobs.area[1:].sum()) > mask.size:
             self.crowded += 1
         return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask)
+
+    def settle(self, seen: _Seen, people_xy: np.ndarray) -> None:
+        """Foreground outside every detected person's body box (:func:`~.views.body_box`, at floor points
+        ``people_xy`` (P, 2)) for ``absorb_frames`` frames in a row becomes background (colour videos only)."""
+        models = getattr(self.silhouettes, "models", None)
+        if self.absorb_frames <= 0 or models is None or seen.mask is None or seen.background is None:
+            return
+        fg = seen.mask.astype(bool)
+        loose = fg.copy()
+        if len(people_xy):
+            h, w = loose.shape
+            for x0, y0, x1, y1 in body_box(self.cam, people_xy, PROTECT_RADIUS_M):
+                a, b = max(0, int(np.floor(x0))), min(w, int(np.ceil(x1)) + 1)
+                c, d = max(0, int(np.floor(y0))), min(h, int(np.ceil(y1)) + 1)
+                if a < b and c < d:
+                    loose[c:d, a:b] = False
+        if self.age is None:
+            self.age = np.zeros(loose.shape, np.uint16)
+        # foreground outside every box ages; inside a box it keeps its age; background starts again from 0
+        self.age = np.where(loose, np.minimum(self.age, 65534) + 1, np.where(fg, self.age, 0)).astype(np.uint16)
+        ready = loose & (self.age >= self.absorb_frames)  # never where a person may be now (their colours)
+        if int(ready.sum()) >= self.min_area:
+            models[self.reader.source.camera].absorb(seen.background, ready)
+            self.absorbed += int(ready.sum())
+            self.age[ready] = 0
 
     def diagnosis(self, masks: bool) -> str | None:
         """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
@@ -254,13 +309,26 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     for w in warnings:
         if warn:
             warn(w)
+
+    lay = model.fitted_layout()
+    modelled = [names[v] for v in lay.views]
+    n_pts = lay.n_points
+    # every camera at its working resolution (module .resolution): geometry, masks and overlays at that size,
+    # contours scaled back to the rig camera's pixels for the model
+    work = [work_camera(c, work_size(c, workspace.center, opt.work_person_px)) for c in rig]
+    sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
+               for c, s in recording.sources.items()}
+    grid = FloorGrid(work, workspace.bounds)
     start = 0
     if opt.masks:
         silhouettes = MaskBinariser()
+    elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():
+        silhouettes = background_from_recording(sources, opt.segment_params)
     elif opt.background is not None:
-        silhouettes = background_from_clips(Path(opt.background), rig, list(recording.sources), opt.segment_params)
+        silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
+                                            {c.name: (c.width, c.height) for c in work})
     else:
-        silhouettes = background_from_first_frames(recording.sources, int(opt.background_frames), opt.segment_params)
+        silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
         start = int(opt.background_frames)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
@@ -269,17 +337,15 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
     # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
     first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
-
-    lay = model.fitted_layout()
-    modelled = [names[v] for v in lay.views]
-    n_pts = lay.n_points
-    grid = FloorGrid(list(rig), workspace.bounds)
     fps = recording.fps
     tracker = Tracker(min_hits=opt.min_hits,
                       max_misses=opt.max_misses if opt.max_misses is not None else max(3, int(round(0.5 * (fps or 25.0)))))
     lag = tracker.min_hits * (tracker.max_misses + 1)
-    cams = {c: _Camera(CameraReader(s, silhouettes.grey, start), silhouettes, opt.min_area, keep_frame=not opt.masks)
-            for c, s in recording.sources.items()}
+    absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
+    cams = {c: _Camera(ThreadedReader(CameraReader(s, silhouettes.grey, start)), silhouettes,
+                       _scaled_area(opt.min_area, rig[names.index(c)], work[names.index(c)]), keep_frame=not opt.masks,
+                       cam=work[names.index(c)], absorb_frames=absorb)
+            for c, s in sources.items()}
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {
@@ -302,10 +368,11 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     cam_list = list(cams.values())
     stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     step = 0
+    gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
         if opt.overlays:
-            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in rig}, fps)
+            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in work}, fps)
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -317,17 +384,24 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 t0 = time.perf_counter()
                 seen = dict(zip(cams, stepper()))
                 timings["cameras"] += time.perf_counter() - t0
-                if any(s.status == VIEW_ENDED for s in seen.values()):
-                    ended = [c for c, s in seen.items() if s.status == VIEW_ENDED]
-                    early = step < total if total >= 0 else len(ended) < len(seen)  # unknown length: unequal ends
-                    if early:
-                        msg = f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
-                        warnings.append(msg + (f" (expected {total})" if total >= 0 else "") + ": stopping there")
-                        if warn:
-                            warn(warnings[-1])
-                    done = True
-                    break
-                people += _step_people(step, seen, rig, names, grid, tracker, n_pts, timings, pool.map if pool else map)
+                ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
+                if ended:
+                    gone.update(ended)
+                    if len(gone) == len(seen):  # no camera left: the recording is over
+                        done = True
+                        break
+                    msg = (f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
+                           + (f" (expected {total})" if total >= 0 else "")
+                           + ": a missing view ('video ended') from there on, the other cameras go on")
+                    warnings.append(msg)
+                    if warn:
+                        warn(msg)
+                found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                                            pool.map if pool else map)
+                people += found
+                for c, cam in cams.items():
+                    if seen[c].status is None:
+                        cam.settle(seen[c], where)
                 seen_chunk.append(seen)
                 for c in names:
                     s = seen.get(c)
@@ -343,7 +417,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
             if overlays is not None:
                 t0 = time.perf_counter()
-                _draw_chunk(overlays, rig, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
+                _draw_chunk(overlays, rig, work, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
                             first_frame)
                 timings["overlays"] += time.perf_counter() - t0
             t0 = time.perf_counter()
@@ -369,11 +443,16 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         for c in cams.values():
             c.reader.close()
     for c in cams.values():
-        line = c.diagnosis(opt.masks)
-        if line:
+        for line in (c.reader.summary(), c.diagnosis(opt.masks)):
+            if not line:
+                continue
             warnings.append(line)
             if warn:
                 warn(line)
+    if total >= 0 and step < total:
+        warnings.append(f"every camera's video ended after {step} of {total} frames")
+        if warn:
+            warn(warnings[-1])
     tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
     n_persons = len(tracks)
     if n_persons == 0:
@@ -391,28 +470,34 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     return summary
 
 
-def _camera_views(cam, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
-    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) px, NaN where unused).
-    Runs in a worker thread (OpenCV's labelling and contour tracing release the GIL)."""
+def _scaled_area(area_px: int, cam, work) -> int:
+    """A minimum blob area in ``cam``'s pixels, in ``work``'s (its working resolution)."""
+    return max(1, int(round(area_px * work.width * work.height / (cam.width * cam.height))))
+
+
+def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
+    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) in ``cam``'s px, NaN
+    where unused), from the masks at ``work``'s resolution. Runs in a worker thread (OpenCV's labelling and
+    contour tracing release the GIL)."""
     P = len(positions)
     cont = np.full((P, n_pts, 2), np.nan)
     if s is None:
         return [VIEW_NO_VIDEO] * P, cont
     if s.blobs is None or s.blobs.empty:
         return [s.status or VIEW_EMPTY] * P, cont
-    labels, status = assign_views(cam, s.blobs, positions)
+    labels, status = assign_views(work, s.blobs, positions)
     for d in range(P):
         if status[d] == VIEW_OK:
             pts = blob_contour(s.blobs, labels[d], n_pts)
             if pts is None:
                 status[d] = VIEW_EMPTY
             else:
-                cont[d] = pts
+                cont[d] = to_rig_px(pts, cam, work)
     return status, cont
 
 
-def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
-                 mapper=map) -> list[_Person]:
+def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
+                 mapper=map) -> tuple[list[_Person], np.ndarray]:
     """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
 
     Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
@@ -426,11 +511,16 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
         masks.append(s.mask if ok else None)
         blobs.append(s.blobs if ok else None)
     det = grid.locate(masks)
+    if len(det.positions):  # a peak on the search area's edge is someone beyond it (their hull reaches in)
+        xy = det.positions
+        inner = ((xy[:, 0] > grid.xs[0] + EDGE_M) & (xy[:, 0] < grid.xs[-1] - EDGE_M)
+                 & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
+        det = type(det)(det.positions[inner], det.scores[inner])
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
         xy = det.positions[idx]
-        return np.any(list(mapper(lambda k: grounded(rig[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
+        return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
             np.zeros(len(idx), bool)
 
     links = tracker.update(step, det.positions, feet_seen)
@@ -438,7 +528,9 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
     t0 = time.perf_counter()
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
-    per_cam = list(mapper(lambda k: _camera_views(rig[k], seen.get(names[k]), where, n_pts), range(len(names))))
+    near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts),
+                          range(len(names))))
     out = []
     for track, d in links:
         if d < 0:
@@ -449,7 +541,7 @@ def _step_people(step, seen: dict, rig, names, grid: FloorGrid, tracker: Tracker
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _ in per_cam],
                                np.stack([c[i] for _, c in per_cam])))
     timings["views"] += time.perf_counter() - t0
-    return out
+    return out, near
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,
@@ -543,9 +635,9 @@ def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_track
     return keep
 
 
-def _draw_chunk(overlays: OverlayVideos, rig, names, modelled, step0: int, seen_chunk, people, rows: PersonRows, world,
-                first_frame: int) -> None:
-    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`)."""
+def _draw_chunk(overlays: OverlayVideos, rig, work, names, modelled, step0: int, seen_chunk, people, rows: PersonRows,
+                world, first_frame: int) -> None:
+    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`), at the cameras' working size."""
     by_step: dict[int, list[int]] = {}
     for i, p in enumerate(people):
         if np.all(np.isfinite(p.floor)):
@@ -554,16 +646,16 @@ def _draw_chunk(overlays: OverlayVideos, rig, names, modelled, step0: int, seen_
         step = step0 + j
         idx = by_step.get(step, [])
         for k, c in enumerate(names):
-            cam = rig[k]
+            cam, wcam = rig[k], work[k]
             s = seen.get(c)
             items = []
             for i in idx:
                 p = people[i]
-                outline = p.contours[k] if np.all(np.isfinite(p.contours[k])) else None
-                recon = rows.contours[i, modelled.index(c)] if c in modelled else None
-                jp = cam.project(world[i]) if np.all(np.isfinite(world[i])) else None
-                top = cam.project(np.array([p.floor[0], p.floor[1], 2.0]))
+                outline = to_work_px(p.contours[k], cam, wcam) if np.all(np.isfinite(p.contours[k])) else None
+                recon = to_work_px(rows.contours[i, modelled.index(c)], cam, wcam) if c in modelled else None
+                jp = wcam.project(world[i]) if np.all(np.isfinite(world[i])) else None
+                top = wcam.project(np.array([p.floor[0], p.floor[1], 2.0]))
                 items.append({"person": p.track.person, "status": rows.view_status[i, k], "outline": outline,
                               "recon": recon, "joints_px": jp, "anchor_px": top})
-            overlays.write(c, draw_frame(None if s is None else s.background, (cam.width, cam.height), c,
+            overlays.write(c, draw_frame(None if s is None else s.background, (wcam.width, wcam.height), c,
                                          step + first_frame, items))

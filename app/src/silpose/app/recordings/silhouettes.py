@@ -10,9 +10,12 @@ mid-grey within 0.0005 IoU at a higher cost. The median is for isolated salt pix
 0.0007 IoU and at q30 costs 0.0015.
 
 Colour videos: the paper's background subtraction (:class:`silpose.segment.BackgroundModel`, one per
-camera) with ``largest_blob=False`` (several people), learnt from an empty-room clip per camera
-(``--background DIR``, streamed through ``partial_fit``) or from each video's first N frames
-(``--background-frames N``; those frames then are not processed).
+camera) with ``largest_blob=False`` (several people) and ``gain=True`` (each frame's lighting is matched
+to the background's first: a plate shot at another time, auto-exposure), learnt from an empty-room clip per
+camera (``--background DIR``, streamed through ``partial_fit``), from each video's first N frames
+(``--background-frames N``; those frames then are not processed), or, when nobody leaves the room, from the
+recording itself (``--background median``: the per-pixel median of :data:`MEDIAN_FRAMES` frames spread
+over each video, :meth:`~silpose.segment.BackgroundModel.fit_robust`).
 
 Masks are (H, W) uint8 in {0, 1}; :class:`MaskBinariser` and :class:`ColourSegmenter` are callables
 ``(camera, frame) -> mask`` with ``grey`` telling the reader which frames they want.
@@ -20,6 +23,7 @@ Masks are (H, W) uint8 in {0, 1}; :class:`MaskBinariser` and :class:`ColourSegme
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -36,6 +40,12 @@ MASK_THRESHOLD = 127
 MASK_MEDIAN = 3
 #: background frames read per camera at most (the statistics converge well before)
 MAX_BACKGROUND_FRAMES = 300
+#: frames spread over a recording whose per-pixel median is its background (``--background median``)
+MEDIAN_FRAMES = 41
+#: the value of ``--background`` that asks for the recording's own median
+MEDIAN = "median"
+#: BackgroundModel arguments of the recordings pipeline (the caller's ``segment_params`` override them)
+SEGMENT_DEFAULTS = {"largest_blob": False, "gain": True}
 
 
 def binarise(grey: np.ndarray, threshold: int = MASK_THRESHOLD, median: int = MASK_MEDIAN) -> np.ndarray:
@@ -74,7 +84,7 @@ class ColourSegmenter:
 
 def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> BackgroundModel:
     """A BackgroundModel fitted on the first ``n`` frames of ``source`` (streamed in chunks)."""
-    model = BackgroundModel(**{"largest_blob": False, **params})
+    model = BackgroundModel(**{**SEGMENT_DEFAULTS, **params})
     reader = CameraReader(source, grey=False)
     seen = 0
     try:
@@ -98,16 +108,27 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> 
     return model
 
 
-def background_from_clips(folder: Path, rig, cameras, params: dict | None = None) -> ColourSegmenter:
+def background_from_clips(folder: Path, rig, cameras, params: dict | None = None,
+                          sizes: dict[str, tuple[int, int]] | None = None) -> ColourSegmenter:
     """Background models of ``cameras`` learnt from the empty-room clips in ``folder`` (same layout and
     names as the videos folder: ``<camera>.mp4``, ``<camera>/`` frames, or ``<camera>/background.avi`` in a
-    camera folder holding several videos)."""
+    camera folder holding several videos), at each camera's working size ``sizes`` (width, height; None:
+    the rig camera's size)."""
     clips = open_recording(folder, rig, role="background")
     absent = [c for c in cameras if c not in clips.sources]
     if absent:
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "
                              f"{folder / (absent[0] + '.mp4')})")
-    return ColourSegmenter({c: _fit_stream(clips.sources[c], MAX_BACKGROUND_FRAMES, params or {}) for c in cameras})
+    sources = {c: at_size(clips.sources[c], (sizes or {}).get(c)) for c in cameras}
+    return ColourSegmenter({c: _fit_stream(sources[c], MAX_BACKGROUND_FRAMES, params or {}) for c in cameras})
+
+
+def at_size(source: CameraSource, size: tuple[int, int] | None) -> CameraSource:
+    """``source`` read at ``size`` (width, height): its frames resized when that is not their own size."""
+    if size is None:
+        return source
+    size = (int(size[0]), int(size[1]))
+    return dataclasses.replace(source, resize_to=None if size == (source.width, source.height) else size)
 
 
 def background_from_first_frames(sources: dict[str, CameraSource], n: int, params: dict | None = None) -> ColourSegmenter:
@@ -115,3 +136,31 @@ def background_from_first_frames(sources: dict[str, CameraSource], n: int, param
     if n < 2:
         raise RecordingError(f"--background-frames: a background needs at least 2 frames, got {n}")
     return ColourSegmenter({c: _fit_stream(s, n, params or {}) for c, s in sources.items()})
+
+
+def background_from_recording(sources: dict[str, CameraSource], params: dict | None = None,
+                              n: int = MEDIAN_FRAMES) -> ColourSegmenter:
+    """Background models learnt from the recording itself: the per-pixel median of ``n`` frames spread evenly
+    over each camera's video (module docstring); people who move are not in it, someone who stands still
+    for more than half of the recording is."""
+    models = {}
+    for c, src in sources.items():
+        total = src.n_frames - src.skip if src.n_frames > 0 else n * 10
+        picks = sorted(set(np.linspace(0, max(total - 1, 0), min(n, max(total, 1))).round().astype(int).tolist()))
+        reader = CameraReader(src, grey=False)
+        frames = []
+        try:
+            for i in picks:
+                reader.seek(i)
+                img = reader.read()
+                if img is not None:
+                    frames.append(img)
+        finally:
+            reader.close()
+        if len(frames) < 3:
+            raise RecordingError(f"{src.path}: a background from the recording needs at least 3 frames, found {len(frames)}")
+        try:
+            models[c] = BackgroundModel(**{**SEGMENT_DEFAULTS, **(params or {})}).fit_robust(np.stack(frames))
+        except SegmentError as exc:
+            raise RecordingError(f"{src.path}: {exc}") from None
+    return ColourSegmenter(models)

@@ -2,7 +2,7 @@
 
 Layout of ``silpose infer MODEL --videos DIR``::
 
-    DIR/<camera>.mp4 | .avi | .mkv | .mov | .m4v    one video per camera, named as in the rig (or holding the name), or
+    DIR/<camera>.mp4 | .avi | .mkv | .mov | ...    one video per camera, named as in the rig (or holding the name), or
     DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order), or
     DIR/<camera>/video.avi                         a camera folder holding videos: its only video, or the one
                                                    named ``video`` (``background`` for ``--background DIR``)
@@ -28,8 +28,16 @@ one pixel), then every frame is resized to the camera's size
 one frame rate (1 % tolerance; frames are synchronised by index, so different rates would pair frames
 shot at different times). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
 the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
-camera has a frame to the end of the shortest video (videos of unequal length: a warning). A video that
-ends earlier than its header said stops the run there with a warning, never mid-way with an error.
+camera has a frame to the end of the longest video (videos of unequal length: a warning). A camera whose
+video ends early -- shorter than the others, or a truncated or corrupt file that stops decoding before its
+header's count -- is a missing view with status "video ended" from there on while the other cameras go on;
+the run stops when no camera is left. A camera whose video cannot be opened at all is a missing view in
+every frame (a warning), unless no camera can be read (then the first camera's error).
+
+FFmpeg's own decoder lines (``[mjpeg @ 0x...] overread 8``) never reach the terminal: :func:`quiet_decoders`
+sets ``OPENCV_FFMPEG_LOGLEVEL`` to quiet unless the user set it, and OpenCV's own log to errors, when this
+module is imported (OpenCV reads the variable once, when the process first touches a video); each camera
+whose decoding stopped early gets one warning line instead (:meth:`CameraReader.summary`).
 
 Decoding: OpenCV's FFmpeg backend (``cv2.VideoCapture``), one frame at a time, so memory does not grow
 with the recording's length. Why not PyAV: OpenCV already ships FFmpeg in the wheel the workspace uses
@@ -41,6 +49,9 @@ one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchm
 from __future__ import annotations
 
 import dataclasses
+import os
+import queue
+import threading
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,14 +61,25 @@ import numpy as np
 
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
-from ..inputs.images import IMAGE_SUFFIXES
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 
-#: video file suffixes read as cameras (case-insensitive)
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
 #: optional camera -> file mapping inside the videos folder
 MAPPING_FILE = "cameras.toml"
 #: relative frame-rate difference tolerated between cameras
 FPS_TOLERANCE = 0.01
+#: FFmpeg log level OpenCV is given unless the user set ``OPENCV_FFMPEG_LOGLEVEL`` (-8: AV_LOG_QUIET)
+FFMPEG_LOGLEVEL = "-8"
+
+
+def quiet_decoders() -> None:
+    """Keep FFmpeg's and OpenCV's decoder messages off the terminal (module docstring); set
+    ``OPENCV_FFMPEG_LOGLEVEL=24`` (warnings) to see FFmpeg's lines."""
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", FFMPEG_LOGLEVEL)
+    if os.environ.get("OPENCV_LOG_LEVEL") is None and hasattr(cv2, "setLogLevel"):
+        cv2.setLogLevel(2)  # errors only: OpenCV's own "can't be used to capture by name" warnings
+
+
+quiet_decoders()
 
 
 @dataclass(frozen=True)
@@ -89,9 +111,9 @@ class CameraSource:
 class Recording:
     """The synchronised cameras of a recording.
 
-    sources: {camera: CameraSource} in rig order, cameras with a video; missing: rig cameras without;
-    n_steps: time steps (frames every camera has; -1 when a header does not say); fps: frames per
-    second (0 when unknown); warnings: one line each.
+    sources: {camera: CameraSource} in rig order, cameras with a readable video; missing: rig cameras
+    without (no video, or one that cannot be opened); n_steps: time steps (frames of the longest video after
+    offsets; -1 when a header does not say); fps: frames per second (0 when unknown); warnings: one line each.
     """
 
     root: Path
@@ -247,11 +269,17 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
             f"{folder}: no video named as a rig camera ({', '.join(c + '.mp4' for c in cameras)}, or a "
             f"{MAPPING_FILE} mapping)")
     warnings = list(renamed)
+    quiet_decoders()
     sources = {}
+    unreadable: list[RecordingError] = []
     for cam in cameras:
         if cam not in entries:
             continue
-        src = _probe(cam, entries[cam])
+        try:
+            src = _probe(cam, entries[cam])
+        except RecordingError as exc:  # one unreadable camera is a missing view, not the end of the recording
+            unreadable.append(exc)
+            continue
         want = rig[cameras.index(cam)]
         if (src.width, src.height) != (want.width, want.height):
             sx = want.width / src.width
@@ -264,9 +292,13 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
             warnings.append(f"{src.path.name}: frames are {src.width}x{src.height}, camera {cam!r} of the rig is "
                             f"{want.width}x{want.height}: every frame is scaled by {sx:.3g}")
         sources[cam] = src
+    if not sources and unreadable:
+        raise unreadable[0]
+    warnings += [f"{exc}: a missing view in every frame" for exc in unreadable]
     missing = tuple(c for c in cameras if c not in sources)
-    if missing:
-        warnings.append(f"no video for camera(s) {', '.join(missing)}: a missing view in every frame")
+    absent = [c for c in missing if c not in entries]
+    if absent:
+        warnings.append(f"no video for camera(s) {', '.join(absent)}: a missing view in every frame")
     rates = {c: s.fps for c, s in sources.items() if s.fps > 0}
     fps = 0.0
     if rates:
@@ -288,12 +320,11 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
     for c, n in lengths.items():
         if n <= 0:
             raise RecordingError(f"{sources[c].path}: has {sources[c].n_frames} frames, fewer than its offset {sources[c].skip}")
-    n_steps = min(lengths.values()) if len(lengths) == len(sources) else -1
+    n_steps = max(lengths.values()) if len(lengths) == len(sources) else -1
     if len(set(lengths.values())) > 1:
-        short = min(lengths, key=lengths.get)
         warnings.append(
             "videos of unequal length (" + ", ".join(f"{sources[c].path.name} {n}" for c, n in lengths.items())
-            + f" frames after offsets): stopping at the shortest, {sources[short].path.name}")
+            + " frames after offsets): a shorter video's camera is a missing view ('video ended') after its last frame")
     return Recording(folder, sources, missing, n_steps, fps, warnings)
 
 
@@ -308,6 +339,7 @@ class CameraReader:
         self.source = source
         self.grey = grey
         self.index = source.skip + int(start)
+        self.ended_at: int | None = None  # frame index where reading stopped, once it has
         self.cap = None
         if source.is_video:
             self.cap = cv2.VideoCapture(str(source.path), cv2.CAP_FFMPEG)
@@ -318,26 +350,103 @@ class CameraReader:
                     break
 
     def read(self) -> np.ndarray | None:
-        if self.cap is not None:
-            ok, img = self.cap.read()
-            if not ok or img is None:
-                return None
-        else:
-            if self.index >= len(self.source.images):
-                return None
-            img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_COLOR)
-            if img is None:  # a corrupt frame ends the camera, like a video that stops decoding
-                return None
-            if (img.shape[1], img.shape[0]) != (self.source.width, self.source.height):
-                return None
+        img = self._next()
+        if img is None:
+            if self.ended_at is None:
+                self.ended_at = self.index
+            return None
         self.index += 1
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if self.source.resize_to is not None:
-            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_LINEAR)
+            shrink = self.source.resize_to[0] < img.shape[1]  # averaging the merged pixels: no aliasing
+            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
         return img
+
+    def seek(self, frame: int) -> None:
+        """Move to frame ``frame`` of the recording (after the source's offset): the next :meth:`read` gives it
+        (a video seeks from its previous key frame; an approximate position is fine for sampling)."""
+        self.index = self.source.skip + int(frame)
+        self.ended_at = None
+        if self.cap is not None:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
+
+    def _next(self) -> np.ndarray | None:
+        if self.ended_at is not None:
+            return None
+        if self.cap is not None:
+            ok, img = self.cap.read()
+            return img if ok else None
+        if self.index >= len(self.source.images):
+            return None
+        img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_COLOR)
+        if img is None or (img.shape[1], img.shape[0]) != (self.source.width, self.source.height):
+            return None  # a corrupt frame ends the camera, like a video that stops decoding
+        return img
+
+    def summary(self) -> str | None:
+        """One line when reading stopped before the header's (or folder's) frame count, else None."""
+        n = self.source.n_frames
+        if self.ended_at is None or n < 0 or self.ended_at >= n:
+            return None
+        p = self.source.path
+        name = f"{p.parent.name}/{p.name}" if p.parent.name == self.source.camera else p.name
+        return (f"{name}: decoding stopped at frame {self.ended_at} of the {n} its header announced "
+                f"(truncated or corrupt file; set OPENCV_FFMPEG_LOGLEVEL=24 to see FFmpeg's messages): "
+                f"camera {self.source.camera!r} is a missing view ('video ended') from there on"
+                if self.source.images is None else
+                f"{name}: frame {self.ended_at} of {n} cannot be read (corrupt or of another size): camera "
+                f"{self.source.camera!r} is a missing view ('video ended') from there on")
 
     def close(self) -> None:
         if self.cap is not None:
             self.cap.release()
             self.cap = None
+
+
+class ThreadedReader:
+    """A :class:`CameraReader` decoding in its own thread, ``depth`` frames ahead: the camera's decoding
+    (FFmpeg releases the GIL) overlaps the other cameras' and the segmentation. Same ``read`` / ``summary``
+    / ``close`` as the reader it wraps; an exception in the thread is raised by the next ``read``."""
+
+    def __init__(self, reader: CameraReader, depth: int = 4):
+        self.reader = reader
+        self.source = reader.source
+        self._queue: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"read-{reader.source.camera}", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                img = self.reader.read()
+                self._put(img)
+                if img is None:
+                    return
+        except BaseException as exc:  # handed to the consumer
+            self._put(exc)
+
+    def _put(self, item) -> None:
+        while not self._stop.is_set():
+            try:
+                self._queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def read(self) -> np.ndarray | None:
+        if not self._thread.is_alive() and self._queue.empty():
+            return None
+        item = self._queue.get()
+        if isinstance(item, BaseException):
+            raise item
+        return item
+
+    def summary(self) -> str | None:
+        return self.reader.summary()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.reader.close()

@@ -8,8 +8,10 @@ the person's silhouette only when (status :data:`VIEW_OK`):
   outline is not this person's);
 - it does not touch the image border (:data:`VIEW_BORDER`: cut outline);
 - it fits in the image box of a cylinder of radius :data:`BODY_RADIUS_M` and height
-  :data:`BODY_HEIGHT_M` standing at the person's position (else :data:`VIEW_MERGED` too: the blob
-  also holds something the floor grid did not find, e.g. a person outside the workspace);
+  :data:`BODY_HEIGHT_M` standing at the person's position (else :data:`VIEW_CLUTTER`: the blob also
+  holds something no tracked person explains -- a prop, a shadow, someone outside the workspace; "merged"
+  is kept for blobs two tracked people share; the pipeline makes clutter that stays background, so such a
+  view comes back);
 - it spans the person from the feet to above the torso: its box reaches the image of the floor point
   (within :data:`FOOT_TOLERANCE_M`) and of the point :data:`MIN_TOP_M` above it (within
   :data:`TOP_TOLERANCE_M`) -- else :data:`VIEW_PARTIAL`. Real background subtraction breaks a person
@@ -34,21 +36,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..view_status import (VIEW_BORDER, VIEW_CLUTTER, VIEW_EMPTY, VIEW_ENDED, VIEW_MERGED, VIEW_NO_VIDEO,  # noqa: F401
+                           VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_PARTIAL, VIEW_STATUSES)
 from .blobs import Blobs
 from .floor import COLUMN_HEIGHTS
 
-VIEW_OK = "ok"
-VIEW_MERGED = "merged"
-VIEW_BORDER = "border"
-VIEW_PARTIAL = "partial"
-VIEW_NOT_SEEN = "not seen"
-VIEW_EMPTY = "empty mask"
-VIEW_NO_VIDEO = "no video"
-VIEW_ENDED = "video ended"
-VIEW_NOT_MODELLED = "not modelled"
-#: every per-view status, in report order
-VIEW_STATUSES = (VIEW_OK, VIEW_MERGED, VIEW_BORDER, VIEW_PARTIAL, VIEW_NOT_SEEN, VIEW_EMPTY, VIEW_NO_VIDEO, VIEW_ENDED,
-                 VIEW_NOT_MODELLED)
 #: metres: radius of the cylinder a person's blob must fit in: arms, stride, and someone seated with their
 #: legs forward and the chair under them (0.6 m marked every view of a seated person in a public 4-camera
 #: recording "merged": the feet and chair legs reach 0.7 m from the head's vertical)
@@ -71,10 +63,11 @@ _RING = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                   np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], axis=1)
 
 
-def body_box(cam, xy: np.ndarray) -> np.ndarray:
-    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder standing at floor points ``xy`` (P, 2)."""
+def body_box(cam, xy: np.ndarray, radius: float = BODY_RADIUS_M) -> np.ndarray:
+    """(P, 4) x0, y0, x1, y1 px: image box of the cylinder of ``radius`` metres standing at floor points ``xy``
+    (P, 2)."""
     xy = np.asarray(xy, float).reshape(-1, 2)
-    ring = xy[:, None, :] + BODY_RADIUS_M * _RING[None]  # (P, 12, 2)
+    ring = xy[:, None, :] + radius * _RING[None]  # (P, 12, 2)
     pts = np.concatenate([np.concatenate([ring, np.zeros(ring.shape[:2] + (1,))], -1),
                           np.concatenate([ring, np.full(ring.shape[:2] + (1,), BODY_HEIGHT_M)], -1)], axis=1)
     px = cam.project(pts)
@@ -155,7 +148,7 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
             x0, y0, x1, y1 = boxes[p]
             fits = x >= x0 and y >= y0 and x + w - 1 <= x1 and y + h - 1 <= y1
             if not fits:
-                status.append(VIEW_MERGED)
+                status.append(VIEW_CLUTTER)
             else:
                 status.append(VIEW_OK if spans_person(cam, blobs.bbox[b], xy[p]) else VIEW_PARTIAL)
     return mine, status

@@ -9,7 +9,7 @@
     skeletool     Skeletool / Captury .calibration (MPI-INF-3DHP, DynaCap)
     colmap        COLMAP sparse models: cameras.txt + images.txt, or cameras.bin + images.bin
     json_layouts  JSON calibrations of other tools (anipose/AIST++, CMU Panoptic, Human3.6M-style, XRPrimer)
-    formats       format detection, reading several files into one camera list
+    formats       the registry of formats (name, detect, read), reading several files into one camera list
     image_size    from the file, --image-size, or an image/video next to it
     frame         calibration frame -> silpose frame: unit, up axis, floor, origin
     workspace     the largest floor rectangle where a tall person is fully visible (maximal rectangle)

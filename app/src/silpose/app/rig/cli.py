@@ -12,10 +12,11 @@ import typer
 
 from silpose.shared.cli import fail
 
+from .formats import format_choices, formats_summary
+
 app = typer.Typer(
     name="rig",
-    help="Camera rigs: import a calibration (OpenCV, EasyMocap, Pose2Sim/anipose, Skeletool, COLMAP, JSON of datasets, "
-         "silpose) as a rig file; show a rig.",
+    help="Camera rigs: import a calibration (formats: silpose rig import --help) as a rig file; show a rig.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -24,14 +25,9 @@ app = typer.Typer(
 
 @app.command("import")
 def import_command(
-    calib: Annotated[List[Path], typer.Argument(help=(
-        "Calibration file(s): OpenCV .xml/.yml/.yaml (one per camera or one for all), EasyMocap intri.yml + "
-        "extri.yml, Pose2Sim/anipose .toml, Skeletool/Captury .calibration (MPI-INF-3DHP), a COLMAP sparse model's "
-        "cameras.txt + images.txt (or .bin; either file), a JSON calibration "
-        "(anipose/AIST++, CMU Panoptic, Human3.6M-style as VoxelPose's Shelf/Campus), or a silpose rig .json."))],
+    calib: Annotated[List[Path], typer.Argument(help=f"Calibration file(s). {formats_summary()}.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="The rig file to write (JSON).")],
-    fmt: Annotated[str, typer.Option("--format", help="auto, opencv, easymocap, pose2sim, skeletool, "
-                                                      "colmap, json or silpose.")] = "auto",
+    fmt: Annotated[str, typer.Option("--format", help=f"{format_choices()} (auto: by the file's name).")] = "auto",
     translation: Annotated[str, typer.Option(help="What the files' translations are: auto (world->camera, x_cam = R X "
                                                   "+ t, except Human3.6M-style JSON records, whose T is the camera "
                                                   "centre), world-to-camera, or camera-centre (x_cam = R (X - t)).")

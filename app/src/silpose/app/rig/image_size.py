@@ -25,12 +25,11 @@ import cv2
 from silpose.shared.camera import RigError
 
 from ..camera_names import camera_in_stem
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 from .calibration import CalibratedCamera, normalise_key
 
 __all__ = ["parse_image_size", "parse_image_sizes", "media_size", "find_media", "resolve_image_size", "MEDIA_SUFFIXES"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v")
 MEDIA_SUFFIXES = IMAGE_SUFFIXES + VIDEO_SUFFIXES
 _MAX_FILES = 20_000  # files looked at near one calibration file
 

@@ -54,7 +54,7 @@ class ImportOptions:
     """The choices of ``silpose rig import`` (strings as typed; parsed by :func:`import_rig`).
 
     Attributes:
-        fmt: ``auto``, ``opencv``, ``easymocap``, ``pose2sim``, ``skeletool``, ``colmap``, ``json`` or ``silpose``.
+        fmt: ``auto`` or a name in :data:`.formats.FORMATS`.
         translation: ``auto``, ``world-to-camera`` or ``camera-centre`` (:mod:`.formats`).
         cameras: comma-separated camera names or ``fnmatch`` patterns to keep (None: all).
         unit: ``mm``, ``cm``, ``m`` ... or metres per unit (None: metres).

@@ -19,7 +19,7 @@ def _fail(message: str, code: int = 2) -> None:
 
 
 def gen_frames(
-    preset: Annotated[str, typer.Argument(help="Preset name in configs/ (smoke, default, paper) or a TOML file; its \\[frames] section sets the sizes.")] = "default",
+    preset: Annotated[str, typer.Argument(help="Preset name in configs/ (smoke, default, paper) or a TOML file; its [frames] section sets the sizes.")] = "default",
     samples: Annotated[Optional[int], typer.Option("--samples", "-n", help="Person frames: test samples 0..N-1 (overrides frames.samples).")] = None,
     background: Annotated[Optional[int], typer.Option("--background", "-b", help="Empty-room frames per camera (overrides frames.background).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Frames dataset folder (default: data/<name>/frames).")] = None,
@@ -38,11 +38,12 @@ def gen_frames(
     from silpose.shared.dataset import DatasetError
     from silpose.shared.output_dir import OutputFolderError, check_folder
 
-    from ..bvh_check import BvhError
-    from ..clips import ClipError
+    from ..motion.bvh_check import BvhError
+    from ..motion.clips import ClipError
     from ..config import ConfigError
     from ..executor import ExecutorError
-    from ..joint_maps import JointMapError
+    from ..motion.joint_maps import JointMapError
+    from ..motion.library import LibraryError
     from ..manifest import LockError
     from ..shards import GenerationError
     from .config import load_frames_config
@@ -54,7 +55,7 @@ def gen_frames(
         check_folder(target, "gen-frames", recognise=lambda p: read_identity(p) is not None)
         summary = generate_frames(config, fcfg, target, workers=workers, progress=progress)
     except (ConfigError, FramesError, GenerationError, LockError, DatasetError, ExecutorError, RigError,
-            OutputFolderError, BvhError, ClipError, JointMapError) as exc:
+            OutputFolderError, BvhError, ClipError, JointMapError, LibraryError) as exc:
         _fail(str(exc))
     except KeyboardInterrupt:
         _fail("interrupted; rerun the same command to resume", 130)

@@ -2,7 +2,7 @@
 
 It implements :class:`silpose.datagen.render.Renderer`. ``open(rig)`` starts a fresh Cycles
 scene with the rig's cameras and the room of :mod:`.scene` (:func:`blender_room.build_room`);
-``render(scene)`` builds the sample's body once (:func:`blender_scene.posed_mesh`), copies it
+``render(scene)`` builds the sample's body once (:func:`silpose.datagen.blender.scene.posed_mesh`), copies it
 into a static mesh with one material per garment of ``scene.appearance`` and renders every
 camera; :meth:`TexturedRenderer.render_empty` renders the room alone with the same scene,
 cameras and sampling seed, so room pixels the person does not affect (by occlusion, shadow or
@@ -20,8 +20,8 @@ import numpy as np
 
 from silpose.shared.camera import Rig
 
-from .. import blender_room as br
-from .. import blender_scene as bs
+from . import blender_room as br
+from ..blender import scene as bs
 from ..raster import project_vertices, rasterize_projected
 from ..render import RenderResult, check_scene_rig
 from ..scene import SampleScene

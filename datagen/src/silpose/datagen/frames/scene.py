@@ -1,7 +1,7 @@
 """What the textured camera frames show, as data (pure numpy, no bpy): room, props, lights,
 per-subject clothing colours and which body triangle wears which garment.
 
-The Blender side (:mod:`silpose.datagen.blender_room`) only turns these numbers into objects, so the layout can
+The Blender side (:mod:`silpose.datagen.frames.blender_room`) only turns these numbers into objects, so the layout can
 be checked without Blender (props never hide the workspace from any camera; see
 :func:`check_props_do_not_occlude`).
 

@@ -23,7 +23,7 @@ import numpy as np
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 from silpose.shared.skeleton import JOINT_NAMES
 
-from .walk import GAIT_FIELDS, euler_matrix, joint_angles, posed_body, root_transform, sample_gait
+from ..walk import GAIT_FIELDS, euler_matrix, joint_angles, posed_body, root_transform, sample_gait
 
 #: Bone names (a bone is named after its child joint), in ``JOINT_NAMES`` order.
 BONES: tuple[str, ...] = tuple(JOINT_NAMES[1:])

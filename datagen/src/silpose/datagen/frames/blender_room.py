@@ -1,12 +1,12 @@
 """The Blender adapter for textured camera frames in Cycles: the room, its props and lights, the
 clothed person (bpy).
 
-Like :mod:`.blender_scene`, bpy is imported lazily inside the functions: call them only in a
+Like :mod:`silpose.datagen.blender.scene`, bpy is imported lazily inside the functions: call them only in a
 spawned worker whose parent never imported bpy. The layout and colours come from
 :mod:`.frames.scene` (pure numpy).
 
 The person is the same evaluated (posed, skinned, subdivided) body mesh the raster renderer
-fills for the truth masks (``blender_scene.evaluated_mesh``), copied into a static mesh with one
+fills for the truth masks (``blender.scene.evaluated_mesh``), copied into a static mesh with one
 material per garment, so the rendered person and the true silhouette are the same geometry.
 """
 
@@ -19,8 +19,8 @@ import numpy as np
 
 from silpose.shared.camera import Rig
 
-from .blender_scene import render_camera_png, reset_factory, setup_scene
-from .frames import scene as fs
+from ..blender.scene import render_camera_png, reset_factory, setup_scene
+from . import scene as fs
 
 
 def setup_cycles(rig: Rig, samples: int, denoise: bool) -> list:

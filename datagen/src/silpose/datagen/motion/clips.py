@@ -1,6 +1,6 @@
 """Motion-capture clips on the driver side: import cache, validation, and the clip table.
 
-Each BVH file is imported once by Blender (:func:`blender_bvh.import_clip`) in a spawned worker
+Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`) in a spawned worker
 process and its per-frame joint positions are cached by the file's sha256 in
 ``<cache>/<sha256>-v<CACHE_VERSION>/`` (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
 the file's unit, and ``meta.json``: joint names, parents, frame count, frame time, rest pose,
@@ -25,12 +25,12 @@ import numpy as np
 
 from silpose.shared.atomic import atomic_path, write_json_atomic
 
-from .blender_bvh import import_clip
+from ..blender.bvh import import_clip
 from .bvh_check import BvhError
-from .executor import WorkerDied, spawned_map
+from ..executor import WorkerDied, spawned_map
 from .joint_maps import ResolvedMap, resolve_map
-from .manifest import sha256_file
-from .motion_config import ClipSpec, MotionConfig
+from ..manifest import sha256_file
+from .config import ClipSpec, MotionConfig
 
 CACHE_VERSION = 1
 CACHE_ENV = "SILPOSE_CACHE_DIR"
@@ -52,7 +52,7 @@ def entry_dir(root: Path, sha256: str) -> Path:
 
 @dataclass(frozen=True, eq=False)
 class ClipArrays:
-    """One cached import: ``meta`` (see :func:`blender_bvh.import_clip`), ``heads`` and ``tails``
+    """One cached import: ``meta`` (see :func:`silpose.datagen.blender.bvh.import_clip`), ``heads`` and ``tails``
     (F, B, 3) float32 in the file's unit (memory-mapped when read with ``mmap=True``)."""
 
     meta: dict

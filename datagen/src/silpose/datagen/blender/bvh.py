@@ -9,7 +9,7 @@ scale (silpose applies ``scale`` itself). The importer turns BVH frame k (0-base
 frame ``1 + k``; each frame is evaluated with ``scene.frame_set`` and the pose bones' heads and
 tails read with ``foreach_get`` (armature space; the importer applies its axis conversion to the
 armature, whose world matrix is multiplied in anyway). Malformed files are rejected first by
-:func:`bvh_check.check_structure`; anything the importer itself raises becomes one line naming
+:func:`silpose.datagen.motion.bvh_check.check_structure`; anything the importer itself raises becomes one line naming
 the file.
 """
 
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .blender_scene import quiet_stdout
-from .bvh_check import BvhError, check_structure
+from .scene import quiet_stdout
+from ..motion.bvh_check import BvhError, check_structure
 
 
 def _last_line(exc: BaseException) -> str:

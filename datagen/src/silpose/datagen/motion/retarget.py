@@ -43,8 +43,8 @@ import numpy as np
 from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS, PARENTS
 
 from .joint_maps import ResolvedMap
-from .subjects import segment_lengths
-from .walk import euler_matrix, rest_skeleton
+from ..subjects import segment_lengths
+from ..walk import euler_matrix, rest_skeleton
 
 #: Directions shorter than this (in the clip's unit) count as undefined.
 EPS = 1e-9

@@ -25,9 +25,9 @@ from silpose.shared.seeds import MOTION_STREAM
 
 from .clips import BVH_FIELDS, read_entry
 from .joint_maps import ResolvedMap
-from .motion import Pose
+from .source import Pose
 from .retarget import clip_points, local_rotations, retarget_frame
-from .walk import euler_matrix, foot_points
+from ..walk import euler_matrix, foot_points
 
 
 class ClipSource:

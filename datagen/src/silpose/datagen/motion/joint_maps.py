@@ -27,7 +27,11 @@ detected with ``"auto"`` (the first map whose required joints all exist in the c
 - ``hip-knee``: LeftHip / LeftKnee / LeftAnkle / LeftToe legs and LeftShoulder / LeftElbow /
   LeftWrist arms (LeftCollar the clavicle);
 - ``bandai``: ``_L``/``_R`` suffixes (UpperLeg_L, LowerLeg_L, Foot_L, Toes_L, UpperArm_L,
-  LowerArm_L, Hand_L; Spine, Chest), as in the Bandai Namco Research motion datasets.
+  LowerArm_L, Hand_L; Spine, Chest), as in the Bandai Namco Research motion datasets;
+- ``cc-base``: Reallusion Character Creator / iClone exports (CC_Base_Hip, CC_Base_Waist,
+  CC_Base_Spine01, CC_Base_Spine02, CC_Base_NeckTwist01, CC_Base_Head, CC_Base_L_Upperarm,
+  CC_Base_L_Forearm, CC_Base_L_Hand, CC_Base_L_Thigh, CC_Base_L_Calf, CC_Base_L_Foot,
+  CC_Base_L_ToeBase, ...; twist, share, finger and face bones ignored).
 
 Any other skeleton: a user TOML file, one ``role = "BVH joint name"`` line per role
 (``joint_map = "my_map.toml"``, relative to the config file)::
@@ -89,8 +93,15 @@ BUILTIN_MAPS: dict[str, dict[str, str]] = {
                   "knee": "LowerLeg_R", "ankle": "Foot_R", "toe": "Toes_R"}),
     },
 }
+BUILTIN_MAPS["cc-base"] = {
+    "pelvis": "CC_Base_Hip", "neck": "CC_Base_NeckTwist01", "head": "CC_Base_Head",
+    **_sided({k: f"CC_Base_L_{v}" for k, v in (("shoulder", "Upperarm"), ("elbow", "Forearm"), ("wrist", "Hand"),
+                                                ("hip", "Thigh"), ("knee", "Calf"), ("ankle", "Foot"), ("toe", "ToeBase"))},
+             {k: f"CC_Base_R_{v}" for k, v in (("shoulder", "Upperarm"), ("elbow", "Forearm"), ("wrist", "Hand"),
+                                                ("hip", "Thigh"), ("knee", "Calf"), ("ankle", "Foot"), ("toe", "ToeBase"))}),
+}
 #: Order in which ``"auto"`` tries the built-in maps.
-AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai")
+AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base")
 
 
 class JointMapError(ValueError):

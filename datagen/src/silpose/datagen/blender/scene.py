@@ -1,5 +1,5 @@
 """The Blender adapter for bodies and silhouettes: the only place bpy is touched, with
-:mod:`.blender_room` (textured rooms). bpy is always imported lazily inside the functions
+:mod:`.frames.blender_room` (textured rooms). bpy is always imported lazily inside the functions
 (docs/conventions.md, "Blender").
 
 Call these functions only in a spawned worker process whose parent never imported bpy.
@@ -34,10 +34,10 @@ import numpy as np
 from silpose.shared.camera import Rig
 from silpose.shared.skeleton import JOINT_INDEX, JOINT_NAMES, N_JOINTS, PARENTS
 
-from .blender_camera import to_blender
-from .motion import BONES, Pose
-from .subjects import joint_radii, joint_type, segment_lengths
-from .walk import rest_skeleton
+from .camera import to_blender
+from ..motion.source import BONES, Pose
+from ..subjects import joint_radii, joint_type, segment_lengths
+from ..walk import rest_skeleton
 
 ENGINES = ("workbench", "cycles")
 

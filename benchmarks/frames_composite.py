@@ -74,7 +74,7 @@ def write_composite_frames(dataset_dir, out_dir, n: int | None = None, n_backgro
     write_text_atomic(
         out / "README.md",
         f"# Composited frames dataset\n\nCamera frames composited from the true masks of the first {n} test samples "
-        f"of `{dataset_dir}` by `silpose.eval.frames_composite` (textured room per camera, cloth-coloured person "
+        f"of `{dataset_dir}` by `benchmarks.frames_composite` (textured room per camera, cloth-coloured person "
         f"from the true mask, floor shadow factor {shadow_factor}, camera noise {noise_std} graylevels, flicker "
         f"±{flicker:.0%}, seed {seed}); NOT rendered by Blender.\n\n"
         "Layout: `rig.json` (the rig), `background/<camera>/NNNNN.png` "

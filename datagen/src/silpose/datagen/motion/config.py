@@ -29,6 +29,16 @@ Sampling: every used frame of clip c has weight ``weight_c``, so a clip is drawn
 ``weight_c * n_used_c / sum_k(weight_k * n_used_k)`` and its used frames uniformly; with all
 weights 1 every used frame is equally likely. A clip matched by several entries is one clip.
 CMU conversions start with a calibration pose in frame 0: use ``frames = [1, -1]``.
+
+The motion library instead (no BVH import at generation time; :mod:`.library`, :mod:`.mix`)::
+
+    [motion]
+    source = "library"
+    library = "bundled"            # or a folder written by `silpose motions import`
+    groups = ["walk", "dance"]     # activity groups used (default: every group of the library)
+    weights = { walk = 1.0, dance = 2.0 }   # per-group share of the library draws (default 1 each)
+    procedural_walk = 0.2          # share of samples posed by the procedural walk instead
+    mirror = true
 """
 
 from __future__ import annotations
@@ -39,10 +49,11 @@ from pathlib import Path
 
 from .joint_maps import BUILTIN_MAPS, JointMapError, load_map_file
 
-SOURCES = ("procedural", "bvh")
+SOURCES = ("procedural", "bvh", "library")
 #: Metres per unit of the CMU BVH conversions (1/0.45 inch).
 CMU_SCALE = 0.0254 / 0.45
 _KEYS = {"source", "bvh", "scale", "joint_map", "stride", "frames", "mirror", "weight", "licence", "note", "clip"}
+_LIBRARY_KEYS = {"source", "library", "groups", "weights", "procedural_walk", "mirror"}
 _CLIP_KEYS = {"file", "scale", "joint_map", "stride", "frames", "weight", "licence", "note"}
 
 
@@ -81,10 +92,46 @@ class MotionConfig:
     clips: tuple[ClipSpec, ...] = ()
     mirror: bool = False
     base: Path = field(default=Path("."), repr=False)
+    library: str = "bundled"
+    groups: tuple[str, ...] = ()
+    weights: dict = field(default_factory=dict)
+    walk_share: float = 0.0
 
     @property
     def is_bvh(self) -> bool:
         return self.source == "bvh"
+
+    @property
+    def uses_clips(self) -> bool:
+        """Poses come from motion-capture clips (BVH files or the motion library)."""
+        return self.source in ("bvh", "library")
+
+
+def _library_from_dict(raw: dict, base: Path, msrc: str) -> MotionConfig:
+    """``source = "library"``: the motion library (:mod:`.mix`), mixed with the procedural walk."""
+    unknown = sorted(set(raw) - _LIBRARY_KEYS)
+    if unknown:
+        raise MotionConfigError(f"{msrc}: field {unknown[0]!r} is not used with source = \"library\"; "
+                                f"known: {', '.join(sorted(_LIBRARY_KEYS))}")
+    lib = _str(raw, "library", msrc, "bundled")
+    if lib != "bundled":
+        p = Path(lib).expanduser()
+        lib = str(p if p.is_absolute() else (base / p).resolve())
+    groups = raw.get("groups", [])
+    if not isinstance(groups, list) or not all(isinstance(g, str) and g for g in groups):
+        raise MotionConfigError(f"{msrc}: field 'groups' must be a list of activity group names, got {groups!r}")
+    weights = raw.get("weights", {})
+    if not isinstance(weights, dict) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0 for v in weights.values()):
+        raise MotionConfigError(f"{msrc}: field 'weights' must be a table of group = weight >= 0, got {weights!r}")
+    share = raw.get("procedural_walk", 0.0)
+    if not isinstance(share, (int, float)) or isinstance(share, bool) or not 0.0 <= share <= 1.0:
+        raise MotionConfigError(f"{msrc}: field 'procedural_walk' must be a number in [0, 1], got {share!r}")
+    mirror = raw.get("mirror", False)
+    if not isinstance(mirror, bool):
+        raise MotionConfigError(f"{msrc}: field 'mirror' must be true or false, got {mirror!r}")
+    return MotionConfig(source="library", mirror=mirror, base=base, library=lib, groups=tuple(groups),
+                        weights={str(k): float(v) for k, v in weights.items()}, walk_share=float(share))
 
 
 def _num(d: dict, key: str, src: str, default, lo: float, kind=float):
@@ -142,6 +189,8 @@ def motion_from_dict(raw, base: Path, src: str) -> MotionConfig:
     if not isinstance(raw, dict):
         raise MotionConfigError(f"{src}: field 'motion' must be a table")
     msrc = f"{src}: motion"
+    if raw.get("source") == "library":
+        return _library_from_dict(raw, base, msrc)
     unknown = sorted(set(raw) - _KEYS)
     if unknown:
         raise MotionConfigError(f"{msrc}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(_KEYS))}")

@@ -1,0 +1,74 @@
+"""Working resolution: each camera's frames are processed at the size where a person is about
+:data:`WORK_PERSON_PX` pixels tall, and the contours are scaled back to the rig camera's pixels.
+
+The model needs 200 (or ``n_points``) contour points per view: a person 1,900 px tall in a full-HD portrait
+frame gives the same contour, to a fraction of a per cent of its height, at 300 px. Segmenting, labelling,
+tracing contours and drawing overlays all scale with the pixel count, so a 1080p camera is read, resized
+(``cv2.INTER_AREA``, which averages the pixels it merges) and processed at about a sixth of its side:
+the paper's background subtraction then costs about what it costs at the paper's 320x240. Cameras whose
+person is already at most that tall (the default rig's 320x240, the lab's 644x486) keep their size.
+
+The person's height in a camera is measured from the rig: a 1.75 m column at the workspace centre,
+projected. :func:`work_camera` is the rig camera seen at the working size: pixel centres map as
+``x' = (x + 0.5) s - 0.5`` (OpenCV's resize), so ``K' = S K`` with that offset; the distortion
+coefficients (in normalised coordinates) are unchanged. :func:`to_rig_px` maps points back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+#: pixels: the height a standing person is given at the working resolution (the default rig's people are
+#: ~200 px tall at 320x240; the segmentation's filters were chosen there)
+WORK_PERSON_PX = 320
+#: metres: the height of the column whose image measures a person
+PERSON_HEIGHT_M = 1.75
+
+
+def person_height_px(cam, centre_xy) -> float:
+    """Pixels between the images of the floor point ``centre_xy`` (2,) and the point 1.75 m above it."""
+    x, y = (float(v) for v in centre_xy)
+    px = cam.project(np.array([[x, y, 0.0], [x, y, PERSON_HEIGHT_M]]))
+    return float(np.linalg.norm(px[1] - px[0]))
+
+
+def work_size(cam, centre_xy, person_px: float = WORK_PERSON_PX) -> tuple[int, int]:
+    """(width, height) the camera's frames are processed at: scaled so a person at ``centre_xy`` is about
+    ``person_px`` tall, never enlarged (``person_px`` <= 0: the camera's own size)."""
+    h = person_height_px(cam, centre_xy)
+    if person_px <= 0 or not np.isfinite(h) or h <= person_px:
+        return cam.width, cam.height
+    s = person_px / h
+    return max(16, int(round(cam.width * s))), max(16, int(round(cam.height * s)))
+
+
+def work_camera(cam, size: tuple[int, int]):
+    """The camera ``cam`` with frames resized to ``size`` (width, height): same pose, scaled intrinsics."""
+    w, h = size
+    if (w, h) == (cam.width, cam.height):
+        return cam
+    sx, sy = w / cam.width, h / cam.height
+    K = np.array(cam.K, float).copy()
+    K[0, :] *= sx
+    K[1, :] *= sy
+    K[0, 2] += 0.5 * sx - 0.5
+    K[1, 2] += 0.5 * sy - 0.5
+    return dataclasses.replace(cam, K=K, width=int(w), height=int(h))
+
+
+def to_rig_px(points: np.ndarray, cam, work) -> np.ndarray:
+    """Points (..., 2) in ``work``'s pixels (:func:`work_camera` of ``cam``) -> ``cam``'s pixels."""
+    if work is cam:
+        return points
+    sx, sy = work.width / cam.width, work.height / cam.height
+    return (np.asarray(points, float) + 0.5) / (sx, sy) - 0.5
+
+
+def to_work_px(points: np.ndarray, cam, work) -> np.ndarray:
+    """The inverse of :func:`to_rig_px`."""
+    if work is cam:
+        return points
+    sx, sy = work.width / cam.width, work.height / cam.height
+    return (np.asarray(points, float) + 0.5) * (sx, sy) - 0.5

@@ -1,0 +1,109 @@
+"""``silpose motions import`` and ``silpose motions list``: the motion library from the command line.
+
+Only light modules are imported here; the library code (numpy, pyarrow) inside the commands, and
+Blender only ever in the spawned import workers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from silpose.shared.cli import fail
+
+app = typer.Typer(help="The motion library: motion-capture clips silpose poses bodies with (`[motion] source = \"library\"`).",
+                  no_args_is_help=True, add_completion=False)
+
+
+def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
+    """BVH files of ``paths`` (folders searched recursively for *.bvh, files taken as given), and one
+    line per path that does not exist or holds no BVH file."""
+    files, missing = [], []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(q for q in p.rglob("*") if q.suffix.lower() == ".bvh" and q.is_file())
+            if not found:
+                missing.append(f"{p}: no .bvh file in this folder")
+            files += found
+        elif p.is_file():
+            files.append(p)
+        else:
+            missing.append(f"{p}: no such file or folder")
+    return files, missing
+
+
+@app.command("import")
+def import_(
+    paths: Annotated[list[Path], typer.Argument(help="BVH files or folders (searched recursively for *.bvh).")],
+    library: Annotated[Path, typer.Option("--library", "-l", help="Library folder to create or extend (only silpose's own files may be in it).")] = Path("motion-library"),
+    group: Annotated[str, typer.Option(help="Activity group of every imported clip (e.g. walk, dance, sports).")] = "other",
+    split: Annotated[str, typer.Option(help="train or test (hold out whole subjects for test).")] = "train",
+    subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects).")] = "",
+    licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
+    scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions).")] = 1.0,
+    joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base) or a TOML file.")] = "auto",
+    first: Annotated[int, typer.Option(min=0, help="First frame kept (1 drops a calibration pose in frame 0).")] = 0,
+    fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
+) -> None:
+    """Import BVH clips into a motion library (read by Blender's own importer, stored as bone directions
+    and root motion). A clip that cannot be imported is reported in one line and skipped."""
+    from .build import ClipSource, import_clips
+    from .joint_maps import BUILTIN_MAPS
+    from .library import LibraryError
+
+    if split not in ("train", "test"):
+        fail("motions import", f"--split must be train or test, got {split!r}")
+    if joint_map != "auto" and joint_map not in BUILTIN_MAPS and not Path(joint_map).is_file():
+        fail("motions import", f"--joint-map {joint_map!r}: neither a built-in map ({', '.join(BUILTIN_MAPS)}) nor a file")
+    files, missing = _bvh_files(paths)
+    for line in missing:
+        typer.echo(f"skipped: {line}", err=True)
+    sources = [ClipSource(path=f.resolve(), group=group, split=split, subject=subject, licence=licence, scale=scale,
+                          joint_map=str(Path(joint_map).resolve()) if Path(joint_map).is_file() else joint_map,
+                          first=first, source=str(f)) for f in files]
+    if not sources:
+        fail("motions import", "no BVH file to import")
+    try:
+        report = import_clips(sources, library, fps=fps, workers=workers)
+    except LibraryError as exc:
+        fail("motions import", str(exc))
+        return
+    for line in report.skipped:
+        typer.echo(f"skipped: {line}", err=True)
+    typer.echo(f"{library}: {len(report.added)} clips imported, {len(report.skipped) + len(missing)} skipped, "
+               f"{report.kept} kept from before")
+
+
+@app.command("list")
+def list_(
+    library: Annotated[Optional[Path], typer.Option("--library", "-l", help="Library folder (default: the one bundled with silpose).")] = None,
+    clips: Annotated[bool, typer.Option("--clips/--groups", help="One line per clip (default) or per group.")] = True,
+) -> None:
+    """Print a motion library by activity group: clips, subjects, frames, splits and licences."""
+    from .library import LibraryError, load_library
+
+    try:
+        lib = load_library(library)
+    except LibraryError as exc:
+        fail("motions list", str(exc))
+        return
+    m = lib.manifest
+    groups = sorted({c["group"] for c in lib.clips}, key=lambda g: (g != "walk", g))
+    typer.echo(f"{lib.folder}: {len(lib.clips)} clips, {len({c.get('subject') for c in lib.clips})} subjects, "
+               f"{len(groups)} groups, {len(lib.frame)} frames at {m.get('fps')} fps")
+    for g in groups:
+        cs = [c for c in lib.clips if c["group"] == g]
+        per = {s: sum(c["split"] == s for c in cs) for s in ("train", "test")}
+        typer.echo(f"{g}: {len(cs)} clips ({per['train']} train, {per['test']} test), "
+                   f"{sum(int(c['frames']) for c in cs)} frames, subjects {', '.join(sorted({str(c.get('subject', '')) for c in cs}))}")
+        if clips:
+            for c in cs:
+                typer.echo(f"  {c['id']:<14} subject {str(c.get('subject', '-')):<4} {c['split']:<5} {int(c['frames']):>5} frames  "
+                           f"{c.get('description', '')[:48]:<48}  {c['licence'] or '-'}")
+    licences = sorted({c["licence"] or "-" for c in lib.clips})
+    typer.echo("licences: " + "; ".join(licences))
+    if m.get("acknowledgement"):
+        typer.echo(f"acknowledgement: {m['acknowledgement']}")

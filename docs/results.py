@@ -1,0 +1,240 @@
+"""Write docs/results.md from the reports, and refresh the README's generated tables.
+
+    python docs/results.py [--reports reports] [--out docs/results.md] [--readme README.md]   (just results)
+
+Every figure comes from a file a command wrote, never from a hand-copied number:
+``reports/<preset>/headline.json`` (``silpose eval``), the training report next to the model the evaluation
+read (``<model>.report.json``, ``silpose train``) and ``reports/bench/bench.json`` (``just bench``). A preset
+without a report gets "not measured" in its column. The README gets the short results table and the table of
+calibration formats (from ``silpose.app.rig.formats.FORMATS``) between ``<!-- NAME:start -->`` and
+``<!-- NAME:end -->`` markers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PRESETS = ("default", "paper")  # columns always shown; other report folders are added after them
+NOT_MEASURED = "not measured"
+
+
+def load_reports(reports: Path) -> dict[str, dict]:
+    """``{name: headline}`` of every ``<reports>/<name>/headline.json``, the presets first."""
+    found = {}
+    for path in sorted(reports.glob("*/headline.json")):
+        try:
+            found[path.parent.name] = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            print(f"results: skipping {path} ({exc})", file=sys.stderr)
+    names = [p for p in PRESETS] + [n for n in found if n not in PRESETS]
+    return {n: found.get(n) for n in names}
+
+
+def training_report(head: dict | None) -> dict | None:
+    """The training report of the model an evaluation read (``<model>.report.json``), if it is still there."""
+    model = (head or {}).get("settings", {}).get("model")
+    if not model:
+        return None
+    path = Path(model).with_suffix(".report.json")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def _get(d, *keys):
+    for k in keys:
+        if isinstance(d, list):
+            d = next((x for x in d if k(x)), None) if callable(k) else (d[k] if k < len(d) else None)
+        elif isinstance(d, dict):
+            d = d.get(k)
+        else:
+            return None
+    return d
+
+
+def _f(v, fmt="{:.2f}"):
+    return "–" if v is None else fmt.format(v)
+
+
+def _flips(h):
+    row = _get(h, "e6", "flips", lambda r: r.get("condition") == "4 views, standard")
+    if row is None:
+        return None
+    return f"{row['single_answer_flips_pct']:.1f} % / {row['best_of_3_flips_pct']:.1f} %"
+
+
+def _missing_view(h):
+    rows = _get(h, "e6", "missing_view") or []
+    if not rows:
+        return None
+    mean = lambda k: sum(r[k] for r in rows) / len(rows)  # noqa: E731
+    return f"{mean('ratio'):.2f}× / {mean('ratio_robust'):.2f}×"
+
+
+def _self_intersection(h):
+    rows = [r for r in (_get(h, "e6", "self_intersection") or []) if r.get("untangled_pct") is not None]
+    if not rows:
+        return None
+    return " / ".join(f"{r['raw_pct']:.0f} % → {r['untangled_pct']:.1f} %" for r in rows)
+
+
+def _garbage(h):
+    bad = _get(h, "e6", "plausibility", "garbage") or []
+    good = _get(h, "e6", "plausibility", "genuine") or []
+    if not bad or not good:
+        return None
+    most = lambda kind: max((r["flagged_pct"] for r in good if r["input"] == f"test, {kind}"), default=None)  # noqa: E731
+    return (f"{min(r['flagged_pct'] for r in bad):.0f} % / {_f(most('clean'), '{:.1f} %')} / "
+            f"{_f(most('standard'), '{:.1f} %')} / {_f(most('mask mild'), '{:.1f} %')}")
+
+
+def _train(h):
+    r = training_report(h)
+    if r is None:
+        return None
+    hp, em = r["hyperparameters"], r["em"]
+    return (f"{em['fit_time_s']:.0f} s, {em['n_iter']} EM iterations, M {hp['n_components']}, q {hp['n_latent']}, "
+            f"held-out joint error {r['heldout']['joint_error_cm']:.2f} cm")
+
+
+def _noise(h, noise, method="mppca"):
+    return _get(h, "pose_mean_cm_by_noise_all_views", noise, method)
+
+
+#: (label, value(headline) -> str | None, the paper's figure) — the rows of docs/results.md.
+ROWS = [
+    ("4 / 3 / 2 / 1 views, standard noise, posterior mean (cm)",
+     lambda h: None if _get(h, "pose_cm_by_n_views") is None else " / ".join(
+         _f(_get(h, "pose_cm_by_n_views", str(k), "mean")) for k in (4, 3, 2, 1)),
+     lambda p: f"{p['pose_4_views_cm']:g} / – / – / {p['pose_1_view_cm']:g}"),
+    ("4 views, standard noise, robust inference (`silpose infer`'s default)",
+     lambda h: _f(_noise(h, "standard", "mppca robust")) if _noise(h, "standard", "mppca robust") else None, None),
+    ("4 views, clean contours",
+     lambda h: _f(_noise(h, "clean")) if _noise(h, "clean") else None, None),
+    ("4 views, mask-level noise (holes, blobs, a shadow), robust: mild / strong",
+     lambda h: None if _noise(h, "mask mild", "mppca robust") is None else
+     f"{_noise(h, 'mask mild', 'mppca robust'):.2f} ({_noise(h, 'mask mild', 'x_clean_robust'):.2f}× clean) / "
+     f"{_noise(h, 'mask strong', 'mppca robust'):.2f}", None),
+    ("kNN, 4 views: standard / mask mild / mask strong",
+     lambda h: None if _noise(h, "standard", "knn") is None else " / ".join(
+         _f(_noise(h, n, "knn")) for n in ("standard", "mask mild", "mask strong")), None),
+    ("front/back flips, 4 views, standard noise: single answer / best of 3", _flips, None),
+    ("chance (a random training pose, cm)",
+     lambda h: _f(_get(h, "chance_cm", "mean"), "{:.1f}") if _get(h, "chance_cm") else None,
+     lambda p: f"{p['chance_cm']:g}"),
+    ("multi-view vs single-view training, pose: equal q / equal latent dimensions per view",
+     lambda h: None if _get(h, "e1") is None else
+     f"{_get(h, 'e1', 'pose_improvement_pct'):.0f} % / {_get(h, 'e1_equal_q_per_view', 'pose_improvement_pct'):.0f} % "
+     "better", lambda p: f"{p['multi_view_pose_improvement_pct']:g} %"),
+    ("the same, contours (mean Chamfer)",
+     lambda h: None if _get(h, "e1") is None else
+     f"{_get(h, 'e1', 'contour_improvement_pct'):.1f} % / "
+     f"{_get(h, 'e1_equal_q_per_view', 'contour_improvement_pct'):.1f} % better",
+     lambda p: f"{p['multi_view_contour_improvement_pct']:g} %"),
+    ("Chamfer, true → reconstruction, 4 / 1 views (px)",
+     lambda h: None if _get(h, "chamfer_px_by_n_views") is None else
+     f"{_get(h, 'chamfer_px_by_n_views', '4', 'mean'):.2f} / {_get(h, 'chamfer_px_by_n_views', '1', 'mean'):.2f}",
+     None),
+    ("a missing view's contour from the other three vs the nearest training sample's: posterior mean / robust",
+     _missing_view, None),
+    ("reconstructed contours that self-intersect, before → after untangling (4 views / a missing view)",
+     _self_intersection, None),
+    ("flagged implausible: non-person inputs (fewest) / genuine test inputs, clean, standard noise, mild mask "
+     "noise (most, over 1-4 views)", _garbage, None),
+    ("`silpose train` (the evaluated model's training report)", _train, None),
+    ("`silpose eval` time (s)",
+     lambda h: None if _get(h, "timings_s") is None else f"{sum(_get(h, 'timings_s').values()):.0f}", None),
+]
+
+#: The README's short table: (label, row index in ROWS).
+README_ROWS = [0, 1, 3, 5, 6]
+
+
+def results_table(reports: dict[str, dict | None], rows=None) -> str:
+    names = list(reports)
+    paper = next((h["paper"] for h in reports.values() if h and "paper" in h), None)
+    picked = [ROWS[i] for i in rows] if rows is not None else ROWS
+    lines = ["| | " + " | ".join(f"`{n}` preset" for n in names) + " | paper |",
+             "|---|" + "---|" * (len(names) + 1)]
+    for label, value, paper_value in picked:
+        cells = []
+        for n in names:
+            h = reports[n]
+            v = value(h) if h else None
+            cells.append(v if v is not None else NOT_MEASURED)
+        p = paper_value(paper) if paper_value and paper else "–"
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {p} |")
+    return "\n".join(lines)
+
+
+def bench_section(bench: Path) -> list[str]:
+    try:
+        data = json.loads(bench.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return ["Not measured: run `just bench` (writes `reports/bench/bench.json`), then `just results`.", ""]
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.run import rows_markdown
+
+    out = ["Machine: " + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
+    for sec in data.get("sections", []):
+        out += [f"### {sec['section']}", "", sec.get("what", ""), ""]
+        out.append(f"failed: {sec['error']}" if sec.get("error") else rows_markdown(sec.get("rows", [])))
+        out.append("")
+    return out
+
+
+def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
+    measured = [n for n, h in reports.items() if h]
+    parts = [
+        "# Results", "",
+        "Generated by `docs/results.py` (`just results`) from `reports/<preset>/headline.json` (`silpose eval`), the",
+        "evaluated model's training report and `reports/bench/bench.json` (`just bench`); do not edit by hand.",
+        f"Reports found: {', '.join(f'`{n}`' for n in measured) or 'none'}.", "",
+        "Pose error: mean Euclidean distance over the 19 joints, cm, root-relative, no other alignment. The test",
+        "walkers have other builds and clothing than the training ones. Standard test noise: 1 px jitter and 6",
+        "contour patches of 30 points, 8 px deep, per view. Each report's `summary.md` has every table and figure.",
+        "", "## Pose and contours", "", results_table(reports), "",
+    ]
+    for n in measured:
+        s = reports[n].get("settings", {})
+        parts += [f"`{n}`: {s.get('n_train', '?')} training samples (with augmentation), {s.get('n_test', '?')} test "
+                  f"walkers, {s.get('n_views', '?')} views; data `{s.get('data', '?')}`, model `{s.get('model', '?')}`"
+                  + (f", silpose {reports[n]['silpose_version']}" if reports[n].get("silpose_version") else "") + ".",
+                  ""]
+    parts += ["## Benchmarks", ""] + bench_section(bench)
+    return "\n".join(parts).rstrip() + "\n"
+
+
+def replace_block(text: str, name: str, body: str) -> str:
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    if start not in text or end not in text:
+        raise SystemExit(f"results: README has no {start} ... {end} block")
+    head, rest = text.split(start, 1)
+    return head + start + "\n" + body.strip() + "\n" + end + rest.split(end, 1)[1]
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reports", type=Path, default=ROOT / "reports")
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results.md")
+    ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    args = ap.parse_args(argv)
+    from silpose.app.rig.formats import formats_table
+    from silpose.shared.atomic import write_text_atomic
+
+    reports = load_reports(args.reports)
+    write_text_atomic(args.out, results_markdown(reports, args.reports / "bench" / "bench.json"))
+    readme = args.readme.read_text(encoding="utf-8")
+    readme = replace_block(readme, "results", results_table(reports, README_ROWS))
+    readme = replace_block(readme, "formats", formats_table())
+    write_text_atomic(args.readme, readme)
+    print(f"wrote {args.out} and the tables of {args.readme}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,121 @@
+"""Synthetic rooms that behave like real ones (``silpose infer --videos`` on colour videos, no Blender).
+
+One walker (the image of an upright cylinder, :func:`cylinder_masks`) crosses the lab rig's room at half its
+resolution; every frame is composited over that camera's textured room with a floor shadow and noise
+(:mod:`silpose.segment.composite`) and the empty-room clip is shot without anything else. Each room adds what a
+real lab adds, and the test states the figure that measures it: the share of the walker's person-frames with at
+least 3 usable views, and the number of person ids.
+
+- ``lighting``: the recording is 30 % brighter than the empty-room clip (another time of day, auto-exposure);
+- ``still``: three people stand still at the back of the room, beyond the workspace, all along (not in the clip);
+- ``prop``: a box that was not there when the clip was shot stands on the floor next to the walker's path.
+
+Measured (share of the walker's person-frames after the first 2 s with >= 3 usable views, person ids):
+
+============  ===========================  ==============
+room          before (main d1d2ea4)        now
+============  ===========================  ==============
+lighting      0 %, 6 ids (all foreground)  100 %, 1 id
+prop          0 %, 1 id                    71 %, 1 id
+still         0 %, 4 ids                   7 %, 3 ids (xfail: ghosts)
+============  ===========================  ==============
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from silpose.app.recordings.pipeline import RecordingOptions, run_recording
+from silpose.segment.composite import background_frames, composite_frame, room
+from silpose.shared.camera import Rig
+
+FPS = 10.0  # a low frame rate: the static clutter becomes background after 2 s = 20 frames
+N_FRAMES = 44
+GAIN = 1.3
+
+
+def _half(rig) -> Rig:
+    """The rig at half its size (an even height: video codecs round odd sizes)."""
+    import dataclasses
+
+    cams = []
+    for c in rig:
+        w, h = c.width // 2, 2 * (c.height // 4)
+        K = np.array(c.K, float)
+        K[0] *= w / c.width
+        K[1] *= h / c.height
+        K[0, 2] += 0.5 * w / c.width - 0.5
+        K[1, 2] += 0.5 * h / c.height - 0.5
+        cams.append(dataclasses.replace(c, K=K, width=w, height=h))
+    return Rig(tuple(cams), rig.transform, rig.workspace, rig.source)
+
+
+def _box_mask(cam, centre, size) -> np.ndarray:
+    """(H, W) uint8 0/255: the image of an axis-aligned box (centre (x, y), size (sx, sy, h) metres) on the floor."""
+    import cv2
+
+    (x, y), (sx, sy, h) = centre, size
+    corners = np.array([[x + a * sx / 2, y + b * sy / 2, z] for a in (-1, 1) for b in (-1, 1) for z in (0.0, h)])
+    px = cam.project(corners).astype(np.float32)
+    out = np.zeros((cam.height, cam.width), np.uint8)
+    cv2.fillConvexPoly(out, np.round(cv2.convexHull(px)).astype(np.int32), 255)
+    return out
+
+
+def _room(tmp, rig, tools, kind: str):
+    """Colour videos ``tmp/colour`` and empty-room clips ``tmp/empty`` of one room (module docstring)."""
+    track = tools.walk((-1.1, -0.5), (1.1, 0.2), N_FRAMES)
+    walker = [tools.cylinder_masks(rig, [p]) for p in track]  # (T)(K, H, W)
+    extra = np.zeros((len(rig), rig[0].height, rig[0].width), np.uint8)
+    if kind == "still":  # three people standing at the back, beyond the workspace and its margin
+        extra = tools.cylinder_masks(rig, [(-0.4, 2.6), (0.2, 2.7), (0.8, 2.6)])
+    elif kind == "prop":  # a 0.5 m box beside the path
+        extra = np.stack([_box_mask(cam, (0.2, -1.0), (0.5, 0.4, 0.5)) for cam in rig])
+    (tmp / "colour").mkdir(parents=True)
+    (tmp / "empty").mkdir()
+    for k, cam in enumerate(rig):
+        size = (cam.width, cam.height)
+        clean = room(k, size)
+        frames = []
+        for f in range(N_FRAMES):
+            img = composite_frame(np.maximum(walker[f][k], extra[k]) > 0, k, f, clean=clean)
+            if kind == "lighting":
+                img = np.clip(img.astype(np.float32) * GAIN, 0, 255).astype(np.uint8)
+            frames.append(img)
+        tools.write_video(tmp / "colour" / f"{cam.name}.mp4", np.stack(frames), fps=FPS)
+        tools.write_video(tmp / "empty" / f"{cam.name}.mp4", background_frames(k, size, 8), fps=FPS)
+    return tmp / "colour", tmp / "empty"
+
+
+@pytest.fixture(scope="module")
+def half_model(tiny_model):
+    m = copy.copy(tiny_model)
+    m.rig_ = _half(tiny_model.rig_)
+    return m
+
+
+#: per room: (person ids, least share of the walker's person-frames after the first 2 s with >= 3 usable views)
+EXPECTED = {"lighting": (1, 0.8), "prop": (1, 0.6), "still": (1, 0.8)}
+
+
+@pytest.mark.parametrize("kind", [
+    "lighting", "prop",
+    pytest.param("still", marks=pytest.mark.xfail(strict=True, reason=(
+        "not solved: where the walker's rays cross those of the people at the back the floor grid finds ghosts "
+        "inside the room (frames 22-32), which protect the clutter from becoming background: 3 ids, 7 % of "
+        "person-frames with >= 3 views after 2 s (before: 4 ids, 0 %)"))),
+])
+def test_a_room_keeps_three_usable_views(half_model, tools, tmp_path, kind):
+    videos, empty = _room(tmp_path, half_model.rig_, tools, kind)
+    s = run_recording(half_model, videos, tmp_path / "out", RecordingOptions(background=empty, overlays=False))
+    t = pq.read_table(tmp_path / "out" / "joints.parquet")
+    views = np.array(t.column("n_views").to_pylist())
+    found = np.array([st != "not detected" for st in t.column("status").to_pylist()])
+    late = np.array(t.column("frame").to_pylist()) >= 2 * FPS  # static clutter is background after 2 s
+    late_share = float(np.mean(views[found & late] >= 3)) if (found & late).any() else 0.0
+    ids, least = EXPECTED[kind]
+    assert (s.n_persons, late_share >= least) == (ids, True), (s.n_persons, late_share)
