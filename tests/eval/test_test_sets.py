@@ -61,7 +61,9 @@ def test_one_model_on_several_test_sets(stick_dataset, model_file, tmp_path):
         assert cells[1] == str(n)
         assert float(cells[2]) == pytest.approx(e2["pose_cm"].mean(), abs=0.006)
         chance = df[(df["experiment"] == "E4") & (df["method"] == "chance")]["pose_cm"].mean()
-        assert float(cells[6]) == pytest.approx(chance, abs=0.006)
+        assert float(cells[-1]) == pytest.approx(chance, abs=0.006)  # the last column
+        mlp = df[(df["experiment"] == "E4") & (df["method"] == "mlp") & (df["n_input_views"] == 4)]["pose_cm"].mean()
+        assert float(cells[6]) == pytest.approx(mlp, abs=0.006)  # "MLP 4 views"
         assert json.loads((out / name / "headline.json").read_text())["settings"]["test_data"] == str(
             a if name == "mocap-walk" else b)
 
