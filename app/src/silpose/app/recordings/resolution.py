@@ -9,8 +9,9 @@ tracing contours and drawing overlays all scale with the pixel count, so a 1080p
 (``cv2.INTER_AREA``, which averages the pixels it merges) and processed at about a sixth of its side:
 the paper's background subtraction then costs about what it costs at the paper's 320x240. Cameras whose
 person is already at most that tall (the default rig's 320x240, the lab's 644x486) keep their size.
-Measured (``benchmarks/recordings.py``, 4 colour videos of 1932x1458 whose people are ~450 px tall, loaded
-2-core machine): 1.35 time steps/s with 320 px, see the report for 160 px; the main branch: 0.37.
+Measured (``benchmarks/recordings.py``, rows ``colour``: 4 colour videos of 1932x1458 whose people are ~450 px
+tall, 60 steps, a 2-core machine shared with other jobs): 3.5 time steps/s and 160 CPU ms per step at 160 px
+(692x522), 1.35 steps/s at 320 px, 0.37 steps/s and 3.6 GB peak when every frame was processed at full size.
 
 The person's height in a camera is measured from the rig: a 1.75 m column at the workspace centre,
 projected. :func:`work_camera` is the rig camera seen at the working size: pixel centres map as
