@@ -14,7 +14,9 @@ Rows:
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
-  1x single-threaded, 1x with overlay videos.
+  1x single-threaded, 1x with overlay videos; and (``colour``) the first ``colour_frames`` steps as colour videos
+  at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
+  references in the same run (row ``reference``: decoding alone and OpenCV's MOG2 alone, CPU ms per step).
 - ``accuracy``: the 1x run against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.

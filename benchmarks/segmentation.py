@@ -54,6 +54,19 @@ def _row(method, masks, truth, total_s: float, cpu_s: float, per_frame: np.ndarr
     return row
 
 
+def _mog2_row(method: str, scene, warm_up: int = 0) -> dict:
+    """OpenCV's MOG2 with shadow detection learnt on the scene's background frames, then applied with learning
+    rate 0 (the reference row)."""
+    mog = cv2.createBackgroundSubtractorMOG2(history=len(scene.background), varThreshold=16, detectShadows=True)
+    for f in scene.background:
+        mog.apply(f)
+    apply = lambda f: mog.apply(f, learningRate=0) == 255  # noqa: E731
+    if warm_up:
+        _stream(apply, scene.frames[:warm_up])
+    masks, sec, cpu = _stream(apply, scene.frames)
+    return _row(method, masks, scene.masks, sec.sum(), cpu, sec)
+
+
 def run(
     n_frames: int = 200, size: tuple[int, int] = (320, 240), n_background: int = 50, threads: int = 1, seed: int = 0,
     hd_frames: int = 20,
@@ -72,12 +85,7 @@ def run(
     cv2.setNumThreads(threads)
     rows = []
     try:
-        mog = cv2.createBackgroundSubtractorMOG2(history=n_background, varThreshold=16, detectShadows=True)
-        for f in scene.background:
-            mog.apply(f)
-        _stream(lambda f: mog.apply(f, learningRate=0) == 255, frames[:5])  # warm-up
-        masks, sec, cpu = _stream(lambda f: mog.apply(f, learningRate=0) == 255, frames)
-        rows.append(_row("cv2 MOG2 + shadow detection (reference)", masks, truth, sec.sum(), cpu, sec))
+        rows.append(_mog2_row("cv2 MOG2 + shadow detection (reference)", scene, warm_up=5))
 
         t0, c0 = time.perf_counter(), time.thread_time()
         model = BackgroundModel().fit(scene.background)
@@ -131,11 +139,7 @@ def run_full_hd(n_frames: int = 20, n_background: int = 20, threads: int = 1, se
     cv2.setNumThreads(threads)
     rows = []
     try:
-        mog = cv2.createBackgroundSubtractorMOG2(history=n_background, varThreshold=16, detectShadows=True)
-        for f in scene.background:
-            mog.apply(f)
-        masks, sec, cpu = _stream(lambda f: mog.apply(f, learningRate=0) == 255, frames)
-        rows.append(_row("1920x1080: cv2 MOG2 + shadow detection, full size (reference)", masks, truth, sec.sum(), cpu, sec))
+        rows.append(_mog2_row("1920x1080: cv2 MOG2 + shadow detection, full size (reference)", scene))
         small = lambda f: cv2.resize(f, size, interpolation=cv2.INTER_AREA)  # noqa: E731
         model = BackgroundModel(gain=True).fit(np.stack([small(b) for b in scene.background]))
 

@@ -144,6 +144,28 @@ def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, t
     assert np.linalg.norm(floor - truth, axis=1).max() < 0.1
 
 
+def test_colour_videos_with_the_recordings_own_median_as_background(rig, tiny_model_file, tools, tmp_path):
+    """No empty room at all: a walker crossing the whole room, the background is the per-pixel median of
+    frames spread over the recording (``--background median``); the walker is found in every frame."""
+    from silpose.segment.composite import composite_frame, room
+
+    videos = tmp_path / "v"
+    videos.mkdir()
+    where = tools.walk((-1.2, 0.2), (1.2, 0.2), 16)
+    for k, cam in enumerate(rig):
+        clean = room(k, (cam.width, cam.height))
+        tools.write_video(videos / f"{cam.name}.mp4", np.stack(
+            [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]))
+    res = _invoke("infer", tiny_model_file, "--videos", videos, "--background", "median", "--out", tmp_path / "o",
+                  "--no-progress", "--no-overlays")
+    assert res.exit_code == 0, res.output
+    t, r = _rows(tmp_path / "o")
+    assert set(r["person"]) == {1} and sorted(r["frame"]) == list(range(16))
+    assert r["status"].count("ok") >= 14
+    floor = np.c_[t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()]
+    assert np.linalg.norm(floor - where[np.array(r["frame"])], axis=1).max() < 0.1
+
+
 @pytest.mark.parametrize("args, message", [
     (["--masks", "--background-frames", "5"], "mask videos need no background"),
     ([], "colour videos need a background"),

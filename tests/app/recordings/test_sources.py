@@ -173,3 +173,14 @@ def test_camera_folders_holding_videos(rig, tools, tmp_path):
     with pytest.raises(RecordingError, match=r"cam0: holds 3 videos \(background.avi, checkerboard.avi, take2.avi\) "
                                              r"and none is named 'video'"):
         open_recording(tmp_path, rig)
+
+
+def test_threaded_reader_gives_the_frames_in_order_then_none(rig, tools, tmp_path):
+    from silpose.app.recordings.sources import ThreadedReader
+
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(9))
+    rec = open_recording(tmp_path, rig)
+    r = ThreadedReader(CameraReader(rec.sources["cam0"], grey=True), depth=2)
+    got = [_frame_index(r.read()) for _ in range(9)]
+    assert got == list(range(9)) and r.read() is None and r.read() is None and r.summary() is None
+    r.close()

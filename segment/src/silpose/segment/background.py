@@ -65,6 +65,7 @@ STAGES = ("candidates", "shadow_rejected", "median", "morphology", "final")
 
 _SUM3 = np.ones((1, 3), np.float32)  # cv2.transform matrix: sum of the 3 channels
 _BATCH_CHUNK = 64  # frames per vectorised chunk in partial_fit / segment_batch (bounds the temporaries)
+_MAX_CHUNK_VALUES = 8_000_000  # int64 values per partial_fit chunk (64 MB; its square products as many again)
 _GAIN_STEP = 4  # every 4th row and column are the pixels the gain is measured on
 _GAIN_MIN_LEVEL = 16.0  # graylevels: darker background pixels say little about the gain
 
@@ -231,13 +232,15 @@ class BackgroundModel:
                 f"frames: {'colour' if is_colour else 'graylevel'} frames after {first} ones; with colour=True "
                 f"the background must be all colour or all graylevel"
             )
-        if self._c1 is not None:
-            for start in range(0, stack.shape[0], _BATCH_CHUNK // 4):
-                c = stack[start : start + _BATCH_CHUNK // 4].astype(np.int64)
+        if self._c1 is not None:  # int64 chunks of at most _MAX_CHUNK_VALUES values (a full-HD frame is 6 M)
+            step = max(1, min(_BATCH_CHUNK // 4, _MAX_CHUNK_VALUES // int(np.prod(stack.shape[1:]))))
+            for start in range(0, stack.shape[0], step):
+                c = stack[start : start + step].astype(np.int64)
                 self._c1 += c.sum(axis=0)
                 self._c2 += np.einsum("nhwc,nhwc->hwc", c, c)
-        for start in range(0, gray.shape[0], _BATCH_CHUNK):  # bounded int64 temporaries
-            g = gray[start : start + _BATCH_CHUNK].astype(np.int64)
+        step = max(1, min(_BATCH_CHUNK, _MAX_CHUNK_VALUES // int(np.prod(gray.shape[1:]))))
+        for start in range(0, gray.shape[0], step):  # bounded int64 temporaries
+            g = gray[start : start + step].astype(np.int64)
             self._s1 += g.sum(axis=0)
             self._s2 += np.einsum("nhw,nhw->hw", g, g)
         self.n_frames_seen_ += gray.shape[0]

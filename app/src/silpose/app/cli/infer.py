@@ -33,7 +33,7 @@ def infer(
     videos: Annotated[Optional[Path], typer.Option("--videos", help="A recording: one video (or frame folder) per camera named as in the rig (or mapped in DIR/cameras.toml), several people; writes joints in the room, overlay videos and a floor plan to the --out folder.")] = None,
     masks: Annotated[bool, typer.Option("--masks", help="With --videos: the videos are foreground masks (lossy codecs are fine).")] = False,
     background_frames: Annotated[Optional[int], typer.Option("--background-frames", min=2, help="With --videos (colour): learn each camera's background from its first N frames (the empty room).")] = None,
-    background: Annotated[Optional[Path], typer.Option("--background", help="With --videos (colour): a folder of empty-room clips, one per camera, named like the videos.")] = None,
+    background: Annotated[Optional[Path], typer.Option("--background", help="With --videos (colour): a folder of empty-room clips, one per camera, named like the videos; or 'median': the recording's own per-pixel median (nobody stands still).")] = None,
     offsets: Annotated[Optional[str], typer.Option("--offsets", help="With --videos: per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
     overlays: Annotated[bool, typer.Option("--overlays/--no-overlays", help="With --videos: write the per-camera overlay videos.")] = True,
     video_min_area: Annotated[int, typer.Option("--blob-min-area", min=1, help="With --videos: blobs with fewer pixels are ignored (speckle).")] = 150,

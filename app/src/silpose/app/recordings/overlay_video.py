@@ -19,7 +19,9 @@ The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` an
 from __future__ import annotations
 
 import os
+import queue
 import shutil
+import threading
 from pathlib import Path
 
 import cv2
@@ -102,9 +104,45 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
     return img
 
 
+class _Encoder:
+    """One camera's video writer, encoding in its own thread (OpenCV's encoder releases the GIL): the run's
+    thread only draws. ``depth`` frames are queued at most."""
+
+    def __init__(self, writer, depth: int = 8):
+        self.writer = writer
+        self.queue: queue.Queue = queue.Queue(maxsize=depth)
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="overlay-encoder", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while True:
+            img = self.queue.get()
+            if img is None:
+                return
+            if self.error is None:
+                try:
+                    self.writer.write(img)
+                except BaseException as exc:  # raised by the next write or by finish
+                    self.error = exc
+
+    def write(self, img: np.ndarray) -> None:
+        if self.error is not None:
+            raise self.error
+        self.queue.put(img)
+
+    def finish(self) -> None:
+        self.queue.put(None)
+        self.thread.join()
+        self.writer.release()
+        if self.error is not None:
+            raise self.error
+
+
 class OverlayVideos:
-    """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` per frame,
-    ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops them."""
+    """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` per frame (encoded
+    in a thread per camera), ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops
+    them."""
 
     def __init__(self, out: Path, cameras, sizes: dict, fps: float):
         self.final = Path(out) / "overlays"
@@ -118,7 +156,7 @@ class OverlayVideos:
             if not w.isOpened():
                 self.abort()
                 raise OSError(f"{path}: OpenCV cannot write {FOURCC} video")
-            self.writers[cam] = w
+            self.writers[cam] = _Encoder(w)
         self.n_frames = 0
 
     def write(self, camera: str, image: np.ndarray) -> None:
@@ -126,7 +164,7 @@ class OverlayVideos:
 
     def close(self) -> list[Path]:
         for w in self.writers.values():
-            w.release()
+            w.finish()
         self.final.mkdir(parents=True, exist_ok=True)
         out = []
         for cam in self.writers:
@@ -138,5 +176,8 @@ class OverlayVideos:
 
     def abort(self) -> None:
         for w in self.writers.values():
-            w.release()
+            try:
+                w.finish()
+            except BaseException:  # noqa: BLE001 - aborting: the files are dropped anyway
+                pass
         shutil.rmtree(self.tmp, ignore_errors=True)

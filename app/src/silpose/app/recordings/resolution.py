@@ -2,11 +2,16 @@
 :data:`WORK_PERSON_PX` pixels tall, and the contours are scaled back to the rig camera's pixels.
 
 The model needs 200 (or ``n_points``) contour points per view: a person 1,900 px tall in a full-HD portrait
-frame gives the same contour, to a fraction of a per cent of its height, at 300 px. Segmenting, labelling,
+frame gives the same contour, to about a per cent of its height, at 160 px (a ~450 px outline, 2 px between
+points) -- the size the training data's people have (the default rig's are 114 px tall at the workspace
+centre, the lab rig's 144-156 px). Segmenting, labelling,
 tracing contours and drawing overlays all scale with the pixel count, so a 1080p camera is read, resized
 (``cv2.INTER_AREA``, which averages the pixels it merges) and processed at about a sixth of its side:
 the paper's background subtraction then costs about what it costs at the paper's 320x240. Cameras whose
 person is already at most that tall (the default rig's 320x240, the lab's 644x486) keep their size.
+Measured (``benchmarks/recordings.py``, rows ``colour``: 4 colour videos of 1932x1458 whose people are ~450 px
+tall, 60 steps, a 2-core machine shared with other jobs): 3.5 time steps/s and 160 CPU ms per step at 160 px
+(692x522), 1.35 steps/s at 320 px, 0.37 steps/s and 3.6 GB peak when every frame was processed at full size.
 
 The person's height in a camera is measured from the rig: a 1.75 m column at the workspace centre,
 projected. :func:`work_camera` is the rig camera seen at the working size: pixel centres map as
@@ -20,9 +25,9 @@ import dataclasses
 
 import numpy as np
 
-#: pixels: the height a standing person is given at the working resolution (the default rig's people are
-#: ~200 px tall at 320x240; the segmentation's filters were chosen there)
-WORK_PERSON_PX = 320
+#: pixels: the height a standing person at the workspace centre is given at the working resolution (the default
+#: rig's people are 114 px tall at 320x240, where the segmentation's filters were chosen; the lab rig's ~150 px)
+WORK_PERSON_PX = 160
 #: metres: the height of the column whose image measures a person
 PERSON_HEIGHT_M = 1.75
 
