@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import os
 import signal
 import subprocess
@@ -51,7 +53,8 @@ def no_partial_files(folder):
 def test_unknown_preset(tmp_path):
     r = silpose("gen", "nope", "--out", tmp_path / "ds")
     assert r.returncode != 0
-    assert error_line(r, "gen") == "silpose gen: error: nope: unknown preset; available presets: default, motions, paper, smoke"
+    presets = ", ".join(sorted(p.stem for p in (Path(__file__).resolve().parents[2] / "configs").glob("*.toml")))
+    assert error_line(r, "gen") == f"silpose gen: error: nope: unknown preset; available presets: {presets}"
     assert no_partial_files(tmp_path / "ds")
 
 
