@@ -186,7 +186,7 @@ class Conditioner:
     """
 
     def __init__(self, model_or_params, observed, noise_variance=0.0, detail=None, reconstruct: bool = False,
-                 detail_only: bool = False):
+                 detail_only: bool = False, output: np.ndarray | None = None):
         p = MixtureParams.of(model_or_params)
         W, mu, sig2 = p.components_, p.means_, p.noise_variance_
         m, d, q = W.shape
@@ -254,10 +254,14 @@ class Conditioner:
         else:
             out_dims = np.arange(d) if self.reconstruct else self.missing
             self.detail_pos = det if self.reconstruct else np.searchsorted(self.missing, det)
-        Wo = W if self.reconstruct else W[:, out_dims, :]
         # stacked W_i^T (Mq, d_out), then the means (M, d_out): [r_i x_hat_i, r_i] @ B is the mixture mean
-        self.B = np.concatenate([Wo.transpose(0, 2, 1).reshape(m * q, out_dims.size),
-                                 mu if self.reconstruct else mu[:, out_dims]])
+        self.shared_output = output is not None and self.reconstruct
+        if self.shared_output:  # the same for every pattern and noise: one copy per mixture (output_matrix)
+            if output.shape != (m * q + m, d):
+                raise ValueError(f"condition: output must have shape ({m * q + m}, {d}), got {output.shape}")
+            self.B = output
+        else:
+            self.B = self.output_matrix(p, out_dims)
         self.W_det = W[:, det, :]  # (M, d_det, q)
         self.mu_det = mu[:, det]
         self.Kinv = np.linalg.inv(self.K)
@@ -265,11 +269,23 @@ class Conditioner:
         # posterior variance of the detail dims per component: diag(W_det K^-1 W_det^T) + sigma^2
         self.var_det = np.einsum("mjq,mqr,mjr->mj", self.W_det, self.Kinv, self.W_det) + sig2[:, None]  # (M, d_det)
 
+    @staticmethod
+    def output_matrix(model_or_params, out_dims=None) -> np.ndarray:
+        """(M q + M, d_out) the stacked W_i^T then the means at ``out_dims`` (None = every dim): the output
+        product's right-hand side, which a ``reconstruct`` conditioner can share (its ``output`` argument)."""
+        p = MixtureParams.of(model_or_params)
+        m, d, q = p.components_.shape
+        out = np.arange(d) if out_dims is None else np.asarray(out_dims, dtype=np.intp)
+        Wo = p.components_ if out_dims is None else p.components_[:, out, :]
+        return np.concatenate([Wo.transpose(0, 2, 1).reshape(m * q, out.size),
+                               p.means_ if out_dims is None else p.means_[:, out]])
+
     @property
     def nbytes(self) -> int:
         """Bytes of the arrays this conditioner holds (what a cache of them keeps alive; the means may be a
-        view of the mixture's)."""
-        return int(sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray)))
+        view of the mixture's; a shared output matrix is not counted)."""
+        return int(sum(v.nbytes for k, v in vars(self).items()
+                       if isinstance(v, np.ndarray) and not (k == "B" and self.shared_output)))
 
     def component_cov(self) -> np.ndarray:
         """(M, d_det, d_det) per-component posterior covariance of the detail dims,
