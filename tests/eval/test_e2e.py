@@ -108,7 +108,7 @@ def test_row_counts_match_the_protocol(evaluated):
     assert counts["E1"] == 2 * 4 * n + n  # single-view models at equal q and at q / K, and the 4-view model
     assert counts["E2"] == 15 * n
     # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge + MLP), plus E6's robust MPPCA rows (2 inputs) for
-    # the settings of silpose.eval.inference_eval.ROBUST_SPECS in the sweep (clean, mask strong) and the standard noise
+    # the settings of silpose.eval.e6_inference.ROBUST_SPECS in the sweep (clean, mask strong) and the standard noise
     assert counts["E3"] == 4 * (2 + 3) * n + 3 * 2 * n
     robust = df[(df.experiment == "E3") & (df.method == "mppca robust")]
     assert sorted(robust.noise.unique()) == ["clean", "mask strong", "standard"]
@@ -151,9 +151,9 @@ def test_numbers_recompute_independently(evaluated):
 def test_clear_errors_when_data_or_model_missing(tmp_path, stick_dataset):
     runner = CliRunner()
     res = runner.invoke(build_app(), ["eval", str(tmp_path / "nope")])
-    assert res.exit_code == 2 and "just gen" in res.output
+    assert res.exit_code == 2 and "silpose gen nope" in res.output
     res = runner.invoke(build_app(), ["eval", str(stick_dataset), "--model", str(tmp_path / "none.npz")])
-    assert res.exit_code == 2 and "just train" in res.output
+    assert res.exit_code == 2 and "silpose train stick" in res.output
 
 
 def test_e6_tables_recompute_independently(evaluated):

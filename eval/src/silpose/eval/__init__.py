@@ -10,11 +10,11 @@ Modules (one concept each; import them directly, nothing heavy is imported here)
 - ``tables``      summary statistics (mean, median, quartiles) and Markdown tables
 - ``report``      summary.md with the paper's figures beside ours, headline numbers
 - ``plots``       box plots in the paper's style
-- ``figures``     E5 example figures (paper Figs. 6 and 7)
-- ``inference_eval`` E6, how honest the inference is: flips and top-K hypotheses, robust inference,
+- ``e5_figures``     E5 example figures (paper Figs. 6 and 7)
+- ``e6_inference`` E6, how honest the inference is: flips and top-K hypotheses, robust inference,
   missing-view contours, self-intersections, plausibility flags
-- ``inference_figures`` E6 figures (a flip resolved, robust inference on a masked input, flagged garbage)
-- ``garbage``     inputs that are not a person, for E6's plausibility check
+- ``e6_figures`` E6 figures (a flip resolved, robust inference on a masked input, flagged garbage)
+- ``e6_garbage``     inputs that are not a person, for E6's plausibility check
 - ``frames_eval`` segmentation quality on a camera-frames dataset and what it costs the pose
 - ``errors``      ``EvalInputError``
 - ``run``         load data + model, run, write ``reports/<preset>/``

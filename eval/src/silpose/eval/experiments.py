@@ -28,7 +28,7 @@ are mapped to pixels with the noisy input's own normalisation, missing views' wi
   the training contours; :mod:`silpose.eval.baselines`) on the standard noisy inputs of E2. Each
   regressor's fitting time and prediction time per frame go to ``extra["baseline_timing"]``.
 - **E6** hypotheses and flips, robust inference, missing-view contours against a nearest
-  neighbour, self-intersections and plausibility flags (:mod:`silpose.eval.inference_eval`); its
+  neighbour, self-intersections and plausibility flags (:mod:`silpose.eval.e6_inference`); its
   robust rows join E3's.
 """
 
@@ -51,7 +51,7 @@ from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_pro
 from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
 
 from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor
-from .inference_eval import run_e6
+from .e6_inference import run_e6
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
 __all__ = ["EvalConfig", "EvalData", "Evaluation", "DEFAULT_SWEEP", "E1_PER_VIEW", "view_subsets", "views_label"]
@@ -209,7 +209,7 @@ class Evaluation:
     rows: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
-    extra: dict = field(default_factory=dict)  # E6's tables (silpose.eval.inference_eval)
+    extra: dict = field(default_factory=dict)  # E6's tables (silpose.eval.e6_inference)
 
     def __post_init__(self) -> None:
         self._chamfer_cache: dict = {}
@@ -379,7 +379,7 @@ class Evaluation:
 
     # ---------------------------------------------------------------- experiments
     def run(self) -> "Evaluation":
-        """Run the configured experiments (E5 figures are drawn by :mod:`silpose.eval.figures`)."""
+        """Run the configured experiments (E5 figures are drawn by :mod:`silpose.eval.e5_figures`)."""
         for name in ("E1", "E2", "E3", "E4", "E6"):
             if name in self.config.experiments:
                 t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""Evaluation on a frames dataset (issue 5): segmentation quality and what it costs the pose.
+"""Evaluation on a frames dataset: segmentation quality and what it costs the pose.
 
 On ``<frames dir>`` (``data/<preset>/frames``: per-camera background and frames, plus the truth
 split "test" whose row i is frame i), with the same model and the same frames:

@@ -4,7 +4,7 @@ Artefacts (each written atomically, :mod:`silpose.shared.atomic`):
 ``results.parquet`` (one row per experiment condition and test example), ``headline.json``,
 ``summary.md``, ``e1_single_vs_multi.png``, ``e2_missing_views.png``, ``e3_noise.png``,
 ``e4_baselines.png``, ``e5_single_view.png``, ``e5_missing_view.png``; with E6 also
-``e6_flip_resolved.png``, ``e6_robust_mask.png``, ``e6_garbage.png`` (:mod:`silpose.eval.inference_figures`).
+``e6_flip_resolved.png``, ``e6_robust_mask.png``, ``e6_garbage.png`` (:mod:`silpose.eval.e6_figures`).
 """
 
 from __future__ import annotations
@@ -28,12 +28,12 @@ from silpose.shared.metrics import CANVAS_MARGIN_PX
 from silpose.shared.rig_symmetry import RigMirror
 from silpose.shared.version import silpose_version
 
-from . import figures, inference_figures, plots
+from . import e5_figures, e6_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .groups import sample_groups, write_group_report
-from .inference_eval import e6_markdown
+from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
 from .tables import fmt
 
@@ -136,13 +136,13 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
         if p is not None:
             written[name] = p
     if "E5" in ev.config.experiments and "E2" in ev.config.experiments:
-        for stem, views, caption in figures.default_examples(ev.data.n_views):
-            sid = figures.median_example(df, "E2", views_label(views))
+        for stem, views, caption in e5_figures.default_examples(ev.data.n_views):
+            sid = e5_figures.median_example(df, "E2", views_label(views))
             if sid is not None:
-                written[stem] = figures.example_figure(ev, sid, views, out / f"{stem}.png",
+                written[stem] = e5_figures.example_figure(ev, sid, views, out / f"{stem}.png",
                                                        caption + " — example nearest the median pose error")
     if ev.extra.get("E6"):
-        written.update(inference_figures.write_e6_figures(ev, out))
+        written.update(e6_figures.write_e6_figures(ev, out))
     head = _jsonable({"silpose_version": silpose_version(), **headline(df),
                       **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
                       "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,

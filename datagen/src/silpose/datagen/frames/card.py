@@ -25,7 +25,7 @@ def card_text(config: GenConfig, fcfg: FramesConfig, stats: dict) -> str:
     return f"""# silpose frames dataset `{config.name}`
 
 Textured camera frames of a walking person, rendered with Blender Cycles, for the background
-subtraction and end-to-end path (issue 5). Made by `silpose gen-frames {config.name}`.
+subtraction and end-to-end path. Made by `silpose gen-frames {config.name}`.
 
 - **Person frames**: test samples 0..{fcfg.samples - 1} of the `{config.name}` preset (seed
   {config.seed}): frame i shows the subject, gait, heading and position of test sample i of

@@ -1,4 +1,4 @@
-"""``silpose gen-frames``: textured camera frames + empty-room frames + truth (issue 5).
+"""``silpose gen-frames``: textured camera frames + empty-room frames + truth.
 
 Only light modules are imported at module level; the generator inside the command, and bpy only
 in spawned workers. ``python -m silpose.datagen.frames.cli ...`` runs the command on its own.

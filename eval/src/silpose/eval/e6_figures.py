@@ -11,7 +11,7 @@ Each figure states how its example was chosen (never the best case silently):
   gain of robust over Gaussian inference. Per view: the corrupted input, where robust inference cut
   loops from it the input it used (``silpose.model.robust.excursions``), the points it down-weighted below 0.5,
   the Gaussian and the robust reconstructions over the true clean contour; below, the skeletons.
-- ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.garbage``: two people
+- ``e6_garbage.png``: the first input of three garbage kinds (``silpose.eval.e6_garbage``: two people
   merged, a box, an all-white frame), every view's mask with its contour and the model's
   reconstruction, titled with the plausibility percentile and whether ``silpose infer`` flags it.
 """
@@ -194,7 +194,7 @@ def garbage_figure(ev, path: Path) -> Path | None:
         if not flagged:
             missed.append(kind)
     axes[0, 0].legend(loc="lower left", fontsize=6)
-    fig.suptitle("Inputs that are not a person: the first input of each kind (silpose.eval.garbage), all views, with the "
+    fig.suptitle("Inputs that are not a person: the first input of each kind (silpose.eval.e6_garbage), all views, with the "
                  "model's reconstruction (it always draws a walker).\nEach row: the plausibility percentile and whether "
                  "silpose infer flags the frame (below the model's plausibility threshold, or convex in every view); "
                  + (f"not flagged: {', '.join(missed)}." if missed else "every one shown is flagged."), fontsize=8)

@@ -24,7 +24,7 @@ contour errors one-sided Chamfer D(true clean -> reconstruction) in px (:mod:`si
 - **Self-intersections** (:mod:`silpose.model.untangle`): share of reconstructed contours whose
   polygon crosses itself, as inferred and after ``infer(untangle=True)``; the noisy inputs' share
   for reference.
-- **Plausibility** (:mod:`silpose.model.plausibility`, :mod:`silpose.eval.garbage`): share of each
+- **Plausibility** (:mod:`silpose.model.plausibility`, :mod:`silpose.eval.e6_garbage`): share of each
   garbage kind flagged implausible (all 4 views), and of genuine test inputs (clean and with the
   standard noise, per number of views).
 """
@@ -41,7 +41,7 @@ from silpose.model.untangle import self_intersecting, untangle
 from silpose.shared.contours import denormalise, normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm
 
-from .garbage import GARBAGE_KINDS, garbage_masks, masks_to_contours
+from .e6_garbage import GARBAGE_KINDS, garbage_masks, masks_to_contours
 from .tables import fmt, markdown_table
 
 __all__ = ["ROBUST_SPECS", "N_GARBAGE", "run_e6", "e6_markdown"]
@@ -332,7 +332,7 @@ def e6_markdown(e6: dict) -> list[str]:
                   f"({cal['n_inputs']} walkers x {cal['n_draws']} draws of the model's observation noise, "
                   f"s² = {cal['noise_variance']:g}), or when every observed view is convex (solidity >= "
                   f"{CONVEX_SOLIDITY:g}: a smooth blob is more likely than any person). Garbage inputs: "
-                  f"`silpose.eval.garbage`, all views.", "",
+                  f"`silpose.eval.e6_garbage`, all views.", "",
                   markdown_table(["garbage input", "n", "flagged %", "of which no silhouette %", "median percentile"],
                                  [[g["kind"], str(g["n"]), fmt(g["flagged_pct"], 1), fmt(g["no_silhouette_pct"], 1),
                                    fmt(g["median_percentile"], 1)] for g in pl["garbage"]]), "",

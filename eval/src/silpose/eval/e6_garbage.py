@@ -1,4 +1,4 @@
-"""Inputs that are not a person, for the plausibility check of E6 (``silpose.eval.inference_eval``).
+"""Inputs that are not a person, for the plausibility check of E6 (``silpose.eval.e6_inference``).
 
 Every kind is a set of per-view binary masks of the rig's image size, turned into contours like
 real input (``silpose.shared.contours.extract_contour``: the outer boundary of the largest blob):
