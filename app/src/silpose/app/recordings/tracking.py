@@ -29,12 +29,14 @@ within ``reid_gate`` metres (that track ends); else it gets a new public id (1, 
 person's track missed for more than ``max_misses`` steps ends; a person coming back after that gets a new id.
 
 No appearance cue: on mask videos the one per-person cue is the silhouette's size, and the four walkers of
-the synthetic lab recording are all 1.92 m tall. Measured there (200 frames at 25 fps, mask videos, model of
-``benchmarks.recordings``'s tiny kind; identities scored by ``benchmarks.recording_scores``): the tracker
-before (no lost tracks beyond 0.5 s, 3 hits, smoothing 0.5, fixed gate) gave 19 ids and 23 identity
-switches; this one 4 ids and 11 switches (offline, on the same detections: 80 of 108 settings of min_hits
-6-10, smoothing 0.1-0.3, growth 0.25-0.75 m/s, coast 0.5-1 s, lost 2-4 s gave 4 ids; smoothing 0.5 gave
-17-22 switches, the velocity following the detections' jitter).
+the synthetic lab recording are all 1.92 m tall. Measured there (four walkers crossing, 200 frames at 25 fps,
+mask videos, a model trained on 120 lab-rig walkers; scored by ``benchmarks.recording_scores``): the tracker
+before (lost after 0.5 s, 3 hits, smoothing 0.5, a fixed 0.6 m gate) gave 19 ids, 23 identity switches and
+72 rows off every true person; this one 4 ids, 10 switches, 11 such rows (625 of 800 person-frames found,
+656 before). Offline on the same detections, every one of 18 settings (min_hits 6-10, smoothing 0.1-0.3,
+lost 2-4 s) gave 4 ids and 9-12 switches with the 0.3 m gate; with 0.6 m, 14 of 18 gave 4 ids; smoothing 0.5
+gave 17-22 switches (the velocity followed the detections' jitter). Merges and ghosts still cost switches:
+the switches left are mostly where two walkers' hulls merge into one detection and part again.
 """
 
 from __future__ import annotations
@@ -47,6 +49,9 @@ from scipy.optimize import linear_sum_assignment
 
 _FORBIDDEN = 1e6
 
+#: metres: the gate of a track seen at the previous step (the floor grid's jitter and a step's change of pace;
+#: 0.6 m let a person's track jump to a ghost between two people who were merging)
+GATE_M = 0.3
 #: metres per second: the gate's growth while a person is unseen
 UNSEEN_SPEED_M_S = 0.5
 #: seconds a person's lost track waits to be re-identified
@@ -95,7 +100,7 @@ class Tracker:
         self.n_keys = 0
         self.n_persons = 0
         self.ended: list[Track] = []
-        self._merged: set[int] = set()  # keys of lost tracks re-identified this step
+        self._reidentified: set[int] = set()  # keys of lost tracks re-identified this step
 
     @property
     def decided_within(self) -> int:
@@ -173,10 +178,10 @@ class Tracker:
                 self._confirm(t, keep, step)
             keep.append(t)
             out.append((t, int(d)))
-        if self._merged:
-            keep = [t for t in keep if t.key not in self._merged]
-            out = [(t, d) for t, d in out if t.key not in self._merged]
-            self._merged.clear()
+        if self._reidentified:
+            keep = [t for t in keep if t.key not in self._reidentified]
+            out = [(t, d) for t, d in out if t.key not in self._reidentified]
+            self._reidentified.clear()
         self.tracks = keep
         return out
 
@@ -190,7 +195,7 @@ class Tracker:
             if dist[j] <= self.reid_gate:
                 u = lost[j]
                 t.person = u.person
-                self._merged.add(u.key)  # u ends: t goes on as that person
+                self._reidentified.add(u.key)  # u ends: t goes on as that person
                 self.ended.append(u)
                 return
         self.n_persons += 1
@@ -202,6 +207,6 @@ def tracker_for_fps(fps: float, min_hits: int | None = None, max_misses: int | N
     ``min_hits`` / ``max_misses`` (steps) override :data:`CONFIRM_S` / :data:`LOST_S`."""
     fps = float(fps)
     steps = lambda seconds: max(1, int(round(seconds * fps)))  # noqa: E731
-    return Tracker(min_hits=steps(CONFIRM_S) if min_hits is None else min_hits,
+    return Tracker(gate=GATE_M, min_hits=steps(CONFIRM_S) if min_hits is None else min_hits,
                    max_misses=steps(LOST_S) if max_misses is None else max_misses, smoothing=SMOOTHING,
                    growth=UNSEEN_SPEED_M_S / fps, coast=steps(COAST_S), reid_gate=REID_GATE_M, recent=steps(RECENT_S))
