@@ -22,8 +22,8 @@ is held to one thread during the run: the model's batches here are small (a chun
 threads competing with the camera threads cost more than they give (measured on this 2-core machine
 under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1).
 
-Rows of a track are held back until the track is a person (``min_hits`` detections): a detection that never
-becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
+Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
+detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
 (an empty mask, a video that stops, a person in no usable view) becomes a status, never an error.
 
@@ -71,7 +71,7 @@ from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
-from .tracking import Track, Tracker
+from .tracking import Track, Tracker, tracker_for_fps
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, body_box, grounded)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
@@ -99,8 +99,9 @@ class RecordingOptions:
     recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
     overlay videos; noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
-    that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking
-    (:class:`~silpose.app.recordings.tracking.Tracker`; max_misses None: half a second of frames).
+    that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking, steps
+    (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
+    0.3 s and 4 s).
     contours: also write every view's reconstructed contour (``contours_px``) to joints.parquet.
     robust: robust inference (``silpose.model.robust``: contour points far from the reconstruction are
     down-weighted); None = on for colour videos (silpose's segmentation leaves holes, blobs and shadows), off
@@ -126,7 +127,7 @@ class RecordingOptions:
     threads: int | None = None
     max_steps: int | None = None
     segment_params: dict | None = None
-    min_hits: int = 3
+    min_hits: int | None = None
     max_misses: int | None = None
     contours: bool = False
     robust: bool | None = None
@@ -342,9 +343,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
     first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
     fps = recording.fps
-    tracker = Tracker(min_hits=opt.min_hits,
-                      max_misses=opt.max_misses if opt.max_misses is not None else max(3, int(round(0.5 * (fps or 25.0)))))
-    lag = tracker.min_hits * (tracker.max_misses + 1)
+    tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
+    lag = tracker.decided_within
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
     reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
