@@ -40,13 +40,7 @@ def synthetic_mixture(n: int, d: int, q: int, m: int, seed: int = 0, noise: floa
     singular values decaying from 3 to 0.5.
     """
     rng = np.random.default_rng(seed)
-    weights = rng.dirichlet(np.full(m, 5.0))
-    means = mean_scale * rng.standard_normal((m, d))
-    comps = np.empty((m, d, q))
-    for i in range(m):
-        U, _ = np.linalg.qr(rng.standard_normal((d, q)))
-        comps[i] = U * np.linspace(3.0, 0.5, q)
-    s2 = noise * rng.uniform(0.5, 1.5, m)
+    weights, means, comps, s2 = mixture_parameters(rng, d, q, m, noise, mean_scale)
     labels = rng.choice(m, size=n, p=weights)
     X = np.empty((n, d))
     for i in range(m):
@@ -54,6 +48,20 @@ def synthetic_mixture(n: int, d: int, q: int, m: int, seed: int = 0, noise: floa
         X[sel] = means[i] + rng.standard_normal((sel.size, q)) @ comps[i].T
     X += np.sqrt(s2[labels])[:, None] * rng.standard_normal((n, d))
     return X, labels, mixture_with(weights, means, comps, s2)
+
+
+def mixture_parameters(rng: np.random.Generator, d: int, q: int, m: int, noise: float, mean_scale: float):
+    """Random mixture parameters as :func:`synthetic_mixture` describes them: weights (m,) ~ Dirichlet(5),
+    means (m, d) ~ N(0, mean_scale^2), components (m, d, q) orthonormal bases times singular values 3 -> 0.5,
+    noise variances (m,) uniform in noise x [0.5, 1.5]."""
+    weights = rng.dirichlet(np.full(m, 5.0))
+    means = mean_scale * rng.standard_normal((m, d))
+    comps = np.empty((m, d, q))
+    for i in range(m):
+        U, _ = np.linalg.qr(rng.standard_normal((d, q)))
+        comps[i] = U * np.linspace(3.0, 0.5, q)
+    s2 = noise * rng.uniform(0.5, 1.5, m)
+    return weights, means, comps, s2
 
 
 def mixture_with(weights: np.ndarray, means: np.ndarray, components: np.ndarray, noise_variance: np.ndarray) -> MPPCA:
@@ -66,7 +74,7 @@ def mixture_with(weights: np.ndarray, means: np.ndarray, components: np.ndarray,
     return mix
 
 
-class _RssSampler:
+class RssSampler:
     """Peak resident set size (bytes) of this process, sampled every 20 ms in a thread."""
 
     def __init__(self):
@@ -92,7 +100,7 @@ class _RssSampler:
         self.peak = max(self.peak, self._proc.memory_info().rss)
 
 
-def _row(bench, quantity, value, unit, reference=None, ratio=None, note="", **extra):
+def result_row(bench, quantity, value, unit, reference=None, ratio=None, note="", **extra):
     return dict(bench=bench, quantity=quantity, value=value, unit=unit, reference=reference, ratio=ratio,
                 **extra, note=note)
 
@@ -121,7 +129,7 @@ def run(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9, floor_re
     # (b) full fit with the defaults (tol=1e-4, max_iter=200) under tracemalloc and an RSS sampler
     est = MPPCA(m, q, n_init=n_init, random_state=seed)
     tracemalloc.start()
-    with _RssSampler() as rss, warnings.catch_warnings():
+    with RssSampler() as rss, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         t0 = time.perf_counter()
         est.fit(X_train)
@@ -151,16 +159,16 @@ def run(n=20000, d=1657, q=30, m=5, gmm_iters=2, n_init=3, iter_runs=9, floor_re
     floor = blas_floor.floor_columns(t_iter, blas_floor.em_iteration(n, d, m, q), floor_repeats)
     tag = f"EM N={n} d={d} q={q} M={m}"
     return [
-        _row(tag, "time per EM iteration", t_iter, "s", gmm_iter, gmm_iter / t_iter,
+        result_row(tag, "time per EM iteration", t_iter, "s", gmm_iter, gmm_iter / t_iter,
              f"median of {iter_runs - 1} iterations (E+M step), min {t_iter_min:.3g} s (ratio "
              f"{gmm_iter / t_iter_min:.3g}); reference = GaussianMixture(full), its last timed iteration",
              **floor),
-        _row(tag, f"full fit (n_init={n_init}, {n_iter} iters best run)", t_fit, "s", t_gmm, None,
+        result_row(tag, f"full fit (n_init={n_init}, {n_iter} iters best run)", t_fit, "s", t_gmm, None,
              f"reference = GaussianMixture(full) with only max_iter={gmm_iters} incl. its k-means init"),
-        _row(tag, "held-out mean log-likelihood", ll_mppca, "nats/sample", ll_gmm, None,
+        result_row(tag, "held-out mean log-likelihood", ll_mppca, "nats/sample", ll_gmm, None,
              f"reference stopped after {gmm_iters} iterations; generating parameters give {ll_true:.4g}"),
-        _row(tag, "peak RSS during MPPCA fit", rss.peak / 2**30, "GiB", None, None,
+        result_row(tag, "peak RSS during MPPCA fit", rss.peak / 2**30, "GiB", None, None,
              f"process total; baseline before fit {rss.baseline / 2**30:.2f} GiB (includes the data)"),
-        _row(tag, "peak traced numpy/Python memory during fit", traced_peak / 2**30, "GiB", None, None,
+        result_row(tag, "peak traced numpy/Python memory during fit", traced_peak / 2**30, "GiB", None, None,
              "tracemalloc; includes nothing allocated before the fit"),
     ]

@@ -24,7 +24,7 @@ import numpy as np
 from silpose.model import MPPCA
 from silpose.model.shards import ShardSource
 
-from .em import _RssSampler, _row, mixture_with
+from .em import RssSampler, mixture_parameters, mixture_with, result_row
 
 
 class NpyShards(ShardSource):
@@ -65,13 +65,7 @@ def write_synthetic_shards(root: Path, n: int, d: int, q: int, m: int, shard_row
     """Draw n rows of a random mixture (``benchmarks.em.synthetic_mixture``'s parameters) into float32
     shards of ``shard_rows`` rows. Returns (paths, counts, truth MPPCA)."""
     rng = np.random.default_rng(seed)
-    weights = rng.dirichlet(np.full(m, 5.0))
-    means = mean_scale * rng.standard_normal((m, d))
-    comps = np.empty((m, d, q))
-    for i in range(m):
-        U, _ = np.linalg.qr(rng.standard_normal((d, q)))
-        comps[i] = U * np.linspace(3.0, 0.5, q)
-    s2 = noise * rng.uniform(0.5, 1.5, m)
+    weights, means, comps, s2 = mixture_parameters(rng, d, q, m, noise, mean_scale)
     paths, counts = [], []
     for k, start in enumerate(range(0, n, shard_rows)):
         rows = min(shard_rows, n - start)
@@ -112,7 +106,7 @@ def run(n=100_000, d=1657, q=40, m=200, shard_rows=4000, n_test=2000, max_iter=2
 
         est = MPPCA(m, q, n_init=1, max_iter=max_iter, tol=tol, random_state=seed, e_step="sparse",
                     n_candidates=n_candidates, gate_refresh=gate_refresh, callback=progress)
-        with _RssSampler() as rss, warnings.catch_warnings():
+        with RssSampler() as rss, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             t0, c0 = time.perf_counter(), time.process_time()
             est.fit_stream(train, init_rows=init_rows)
@@ -122,19 +116,19 @@ def run(n=100_000, d=1657, q=40, m=200, shard_rows=4000, n_test=2000, max_iter=2
         per_iter = float(np.median(t_iters[1:])) if len(t_iters) > 1 else float("nan")
         ll_fit, ll_true = est.score(test), truth.score(test)
         rows = [
-            _row(tag, "full streaming fit (sparse E-step)", t_fit, "s", None, None,
+            result_row(tag, "full streaming fit (sparse E-step)", t_fit, "s", None, None,
                  f"{est.n_iter_} EM iterations (max_iter {max_iter}, tol {tol}, converged {est.converged_}); "
                  f"init_rows {init_rows}, shards of {shard_rows} rows read per pass; K {n_candidates} candidates, "
                  f"gate every {gate_refresh} iterations"),
-            _row(tag, "CPU time of the fit (all threads)", c_fit, "s", None, None,
+            result_row(tag, "CPU time of the fit (all threads)", c_fit, "s", None, None,
                  "process user + system time: on an otherwise idle machine the wall time lies between this / "
                  "n_cores and this"),
-            _row(tag, "time per EM iteration (sparse E-step, median)", per_iter, "s", None, None,
+            result_row(tag, "time per EM iteration (sparse E-step, median)", per_iter, "s", None, None,
                  f"max {float(np.max(t_iters[1:])) if len(t_iters) > 1 else float('nan'):.3g} s (the gate "
                  f"iterations); start + first iteration {t_init:.3g} s"),
-            _row(tag, "peak RSS during the fit", rss.peak / 2**30, "GiB", None, None,
+            result_row(tag, "peak RSS during the fit", rss.peak / 2**30, "GiB", None, None,
                  f"process total; before the fit {rss.baseline / 2**30:.2f} GiB"),
-            _row(tag, "held-out mean log-likelihood", ll_fit, "nats/sample", ll_true, None,
+            result_row(tag, "held-out mean log-likelihood", ll_fit, "nats/sample", ll_true, None,
                  "reference = the generating parameters"),
         ]
         if compare_shards > 0:  # the exact E-step on the first shards only, extrapolated to n rows
@@ -148,7 +142,7 @@ def run(n=100_000, d=1657, q=40, m=200, shard_rows=4000, n_test=2000, max_iter=2
                 t0 = time.perf_counter()
                 exact.fit_stream(sub)
                 t_exact = (time.perf_counter() - t0) / 2 * n / n_sub  # two exact passes (start, iteration 1)
-            rows.append(_row(tag, "time per EM iteration, exact E-step (float64, all M components)", t_exact, "s",
+            rows.append(result_row(tag, "time per EM iteration, exact E-step (float64, all M components)", t_exact, "s",
                              t_exact, t_exact / per_iter, f"extrapolated from {n_sub} rows (one fit_stream of 1 "
                              "iteration = 2 passes); ratio = exact / sparse median iteration"))
     return rows

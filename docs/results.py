@@ -106,6 +106,20 @@ def _noise(h, noise, method="mppca"):
     return _get(h, "pose_mean_cm_by_noise_all_views", noise, method)
 
 
+def _baselines(h, n):
+    by = _get(h, "pose_mean_cm_by_method_and_n_views", str(n))
+    if not by:
+        return None
+    return " / ".join(_f(by.get(m)) for m in ("mppca", "knn", "ridge", "mlp"))
+
+
+def _mlp_cost(h):
+    t = _get(h, "baseline_timing", "mlp")
+    if not t:
+        return None
+    return f"{t['fit_s']:.0f} s / {t['ms_per_frame']:.2f} ms (kNN {_f(_get(h, 'baseline_timing', 'knn', 'ms_per_frame'))} ms)"
+
+
 #: (label, value(headline) -> str | None, the paper's figure) — the rows of docs/results.md.
 ROWS = [
     ("4 / 3 / 2 / 1 views, standard noise, posterior mean (cm)",
@@ -124,6 +138,9 @@ ROWS = [
      lambda h: None if _noise(h, "standard", "knn") is None else " / ".join(
          _f(_noise(h, n, "knn")) for n in ("standard", "mask mild", "mask strong")), None),
     ("front/back flips, 4 views, standard noise: single answer / best of 3", _flips, None),
+    ("4 views, standard noise: posterior mean / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 4), None),
+    ("1 view, standard noise: posterior mean / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 1), None),
+    ("MLP baseline: fitting time / time per frame", _mlp_cost, None),
     ("chance (a random training pose, cm)",
      lambda h: _f(_get(h, "chance_cm", "mean"), "{:.1f}") if _get(h, "chance_cm") else None,
      lambda p: f"{p['chance_cm']:g}"),
@@ -152,7 +169,7 @@ ROWS = [
 ]
 
 #: The README's short table: (label, row index in ROWS).
-README_ROWS = [0, 1, 3, 5, 6]
+README_ROWS = [0, 1, 3, 5, 6, 7, 9]
 
 
 def results_table(reports: dict[str, dict | None], rows=None) -> str:
@@ -188,6 +205,53 @@ def bench_section(bench: Path) -> list[str]:
     return out
 
 
+def group_section(reports: dict[str, dict | None]) -> list[str]:
+    """Per activity group (``by_group`` of a report whose test set comes from the motion library)."""
+    out = []
+    for name, h in reports.items():
+        groups = (h or {}).get("by_group")
+        if not groups:
+            continue
+        out += [f"### `{name}`: per activity group of the held-out test clips", "",
+                "| group | test samples | 4 / 3 / 2 / 1 views, posterior mean | 4 views, robust | kNN / MLP, 4 views |",
+                "|---|---|---|---|---|"]
+        for g, e in groups.items():
+            by = e.get("pose_cm_by_n_views", {})
+            views = " / ".join(_f(by.get(str(k))) for k in (4, 3, 2, 1))
+            base = e.get("baselines_cm_all_views", {})
+            out.append(f"| {g} | {e.get('n_test', '?')} | {views} | {_f(e.get('robust_cm_all_views'))} | "
+                       f"{_f(base.get('knn'))} / {_f(base.get('mlp'))} |")
+        out.append("")
+    return out
+
+
+def learning_curve_section(reports_dir: Path) -> list[str]:
+    """Every ``<reports>/<name>/learning_curve.json`` (``python -m silpose.eval.learning_curve``) as a table."""
+    out = []
+    for path in sorted(reports_dir.glob("*/learning_curve.json")):
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        rows = data.get("rows", [])
+        if not rows:
+            continue
+        ms = sorted({r["n_components"] for r in rows})
+        ns = sorted({r["n_samples"] for r in rows})
+        st = data.get("settings", {})
+        out += [f"### `{path.parent.name}` (data `{st.get('data', '?')}`, q {rows[0].get('n_latent', '?')}, "
+                f"{rows[0].get('n_test', '?')} test samples): every view / one view, cm", "",
+                "| N \\ M | " + " | ".join(str(m) for m in ms) + " |", "|---|" + "---|" * len(ms)]
+        for n in ns:
+            cells = []
+            for m in ms:
+                r = next((r for r in rows if r["n_samples"] == n and r["n_components"] == m), None)
+                cells.append("–" if r is None else f"{r['pose_all_views_cm']:.2f} / {r['pose_1_view_cm']:.2f}")
+            out.append(f"| {n} | " + " | ".join(cells) + " |")
+        out.append("")
+    return out
+
+
 def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     measured = [n for n, h in reports.items() if h]
     parts = [
@@ -206,6 +270,12 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
                   f"walkers, {s.get('n_views', '?')} views; data `{s.get('data', '?')}`, model `{s.get('model', '?')}`"
                   + (f", silpose {reports[n]['silpose_version']}" if reports[n].get("silpose_version") else "") + ".",
                   ""]
+    groups = group_section(reports)
+    if groups:
+        parts += ["## Motions: per activity group", ""] + groups
+    curve = learning_curve_section(bench.parent.parent)
+    if curve:
+        parts += ["## Learning curve (posterior mean, standard noise)", ""] + curve
     parts += ["## Benchmarks", ""] + bench_section(bench)
     return "\n".join(parts).rstrip() + "\n"
 

@@ -69,3 +69,35 @@ def write_group_report(df, groups: dict[int, str], out_dir: str | Path, title: s
     """Write ``groups.md`` (:func:`group_tables`) into ``out_dir``."""
     text = f"# {title}: pose error per activity group\n\n" + group_tables(df, groups) + "\n"
     return write_text_atomic(Path(out_dir) / "groups.md", text)
+
+
+def group_headline(df, groups: dict[int, str]) -> dict:
+    """The headline figures per activity group (JSON-friendly), for ``headline.json``'s ``by_group``.
+
+    ``{group: {"n_test": samples, "pose_cm_by_n_views": {n: mean cm of E2 (posterior mean, standard noise)},
+    "robust_cm_all_views": mean cm of E3's robust inference with every view under the standard noise,
+    "baselines_cm_all_views": {method: mean cm of E4 with every view}}}``; groups without rows are left out.
+    """
+    if df is None or len(df) == 0 or "pose_cm" not in df:
+        return {}
+    g = df["sample_id"].map(lambda s: groups.get(int(s), "?")).to_numpy()
+    pose = df["pose_cm"].to_numpy(float)
+    exp = df["experiment"].to_numpy()
+    n_views = df["n_input_views"].to_numpy() if "n_input_views" in df else np.zeros(len(df), int)
+    method = df["method"].astype(str).to_numpy() if "method" in df else np.full(len(df), "mppca")
+    noise = df["noise"].astype(str).to_numpy() if "noise" in df else np.full(len(df), "")
+    all_views = int(n_views.max()) if len(n_views) else 0
+    out: dict = {}
+    for name in sorted(set(g), key=lambda x: (x != "walk", x)):
+        mine = g == name
+        entry: dict = {"n_test": int(sum(1 for v in groups.values() if v == name))}
+        e2 = mine & (exp == "E2")
+        entry["pose_cm_by_n_views"] = {int(n): float(pose[e2 & (n_views == n)].mean())
+                                       for n in sorted(set(n_views[e2]), reverse=True)}
+        robust = mine & (exp == "E3") & (method == "mppca robust") & (noise == "standard") & (n_views == all_views)
+        if robust.any():
+            entry["robust_cm_all_views"] = float(pose[robust].mean())
+        e4 = mine & (exp == "E4") & (n_views == all_views)
+        entry["baselines_cm_all_views"] = {m: float(pose[e4 & (method == m)].mean()) for m in sorted(set(method[e4]))}
+        out[name] = entry
+    return out

@@ -32,7 +32,7 @@ from . import e5_figures, e6_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
-from .groups import sample_groups, write_group_report
+from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
 from .tables import fmt
@@ -121,8 +121,13 @@ def _jsonable(x):
     return x
 
 
-def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: str) -> dict[str, Path]:
-    """Write the per-example rows, the headline JSON, the box plots, the E5 figures and summary.md."""
+def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: str,
+                  groups: dict[int, str] | None = None) -> dict[str, Path]:
+    """Write the per-example rows, the headline JSON, the box plots, the E5 figures and summary.md.
+
+    groups: ``{sample_id: activity group}`` of a test set posed from the motion library
+    (:func:`silpose.eval.groups.sample_groups`): ``headline.json`` then also holds ``by_group``.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     df = ev.frame()
@@ -147,7 +152,8 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
                       **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
                       "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,
                       "baseline_timing": ev.extra.get("baseline_timing", {}),
-                      "mlp_baseline": ev.extra.get("mlp_baseline", {})})
+                      "mlp_baseline": ev.extra.get("mlp_baseline", {}),
+                      **({"by_group": group_headline(df, groups)} if groups else {})})
     write_text_atomic(out / "headline.json", json.dumps(head, indent=2))
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
@@ -232,7 +238,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     groups = sample_groups(test_dir if test_dir is not None else data_dir)
     if groups:
         ev.notes.append("every pose table per activity group of the test clips: groups.md")
-    written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}")
+    written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}", groups)
     if groups:
         written["groups"] = write_group_report(ev.frame(), groups, out_dir, title or f"silpose evaluation — {Path(data_dir).name}")
     written.update(frames_written)
