@@ -37,7 +37,9 @@ def test_quick_run_writes_markdown_and_json_with_the_blas_floor(tmp_path):
     assert sections["em"]["kwargs"]["n"] == 400 and sections["em"]["kwargs"]["gmm_iters"] == 1  # --set over --quick
     kernels = [r for r in sections["em"]["rows"] if r["quantity"] == "time per EM iteration"]
     kernels += sections["inference"]["rows"]
-    assert len(kernels) == 8  # EM's kernel row + 7 inference rows (batched x 3, one frame, top-3, + consensus, robust)
+    # EM's kernel row + the inference rows: batched x 3, one frame, top-3, + consensus, robust, and at M 200
+    # one frame plain and robust, batched robust
+    assert len(kernels) == 11
     for r in kernels:
         seconds = r.get("seconds", r["value"])
         assert 0 < r["blas_floor_s"] < seconds
