@@ -197,7 +197,9 @@ def bench_section(bench: Path) -> list[str]:
     sys.path.insert(0, str(ROOT))
     from benchmarks.run import rows_markdown
 
-    out = ["Machine: " + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
+    size = ("`--quick`: small sizes, so ratios against the BLAS floor are those of small products, not of the full "
+            "sizes `just bench` measures" if data.get("quick") else "full sizes")
+    out = [f"Run: {size}.", "", "Machine: " + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
     for sec in data.get("sections", []):
         out += [f"### {sec['section']}", "", sec.get("what", ""), ""]
         out.append(f"failed: {sec['error']}" if sec.get("error") else rows_markdown(sec.get("rows", [])))
