@@ -1,7 +1,8 @@
 """The work behind ``silpose train``: load a split, optionally select hyperparameters, fit, report.
 
-A held-out part of the train split (``heldout`` fraction, seeded) is kept out of the fit and
-scored: mean log-likelihood per sample of the full shape+structure vectors (beside the same on the
+A held-out part of the train split (``heldout`` fraction, seeded; whole clips on a dataset posed
+from motion-capture clips, :mod:`silpose.app.heldout`) is kept out of the fit and scored: mean
+log-likelihood per sample of the full shape+structure vectors (beside the same on the
 fitted rows, both for structure weight 1: ``silpose.model.selection.unit_weight_loglik``), and the
 mean joint error (cm) inferring joints from all modelled views and from each view alone. The
 saved model is the one fitted on the remaining part of train. The report says whether EM moved
@@ -36,7 +37,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from silpose.model.augment import Roughness, training_rows
 from silpose.model.persistence import is_model_file, save_model
-from silpose.model.selection import is_real_em, unit_weight_loglik, validation_split, view_errors
+from silpose.model.selection import is_real_em, unit_weight_loglik, view_errors
 from silpose.model.selection import select as run_selection
 from silpose.model.shape_model import (
     DEFAULT_N_COMPONENTS,
@@ -88,6 +89,7 @@ from silpose.shared.rig_symmetry import RigMirror, rig_mirrors
 from silpose.shared.version import silpose_version
 
 from .errors import TrainingError
+from .heldout import clip_groups, heldout_split
 
 
 @dataclass
@@ -252,7 +254,8 @@ def run_training(
         n, n_views, n_points = len(split), split.contours.shape[1], split.contours.shape[2]
     if n < 4:
         raise TrainingError(f"{root}: the train split has {n} samples; at least 4 are needed")
-    fit_idx, held_idx = validation_split(n, heldout, seed)
+    groups = clip_groups(root, "train")
+    fit_idx, held_idx = heldout_split(n, heldout, seed, groups)
     if roughness == "auto":
         roughness = Roughness() if len(fit_idx) <= AUTO_ROUGHNESS_MAX_SAMPLES else None
     mirrors, mirror_note = choose_mirrors(rig, mirror, len(fit_idx), streaming)
@@ -273,6 +276,7 @@ def run_training(
         print(f"model selection on {len(fit_idx)} training samples ...", flush=True)
         selection = run_selection(
             contours[fit_idx], joints[fit_idx], grid={**(grid or {}), **user}, views=views, seed=seed,
+            groups=None if groups is None else groups[fit_idx],
             max_iter=min(max_iter, 100), tol=tol, rig=rig, roughness=roughness, mirrors=mirrors,
             progress=(lambda i, k, row: print(f"  fit {i}/{k}: q={row['n_latent']} M={row['n_components']} "
                                               f"w={row['structure_weight']:g} -> {row['val_error_cm']:.2f} cm, "
@@ -324,6 +328,7 @@ def run_training(
     mode = {"streaming": streaming, "executor": executor if streaming else "in-memory",
             "n_shards": len(plan.paths) if streaming else None}
     model.training_config_ = {"command": "silpose train", "heldout_fraction": heldout, "seed": seed,
+                              "heldout_by": "sample" if groups is None else "clip",
                               "select": bool(select), "selection_best": None if selection is None else selection.best,
                               "mode": mode, "roughness": None if roughness is None else roughness.to_dict(),
                               "mirrors": [m.to_dict() for m in mirrors]}
@@ -346,6 +351,7 @@ def run_training(
         "dataset": model.dataset_info_,
         "n_fit": int(len(fit_idx)),
         "n_heldout": int(len(held_idx)),
+        "heldout_by": "sample" if groups is None else "clip",
         "mode": mode,
         "hyperparameters": model.hyperparameters(),
         "em": {
@@ -470,7 +476,8 @@ def report_markdown(r: dict, selection) -> str:
         "",
         f"- silpose {r.get('silpose_version', 'unknown')}",
         f"- data: `{r['dataset']['root']}` train split, {r['n_fit']} samples fitted, {r['n_heldout']} held out "
-        f"(manifest sha256 `{r['dataset']['manifest_sha256']}`)",
+        + ("(whole clips) " if r.get("heldout_by") == "clip" else "")
+        + f"(manifest sha256 `{r['dataset']['manifest_sha256']}`)",
         f"- model: M = {hp['n_components']} components, q = {hp['n_latent']}, structure weight "
         f"{hp['structure_weight']:g}, views {hp['views'] if hp['views'] is not None else 'all'}, "
         f"inference noise s² = {hp['noise_variance']:g}",
