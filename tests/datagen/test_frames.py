@@ -3,7 +3,9 @@ floor shadow, determinism and resume, bad input.
 
 Blender runs only in SPAWNED workers (the generator's pool and a module pool here); functions
 given to the pool live in the installed package (``silpose.datagen.frames.worker``). To stay fast
-the Blender tests use a 2-camera 160x120 rig (same field of view as the default rig).
+the Blender tests use a 2-camera 160x120 rig (same field of view as the default rig). The people are
+posed from the bundled motion library (as the ``motions`` preset; the walk is posed in the eval's frames
+tests), so the frames path is checked on motion-capture poses too.
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ max_redraws = 50
 test = 4
 [rig]
 file = "rig.json"
+[motion]
+source = "library"
 [frames]
 samples = {SAMPLES}
 background = {BACKGROUND}
@@ -94,6 +98,7 @@ def clean(configs, pool):
     from silpose.datagen.frames.worker import render_frames_task
 
     config, fcfg = configs
+    config = config.with_motion()  # the library's clips (read from the repository, no Blender import)
     wc = dict(config.worker_config(), frames={"cycles_samples": fcfg.cycles_samples, "denoise": fcfg.denoise})
     person = pool.apply_async(render_frames_task, (wc, "test", list(range(SAMPLES)))).get(TIMEOUT_S)
     empty = pool.apply_async(render_frames_task, (wc, "background", [])).get(TIMEOUT_S)
@@ -164,6 +169,7 @@ def test_truth_equals_render_samples(built, clean):
         for name in ("joints", "masks", "contours"):
             np.testing.assert_array_equal(getattr(split, name)[i], rec[name])
         np.testing.assert_array_equal(clean["records"][i]["masks"], rec["masks"])
+    assert np.all(split.gait["clip"] > 0)  # library clips (test samples pose held-out clips alone)
 
 
 @pytest.mark.blender
@@ -311,7 +317,8 @@ def test_bad_cli_input(tmp_path):
     line = _error_line(_cli("nope", "--out", tmp_path / "ds"))
     assert line == "silpose gen-frames: error: nope: unknown preset; available presets: default, motions, paper, smoke"
     line = _error_line(_cli("smoke", "--background", "1", "--out", tmp_path / "ds"))
-    assert "frames.background" in line
+    assert line.startswith("silpose gen-frames: error: --background (overrides ") and "frames.background" in line
+    assert line.endswith("must be an integer in [2, 100000], got 1")
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("x")
     line = _error_line(_cli("smoke", "--out", tmp_path / "busy"))

@@ -41,17 +41,24 @@ class FramesConfig:
         return asdict(self)
 
 
-def _int(raw: dict, key: str, src: str, lo: int, hi: int) -> int:
+def _where(key: str, src: str, overridden: set[str]) -> str:
+    """Who gave ``frames.<key>``: the command-line option that overrides it, or the config file."""
+    if key in overridden:
+        return f"--{key.replace('_', '-')} (overrides {src}'s field 'frames.{key}')"
+    return f"{src}: field 'frames.{key}'"
+
+
+def _int(raw: dict, key: str, src: str, lo: int, hi: int, overridden: set[str]) -> int:
     v = raw[key]
     if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
-        raise ConfigError(f"{src}: field 'frames.{key}' must be an integer in [{lo}, {hi}], got {v!r}")
+        raise ConfigError(f"{_where(key, src, overridden)} must be an integer in [{lo}, {hi}], got {v!r}")
     return v
 
 
-def _float(raw: dict, key: str, src: str, lo: float, hi: float) -> float:
+def _float(raw: dict, key: str, src: str, lo: float, hi: float, overridden: set[str]) -> float:
     v = raw[key]
     if not isinstance(v, (int, float)) or isinstance(v, bool) or not lo <= v <= hi:
-        raise ConfigError(f"{src}: field 'frames.{key}' must be a number in [{lo}, {hi}], got {v!r}")
+        raise ConfigError(f"{_where(key, src, overridden)} must be a number in [{lo}, {hi}], got {v!r}")
     return float(v)
 
 
@@ -65,17 +72,19 @@ def frames_from_dict(section, src: str = "config", **overrides) -> FramesConfig:
     if unknown:
         raise ConfigError(f"{src}: unknown field(s) frames.{', frames.'.join(unknown)}; known: {', '.join(DEFAULTS)}")
     raw = dict(DEFAULTS, **section)
-    raw.update({k: v for k, v in overrides.items() if v is not None})
+    given = {k: v for k, v in overrides.items() if v is not None}
+    raw.update(given)
+    over = set(given)
     if not isinstance(raw["denoise"], bool):
-        raise ConfigError(f"{src}: field 'frames.denoise' must be true or false, got {raw['denoise']!r}")
+        raise ConfigError(f"{_where('denoise', src, over)} must be true or false, got {raw['denoise']!r}")
     return FramesConfig(
-        samples=_int(raw, "samples", src, 1, 1_000_000),
-        background=_int(raw, "background", src, 2, 100_000),
-        cycles_samples=_int(raw, "cycles_samples", src, 1, 4096),
+        samples=_int(raw, "samples", src, 1, 1_000_000, over),
+        background=_int(raw, "background", src, 2, 100_000, over),
+        cycles_samples=_int(raw, "cycles_samples", src, 1, 4096, over),
         denoise=raw["denoise"],
-        noise_sigma=_float(raw, "noise_sigma", src, 0.0, 64.0),
-        flicker=_float(raw, "flicker", src, 0.0, 0.5),
-        shard_size=_int(raw, "shard_size", src, 1, 10_000),
+        noise_sigma=_float(raw, "noise_sigma", src, 0.0, 64.0, over),
+        flicker=_float(raw, "flicker", src, 0.0, 0.5, over),
+        shard_size=_int(raw, "shard_size", src, 1, 10_000, over),
     )
 
 
