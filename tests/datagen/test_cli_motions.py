@@ -42,7 +42,9 @@ def test_import_skips_bad_files_one_line_each_and_extends(tmp_path, monkeypatch)
     lines = text.splitlines()
     (clips / "truncated.bvh").write_text("\n".join(lines[:-2]) + "\n")
     (clips / "empty_motion.bvh").write_text(text.split("MOTION")[0] + "MOTION\nFrames: 0\nFrame Time: 0.033333\n")
-    (clips / "alien.bvh").write_text(text.replace("LeftUpLeg", "ThighL").replace("RightUpLeg", "ThighR"))
+    (clips / "alien.bvh").write_text(text.replace("LeftLeg", "BoneA").replace("RightLeg", "BoneB"))  # no knees
+    # names no built-in map knows, read off the skeleton (silpose.datagen.motion.name_match): same motion as good
+    (clips / "thighs.bvh").write_text(text.replace("LeftUpLeg", "ThighL").replace("RightUpLeg", "ThighR"))
     lib = tmp_path / "lib"
     env = {**__import__("os").environ, "SILPOSE_CACHE_DIR": str(tmp_path / "cache")}
     r = silpose("motions", "import", clips, "--library", lib, "--group", "test-group", "--first", "1", "-j", "1", env=env)
@@ -51,20 +53,22 @@ def test_import_skips_bad_files_one_line_each_and_extends(tmp_path, monkeypatch)
     assert len(skipped) == 3, r.stderr
     for name in ("truncated.bvh", "empty_motion.bvh", "alien.bvh"):
         assert sum(name in ln for ln in skipped) == 1, (name, skipped)
-    assert "1 clips imported, 3 skipped" in r.stdout
+    assert "2 clips imported, 3 skipped" in r.stdout
     assert sorted(p.name for p in lib.iterdir()) == [FRAMES_NAME, MANIFEST_NAME]
     m = json.loads((lib / MANIFEST_NAME).read_text())
-    assert [c["id"] for c in m["clips"]] == ["good"] and m["clips"][0]["group"] == "test-group"
-    assert m["clips"][0]["frames"] == 5  # frames 1..5 of 6 at the synthetic clip's rate
-    dirs = pq.read_table(lib / FRAMES_NAME).column("dirs").combine_chunks().flatten().to_numpy()
-    assert np.allclose(np.linalg.norm(np.asarray(dirs).reshape(-1, 3)[np.isfinite(np.asarray(dirs).reshape(-1, 3)[:, 0])], axis=1), 1, atol=1e-5)
+    assert [c["id"] for c in m["clips"]] == ["good", "thighs"] and {c["group"] for c in m["clips"]} == {"test-group"}
+    assert m["clips"][0]["frames"] == m["clips"][1]["frames"] == 5  # frames 1..5 of 6 at the synthetic clip's rate
+    table = pq.read_table(lib / FRAMES_NAME)
+    dirs = np.asarray(table.column("dirs").combine_chunks().flatten().to_numpy()).reshape(10, -1, 3)
+    assert np.allclose(np.linalg.norm(dirs[np.isfinite(dirs[..., 0])], axis=1), 1, atol=1e-5)
+    np.testing.assert_allclose(dirs[5:], dirs[:5], atol=1e-6)  # the renamed skeleton gives the same bone directions
     # extend: another copy under a new name is added, the first kept
     (tmp_path / "more").mkdir()
     (tmp_path / "more" / "again.bvh").write_text(text)
     r = silpose("motions", "import", tmp_path / "more", "--library", lib, "-j", "1", env=env)
-    assert r.returncode == 0 and "1 clips imported, 0 skipped, 1 kept" in r.stdout, r.stdout + r.stderr
+    assert r.returncode == 0 and "1 clips imported, 0 skipped, 2 kept" in r.stdout, r.stdout + r.stderr
     r = silpose("motions", "list", "--library", lib)
-    assert "test-group: 1 clips" in r.stdout and "other: 1 clips" in r.stdout
+    assert "test-group: 2 clips" in r.stdout and "other: 1 clips" in r.stdout
     # never into a folder holding someone else's files
     (tmp_path / "foreign").mkdir()
     (tmp_path / "foreign" / "notes.txt").write_text("mine")

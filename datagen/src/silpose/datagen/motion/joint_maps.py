@@ -17,7 +17,9 @@ torso (:mod:`.retarget`). Every other BVH joint (clavicles, extra spine and neck
 toes beyond the mapped one, props) is ignored.
 
 Built-in maps (:data:`BUILTIN_MAPS`), chosen with ``joint_map = "<name>"`` in ``[motion]`` or
-detected with ``"auto"`` (the first map whose required joints all exist in the clip):
+detected with ``"auto"`` (the first map whose required joints all exist in the clip; when none does,
+``"auto"`` reads the map off the skeleton's names and hierarchy, :mod:`.name_match`, and calls it
+``"matched"``):
 
 - ``cmu``: the widely used CMU motion-capture BVH conversions (Hips, LHipJoint, LeftUpLeg,
   LeftLeg, LeftFoot, LeftToeBase, LowerBack, Spine, Spine1, Neck, Neck1, Head, LeftShoulder,
@@ -52,6 +54,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .name_match import match_joint_map
 
 SIDES = ("l", "r")
 LIMB_ROLES = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -111,6 +115,8 @@ BUILTIN_MAPS["daz"] = {
 }
 #: Order in which ``"auto"`` tries the built-in maps.
 AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz")
+#: Name of the map ``"auto"`` reads off the skeleton when no built-in map fits (:mod:`.name_match`).
+MATCHED_MAP = "matched"
 
 
 class JointMapError(ValueError):
@@ -197,20 +203,21 @@ def resolve_map(
         source: the clip file, for error messages.
     Raises:
         JointMapError (one line naming ``source``): a required joint is missing, no built-in map
-        fits (``auto``), or the neck is not below the pelvis in the hierarchy.
+        fits and the names leave a required role unmatched (``auto``), or the neck is not below the
+        pelvis in the hierarchy.
     """
     where = {n: i for i, n in enumerate(names)}
     if spec == "auto":
         fits = [m for m in AUTO_ORDER if all(BUILTIN_MAPS[m][r] in where for r in REQUIRED_ROLES)]
-        if not fits:
-            best = min(AUTO_ORDER, key=lambda m: sum(BUILTIN_MAPS[m][r] not in where for r in REQUIRED_ROLES))
-            lacking = [BUILTIN_MAPS[best][r] for r in REQUIRED_ROLES if BUILTIN_MAPS[best][r] not in where]
+        matched = {} if fits else match_joint_map(names, parents)
+        unmatched = [r for r in REQUIRED_ROLES if r not in matched]
+        if not fits and unmatched:
             raise JointMapError(
-                f"{source}: joint names match no built-in map ({', '.join(AUTO_ORDER)}; closest {best!r} lacks "
-                f"{', '.join(lacking[:4])}{' ...' if len(lacking) > 4 else ''}); give [motion] joint_map = \"map.toml\" "
-                f"(clip joints: {', '.join(names[:6])}{' ...' if len(names) > 6 else ''})"
+                f"{source}: joint names match no built-in map ({', '.join(AUTO_ORDER)}) and no joint reads as "
+                f"silpose {', '.join(unmatched[:4])}{' ...' if len(unmatched) > 4 else ''}; give [motion] "
+                f"joint_map = \"map.toml\" (clip joints: {', '.join(names[:6])}{' ...' if len(names) > 6 else ''})"
             )
-        name, table = fits[0], BUILTIN_MAPS[fits[0]]
+        name, table = (fits[0], BUILTIN_MAPS[fits[0]]) if fits else (MATCHED_MAP, matched)
     else:
         table = map_from_spec(spec, base)
         name = spec
