@@ -29,15 +29,16 @@ LAB_TRAIN = 240
 LAB_POINTS = 100
 
 
-def cylinder_masks(rig, positions, radius: float = 0.2, height: float = 1.7) -> np.ndarray:
-    """(K, H, W) uint8 0/255: each camera's image of upright cylinders at floor points ``positions`` (P, 2)."""
+def cylinder_masks(rig, positions, radius: float = 0.2, height: float = 1.7, base: float = 0.0) -> np.ndarray:
+    """(K, H, W) uint8 0/255: each camera's image of upright cylinders at floor points ``positions`` (P, 2),
+    standing ``base`` metres above the floor (on a platform)."""
     w, h = rig.image_size
     out = np.zeros((len(rig), h, w), np.uint8)
     ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
     for k, cam in enumerate(rig):
         for x, y in np.asarray(positions, float).reshape(-1, 2):
             ring = np.stack([x + radius * np.cos(ang), y + radius * np.sin(ang)], 1)
-            pts = np.concatenate([np.c_[ring, np.zeros(24)], np.c_[ring, np.full(24, height)]])
+            pts = np.concatenate([np.c_[ring, np.full(24, base)], np.c_[ring, np.full(24, base + height)]])
             px = cam.project(pts).astype(np.float32)
             cv2.fillConvexPoly(out[k], np.round(cv2.convexHull(px)).astype(np.int32), 255)
     return out

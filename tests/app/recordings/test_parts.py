@@ -192,6 +192,30 @@ def test_place_roots_recovers_the_root_from_consistent_views(rig):
         assert err.mean() < prior_err.mean() / gain
 
 
+def test_place_roots_lifts_a_person_on_a_platform_only_when_the_views_agree(rig):
+    """Centroids of people standing 0.25 m up (a treadmill) in 2-4 views: the free-height fit finds the height
+    (brute-force reference: the true root); in one view, or 5 cm up (within the fit's spread), the feet stay on
+    the floor."""
+    rng = np.random.default_rng(3)
+    n = 8
+    joints = np.stack([_body(rng) for _ in range(n)])
+    floor = np.c_[rng.uniform(-1, 1, (n, 2)), root_height(joints)]
+    cams = list(rig)
+    views = np.ones((n, 4), bool)
+    views[4:6, 2:] = False  # two views
+    views[6:, 1:] = False   # one view
+    for lift, lifted in ((0.25, [True] * 6 + [False] * 2), (0.05, [False] * n)):
+        truth = floor + [0, 0, lift]
+        cen = np.stack([cam.project(truth + body_point(joints)) for cam in cams], axis=1)
+        r = place_roots(joints, cen, views, cams, truth[:, :2])  # a prior at the truth: the views agree
+        up = r[:, 2] > floor[:, 2] + 1e-6
+        assert up.tolist() == lifted, (lift, r[:, 2] - floor[:, 2])
+        assert np.allclose(r[up], truth[up], atol=1e-3)
+        r = place_roots(joints, cen, views, cams, truth[:, :2] + rng.normal(0, 0.03, (n, 2)))  # a prior 3 cm off
+        assert (r[:, 2] > floor[:, 2] + 1e-6).tolist() == lifted
+        assert np.all(np.abs(r[up, 2] - truth[up, 2]) < 0.03)
+
+
 def test_place_contours_maps_missing_views_with_the_observed_metric_scale(rig):
     from silpose.model.shape_model import InferenceResult
 
