@@ -69,6 +69,14 @@ def test_project_with_distortion_matches_opencv_and_the_written_out_model():
         assert np.abs(got - c.project(X)).max() > 1.0  # the distortion really acts
 
 
+def test_project_no_points_with_distortion():
+    """A frame where nobody was found projects (0, k, 3) points: cv2.projectPoints gives None for them."""
+    c = default_rig()[0]
+    cam = Camera(c.name, c.K, c.R, c.t, c.width, c.height, dist=DIST)
+    assert cam.project(np.zeros((0, 3))).shape == (0, 2)
+    assert cam.project(np.zeros((0, 4, 3))).shape == (0, 4, 2)
+
+
 def test_rig_json_round_trip_is_exact(tmp_path):
     rig = ring_rig(n_cameras=3, azimuth_start_deg=12.3, focal_px=512.7)
     cams = list(rig.cameras)

@@ -166,6 +166,25 @@ def test_colour_videos_with_the_recordings_own_median_as_background(rig, tiny_mo
     assert np.linalg.norm(floor - where[np.array(r["frame"])], axis=1).max() < 0.1
 
 
+def test_someone_standing_still_under_a_median_background_is_diagnosed(rig, tiny_model, tools, tmp_path):
+    """Pose2Sim's demo: one person balancing in place for 1.7 s and no empty-room footage (here 4 frames). The recording's
+    median is then that person, nobody is found, and the warning says why and what to give instead."""
+    from pathlib import Path
+
+    from silpose.segment.composite import composite_frame, room
+
+    videos = tmp_path / "v"
+    videos.mkdir()
+    for k, cam in enumerate(rig):
+        clean = room(k, (cam.width, cam.height))
+        mask = tools.cylinder_masks(rig, [(0.3, 0.1)])[k] > 0
+        tools.write_video(videos / f"{cam.name}.mp4", np.stack([composite_frame(mask, k, i, clean=clean)
+                                                                 for i in range(4)]))
+    s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(background=Path("median"), overlays=False))
+    assert s.n_persons == 0
+    assert any("nobody was found" in w and "hardly moves" in w and "--background DIR" in w for w in s.warnings)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--masks", "--background-frames", "5"], "mask videos need no background"),
     ([], "colour videos need a background"),

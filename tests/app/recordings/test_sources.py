@@ -184,3 +184,27 @@ def test_threaded_reader_gives_the_frames_in_order_then_none(rig, tools, tmp_pat
     got = [_frame_index(r.read()) for _ in range(9)]
     assert got == list(range(9)) and r.read() is None and r.read() is None and r.summary() is None
     r.close()
+
+
+def test_a_video_a_codec_block_narrower_is_the_calibrations_picture(rig, tools, tmp_path):
+    """Pose2Sim's demo: one 1088 px calibration, videos 1080 and 1088 px wide (encoders round sides to 16 px).
+    A video 8 columns narrower and 4 rows taller than the camera is read pixel for pixel: the right edge padded
+    with its last column, the bottom cut; the blob stays where it was. 20 px off stays an error."""
+    full = np.zeros((3, 486, 644), np.uint8)
+    full[:, 100:300, 200:260] = 255
+    narrow = np.zeros((3, 490, 636), np.uint8)
+    narrow[:, :486, :] = full[:, :, :636]
+    narrow[:, :, -1] = 90  # the last column, repeated into the padding
+    tools.write_video(tmp_path / "cam1.mp4", narrow)
+    rec = open_recording(tmp_path, rig)
+    src = rec.sources["cam1"]
+    assert (src.width, src.height, src.pad, src.resize_to) == (644, 486, (8, -4), None)
+    assert any("cam1.mp4: frames are 636x490" in w and "8 column(s), -4 row(s)" in w for w in rec.warnings)
+    frame = CameraReader(src, grey=True).read()
+    assert frame.shape == (486, 644)
+    np.testing.assert_allclose(frame[:, 636:].mean(axis=1), frame[:, 635], atol=1)  # padding repeats the edge
+    iou = ((frame > 127) & (full[0] > 0)).sum() / ((frame > 127) | (full[0] > 0)).sum()
+    assert iou > 0.97
+    tools.write_video(tmp_path / "cam1.mp4", np.zeros((2, 486, 624), np.uint8))
+    with pytest.raises(RecordingError, match=r"cam1.mp4: frames are 624x486 \(WxH\).*another aspect ratio"):
+        open_recording(tmp_path, rig)

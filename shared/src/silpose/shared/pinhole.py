@@ -134,7 +134,7 @@ class Camera:
         """
         points = np.asarray(points, dtype=np.float64)
         xc = self.to_camera(points)
-        if np.any(self.dist):
+        if np.any(self.dist) and xc.size:  # (cv2.projectPoints gives None for no points)
             # Project the camera-frame points with a zero pose: going through cv2.Rodrigues(R)
             # would lose ~1e-8 near a rotation angle of pi (the default rig's cam2 has exactly pi).
             flat = np.ascontiguousarray(xc.reshape(-1, 3))

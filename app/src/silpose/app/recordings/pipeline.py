@@ -462,7 +462,9 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
     n_persons = len(tracks)
     if n_persons == 0:
-        warnings.append("nobody was found on the floor in any frame: joints.parquet has no rows")
+        warnings.append("nobody was found on the floor in any frame: joints.parquet has no rows" + (
+            "; with --background median, whoever hardly moves over the recording (feet included) is part of its "
+            "background: give empty-room clips (--background DIR)" if str(opt.background) == MEDIAN else ""))
     files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
                                  f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
     timings["total"] = time.perf_counter() - t_start

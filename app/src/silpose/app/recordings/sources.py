@@ -24,7 +24,11 @@ the file: the video opens and decodes a first frame; its frame size is the rig c
 picture at another scale (a lab calibrates at full resolution and records or stores smaller videos: both
 sides scaled by one factor, to the pixel: the rig's aspect ratio gives the video's height from its width within
 one pixel), then every frame is resized to the camera's size
-(bilinear; a mask is thresholded after) with a warning; all videos have
+(bilinear; a mask is thresholded after) with a warning -- or the same picture with fewer than
+:data:`CODEC_BLOCK` (16) columns or rows more or less at its right and bottom edges (encoders round frame
+sides to blocks of 16 px and players crop them back, so one lab's videos come out 1080 or 1088 px wide for
+one 1088 px calibration, as in Pose2Sim's demo): every frame is cut, or padded by repeating its last column
+or row, to the camera's size, pixel for pixel, with a warning; all videos have
 one frame rate (1 % tolerance; frames are synchronised by index, so different rates would pair frames
 shot at different times). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
 the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
@@ -67,6 +71,9 @@ from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 MAPPING_FILE = "cameras.toml"
 #: relative frame-rate difference tolerated between cameras
 FPS_TOLERANCE = 0.01
+#: a video whose sides differ from its camera's calibrated picture by fewer pixels is that picture with its right
+#: and bottom edges cut or padded (encoders round sides to blocks of 16 px; module docstring)
+CODEC_BLOCK = 16
 #: FFmpeg log level OpenCV is given unless the user set ``OPENCV_FFMPEG_LOGLEVEL`` (-8: AV_LOG_QUIET)
 FFMPEG_LOGLEVEL = "-8"
 
@@ -88,8 +95,10 @@ class CameraSource:
 
     camera: rig camera name; path: the file or folder; fps: frames per second (0 when unknown: image
     folders, or a header without it); n_frames: frames the header (or folder) reports, -1 when unknown;
-    width, height: frame size, px; skip: frames skipped at the start (offsets); resize_to: (width, height) of
-    the rig camera when the frames are its picture at another scale (each frame is resized), else None.
+    width, height: size of the frames read, px (after ``pad``); skip: frames skipped at the start (offsets);
+    resize_to: (width, height) of the rig camera when the frames are its picture at another scale (each frame is
+    resized), else None; pad: (columns, rows) added at the right and bottom edges of every decoded frame
+    (negative: removed) to give the rig camera's picture (:data:`CODEC_BLOCK`), applied before ``resize_to``.
     """
 
     camera: str
@@ -101,6 +110,7 @@ class CameraSource:
     skip: int = 0
     images: tuple[Path, ...] | None = None
     resize_to: tuple[int, int] | None = None
+    pad: tuple[int, int] = (0, 0)
 
     @property
     def is_video(self) -> bool:
@@ -283,6 +293,14 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
         want = rig[cameras.index(cam)]
         if (src.width, src.height) != (want.width, want.height):
             sx = want.width / src.width
+            pad = (want.width - src.width, want.height - src.height)
+            if abs(want.height / sx - src.height) > 1.0 and max(map(abs, pad)) < CODEC_BLOCK:
+                warnings.append(f"{src.path.name}: frames are {src.width}x{src.height}, camera {cam!r} of the rig is "
+                                f"{want.width}x{want.height}: read as its picture with the right and bottom edges "
+                                f"{'padded' if min(pad) >= 0 else 'cut'} by {pad[0]} column(s), {pad[1]} row(s) "
+                                "(encoders round sides to 16 px)")
+                sources[cam] = dataclasses.replace(src, width=want.width, height=want.height, pad=pad)
+                continue
             if abs(want.height / sx - src.height) > 1.0:  # not the same picture up to rounding
                 raise RecordingError(
                     f"{src.path}: frames are {src.width}x{src.height} (WxH), camera {cam!r} of the rig is "
@@ -328,6 +346,19 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
     return Recording(folder, sources, missing, n_steps, fps, warnings)
 
 
+def fit_picture(img: np.ndarray, pad: tuple[int, int]) -> np.ndarray:
+    """``img`` (H, W[, C]) with ``pad = (columns, rows)`` added at its right and bottom edges (copies of its
+    last column / row) or, when negative, removed there: (H + rows, W + columns[, C])."""
+    dw, dh = int(pad[0]), int(pad[1])
+    if dw < 0:
+        img = img[:, :dw]
+    if dh < 0:
+        img = img[:dh]
+    if dw > 0 or dh > 0:
+        img = cv2.copyMakeBorder(img, 0, max(dh, 0), 0, max(dw, 0), cv2.BORDER_REPLICATE)
+    return img
+
+
 class CameraReader:
     """Streams one camera's frames: :meth:`read` gives the next one, or None at the end.
 
@@ -358,6 +389,8 @@ class CameraReader:
         self.index += 1
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        if self.source.pad != (0, 0):
+            img = fit_picture(img, self.source.pad)
         if self.source.resize_to is not None:
             shrink = self.source.resize_to[0] < img.shape[1]  # averaging the merged pixels: no aliasing
             img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)

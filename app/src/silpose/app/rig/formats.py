@@ -122,6 +122,18 @@ def _skeletool_read(p: Path, ctx: ReadContext):
     return read_skeletool(p)
 
 
+def _qualisys_detect(p: Path) -> bool:
+    from .qualisys import is_qualisys
+
+    return is_qualisys(p)
+
+
+def _qualisys_read(p: Path, ctx: ReadContext):
+    from .qualisys import read_qualisys
+
+    return read_qualisys(p, ctx.notes)
+
+
 _COLMAP_NAMES = ("cameras.txt", "images.txt", "cameras.bin", "images.bin")
 
 
@@ -184,6 +196,8 @@ FORMATS: tuple[Format, ...] = (
     Format("pose2sim", "*.toml", "Pose2Sim, anipose", lambda p: p.suffix.lower() == ".toml", _pose2sim_read),
     Format("skeletool", "*.calibration", "Skeletool, Captury (MPI-INF-3DHP, DynaCap)", _skeletool_detect,
            _skeletool_read),
+    Format("qualisys", "*.qca.txt (XML)", "Qualisys Track Manager (Pose2Sim's demos)", _qualisys_detect,
+           _qualisys_read),
     Format("colmap", "cameras.txt + images.txt (or .bin)", "COLMAP sparse model", lambda p: p.name.lower() in
            _COLMAP_NAMES, _colmap_read, files_of=_colmap_files),
     Format("silpose", "rig.json", "silpose rig import", _silpose_detect, _silpose_read),
