@@ -43,7 +43,7 @@ def import_(
     subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects).")] = "",
     licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
     scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions).")] = 1.0,
-    joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz) or a TOML file.")] = "auto",
+    joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz, mocapnet) or a TOML file.")] = "auto",
     first: Annotated[int, typer.Option(min=0, help="First frame kept (1 drops a calibration pose in frame 0).")] = 0,
     fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
