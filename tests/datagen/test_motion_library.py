@@ -43,7 +43,7 @@ def test_bundled_library_coverage_sources_and_size():
     assert m["acknowledgement"] == CMU_ACKNOWLEDGEMENT
     assert len(clips) >= 60
     assert len({c["subject"] for c in clips}) >= 15
-    assert len({c["group"] for c in clips}) >= 9
+    assert len({c["group"] for c in clips}) >= 10
     for c in clips:
         assert c["licence"] and c["source"] and len(c["sha256"]) == 64 and c["description"]
         assert 15.0 <= c["fps"] <= 30.5 and c["frames"] > 0

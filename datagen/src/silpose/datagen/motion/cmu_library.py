@@ -13,8 +13,10 @@ at these commits (files of 4 MiB and more were not fetched here and are not used
     git clone https://github.com/AmmarkoV/RGBDAcquisition                   # commit 22ae26c
     git clone https://github.com/beemsoft/webxr-handtracking-playground     # commit c75be06
     git clone https://github.com/makehumancommunity/makehuman && git -C makehuman checkout 49101a4
-    python -m silpose.datagen.motion.cmu_library --iclone IClone-CMU-Mocap --bvh11 bvh11 --cookbook cookbook \
-        --rgbd RGBDAcquisition --salsa webxr-handtracking-playground --makehuman makehuman --out LIBRARY_DIR
+    git clone https://github.com/lawrennd/mocap                             # commit 7e19233
+    python -m silpose.datagen.motion.cmu_library --iclone IClone-CMU-Mocap --bvh11 bvh11 --cookbook cookbook \\
+        --rgbd RGBDAcquisition --salsa webxr-handtracking-playground --makehuman makehuman --lawrence mocap \\
+        --out LIBRARY_DIR
 
 - ``IClone-CMU-Mocap`` (DragonForgedTheArtist): the AMC files converted to BVH (Credo LifeForms),
   a T-pose prepended (frame 0, dropped here), resampled to 60 fps and retargeted in iClone onto the
@@ -34,9 +36,13 @@ at these commits (files of 4 MiB and more were not fetched here and are not used
   subjects 60 (lead) and 61 (follow) in the DAZ-friendly conversion shrunk 128 times (``daz`` map,
   :data:`SALSA_SCALE`, 120 fps, no T-pose). 60 and 61 dance together in each trial, so only
   disjoint trials are taken from the two (:data:`SALSA_CLIPS`).
-- ``makehuman`` at commit 49101a4 (the files were removed later): ``makehuman/data/bvhs``, trial
-  03_03 (DAZ-friendly), 10_01 (``hip-knee`` names, inches, 30 fps) and 12_03 (the
-  MotionBuilder-friendly conversion, ``cmu`` map, CMU units).
+- ``makehuman`` at commit 49101a4 (the files were removed later): ``makehuman/data/bvhs``, trials
+  03_03 (DAZ-friendly) and 12_03 (the MotionBuilder-friendly conversion, ``cmu`` map, CMU units;
+  its LowerBack and Neck start where their parents do). Its 10_01 (another hierarchy, 30 fps) is
+  not used: ``mocap`` has the DAZ-friendly one.
+- ``mocap`` (Neil Lawrence's MOCAP toolbox): ``python/files``, the DAZ-friendly trials 10_01,
+  10_03, 11_01 (soccer kicks) and 14_19 (laugh) (``daz`` map, centimetres, 120 fps; frame 0 a
+  T-pose, dropped).
 
 Groups follow the clip's CMU description (:data:`GROUP`); the splits hold out whole subjects
 (:data:`TEST_SUBJECTS`): frames of one clip a few frames apart are near-copies, so a frame split
@@ -71,23 +77,26 @@ SALSA_SCALE = 1.28
 SALSA_CLIPS = ("60_01", "60_02", "60_03", "60_04", "61_10", "61_11")
 MAKEHUMAN = ("makehumancommunity/makehuman", "49101a4709fb2ede938390c71b78cf3e2636923c")
 #: The MakeHuman clips used (path -> joint map, metres per BVH unit); 02_02 is also in IClone-CMU-Mocap.
-MAKEHUMAN_FILES = {"makehuman/data/bvhs/03_03.bvh": ("daz", 0.01), "makehuman/data/bvhs/10_01.bvh": ("hip-knee", 0.0254),
-                   "makehuman/data/bvhs/cmu/12_03.bvh": ("cmu", CMU_SCALE)}
+MAKEHUMAN_FILES = {"makehuman/data/bvhs/03_03.bvh": ("daz", 0.01), "makehuman/data/bvhs/cmu/12_03.bvh": ("cmu", CMU_SCALE)}
+LAWRENCE = ("lawrennd/mocap", "7e192332050e0be6ccc5d45c3fb762b6f5da8fac")
+#: The CMU trials of the MOCAP toolbox's ``python/files`` used (DAZ-friendly; 14_06 and 14_10 are over 4 MiB).
+LAWRENCE_CLIPS = ("10_01", "10_03", "11_01", "14_19")
 #: Subjects held out for the test split (all their clips); every other subject is training. Chosen so
 #: that every group has clips of a training subject and of a test subject.
-TEST_SUBJECTS = frozenset({"2", "3", "8", "49", "61", "131"})
+TEST_SUBJECTS = frozenset({"2", "3", "8", "11", "49", "61", "131"})
 
 #: Activity group of every clip that is not a plain walk (clip id -> group), from its CMU description:
 #: ``bend`` bending over, sitting down and climbing (the trunk bent, the body lowered); ``leap`` a
-#: travelling jump from a run (run and leap, grand jete); ``sports`` basketball, punching, swordplay
-#: and kicking a ball; ``dance`` ballet (subject 5) and salsa (60, 61); ``everyday`` washing, laughing.
+#: travelling jump from a run (run and leap, grand jete); ``kick`` kicking a soccer ball; ``sports``
+#: basketball, punching, swordplay; ``dance`` ballet (subject 5) and salsa (60, 61); ``everyday``
+#: washing, laughing.
 GROUP: dict[str, str] = {
     "01_01": "jump", "01_08": "bend", "01_14": "bend",
     "02_03": "run", "02_04": "balance", "02_05": "sports", "02_06": "bend", "02_07": "sports", "02_08": "sports",
     "02_09": "sports", "02_10": "everyday",
     **{f"05_{k:02d}": "dance" for k in range(2, 21)}, "05_14": "balance", "05_15": "balance", "05_17": "leap",
     **{f"06_{k:02d}": "sports" for k in range(2, 16)},
-    "10_01": "sports", "10_02": "sports", "13_14": "everyday", "13_32": "jump", "16_36": "run", "49_04": "leap",
+    "10_01": "kick", "10_02": "kick", "10_03": "kick", "11_01": "kick", "13_14": "everyday", "14_19": "everyday", "13_32": "jump", "16_36": "run", "49_04": "leap",
     **{f"{s}_{k:02d}": "dance" for s in (60, 61) for k in range(1, 16)},
     "131_03": "jump",
 }
@@ -121,7 +130,8 @@ def cmu_index(iclone: Path) -> dict[str, str]:
 
 
 def cmu_sources(iclone: Path, bvh11: Path, cookbook: Path | None = None, rgbd: Path | None = None,
-                salsa: Path | None = None, makehuman: Path | None = None) -> list[ClipSource]:
+                salsa: Path | None = None, makehuman: Path | None = None, lawrence: Path | None = None
+                ) -> list[ClipSource]:
     """The bundled library's clips (module docstring), source by source, in subject and trial order."""
     index = cmu_index(iclone)
     out = [_source(ICLONE, iclone, p, _cid(p.stem), index.get(_cid(p.stem), "Unknown"), "cc-base", 0.01)
@@ -144,6 +154,9 @@ def cmu_sources(iclone: Path, bvh11: Path, cookbook: Path | None = None, rgbd: P
         out += [_source(MAKEHUMAN, makehuman, makehuman / name, _cid(Path(name).stem), index[_cid(Path(name).stem)],
                         jmap, scale)
                 for name, (jmap, scale) in sorted(MAKEHUMAN_FILES.items())]
+    if lawrence is not None:
+        out += [_source(LAWRENCE, lawrence, lawrence / "python" / "files" / f"{cid}.bvh", cid, index[cid], "daz", 0.01)
+                for cid in LAWRENCE_CLIPS]
     return sorted(out, key=lambda c: (int(c.subject), c.id))
 
 
@@ -156,10 +169,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--salsa", type=Path, default=None, help="checkout of beemsoft/webxr-handtracking-playground")
     ap.add_argument("--makehuman", type=Path, default=None,
                     help=f"checkout of makehumancommunity/makehuman at commit {MAKEHUMAN[1][:8]}")
+    ap.add_argument("--lawrence", type=Path, default=None, help="checkout of lawrennd/mocap")
     ap.add_argument("--out", type=Path, required=True, help="library folder (new, or a silpose library)")
     ap.add_argument("--workers", type=int, default=None)
     args = ap.parse_args(argv)
-    report = import_clips(cmu_sources(args.iclone, args.bvh11, args.cookbook, args.rgbd, args.salsa, args.makehuman), args.out, workers=args.workers,
+    report = import_clips(cmu_sources(args.iclone, args.bvh11, args.cookbook, args.rgbd, args.salsa, args.makehuman,
+                                     args.lawrence), args.out, workers=args.workers,
                           acknowledgement=CMU_ACKNOWLEDGEMENT)
     for line in report.skipped:
         print(line, file=sys.stderr)
