@@ -76,10 +76,11 @@ SALSA_SCALE = 1.28
 #: The salsa trials used: subject 60 leads, 61 follows in the same trials; disjoint trials are taken from each.
 SALSA_CLIPS = ("60_01", "60_02", "60_03", "60_04", "61_10", "61_11")
 MAKEHUMAN = ("makehumancommunity/makehuman", "49101a4709fb2ede938390c71b78cf3e2636923c")
-#: The MakeHuman clips used (path -> joint map, metres per BVH unit); 02_02 is also in IClone-CMU-Mocap.
-MAKEHUMAN_FILES = {"makehuman/data/bvhs/03_03.bvh": ("daz", 0.01), "makehuman/data/bvhs/cmu/12_03.bvh": ("cmu", CMU_SCALE)}
+#: The MakeHuman clips used (path -> joint map, metres per BVH unit); its 02_02 and 10_01 are taken elsewhere.
+MAKEHUMAN_FILES = {"makehuman/data/bvhs/03_03.bvh": ("daz", 0.01),
+                   "makehuman/data/bvhs/cmu/12_03.bvh": ("cmu", CMU_SCALE)}
 LAWRENCE = ("lawrennd/mocap", "7e192332050e0be6ccc5d45c3fb762b6f5da8fac")
-#: The CMU trials of the MOCAP toolbox's ``python/files`` used (DAZ-friendly; 14_06 and 14_10 are over 4 MiB).
+#: The CMU trials of the MOCAP toolbox's ``python/files`` used (DAZ-friendly; 14_06, 14_10 are over 4 MiB).
 LAWRENCE_CLIPS = ("10_01", "10_03", "11_01", "14_19")
 #: Subjects held out for the test split (all their clips); every other subject is training. Chosen so
 #: that every group has clips of a training subject and of a test subject.
@@ -96,7 +97,8 @@ GROUP: dict[str, str] = {
     "02_09": "sports", "02_10": "everyday",
     **{f"05_{k:02d}": "dance" for k in range(2, 21)}, "05_14": "balance", "05_15": "balance", "05_17": "leap",
     **{f"06_{k:02d}": "sports" for k in range(2, 16)},
-    "10_01": "kick", "10_02": "kick", "10_03": "kick", "11_01": "kick", "13_14": "everyday", "14_19": "everyday", "13_32": "jump", "16_36": "run", "49_04": "leap",
+    "10_01": "kick", "10_02": "kick", "10_03": "kick", "11_01": "kick",
+    "13_14": "everyday", "13_32": "jump", "14_19": "everyday", "16_36": "run", "49_04": "leap",
     **{f"{s}_{k:02d}": "dance" for s in (60, 61) for k in range(1, 16)},
     "131_03": "jump",
 }
