@@ -78,6 +78,29 @@ def test_every_group_has_training_and_test_subjects():
     assert 0.2 <= frames["test"] / (frames["train"] + frames["test"]) <= 0.35, frames
 
 
+def test_build_script_reproduces_the_bundled_manifest_rows(tmp_path):
+    """cmu_sources on empty files laid out as the manifest's sources say gives the manifest's rows."""
+    from silpose.datagen.motion import cmu_library as cl
+
+    clips = manifest()["clips"]
+    repos = {"iclone": cl.ICLONE, "bvh11": cl.BVH11, "cookbook": cl.COOKBOOK, "rgbd": cl.RGBD, "salsa": cl.SALSA,
+             "makehuman": cl.MAKEHUMAN, "lawrence": cl.LAWRENCE}
+    for c in clips:
+        repo_at, path = c["source"].removeprefix("github.com/").split(":", 1)
+        key = next(k for k, (name, commit) in repos.items() if repo_at == f"{name}@{commit[:7]}")
+        (tmp_path / key / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / key / path).write_text("")
+    rows = ["Subject,Trial #,Motion Description"] + [
+        f'{int(c["id"].split("_")[1])},{int(c["id"].split("_")[2])},"{c["description"]}"' for c in clips]
+    (tmp_path / "iclone" / "CMU data.csv").write_text("\n".join(rows) + "\n")
+    got = cl.cmu_sources(*(tmp_path / k for k in repos))
+    want = [(c["id"], c["subject"], c["description"], c["group"], c["split"], c["source"], c["joint_map"], c["scale"],
+             c["first"], c["licence"]) for c in clips]
+    assert [(s.id, s.subject, s.description, s.group, s.split, s.source, s.joint_map, s.scale, s.first, s.licence)
+            for s in got] == want
+    assert {c["subject"] for c in clips if c["split"] == "test"} == cl.TEST_SUBJECTS
+
+
 # ------------------------------------------------------------------------------ form and retarget
 
 
