@@ -17,7 +17,8 @@ import pytest
 from silpose.datagen.config import load_config
 from silpose.datagen.motion.config import MotionConfigError, motion_from_dict
 from silpose.datagen.motion.library import (BUNDLED, CMU_ACKNOWLEDGEMENT, FRAMES_NAME, MANIFEST_NAME, PARENTS, ROLES,
-                                            LibraryClip, LibraryError, derive, load_library, reconstruct, write_library)
+                                            LibraryClip, LibraryError, derive, load_library, reconstruct, resample_chain,
+                                            write_library)
 from silpose.datagen.motion.mix import MIX_FIELDS, MixedMotion, prepare_library
 from silpose.datagen.motion.retarget import retarget_frame
 from silpose.datagen.scene import draw_scene
@@ -41,13 +42,20 @@ def test_bundled_library_coverage_sources_and_size():
     clips = m["clips"]
     assert m["acknowledgement"] == CMU_ACKNOWLEDGEMENT
     assert len(clips) >= 60
+    assert len({c["subject"] for c in clips}) >= 15
     assert len({c["group"] for c in clips}) >= 10
     for c in clips:
         assert c["licence"] and c["source"] and len(c["sha256"]) == 64 and c["description"]
         assert 15.0 <= c["fps"] <= 30.5 and c["frames"] > 0
+        assert 1.2 <= c["extent_m"] <= 2.6, (c["id"], c["extent_m"])  # the unit (scale) is right
+        subject, _trial = c["id"].removeprefix("cmu_").split("_")
+        assert int(subject) == int(c["subject"]), c["id"]  # a CMU trial id names its subject
+    assert len({c["id"] for c in clips}) == len(clips) and len({c["sha256"] for c in clips}) == len(clips)
     assert (BUNDLED / FRAMES_NAME).stat().st_size + (BUNDLED / MANIFEST_NAME).stat().st_size <= 40e6
-    t = pq.read_table(BUNDLED / FRAMES_NAME, columns=["clip"])
-    assert np.array_equal(np.bincount(t.column("clip").to_numpy()), [c["frames"] for c in clips])
+    col = pq.ParquetFile(BUNDLED / FRAMES_NAME).read(columns=["clip"]).column("clip")
+    # the int32 values straight from the Arrow buffers (to_numpy would import pandas: 4 s on a loaded machine)
+    clip = np.concatenate([np.frombuffer(a.buffers()[1], np.int32)[a.offset:a.offset + len(a)] for a in col.chunks])
+    assert np.array_equal(np.bincount(clip), [c["frames"] for c in clips])
 
 
 def test_train_and_test_hold_out_subjects():
@@ -59,6 +67,38 @@ def test_train_and_test_hold_out_subjects():
     assert not subj["train"] & subj["test"]
     sha = {s: {c["sha256"] for c in clips if c["split"] == s} for s in ("train", "test")}
     assert not sha["train"] & sha["test"]
+
+
+def test_every_group_has_training_and_test_subjects():
+    clips = manifest()["clips"]
+    for group in {c["group"] for c in clips}:
+        for split in ("train", "test"):
+            assert any(c["group"] == group and c["split"] == split for c in clips), (group, split)
+    frames = {s: sum(c["frames"] for c in clips if c["split"] == s) for s in ("train", "test")}
+    assert 0.2 <= frames["test"] / (frames["train"] + frames["test"]) <= 0.35, frames
+
+
+def test_build_script_reproduces_the_bundled_manifest_rows(tmp_path):
+    """cmu_sources on empty files laid out as the manifest's sources say gives the manifest's rows."""
+    from silpose.datagen.motion import cmu_library as cl
+
+    clips = manifest()["clips"]
+    repos = {"iclone": cl.ICLONE, "bvh11": cl.BVH11, "cookbook": cl.COOKBOOK, "rgbd": cl.RGBD, "salsa": cl.SALSA,
+             "makehuman": cl.MAKEHUMAN, "lawrence": cl.LAWRENCE}
+    for c in clips:
+        repo_at, path = c["source"].removeprefix("github.com/").split(":", 1)
+        key = next(k for k, (name, commit) in repos.items() if repo_at == f"{name}@{commit[:7]}")
+        (tmp_path / key / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / key / path).write_text("")
+    rows = ["Subject,Trial #,Motion Description"] + [
+        f'{int(c["id"].split("_")[1])},{int(c["id"].split("_")[2])},"{c["description"]}"' for c in clips]
+    (tmp_path / "iclone" / "CMU data.csv").write_text("\n".join(rows) + "\n")
+    got = cl.cmu_sources(*(tmp_path / k for k in repos))
+    want = [(c["id"], c["subject"], c["description"], c["group"], c["split"], c["source"], c["joint_map"], c["scale"],
+             c["first"], c["licence"]) for c in clips]
+    assert [(s.id, s.subject, s.description, s.group, s.split, s.source, s.joint_map, s.scale, s.first, s.licence)
+            for s in got] == want
+    assert {c["subject"] for c in clips if c["split"] == "test"} == cl.TEST_SUBJECTS
 
 
 # ------------------------------------------------------------------------------ form and retarget
@@ -84,9 +124,18 @@ def test_derive_reconstruct_round_trip():
     assert np.allclose(reconstruct(root, dirs, got_lengths), P, atol=1e-12)
 
 
+def test_spine_chain_with_a_zero_length_segment_is_resampled():
+    up = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.1], [0.0, 0.0, 0.25], [0.0, 0.0, 0.4], [0.0, 0.0, 0.6]])
+    assert np.array_equal(resample_chain(up[None]), up[None])  # five distinct points: kept as they are
+    mb = up[[0, 0, 2, 3, 3]][None]  # LowerBack at the hips, Neck at Spine1 (MotionBuilder-friendly CMU)
+    got = resample_chain(mb)[0]
+    assert np.allclose(got[:, 2], [0.0, 0.1, 0.2, 0.3, 0.4])  # quarter points of the 0.4 m arc
+    assert np.all(np.diff(got[:, 2]) > 0)  # every spine role has a direction
+
+
 def _stored(lib_path):
     """Frames, clip rows and directions read straight from the Parquet file (the reference)."""
-    t = pq.read_table(lib_path / FRAMES_NAME)
+    t = pq.ParquetFile(lib_path / FRAMES_NAME).read()
     clip = t.column("clip").to_numpy()
     dirs = np.asarray(t.column("dirs").combine_chunks().flatten().to_numpy()).reshape(len(clip), -1, 3)
     return clip, dirs
@@ -228,8 +277,8 @@ source = "library"
 procedural_walk = 0.2
 mirror = true
 [motion.weights]
-sit = 3.0
-climb = 3.0
+bend = 3.0
+leap = 3.0
 """
 
 

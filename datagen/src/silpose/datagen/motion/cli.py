@@ -17,6 +17,11 @@ app = typer.Typer(help="The motion library: motion-capture clips silpose poses b
                   no_args_is_help=True, add_completion=False)
 
 
+def _subject_order(s: str) -> tuple[int, str]:
+    """Numeric subjects in numeric order (2 before 13), then the others."""
+    return (int(s), "") if s.isdigit() else (1 << 30, s)
+
+
 def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
     """BVH files of ``paths`` (folders searched recursively for *.bvh, files taken as given), and one
     line per path that does not exist or holds no BVH file."""
@@ -43,7 +48,7 @@ def import_(
     subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects).")] = "",
     licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
     scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions).")] = 1.0,
-    joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz) or a TOML file.")] = "auto",
+    joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz, mocapnet) or a TOML file.")] = "auto",
     first: Annotated[int, typer.Option(min=0, help="First frame kept (1 drops a calibration pose in frame 0).")] = 0,
     fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
@@ -98,7 +103,7 @@ def list_(
         cs = [c for c in lib.clips if c["group"] == g]
         per = {s: sum(c["split"] == s for c in cs) for s in ("train", "test")}
         typer.echo(f"{g}: {len(cs)} clips ({per['train']} train, {per['test']} test), "
-                   f"{sum(int(c['frames']) for c in cs)} frames, subjects {', '.join(sorted({str(c.get('subject', '')) for c in cs}))}")
+                   f"{sum(int(c['frames']) for c in cs)} frames, subjects {', '.join(sorted({str(c.get('subject', '')) for c in cs}, key=_subject_order))}")
         if clips:
             for c in cs:
                 typer.echo(f"  {c['id']:<14} subject {str(c.get('subject', '-')):<4} {c['split']:<5} {int(c['frames']):>5} frames  "

@@ -35,7 +35,10 @@ detected with ``"auto"`` (the first map whose required joints all exist in the c
   CC_Base_L_Forearm, CC_Base_L_Hand, CC_Base_L_Thigh, CC_Base_L_Calf, CC_Base_L_Foot,
   CC_Base_L_ToeBase, ...; twist, share, finger and face bones ignored);
 - ``daz``: the DAZ-friendly BVH conversions of the CMU database (hip, abdomen, chest, neck, head,
-  lCollar, lShldr, lForeArm, lHand, lButtock, lThigh, lShin, lFoot; no toe joint).
+  lCollar, lShldr, lForeArm, lHand, lButtock, lThigh, lShin, lFoot; no toe joint);
+- ``mocapnet``: the lower-case names of the MocapNET / MakeHuman skeletons (hip, abdomen, chest,
+  neck, head, lcollar, lshoulder, lelbow, lhand, lhip, lknee, lfoot; the hip joint's parent is
+  ``lbuttock`` or ``lhipjoint``; toes not mapped: their names differ between the variants).
 
 Any other skeleton: a user TOML file, one ``role = "BVH joint name"`` line per role
 (``joint_map = "my_map.toml"``, relative to the config file)::
@@ -113,8 +116,15 @@ BUILTIN_MAPS["daz"] = {
              {k: f"r{v}" for k, v in (("shoulder", "Shldr"), ("elbow", "ForeArm"), ("wrist", "Hand"), ("hip", "Thigh"),
                                        ("knee", "Shin"), ("ankle", "Foot"))}),
 }
+BUILTIN_MAPS["mocapnet"] = {
+    "pelvis": "hip", "neck": "neck", "head": "head",
+    **_sided({k: f"l{v}" for k, v in (("shoulder", "shoulder"), ("elbow", "elbow"), ("wrist", "hand"), ("hip", "hip"),
+                                       ("knee", "knee"), ("ankle", "foot"))},
+             {k: f"r{v}" for k, v in (("shoulder", "shoulder"), ("elbow", "elbow"), ("wrist", "hand"), ("hip", "hip"),
+                                       ("knee", "knee"), ("ankle", "foot"))}),
+}
 #: Order in which ``"auto"`` tries the built-in maps.
-AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz")
+AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz", "mocapnet")
 #: Name of the map ``"auto"`` reads off the skeleton when no built-in map fits (:mod:`.name_match`).
 MATCHED_MAP = "matched"
 

@@ -20,8 +20,8 @@ A library is a folder holding exactly two files, both written by silpose (atomic
 
 Roles (:data:`ROLES`, parent in brackets): pelvis; spine_1 .. spine_3 (pelvis, spine_1, spine_2),
 the clip's spine chain between pelvis and neck resampled to 3 interior points at 1/4, 1/2, 3/4 of
-its arc length (kept exactly when the chain has exactly 3 interior joints, as the CMU and
-Character Creator skeletons do); neck (spine_3); head (neck); head_top (head); per side
+its arc length (kept exactly when the chain has exactly 3 interior joints, none where its parent is,
+as the Character Creator skeleton's); neck (spine_3); head (neck); head_top (head); per side
 shoulder (neck), elbow, wrist and hip (pelvis), knee, ankle, toe. A frame's joint positions are
 ``root[:3]`` plus the cumulative sums of ``dirs * lengths`` down the tree, so the library stores
 every clip's bone directions and root motion, and nothing of the source file itself.
@@ -95,9 +95,16 @@ class LibraryError(ValueError):
 # ------------------------------------------------------------------------------------------ derive
 
 
-def _resample_chain(chain: np.ndarray) -> np.ndarray:
-    """(F, k, 3) spine chains -> (F, 5, 3): kept when k == 5, else points at 0, 1/4, ..., 1 of arc length."""
-    if chain.shape[1] == 5:
+#: Shortest spine-chain segment (metres) kept as a joint of its own (:func:`resample_chain`).
+MIN_SEGMENT_M = 1e-4
+
+
+def resample_chain(chain: np.ndarray) -> np.ndarray:
+    """(F, k, 3) spine chains (metres) -> (F, 5, 3): kept when k == 5 and no segment is shorter than
+    :data:`MIN_SEGMENT_M` in any frame, else the points at 0, 1/4, ..., 1 of each chain's arc length
+    (the MotionBuilder-friendly CMU skeleton's LowerBack and Neck start where their parents do:
+    kept as they are, two roles would have no direction)."""
+    if chain.shape[1] == 5 and np.all(np.linalg.norm(np.diff(chain, axis=1), axis=2) >= MIN_SEGMENT_M):
         return chain
     return np.stack([np.stack([polyline_point(c, f) for f in (0.0, 0.25, 0.5, 0.75, 1.0)]) for c in chain])
 
@@ -114,7 +121,7 @@ def role_positions(heads: np.ndarray, tails: np.ndarray, jmap: ResolvedMap) -> n
         for r, p in pts.items():
             if r in _IDX:
                 out[k, _IDX[r]] = p
-    out[:, list(CHAIN)] = _resample_chain(np.asarray(chains, np.float64))
+    out[:, list(CHAIN)] = resample_chain(np.asarray(chains, np.float64))
     return out
 
 
