@@ -5,6 +5,11 @@ of one batch (:mod:`silpose.model.robust.weights`), each pass on the frames whos
 more than :data:`SETTLED_PX` in the pass before; :func:`robust_infer` then trims the observed contours'
 excursions (:mod:`silpose.model.robust.excursions`) and undoes their slides along the outline
 (:mod:`silpose.model.robust.reindex`) against the robust reconstruction, inferring the changed frames again.
+
+Cost: the two Gaussian passes share one float32 screen of every component (:mod:`silpose.model.screen`) and
+condition exactly only the components it keeps; each reweighting pass conditions a frame on its own components of
+the pass before (:mod:`silpose.model.gated`), so it costs O(d q) per frame and component that matters rather than
+O(d q M).
 """
 
 from __future__ import annotations
