@@ -83,7 +83,9 @@ def test_robust_inference_ignores_an_outlying_stretch(fitted):
     assert _err(rob.joints, joints) < 2.0 * _err(clean.joints, joints) + 0.5
     # the outlying points get (near) zero weight, the others weight near 1
     assert rob.robust_weights[:, 1, 3:8].mean() < 0.1 and rob.robust_weights[:, 0].mean() > 0.8
-    np.testing.assert_array_equal(rob.log_marginal, gauss.log_marginal)  # the observed input's density
+    # the observed input's density (robust inference's Gaussian pass conditions the components a float32 screen
+    # keeps, silpose.model.screen: equal to rounding)
+    np.testing.assert_allclose(rob.log_marginal, gauss.log_marginal, rtol=1e-10)
     assert np.all(rob.log_marginal_robust > rob.log_marginal)
     # on clean input robust inference changes little
     assert abs(_err(model.infer(contours, robust=True).joints, joints) - _err(clean.joints, joints)) < 0.5

@@ -293,6 +293,18 @@ class Conditioner:
         return (np.matmul(np.matmul(self.W_det, self.Kinv), self.W_det.transpose(0, 2, 1))
                 + self.sig2[:, None, None] * np.eye(self.detail.size))
 
+    def checked_rows(self, X_obs) -> np.ndarray:
+        """X_obs (N, d_a) (or (d_a,) for one row) as a float64 2-D array; ValueError for a wrong shape, NaN or inf."""
+        X = np.asarray(X_obs, dtype=np.float64)
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != self.d_a:
+            raise ValueError(f"condition: X_obs must have shape (N, {self.d_a}) (one column per observed "
+                             f"dim), got {np.shape(X_obs)}")
+        if not np.all(np.isfinite(X)):
+            raise ValueError("condition: X_obs contains NaN or inf; use condition_rows for per-row missing dims")
+        return X
+
     def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False,
                  components=None) -> BatchPosterior:
         """Posterior for observations X_obs (N, d_a) (or (d_a,) for one row), columns in ``observed`` order.
@@ -305,14 +317,7 @@ class Conditioner:
         left out of the output product where no row of a block needs them (relative change < M e^-30).
         Raises ValueError for a wrong shape, NaN or inf, or values so large that the log density overflows.
         """
-        X = np.asarray(X_obs, dtype=np.float64)
-        if X.ndim == 1:
-            X = X[None, :]
-        if X.ndim != 2 or X.shape[1] != self.d_a:
-            raise ValueError(f"condition: X_obs must have shape (N, {self.d_a}) (one column per observed "
-                             f"dim), got {np.shape(X_obs)}")
-        if not np.all(np.isfinite(X)):
-            raise ValueError("condition: X_obs contains NaN or inf; use condition_rows for per-row missing dims")
+        X = self.checked_rows(X_obs)
         m_all, q, n_det = self.m, self.q, self.detail.size
         if return_cov and components is not None:
             raise ValueError("condition: return_cov needs every component (components=None)")

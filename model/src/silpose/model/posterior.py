@@ -20,6 +20,8 @@ import numpy as np
 
 from .checks import Inputs
 from .conditioning import Conditioner
+from .gated import condition_gated
+from .screen import Screen, ScreenMatrices
 from .features import FeatureLayout, denormalise_contours, normalise_contours
 from .hypotheses import heading
 from .plausibility import view_subsets
@@ -31,6 +33,8 @@ __all__ = ["Posterior"]
 #: bytes of the cached Conditioners of one Posterior (their shared output matrix aside): four of a 200-component,
 #: q 40 mixture on 4 views (robust inference alternates between the model's s^2 and a frame's noise level)
 CACHE_BYTES = 512 << 20
+#: bytes of the cached screen matrices (silpose.model.screen): float32, 52 MB per view pattern at M 200, q 40
+SCREEN_BYTES = 256 << 20
 
 
 class Posterior:
@@ -48,16 +52,21 @@ class Posterior:
         self.rig = rig
         self.n_components = int(mixture.weights_.shape[0])
         self._cache: dict = {}
+        self._screens: dict = {}  # present-view pattern -> ScreenMatrices
         self._output = None  # the output matrix every reconstructing conditioner shares (Conditioner.output_matrix)
 
-    def infer(self, inputs: Inputs, s2, components: bool = False,
-              only=None) -> tuple[InferenceResult, np.ndarray | None]:
+    def infer(self, inputs: Inputs, s2, components: bool = False, only=None,
+              screen: dict | None = None) -> tuple[InferenceResult, np.ndarray | None]:
         """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
 
         ``s2`` a float or (N,) one noise variance per frame (robust inference). With ``components`` also
         returns each component's conditional mean of the joints (N, M, 19, 3) metres, else None. ``only``:
         indices of the only mixture components to evaluate, the others being known to be negligible
-        (``Conditioner.__call__``'s ``components``); None = all.
+        (``Conditioner.__call__``'s ``components``), or an (N, M) bool mask of each frame's own
+        (:func:`~silpose.model.gated.condition_gated`; not with ``components``); None = all. ``screen``: a dict
+        the caller keeps for these ``inputs`` (empty at first): the components are chosen by a float32 first
+        pass (:mod:`silpose.model.screen`), kept there and reused by later calls on the same inputs at other
+        noise levels, and only those conditioned exactly (not with ``components`` or ``only``).
         """
         layout = self.layout
         c_mod, present = inputs.contours, inputs.present
@@ -81,6 +90,10 @@ class Posterior:
         M = self.n_components
         flat = norm.reshape(n, -1)
         per_row = np.ndim(s2) > 0
+        if per_row and (all_present or n == 1):
+            s2_rows = np.asarray(s2, dtype=np.float64).reshape(-1)
+            if (s2_rows == s2_rows[0]).all():  # one group: grouping by noise would find just this one
+                s2, per_row = float(s2_rows[0]), False
         if per_row:  # group by (pattern, noise): one integer per row, the pattern's bits then the noise level index
             levels, level_of = np.unique(np.asarray(s2, dtype=np.float64), return_inverse=True)
             code = present.astype(np.int64) @ (np.int64(1) << np.arange(kmod, dtype=np.int64))
@@ -96,10 +109,23 @@ class Posterior:
         if not per_row:
             group_s2 = np.full(len(patterns), float(s2))
         cmeans = None
+        per_frame = only is not None and np.ndim(only) == 2
+        if per_frame and components:
+            raise ValueError("a per-frame component mask gives no component means (components=False)")
+
+        screened = screen is not None and not components and only is None
+
+        def condition(pattern, s2_group, x_obs, rows=None):
+            cond = self.conditioner(pattern, s2_group)
+            if per_frame:
+                return condition_gated(cond, x_obs, only if rows is None else only[rows])
+            if screened:
+                return condition_gated(cond, x_obs, self.screened(screen, pattern, present, flat, rows, cond))
+            return cond(x_obs, return_components=components, components=only)
+
         if len(patterns) == 1:  # the common case: no fancy-index copies
             x_obs = flat if patterns[0].all() else flat[:, layout.observed_mask(patterns[0])[: layout.contour_dim]]
-            post = self.conditioner(patterns[0], float(group_s2[0]))(x_obs, return_components=components,
-                                                                     components=only)
+            post = condition(patterns[0], float(group_s2[0]), x_obs)
             mean, best, var, resp, logm = (post.reconstruction, post.best_mean, post.variance,
                                            post.responsibilities, post.log_marginal)
             cmeans = post.component_means
@@ -114,8 +140,7 @@ class Posterior:
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
                 x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
-                post = self.conditioner(pattern, float(group_s2[g]))(x_obs, return_components=components,
-                                                                      components=only)
+                post = condition(pattern, float(group_s2[g]), x_obs, rows)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal
                 if components:
@@ -137,6 +162,36 @@ class Posterior:
                               contours_px=px, centroid=cen, scale=sc, views_present=present, responsibilities=resp,
                               log_marginal=logm, views=layout.views)
         return res, comp_joints
+
+    def screened(self, screen: dict, pattern: np.ndarray, present: np.ndarray, flat: np.ndarray, rows,
+                 cond: Conditioner) -> np.ndarray:
+        """(n, M) bool: the components of frames ``rows`` (None = every frame) that the float32 screen keeps under
+        ``cond`` (:meth:`~silpose.model.screen.Screen.candidates`). The screen of the frames with this ``pattern``
+        of ``present`` (N, K) views (their normalised contours ``flat`` (N, d_contour)) is made at the first call
+        and kept in ``screen``."""
+        key = np.asarray(pattern, dtype=bool).tobytes()
+        hit = screen.get(key)
+        if hit is None:
+            rows_p = np.flatnonzero((present == pattern[None, :]).all(axis=1))
+            obs = self.layout.observed_mask(pattern)[: self.layout.contour_dim]
+            x = flat if rows_p.size == len(flat) else flat[rows_p]
+            hit = screen[key] = (rows_p, Screen(self.screen_matrices(pattern), x if obs.all() else x[:, obs]))
+        rows_p, sc = hit
+        if rows is None and rows_p.size == len(flat):
+            return sc.candidates(cond)
+        return sc.candidates(cond, np.searchsorted(rows_p, np.arange(len(flat)) if rows is None else rows))
+
+    def screen_matrices(self, pattern: np.ndarray) -> ScreenMatrices:
+        """Cached :class:`~silpose.model.screen.ScreenMatrices` of one present-view pattern (every noise level)."""
+        key = np.asarray(pattern, dtype=bool).tobytes()
+        mats = self._screens.pop(key, None)
+        self._screens[key] = mats  # most recently used last
+        if mats is None:
+            obs = np.flatnonzero(self.layout.observed_mask(pattern))
+            mats = self._screens[key] = ScreenMatrices(self.mixture.components_, self.mixture.means_, obs)
+            while sum(v.nbytes for v in self._screens.values()) > SCREEN_BYTES and len(self._screens) > 1:
+                self._screens.pop(next(iter(self._screens)))
+        return mats
 
     def pair_headings(self, inputs: Inputs, s2: float) -> np.ndarray:
         """(N, V) headings (radians) of the posterior mean joints given each pair of present views (V = K (K - 1) / 2
@@ -192,10 +247,12 @@ class Posterior:
                 reconstruct=not structure_only, detail_only=structure_only,
                 output=None if structure_only else self._output,
             )
-        cache[key] = post  # most recently used last
-        # bounded by bytes, least recently used first out: one conditioner holds O(d_a M q) floats (about 30 MB
-        # for M 60, q 40 on 4 views, 105 MB for M 200), and a run may visit 2 (2^K - 1) view patterns per s^2
-        total = sum(c.nbytes for c in cache.values())
-        while total > CACHE_BYTES and len(cache) > 1:
-            total -= cache.pop(next(iter(cache))).nbytes
+            cache[key] = post
+            # bounded by bytes, least recently used first out: one conditioner holds O(d_a M q) floats (about 30 MB
+            # for M 60, q 40 on 4 views, 105 MB for M 200), and a run may visit 2 (2^K - 1) view patterns per s^2
+            total = sum(c.nbytes for c in cache.values())
+            while total > CACHE_BYTES and len(cache) > 1:
+                total -= cache.pop(next(iter(cache))).nbytes
+        else:
+            cache[key] = post  # most recently used last
         return post

@@ -5,6 +5,11 @@ of one batch (:mod:`silpose.model.robust.weights`), each pass on the frames whos
 more than :data:`SETTLED_PX` in the pass before; :func:`robust_infer` then trims the observed contours'
 excursions (:mod:`silpose.model.robust.excursions`) and undoes their slides along the outline
 (:mod:`silpose.model.robust.reindex`) against the robust reconstruction, inferring the changed frames again.
+
+Cost: the two Gaussian passes share one float32 screen of every component (:mod:`silpose.model.screen`) and
+condition exactly only the components it keeps; each reweighting pass conditions a frame on its own components of
+the pass before (:mod:`silpose.model.gated`), so it costs O(d q) per frame and component that matters rather than
+O(d q M).
 """
 
 from __future__ import annotations
@@ -25,8 +30,8 @@ __all__ = ["SETTLED_PX", "robust_passes", "robust_infer"]
 #: px: a frame whose reconstruction moved less than this in a reweighting pass has settled; later passes leave
 #: it alone (each would move it less again: the passes converge to the weighted conditioning's fixed point)
 SETTLED_PX = 1e-2
-#: a reweighting pass evaluates only the components whose posterior weight exceeded this (GATE_NATS below the
-#: best) for some of its frames in the pass before; the others count as 0 (their means and weights < e^-30)
+#: a reweighting pass evaluates for each frame only the components whose posterior weight exceeded this (GATE_NATS
+#: below the best) for it in the pass before; the others count as 0 (their means and weights < e^-30)
 GATE_WEIGHT = float(np.exp(-GATE_NATS))
 
 
@@ -36,13 +41,15 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
     pass's result (with ``log_marginal`` that of the input, ``log_marginal_robust``, ``robust_weights``,
     ``noise_variance``) and, with ``want``, its component means (``Posterior.infer``)."""
     c_mod, present = inputs.contours, inputs.present
-    res, comp = posterior.infer(inputs, s2, components=False)
+    # the two Gaussian passes share one float32 screen of every component (silpose.model.screen)
+    screen: dict = {}
+    res, comp = posterior.infer(inputs, s2, components=False, screen=screen)
     observed_lm = res.log_marginal
     if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
         with np.errstate(invalid="ignore", over="ignore"):
             norm_obs = normalise_contours(c_mod)[0]
         s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-        res, comp = posterior.infer(inputs, s2_rows, components=False)
+        res, comp = posterior.infer(inputs, s2_rows, components=False, screen=screen)
     else:
         s2_rows = s2
     s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
@@ -55,12 +62,13 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
         u_act = np.where(p_act[..., None], point_weights(dist, settings.threshold, settings.scale_floor_px), 0.0)
         pseudo = np.where(p_act[..., None, None], rec + u_act[..., None] * (matched - rec), c_mod[active])
         u[active] = u_act
-        # the components that matter: within GATE_NATS of some active frame's best in the pass before (all of them
-        # when the hypotheses need every component's mean)
-        only = np.flatnonzero((res.responsibilities[active] > GATE_WEIGHT).any(axis=0)) if not want else None
+        # the components that matter for each frame: within GATE_NATS of its best in the pass before (all of them
+        # when the hypotheses need every component's mean), each component's frames in one product
+        # (silpose.model.gated)
+        only = None if want else res.responsibilities[active] > GATE_WEIGHT
         part, part_comp = posterior.infer(inputs.take(active).with_contours(pseudo),
                                           s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
-                                          only=None if only is None or only.size == posterior.n_components else only)
+                                          only=only)
         moved = np.abs(np.nan_to_num(part.contours_px - rec)).max(axis=(1, 2, 3))  # px
         if active.size == len(present):
             res, comp = part, part_comp

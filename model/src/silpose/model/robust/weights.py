@@ -130,11 +130,28 @@ def point_weights(residual_px: np.ndarray, threshold: float = 3.0, scale_floor_p
     """
     r = np.asarray(residual_px, dtype=np.float64)
     with np.errstate(invalid="ignore"):
-        med = np.median(r, axis=-1, keepdims=True)
+        med = median_last(r)[..., None]
         s = 1.4826 * med + scale_floor_px
         z = r / (threshold * np.maximum(s, 1e-12))
         u = np.where(z < 1.0, (1.0 - z * z) ** 2, 0.0)
     return np.where(np.isfinite(u), u, 0.0)
+
+
+def median_last(values: np.ndarray) -> np.ndarray:
+    """``np.median(values, axis=-1)`` (NaN where a row holds NaN), bit for bit, by one partition: the same middle
+    element(s) and the same mean of the two for even n, without np.median's generic reduction machinery (it
+    dominated a single frame's reweighting pass)."""
+    v = np.asarray(values, dtype=np.float64)
+    n = v.shape[-1]
+    if n == 0:
+        return np.full(v.shape[:-1], np.nan)
+    k = n // 2
+    if n % 2:
+        med = np.partition(v, k, axis=-1)[..., k]
+    else:
+        part = np.partition(v, (k - 1, k), axis=-1)
+        med = (part[..., k - 1] + part[..., k]) / 2.0
+    return np.where(np.isnan(v).any(axis=-1), np.nan, med)
 
 
 def snap_correspondences(observed_px: np.ndarray, recon_px: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
