@@ -62,6 +62,7 @@ import numpy as np
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
 from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from .resolution import shrink
 
 #: optional camera -> file mapping inside the videos folder
 MAPPING_FILE = "cameras.toml"
@@ -359,8 +360,10 @@ class CameraReader:
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if self.source.resize_to is not None:
-            shrink = self.source.resize_to[0] < img.shape[1]  # averaging the merged pixels: no aliasing
-            img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+            if self.source.resize_to[0] < img.shape[1]:  # averaging the merged pixels: no aliasing
+                img = shrink(img, self.source.resize_to)
+            else:
+                img = cv2.resize(img, self.source.resize_to, interpolation=cv2.INTER_LINEAR)
         return img
 
     def seek(self, frame: int) -> None:
