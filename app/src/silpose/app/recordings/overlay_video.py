@@ -11,6 +11,11 @@ Each frame shows, over the dimmed mask (or colour frame):
 - the person's id at the head (``?`` while a track is not yet a person), with the view's status when
   the view was not used; the frame number and camera name at the top left.
 
+Each camera's frames are drawn and encoded in a thread of its own (:meth:`OverlayVideos.draw`; OpenCV's drawing
+and encoder release the GIL): the run's thread only lists what each frame shows, so on a machine with a core to
+spare the overlays cost the run little of its time (``benchmarks/recordings.py`` reports their share against the
+same run without them).
+
 The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` and moved into
 ``<out>/overlays/`` when the run ends (OpenCV picks the container from the file suffix, so the
 ``.<name>.<pid>.tmp`` names of :mod:`silpose.shared.atomic` would not work).

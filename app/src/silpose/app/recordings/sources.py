@@ -44,6 +44,8 @@ with the recording's length. Why not PyAV: OpenCV already ships FFmpeg in the wh
 (no new dependency), decodes a 644x486 frame in ~1.3 ms here (MPEG-4 part 2; about PyAV's speed, both
 call libavcodec), and the only thing PyAV would add -- direct access to the decoder's luma plane, saving
 one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchmarks/recordings.py``).
+Frames larger than the working size are shrunk by :func:`~.resolution.shrink` (a whole-factor block average
+then bilinear: a sixth of the time of OpenCV's ``INTER_AREA`` at a fractional factor).
 """
 
 from __future__ import annotations
