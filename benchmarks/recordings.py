@@ -14,7 +14,8 @@ Rows:
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
-  1x single-threaded, 1x with overlay videos; and (``colour``) the first ``colour_frames`` steps as colour videos
+  1x single-threaded, 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
+  share against the 1x run, :func:`_overlay_shares`); and (``colour``) the first ``colour_frames`` steps as colour videos
   at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
   references in the same run (row ``reference``: decoding alone and OpenCV's MOG2 alone, CPU ms per step).
 - ``accuracy``: the 1x run against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
@@ -297,6 +298,20 @@ def _floor_rows(lab: Path, rig) -> list[dict]:
     return rows
 
 
+def _overlay_shares(rows: list[dict]) -> None:
+    """On each ``... with overlays`` run row, the overlays' share of the run measured against the same run
+    without them (same process, same input): ``overlay_share_wall`` = 1 - wall(without) / wall(with), and
+    ``overlay_share_cpu`` the same with CPU seconds (the overlays are drawn and encoded in threads of their
+    own, so the stage timings' ``share_overlays`` -- the run's thread queueing frames -- understates them)."""
+    runs = {r["run"]: r for r in rows if r.get("name") == "run"}
+    for label, r in runs.items():
+        plain = runs.get(label.replace(" with overlays", "")) if label.endswith(" with overlays") else None
+        if plain is None:
+            continue
+        r["overlay_share_wall"] = 1.0 - plain["wall_s"] / r["wall_s"] * r["steps"] / plain["steps"]
+        r["overlay_share_cpu"] = 1.0 - plain["cpu_ms_per_step"] / r["cpu_ms_per_step"]
+
+
 def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int = 200, model: str | None = None,
         threads: int | None = None, colour_scale: int = 3, colour_frames: int = 60, runs: list | None = None) -> list[dict]:
     """Make the inputs, measure (module docstring). ``model``: a model file of the lab rig (None: train one on
@@ -345,6 +360,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             rows.append({"name": "run", "run": label, **res.value})
             if label == "1x":
                 first = out
+        _overlay_shares(rows)
         if wanted(f"{repeat}x") and wanted("1x"):
             big = next(r for r in rows if r["run"] == f"{repeat}x")
             one = next(r for r in rows if r["run"] == "1x")

@@ -66,3 +66,15 @@ def test_peak_rss_is_this_process_own():
 
     child = int(subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True).stdout)
     assert child < ballast.size  # ... not in a child it starts (ru_maxrss would carry it over exec)
+
+
+def test_overlay_shares_compare_each_overlay_run_with_its_plain_run():
+    from benchmarks.recordings import _overlay_shares
+
+    rows = [{"name": "run", "run": "1x", "steps": 100, "wall_s": 2.0, "cpu_ms_per_step": 10.0},
+            {"name": "run", "run": "1x with overlays", "steps": 100, "wall_s": 4.0, "cpu_ms_per_step": 25.0},
+            {"name": "run", "run": "colour 4 x 9x9 with overlays", "steps": 10, "wall_s": 1.0, "cpu_ms_per_step": 1.0},
+            {"name": "reference", "run": "1x with overlays"}]
+    _overlay_shares(rows)
+    assert abs(rows[1]["overlay_share_wall"] - 0.5) < 1e-12 and abs(rows[1]["overlay_share_cpu"] - 0.6) < 1e-12
+    assert "overlay_share_wall" not in rows[0] and "overlay_share_wall" not in rows[2]  # no plain run to compare

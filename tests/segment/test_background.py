@@ -211,3 +211,30 @@ def test_shadow_mask_equals_thresholded_ncc_maps(scene, fitted):
         want = (ncc > 0.9) & (ratio >= 0.25) & (ratio <= 1.0)
         np.testing.assert_array_equal(shadow_mask(gray, fitted._bg, support, 0.25, 0.9, (0.25, 1.0)), want)
         assert want.sum() > 500
+
+
+def test_mixed_edge_pixels_are_dropped_where_the_person_covers_less_than_half():
+    """A figure shrunk 3.3x by area averaging (every edge pixel a mix of figure and room): with the edge rule
+    the mask's edge agrees with the true coverage's 50 % line, without it the mask is a pixel too fat."""
+    rng = np.random.default_rng(5)
+    big_h, big_w, s = 330, 396, 3.3
+    room = np.clip(rng.normal(110, 12, (big_h, big_w, 3)), 0, 255).astype(np.float32)
+    room = cv2.GaussianBlur(room, (0, 0), 2)
+    truth_big = np.zeros((big_h, big_w), np.float32)
+    cv2.ellipse(truth_big, (200, 170), (45, 120), 8, 0, 360, 1.0, -1)
+    person = np.array([40.0, 200.0, 230.0], np.float32)  # a cloth colour far from the room's
+    size = (int(big_w / s), int(big_h / s))
+    shrink = lambda a: cv2.resize(a, size, interpolation=cv2.INTER_AREA)  # noqa: E731
+    coverage = shrink(truth_big)
+    noisy = lambda img: np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)  # noqa: E731
+    background = np.stack([noisy(shrink(room)) for _ in range(12)])
+    frame = noisy(shrink(room * (1 - truth_big[..., None]) + person * truth_big[..., None]))
+    truth = coverage > 0.5
+    masks = {e: BackgroundModel(edge_coverage=e, largest_blob=False).fit(background).segment(frame, return_stages=True)
+             for e in (None, 0.5)}
+    iou = {e: _iou(m["edges"], truth) for e, m in masks.items()}
+    assert iou[0.5] > iou[None] + 0.03 and iou[0.5] > 0.98  # measured 0.956 -> 0.998
+    assert not (masks[0.5]["edges"] & ~masks[0.5]["shadow_rejected"]).any()  # it only drops pixels ...
+    assert masks[0.5]["edges"][coverage > 0.99].all()  # ... never one the figure covers whole
+    with pytest.raises(ValueError, match="edge_coverage"):
+        BackgroundModel(edge_coverage=1.5).fit(background)

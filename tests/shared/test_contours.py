@@ -374,3 +374,22 @@ def test_random_masks_never_nan(mask, n):
     assert signed_area(dense) == pytest.approx(raw_area, abs=len(found[0]) * spacing**2 + 1e-4)
     q, cen, s = normalise(c.points)
     assert np.all(np.isfinite(q)) and np.isfinite(s)
+
+
+def test_single_blob_contour_gives_extract_contours_points_without_labelling():
+    from silpose.shared.contours import single_blob_contour
+
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(40):  # random smooth blobs, some touching the crop's edge, some with holes
+        m = (cv2.GaussianBlur(rng.random((50, 40)).astype(np.float32), (0, 0), 3) > 0.5).astype(np.uint8)
+        n, lab = cv2.connectedComponents(m, connectivity=8)
+        for label in range(1, n):
+            blob = (lab == label).astype(np.uint8)
+            ref = extract_contour(blob, 64).points
+            assert np.array_equal(single_blob_contour(blob, 64), ref)
+            assert np.allclose(single_blob_contour(blob, 64, offset=(5, -2)), ref + (5, -2), atol=1e-4)
+            checked += 1
+    assert checked > 20
+    with pytest.raises(EmptyMaskError):
+        single_blob_contour(np.zeros((4, 4), np.uint8), 8)

@@ -53,3 +53,26 @@ def test_a_run_at_a_third_of_the_size_finds_the_same_people_and_joints(rig, tiny
     assert np.nanmean(err) < 0.02 and np.nanmax(err) < 0.06
     overlay = cv2.VideoCapture(str(tmp_path / "small" / "overlays" / "cam0.mp4"))
     assert overlay.get(cv2.CAP_PROP_FRAME_WIDTH) < rig[0].width / 2  # overlays drawn at the working size
+
+
+def test_shrink_matches_cv2_inter_area_on_smooth_images_and_keeps_pixel_centres():
+    from silpose.app.recordings.resolution import shrink
+
+    rng = np.random.default_rng(0)
+    # 1288x972 -> 461x348 (two stages: x2 block average, then bilinear by 1.40), an odd size (one stage), x3
+    for (w, h), size in (((1288, 972), (461, 348)), ((1287, 971), (461, 348)), ((966, 729), (322, 243))):
+        smooth = cv2.GaussianBlur(rng.random((h, w, 3)).astype(np.float32), (0, 0), 6) * 4000 - 1900
+        img = np.clip(smooth, 0, 255).astype(np.uint8)
+        ref = cv2.resize(img, size, interpolation=cv2.INTER_AREA)  # the reference: OpenCV's area average
+        out = shrink(img, size)
+        assert out.shape == ref.shape and out.dtype == np.uint8
+        assert np.abs(out.astype(int) - ref).mean() < 1.0 and np.abs(out.astype(int) - ref).max() <= 8
+        # a bright square's centre lands where work_camera says (x' = (x + 0.5) s - 0.5)
+        sq = np.zeros((h, w), np.float32)
+        sq[400:440, 500:540] = 1.0
+        small = shrink(sq, size)
+        ys, xs = np.nonzero(small)
+        centre = np.array([np.average(xs, weights=small[ys, xs]), np.average(ys, weights=small[ys, xs])])
+        expect = (np.array([519.5, 419.5]) + 0.5) * (size[0] / w, size[1] / h) - 0.5
+        assert np.allclose(centre, expect, atol=0.05)
+    assert shrink(img, (img.shape[1], img.shape[0])) is img

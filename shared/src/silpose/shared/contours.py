@@ -32,6 +32,7 @@ __all__ = [
     "Contour",
     "extract_contour",
     "extract_contours",
+    "single_blob_contour",
     "normalise",
     "denormalise",
     "draw_contour",
@@ -210,17 +211,7 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
     bw, bh = int(stats[best, cv2.CC_STAT_WIDTH]), int(stats[best, cv2.CC_STAT_HEIGHT])
     touches = bool(left + ox == 0 or top + oy == 0 or left + ox + bw == w or top + oy + bh == h)
     blob = (labels[top - 1 : top + bh + 1, left - 1 : left + bw + 1] == best).astype(np.uint8)
-    found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    raw = max(found, key=len)  # one outer contour for an 8-connected blob
-    length = float(cv2.arcLength(raw, closed=True))
-    # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down).
-    if cv2.contourArea(raw, oriented=True) < 0:  # make it clockwise on screen
-        raw = raw[::-1]
-    poly = raw.reshape(-1, 2).astype(np.float64) + (left - 1 + ox, top - 1 + oy)
-    centroids = centroids + (ox, oy)
-    cx = float(centroids[best, 0])
-    i, start = _start_on_polyline(poly, cx)
-    pts = resample_closed(poly, i, start, int(n_points))
+    pts, length = _trace(blob, (left - 1 + ox, top - 1 + oy), float(centroids[best, 0]) + ox, int(n_points))
     return Contour(
         points=pts.astype(np.float32),
         area=int(areas[best - 1]),
@@ -228,6 +219,41 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
         n_blobs=int(n_labels - 1),
         touches_border=touches,
     )
+
+
+def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int) -> tuple[np.ndarray, float]:
+    """Resampled outer contour (n_points, 2) float64 in image px and raw perimeter of the one 8-connected blob
+    of ``blob`` ((h, w) uint8 {0, 1}, an empty pixel on every side); ``offset`` (x, y): image position of
+    ``blob``'s pixel (0, 0); ``cx``: the blob's area centroid x in image px."""
+    found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    raw = max(found, key=len)  # one outer contour for an 8-connected blob
+    length = float(cv2.arcLength(raw, closed=True))
+    # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down).
+    if cv2.contourArea(raw, oriented=True) < 0:  # make it clockwise on screen
+        raw = raw[::-1]
+    poly = raw.reshape(-1, 2).astype(np.float64) + offset
+    i, start = _start_on_polyline(poly, cx)
+    return resample_closed(poly, i, start, n_points), length
+
+
+def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
+    """:func:`extract_contour`'s points for a mask known to hold ONE 8-connected blob (a labelled component
+    cut out of a label image), without labelling it again: (n_points, 2) float32 px, ``offset`` (x, y) added
+    (the image position of ``blob``'s pixel (0, 0)). The area centroid comes from ``cv2.moments`` (the mean
+    of the blob's pixel centres, as the labelling's). Raises EmptyMaskError on an empty mask.
+
+    blob: (h, w) bool or uint8 {0, 1}."""
+    if int(n_points) < 1:
+        raise ValueError(f"n_points must be >= 1, got {n_points}")
+    h, w = blob.shape
+    padded = np.zeros((h + 2, w + 2), np.uint8)
+    padded[1:-1, 1:-1] = blob
+    m = cv2.moments(padded, binaryImage=True)
+    if m["m00"] <= 0:
+        raise EmptyMaskError(f"mask of shape {blob.shape} has no foreground pixel")
+    cx = m["m10"] / m["m00"] - 1 + offset[0]
+    pts, _ = _trace(padded, (offset[0] - 1, offset[1] - 1), cx, int(n_points))
+    return pts.astype(np.float32)
 
 
 def extract_contours(masks: np.ndarray, n_points: int = N_POINTS) -> dict[str, np.ndarray]:

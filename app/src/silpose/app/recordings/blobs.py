@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from silpose.shared.contours import EmptyMaskError, extract_contour
+from silpose.shared.contours import EmptyMaskError
+from silpose.shared.contours import single_blob_contour
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,13 +75,14 @@ def find_blobs(mask: np.ndarray, min_area: int) -> Blobs:
 
 
 def blob_contour(blobs: Blobs, label: int, n_points: int) -> np.ndarray | None:
-    """(n_points, 2) px outer contour of blob ``label`` (:func:`silpose.shared.contours.extract_contour`
-    on the blob alone, cropped to its box), or None if the blob vanished."""
+    """(n_points, 2) px outer contour of blob ``label`` (:func:`silpose.shared.contours.single_blob_contour`, which
+    gives :func:`~silpose.shared.contours.extract_contour`'s points, on the blob alone cropped to its box), or
+    None if the blob vanished."""
     x, y, bw, bh = (int(v) for v in blobs.bbox[label])
     ox, oy = blobs.origin
     crop = (blobs.labels[y - oy : y - oy + bh, x - ox : x - ox + bw] == label).view(np.uint8)
     try:
-        c = extract_contour(crop, n_points)
+        c = single_blob_contour(crop, n_points)  # one component: no labelling again (extract_contour's points)
     except EmptyMaskError:
         return None
-    return c.points.astype(np.float64) + (x, y)
+    return c.astype(np.float64) + (x, y)

@@ -73,5 +73,7 @@ def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, w
     ax.set_ylabel("y (m)")
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
+    # fixed margins that fit the labels of a 6.4 in square plot (tight_layout measured every text: ~0.3 s of a
+    # run's end on a loaded 2-core machine, a run of 150 steps taking ~2 s)
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.95)
     return write_figure_atomic(fig, path, dpi=100)

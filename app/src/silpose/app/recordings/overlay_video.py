@@ -11,6 +11,11 @@ Each frame shows, over the dimmed mask (or colour frame):
 - the person's id at the head (``?`` while a track is not yet a person), with the view's status when
   the view was not used; the frame number and camera name at the top left.
 
+Each camera's frames are drawn and encoded in a thread of its own (:meth:`OverlayVideos.draw`; OpenCV's drawing
+and encoder release the GIL): the run's thread only lists what each frame shows, so on a machine with a core to
+spare the overlays cost the run little of its time (``benchmarks/recordings.py`` reports their share against the
+same run without them).
+
 The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` and moved into
 ``<out>/overlays/`` when the run ends (OpenCV picks the container from the file suffix, so the
 ``.<name>.<pid>.tmp`` names of :mod:`silpose.shared.atomic` would not work).
@@ -49,10 +54,28 @@ def _poly(img, pts, colour, thickness=1, dashed=False) -> None:
     if not dashed:
         cv2.polylines(img, [q], True, colour, thickness, cv2.LINE_AA, shift=4)
         return
-    for i in range(0, len(q), 4):  # every other pair of segments
-        seg = q[i : i + 3]
-        if len(seg) >= 2:
-            cv2.polylines(img, [seg], False, colour, thickness, cv2.LINE_AA, shift=4)
+    dashes = [q[i : i + 3] for i in range(0, len(q), 4) if len(q[i : i + 3]) >= 2]  # every other pair of segments
+    cv2.polylines(img, dashes, False, colour, thickness, cv2.LINE_AA, shift=4)  # one call: drawn in turn
+
+
+def _tint(img: np.ndarray, people: list[dict]) -> None:
+    """Blend each person's filled outline into ``img`` (in place) at 40 %: only inside the outlines' box (the
+    blend leaves every other pixel as it is)."""
+    polys = [np.round(p["outline"]).astype(np.int32) for p in people
+             if p.get("outline") is not None and np.all(np.isfinite(p["outline"]))]
+    if not polys:
+        return
+    h, w = img.shape[:2]
+    allp = np.concatenate(polys)
+    x0, y0 = np.clip(allp.min(axis=0), 0, (w, h))
+    x1, y1 = np.clip(allp.max(axis=0) + 1, 0, (w, h))
+    if x1 <= x0 or y1 <= y0:
+        return
+    roi = img[y0:y1, x0:x1]
+    tint = roi.copy()
+    for p, poly in zip([p for p in people if p.get("outline") is not None and np.all(np.isfinite(p["outline"]))], polys):
+        cv2.fillPoly(tint, [poly - (x0, y0)], person_colour(p["person"]))
+    cv2.addWeighted(roi, 0.6, tint, 0.4, 0.0, dst=roi)
 
 
 def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str, frame: int, people: list[dict]) -> np.ndarray:
@@ -68,12 +91,8 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
     elif background.ndim == 2:
         img = cv2.cvtColor((background * np.uint8(70)).astype(np.uint8), cv2.COLOR_GRAY2BGR)
     else:
-        img = (background * 0.6).astype(np.uint8)
-    tint = img.copy()
-    for p in people:
-        if p.get("outline") is not None and np.all(np.isfinite(p["outline"])):
-            cv2.fillPoly(tint, [np.round(p["outline"]).astype(np.int32)], person_colour(p["person"]))
-    img = cv2.addWeighted(img, 0.6, tint, 0.4, 0.0)
+        img = cv2.convertScaleAbs(background, alpha=0.6)  # dimmed (rounded; OpenCV, not a float64 copy)
+    _tint(img, people)
     placed: list[tuple[int, int]] = []
     for p in people:
         col = person_colour(p["person"])
@@ -85,8 +104,7 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
         j = p.get("joints_px")
         if j is not None and np.all(np.isfinite(j)):
             q = np.round(j * 16).astype(np.int32)
-            for a, b in BONES:
-                cv2.line(img, tuple(q[a]), tuple(q[b]), col, 2, cv2.LINE_AA, shift=4)
+            cv2.polylines(img, [q[list(bone)] for bone in BONES], False, col, 2, cv2.LINE_AA, shift=4)  # one call
             top = j[:, 1].argmin()
             anchor = (int(j[top, 0]) - 10, max(int(j[top, 1]) - 12, 14))
         elif p.get("anchor_px") is not None and np.all(np.isfinite(p["anchor_px"])):
@@ -105,10 +123,11 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
 
 
 class _Encoder:
-    """One camera's video writer, encoding in its own thread (OpenCV's encoder releases the GIL): the run's
-    thread only draws. ``depth`` frames are queued at most."""
+    """One camera's video writer, drawing and encoding in its own thread (OpenCV's drawing and encoder release
+    the GIL): the run's thread only lists what to draw. A queued item is an image, or the arguments of
+    :func:`draw_frame` (a tuple). ``depth`` items are queued at most."""
 
-    def __init__(self, writer, depth: int = 8):
+    def __init__(self, writer, depth: int = 24):
         self.writer = writer
         self.queue: queue.Queue = queue.Queue(maxsize=depth)
         self.error: BaseException | None = None
@@ -122,7 +141,7 @@ class _Encoder:
                 return
             if self.error is None:
                 try:
-                    self.writer.write(img)
+                    self.writer.write(draw_frame(*img) if isinstance(img, tuple) else img)
                 except BaseException as exc:  # raised by the next write or by finish
                     self.error = exc
 
@@ -140,8 +159,8 @@ class _Encoder:
 
 
 class OverlayVideos:
-    """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` per frame (encoded
-    in a thread per camera), ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops
+    """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` or ``draw(camera,
+    ...)`` per frame (drawn and encoded in a thread per camera), ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops
     them."""
 
     def __init__(self, out: Path, cameras, sizes: dict, fps: float):
@@ -161,6 +180,12 @@ class OverlayVideos:
 
     def write(self, camera: str, image: np.ndarray) -> None:
         self.writers[camera].write(image)
+
+    def draw(self, camera: str, background: np.ndarray | None, size: tuple[int, int], frame: int,
+             people: list[dict]) -> None:
+        """Queue the frame :func:`draw_frame` ``(background, size, camera, frame, people)`` draws: it is drawn and
+        encoded in the camera's thread (``background`` must not change afterwards)."""
+        self.writers[camera].write((background, size, camera, frame, people))
 
     def close(self) -> list[Path]:
         for w in self.writers.values():

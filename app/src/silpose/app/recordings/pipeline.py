@@ -65,7 +65,7 @@ from ..inference import TOP_K, InferOptions, infer_rows
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid
 from .floorplan import write_floorplan
-from .overlay_video import OverlayVideos, draw_frame
+from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
 from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
@@ -236,7 +236,10 @@ class _Camera:
         if self.age is None:
             self.age = np.zeros(loose.shape, np.uint16)
         # foreground outside every box ages; inside a box it keeps its age; background starts again from 0
-        self.age = np.where(loose, np.minimum(self.age, 65534) + 1, np.where(fg, self.age, 0)).astype(np.uint16)
+        # (in place: a few passes over the frame instead of four temporaries)
+        np.multiply(self.age, fg, out=self.age, casting="unsafe")
+        np.minimum(self.age, 65534, out=self.age, where=loose)
+        np.add(self.age, 1, out=self.age, where=loose, casting="unsafe")
         ready = loose & (self.age >= self.absorb_frames)  # never where a person may be now (their colours)
         if int(ready.sum()) >= self.min_area:
             models[self.reader.source.camera].absorb(seen.background, ready)
@@ -650,6 +653,12 @@ def _draw_chunk(overlays: OverlayVideos, rig, work, names, modelled, step0: int,
     for i, p in enumerate(people):
         if np.all(np.isfinite(p.floor)):
             by_step.setdefault(p.step, []).append(i)
+    # every camera's projections of the chunk's joints and column tops at once (one call per camera, not per item)
+    has_joints = np.all(np.isfinite(world.reshape(len(world), -1)), axis=1) if len(world) else np.zeros(0, bool)
+    tops = np.array([[p.floor[0], p.floor[1], 2.0] for p in people]).reshape(-1, 3)
+    joints_px = [w.project(world[has_joints].reshape(-1, 3)).reshape(-1, N_JOINTS, 2) for w in work]
+    tops_px = [w.project(tops) if len(tops) else np.zeros((0, 2)) for w in work]
+    slot = np.cumsum(has_joints) - 1  # row -> its index among the rows with joints
     for j, seen in enumerate(seen_chunk):
         step = step0 + j
         idx = by_step.get(step, [])
@@ -661,9 +670,7 @@ def _draw_chunk(overlays: OverlayVideos, rig, work, names, modelled, step0: int,
                 p = people[i]
                 outline = to_work_px(p.contours[k], cam, wcam) if np.all(np.isfinite(p.contours[k])) else None
                 recon = to_work_px(rows.contours[i, modelled.index(c)], cam, wcam) if c in modelled else None
-                jp = wcam.project(world[i]) if np.all(np.isfinite(world[i])) else None
-                top = wcam.project(np.array([p.floor[0], p.floor[1], 2.0]))
+                jp = joints_px[k][slot[i]] if has_joints[i] else None
                 items.append({"person": p.track.person, "status": rows.view_status[i, k], "outline": outline,
-                              "recon": recon, "joints_px": jp, "anchor_px": top})
-            overlays.write(c, draw_frame(None if s is None else s.background, (wcam.width, wcam.height), c,
-                                         step + first_frame, items))
+                              "recon": recon, "joints_px": jp, "anchor_px": tops_px[k][i]})
+            overlays.draw(c, None if s is None else s.background, (wcam.width, wcam.height), step + first_frame, items)

@@ -17,12 +17,21 @@ The person's height in a camera is measured from the rig: a 1.75 m column at the
 projected. :func:`work_camera` is the rig camera seen at the working size: pixel centres map as
 ``x' = (x + 0.5) s - 0.5`` (OpenCV's resize), so ``K' = S K`` with that offset; the distortion
 coefficients (in normalised coordinates) are unchanged. :func:`to_rig_px` maps points back.
+
+:func:`shrink` resizes a frame to the working size in two stages: OpenCV's ``INTER_AREA`` by the largest whole
+factor that divides both sides (a block average, OpenCV's fast path), then bilinear for the rest of the factor
+(less than 2, where bilinear skips no pixel). ``INTER_AREA`` at a fractional factor takes OpenCV's general
+path: measured on a 1932x1458 BGR frame shrunk to 692x522 (one thread, loaded 2-core machine), 19 ms in one
+stage, 3.3 ms in two (mean absolute difference between the two: 1.9 grey levels on a noisy textured room). Both
+stages map pixel centres as ``x' = (x + 0.5) s - 0.5``, so the composition does too and :func:`work_camera`
+holds unchanged.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 
 #: pixels: the height a standing person at the workspace centre is given at the working resolution (the default
@@ -77,3 +86,22 @@ def to_work_px(points: np.ndarray, cam, work) -> np.ndarray:
         return points
     sx, sy = work.width / cam.width, work.height / cam.height
     return (np.asarray(points, float) + 0.5) * (sx, sy) - 0.5
+
+
+def shrink(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``img`` (H, W) or (H, W, C) uint8 resized to ``size`` (width, height) <= its own: a whole-factor
+    ``INTER_AREA`` stage then bilinear (module docstring); the plain ``INTER_AREA`` resize when no factor
+    >= 2 divides both sides within the shrink."""
+    h, w = img.shape[:2]
+    tw, th = int(size[0]), int(size[1])
+    if (tw, th) == (w, h):
+        return img
+    limit = int(min(w / tw, h / th))
+    k = next((f for f in range(limit, 1, -1) if w % f == 0 and h % f == 0), 1)
+    if k > 1:
+        img = cv2.resize(img, (w // k, h // k), interpolation=cv2.INTER_AREA)
+        if (w // k, h // k) == (tw, th):
+            return img
+        if w // k < 2 * tw and h // k < 2 * th:
+            return cv2.resize(img, (tw, th), interpolation=cv2.INTER_LINEAR)
+    return cv2.resize(img, (tw, th), interpolation=cv2.INTER_AREA)

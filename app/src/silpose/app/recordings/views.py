@@ -84,11 +84,12 @@ def _column_labels(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
 
 
 def _main_label(lab_row: np.ndarray) -> int:
-    hits = lab_row[lab_row > 0]
-    if not hits.size:
-        return 0
-    values, counts = np.unique(hits, return_counts=True)
-    return int(values[np.argmax(counts)])
+    """The label most of a column's points fall on (ties: the smallest), 0 if none; a few points, so Python."""
+    counts: dict[int, int] = {}
+    for v in lab_row.tolist():
+        if v > 0:
+            counts[v] = counts.get(v, 0) + 1
+    return min(counts, key=lambda v: (-counts[v], v)) if counts else 0
 
 
 def grounded(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
@@ -130,8 +131,8 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
     mine = np.array([_main_label(row) for row in lab], int)
     # every blob any person's column touches is claimed by that person
     claims: dict[int, set] = {}
-    for p in range(P):
-        for b in np.unique(lab[p][lab[p] > 0]):
+    for p, row in enumerate(lab.tolist()):
+        for b in set(row) - {0}:
             claims.setdefault(int(b), set()).add(p)
     boxes = body_box(cam, xy) if P else np.zeros((0, 4))
     status = []
