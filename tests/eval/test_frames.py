@@ -20,7 +20,6 @@ import pytest
 from typer.testing import CliRunner
 
 from silpose.datagen.testing import synthetic_record
-from silpose.app.inputs.images import load_frames
 from silpose.model.hypotheses import single_answer, temporal_choice
 from silpose.model.persistence import load_model
 from silpose.segment import BackgroundModel
@@ -61,6 +60,12 @@ def frames_dir(dataset):
     from benchmarks.frames_composite import write_composite_frames
 
     return write_composite_frames(dataset, dataset / "frames", n_background=10, seed=1)
+
+
+def load_frames(folder):
+    """(N, H, W, 3) uint8 BGR images of a folder in name order, and their names (the reference's own reader)."""
+    paths = sorted(folder.glob("*.png"))
+    return np.stack([cv2.imread(str(p), cv2.IMREAD_COLOR) for p in paths]), [p.name for p in paths]
 
 
 def _invoke(*args):
