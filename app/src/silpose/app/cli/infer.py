@@ -36,7 +36,7 @@ def infer(
     threshold: Annotated[int, typer.Option(min=0, max=254, help="INPUT's PNG pixels brighter than this are foreground (images holding only 0 and 1 are read as 0/1 masks).")] = 127,
     videos: Annotated[Optional[Path], typer.Option("--videos", help="Cameras: one video (or frame folder) per camera named as in the rig (or mapped in DIR/cameras.toml), or a frames folder (frames/<camera>/ and background/<camera>/).")] = None,
     frames: Annotated[Optional[Path], typer.Option("--frames", help="A frames folder of one person: --videos DIR --people 1.")] = None,
-    people: Annotated[Optional[int], typer.Option("--people", min=1, max=1, help="1: one person: each view's largest blob, no floor tracking, joints root-relative in one file. Default: several people, found on the floor, tracked and placed in the room.")] = None,
+    people: Annotated[Optional[int], typer.Option("--people", help="1: one person: each view's largest blob, no floor tracking, joints root-relative in one file. Default: several people, found on the floor, tracked and placed in the room.")] = None,
     masks: Annotated[bool, typer.Option("--masks", help="The videos are foreground masks (lossy codecs are fine).")] = False,
     background: Annotated[Optional[Path], typer.Option("--background", help="Colour videos: a folder of empty-room clips, one per camera, named like the videos (a frames folder's background/ by default); or 'median': the recording's own per-pixel median (nobody stands still).")] = None,
     background_frames: Annotated[Optional[int], typer.Option("--background-frames", min=2, help="Colour videos: learn each camera's background from its first N frames (the empty room).")] = None,
@@ -45,7 +45,7 @@ def infer(
     overlay_dir: Annotated[Optional[Path], typer.Option(help="Folder of the overlays (default <out stem>.overlays/, for several people <out>/overlays/).")] = None,
     min_area: Annotated[Optional[int], typer.Option("--min-area", min=1, help="Blobs with fewer pixels (of the camera) are ignored (default: 3 % of a person's expected silhouette area at the working resolution).")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
-    robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
+    robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or cameras.
@@ -87,6 +87,8 @@ def infer(
                    "--overlay-dir": overlay_dir is not None, "--min-area": min_area is not None}
     if input is not None and any(camera_only.values()):
         fail("infer", f"{next(k for k, v in camera_only.items() if v)} needs --videos or --frames")
+    if people is not None and people != 1:
+        fail("infer", f"--people: {people} is not 1; omit --people for several people (found on the floor)")
     one = frames is not None or people == 1
     shown = (overlays.value if overlays is not None else "none" if one else "mp4")
     if overlay_dir is not None and shown == "none":
