@@ -95,7 +95,7 @@ def test_a_frames_folder_is_a_source_layout_of_the_one_reader(tiny_model, frames
     assert (layout.status == "ok").all() and np.isfinite(layout.result.joints).all()
 
 
-def test_one_person_takes_each_views_largest_blob(tiny_model, rig, tools, tmp_path):
+def test_one_person_takes_each_views_largest_blob(tiny_model, tiny_model_file, rig, tools, tmp_path):
     """Two cylinders, one wide and one thin: the view is the wide one's outline; speckle alone is 'too small', an
     empty mask 'empty mask'."""
     big, small = (0.0, 0.0), (1.2, -0.8)
@@ -119,6 +119,18 @@ def test_one_person_takes_each_views_largest_blob(tiny_model, rig, tools, tmp_pa
                 np.testing.assert_allclose(fr.contours[i, k], ref, atol=1e-9)
     assert (fr.status == "ok").sum() == 3 * len(rig) - 2
     assert not fr.present[1, 0] and not fr.present[2, 1]
+    # the command: the same views, written per frame (the joints file of one person and its view statuses)
+    out = tmp_path / "j.json"
+    res = _invoke("infer", tiny_model_file, "--videos", tmp_path / "masks", "--masks", "--people", "1", "--out", out,
+                  "--no-progress")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    assert [f["views_present"] for f in doc["frames"]] == [["cam0", "cam1", "cam2", "cam3"], ["cam1", "cam2", "cam3"],
+                                                           ["cam0", "cam2", "cam3"]]
+    seg = json.loads(out.with_name("j.segmentation.json").read_text())
+    assert [f["status"] for f in seg["frames"]] == fr.status.tolist()
+    res = _invoke("infer", tiny_model_file, "--videos", tmp_path / "masks", "--masks", "--people", "2", "--no-progress")
+    assert res.exit_code == 2 and "--people: 2 is not 1" in res.output
 
 
 def test_overlays_png_and_mp4(tiny_model, frames_folder, rig, tmp_path):
