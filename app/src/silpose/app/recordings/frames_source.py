@@ -9,8 +9,8 @@ It is a recording folder (``DIR/frames``: one frame folder or video per camera, 
 :func:`~.sources.open_recording` and :class:`~.sources.CameraReader` like any other) with its empty-room clips
 beside it (``DIR/background``: ``--background``). What the layout adds is its contract, checked before any
 frame is processed: every camera folder holds the same file names (they name the frames), a camera of the
-frames has a background, no entry names a camera outside the rig (:class:`~silpose.app.inputs.frames_folder.FramesFolder`,
-one-line errors). And while reading, a frame that cannot be read or has another size is an input error naming
+frames has a background, no entry names a camera outside the rig
+(:class:`~silpose.app.inputs.frames_folder.FramesFolder`, one-line errors). And while reading, a frame that cannot be read or has another size is an input error naming
 the file (:func:`bad_frame`), where a recording would end that camera's video.
 """
 

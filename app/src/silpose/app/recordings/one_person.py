@@ -157,6 +157,8 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
     t0 = time.perf_counter()
     silhouettes, start = make_silhouettes(opt, rig, sources, work)
     timings["background"] = time.perf_counter() - t0
+    if frame_names is not None:  # the frames a background was learnt from (--background-frames) are not steps
+        frame_names = frame_names[start:]
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if opt.max_steps is not None:
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
@@ -212,7 +214,7 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
                 seen = dict(zip(used, mapper(look, used)))
                 gone = [c for c, v in seen.items() if v is None and c not in ended]
                 if gone and frame_names is not None and step < len(frame_names):  # the layout's contract
-                    raise bad_frame(sources[gone[0]], step)
+                    raise bad_frame(sources[gone[0]], start + step)
                 if gone:
                     ended.update(gone)
                     if len(ended) == len(used):

@@ -11,8 +11,8 @@ except a few numbers per person and step for the floor plan):
    their contours (:func:`silpose.shared.contours.extract_contour` on the blob);
 then per chunk:
 4. the model infers every detected person's root-relative joints from their usable views, missing views
-   marginalised (:func:`silpose.app.inference.infer_rows`, the path ``infer --frames`` uses); a person with
-   no usable view gets no joints;
+   marginalised (:func:`silpose.app.inference.infer_rows`, as for one person, :mod:`.one_person`); a person
+   with no usable view gets no joints;
 5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`); joints
    are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
@@ -65,10 +65,10 @@ from ..inference import TOP_K, InferOptions, infer_rows
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid
 from .floorplan import write_floorplan
-from .overlay_video import OverlayVideos, draw_frame
-from .placement import place_contours, place_roots
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import draws_overlays, overlay_sink
+from .overlay_video import OverlayVideos, draw_frame
+from .placement import place_contours, place_roots
 from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
@@ -93,12 +93,14 @@ MASK_DIAGNOSIS_SHARE = 0.9
 
 @dataclass
 class RecordingOptions:
-    """Options of :func:`run_recording` (``silpose infer --videos``).
+    """Options of :func:`run_recording` (``silpose infer --videos``) and of :func:`.one_person.run_one_person`.
 
     masks: the videos are foreground masks (else colour, segmented against ``background`` clips -- or the
-    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px of the rig camera (None:
-    :func:`~.resolution.min_blob_area`'s share of a person); overlays: ``"mp4"`` (or True: per-camera overlay
-    videos), ``"png"`` (one tiled PNG per frame, :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
+    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames);
+    offsets: ``"cam1=3,..."``; min_area: px of the rig camera (None: :func:`~.resolution.min_blob_area`'s share
+    of a person); overlays: ``"mp4"`` (or True: per-camera overlay videos), ``"png"`` (one tiled PNG per frame,
+    :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per
+    inference batch; threads:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking, steps
     (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
@@ -111,7 +113,8 @@ class RecordingOptions:
     track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
-    (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). reader_threads: decode each camera in its own thread, frames ahead
+    (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). reader_threads:
+    decode each camera in its own thread, frames ahead
     (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
     videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
     47 and 92 without -- a mask frame decodes in ~1 ms, and the extra threads only contend for the cores).
@@ -363,7 +366,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
-                                {c.name: (c.width, c.height) for c in work}, fps, first_frame, frame_names)
+                                {c.name: (c.width, c.height) for c in work}, fps, first_frame,
+                                frame_names[start:] if frame_names is not None else None)
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -376,8 +380,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 seen = dict(zip(cams, stepper()))
                 timings["cameras"] += time.perf_counter() - t0
                 ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
-                if ended and frame_names is not None and step < len(frame_names):  # a frames folder's contract
-                    raise bad_frame(recording.sources[ended[0]], step)
+                if ended and frame_names is not None and start + step < len(frame_names):  # a frames folder's contract
+                    raise bad_frame(recording.sources[ended[0]], start + step)
                 if ended:
                     gone.update(ended)
                     if len(gone) == len(seen):  # no camera left: the recording is over
