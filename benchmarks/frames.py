@@ -6,8 +6,8 @@ The frames are composited (not timed) from the first ``n_frames`` test samples o
 (:func:`benchmarks.frames_composite.write_composite_frames`: textured room, person from the true
 mask, floor shadow, noise, flicker) and written as PNG folders, then ``silpose infer --frames``'s
 pipeline (:func:`silpose.app.recordings.one_person.run_one_person`, one thread: the stages are timed apart)
-runs on them with the trained model, as ``silpose infer --frames`` runs it (robust inference, the top-3
-hypotheses, the temporal choice at the end, timed with inference). Rows: each stage (background fit, PNG decoding, segmentation, blobs and
+runs on them with the trained model, with the plain posterior (no robust inference, no hypotheses: the
+rows stay comparable with earlier reports; ``silpose infer --frames`` adds both). Rows: each stage (background fit, PNG decoding, segmentation, blobs and
 contour extraction, inference) and the total, as seconds, ms per
 time step (one frame from each of the K cameras) and time steps per second; the segmentation row also
 gives camera frames per second. OpenCV is limited to ``threads`` threads while timing. Without the
@@ -70,8 +70,8 @@ def _measure(src: inputs.Inputs, frames_dir: Path, n_frames: int, n_background: 
     cv2.setNumThreads(threads)
     try:
         c0, t0 = time.thread_time(), time.perf_counter()
-        opt = RecordingOptions(overlays=False, chunk=chunk, threads=0, work_person_px=0)
-        fr = run_one_person(m, frames, opt, frames_layout=True, on_chunk=score)
+        opt = RecordingOptions(overlays=False, chunk=chunk, threads=0, work_person_px=0, robust=False, hypotheses=0)
+        fr = run_one_person(m, frames, opt, frames_layout=True, temporal=False, on_chunk=score)
         wall, cpu = time.perf_counter() - t0, time.thread_time() - c0
     finally:
         cv2.setNumThreads(old)
