@@ -8,6 +8,8 @@ area (:func:`~.resolution.min_blob_area`), its outer contour traced at the model
 rig camera's pixels; otherwise a missing view with its status (docs/conventions.md, "View statuses"):
 ``empty mask`` (no foreground), ``too small`` (the largest blob is under the minimum area), ``no video`` (no
 video or frame folder for the camera), ``video ended``, ``not modelled`` (a camera the model was not trained on).
+A largest blob touching the image border is used, as ``silpose infer --frames`` always did (several people mark
+such a view ``border``: there a cut outline may be anyone's; here it is the person's, if partly).
 
 Colour frames are segmented with the background model's own defaults (:data:`ONE_PERSON_SEGMENT`: the largest
 blob kept, no per-frame gain), the segmentation ``silpose infer --frames`` has always used; the caller's
