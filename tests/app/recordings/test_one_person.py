@@ -1,7 +1,8 @@
 """One camera pipeline, one person (``silpose infer --people 1``; ``--frames DIR`` is its alias for a frames folder).
 
-Cylinder "people" in the lab rig (no Blender): a frames folder of colour frames composited over a textured room
-(``silpose.segment.composite``), and lossless mask frames. References are computed here, independently of
+Cylinder "people" in the default rig (320x240 cameras, no Blender) and a tiny model of it (joints meaningless): a
+frames folder of colour frames composited over a textured room (``silpose.segment.composite``), and lossless mask
+frames. References are computed here, independently of
 ``silpose.app.recordings``: background subtraction, the largest blob's contour (``extract_contour``) and
 ``model.infer`` called by hand.
 """
@@ -20,6 +21,10 @@ from silpose.app.recordings.resolution import min_blob_area, work_size
 from silpose.app.recordings.silhouettes import binarise
 from silpose.model.hypotheses import single_answer, temporal_choice
 from silpose.segment import BackgroundModel
+from silpose.datagen.testing import synthetic_record
+from silpose.model import ShapeStructureModel
+from silpose.model.persistence import save_model
+from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
 from silpose.shared.contours import extract_contour
 from silpose.shared.skeleton import JOINT_NAMES
@@ -35,6 +40,27 @@ def _write(folder, frames) -> None:
     folder.mkdir(parents=True)
     for i, f in enumerate(frames):
         cv2.imwrite(str(folder / f"{i:05d}.png"), f)
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return default_rig()
+
+
+@pytest.fixture(scope="module")
+def tiny_model(rig):
+    """A 2-component model of the default rig fitted on 60 stick-figure records."""
+    config = {"seed": 5, "rig": rig.to_dict(), "n_points": 40}
+    recs = [synthetic_record(config, "train", i) for i in range(60)]
+    return ShapeStructureModel(2, 4, n_init=1, max_iter=30).fit(np.stack([r["contours"] for r in recs]),
+                                                                 np.stack([r["joints"] for r in recs]), rig=rig)
+
+
+@pytest.fixture(scope="module")
+def tiny_model_file(tiny_model, tmp_path_factory):
+    path = tmp_path_factory.mktemp("one-model") / "tiny.npz"
+    save_model(path, tiny_model)
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -83,11 +109,10 @@ def test_frames_alias_equals_a_hand_made_pipeline(tiny_model, tiny_model_file, f
 
 def test_a_frames_folder_is_a_source_layout_of_the_one_reader(tiny_model, frames_folder, tmp_path):
     """--videos DIR --people 1 (DIR a frames folder: what --frames DIR runs) and --videos DIR/frames --background
-    DIR/background --people 1 (the same cameras as a plain recording folder and its empty-room clips). Processed at
-    half size (people 80 px tall at the working resolution) to keep the test fast."""
-    layout = run_one_person(tiny_model, frames_folder, RecordingOptions(overlays=False, work_person_px=80))
+    DIR/background --people 1 (the same cameras as a plain recording folder and its empty-room clips)."""
+    layout = run_one_person(tiny_model, frames_folder, RecordingOptions(overlays=False))
     plain = run_one_person(tiny_model, frames_folder / "frames", RecordingOptions(
-        overlays=False, work_person_px=80, background=frames_folder / "background"))
+        overlays=False, background=frames_folder / "background"))
     np.testing.assert_array_equal(plain.result.joints, layout.result.joints)
     np.testing.assert_array_equal(plain.contours, layout.contours)
     np.testing.assert_array_equal(plain.status, layout.status)
@@ -98,10 +123,11 @@ def test_a_frames_folder_is_a_source_layout_of_the_one_reader(tiny_model, frames
 def test_one_person_takes_each_views_largest_blob(tiny_model, tiny_model_file, rig, tools, tmp_path):
     """Two cylinders, one wide and one thin: the view is the wide one's outline; speckle alone is 'too small', an
     empty mask 'empty mask'."""
-    big, small = (0.0, 0.0), (1.2, -0.8)
+    big, small = (-0.5, -0.5), (1.2, -0.8)
     both = tools.cylinder_masks(rig, [big])
     both |= tools.cylinder_masks(rig, [small], radius=0.05)
     alone = tools.cylinder_masks(rig, [big])
+    assert [cv2.connectedComponents(m)[0] - 1 for m in both] == [2] * len(rig)  # two blobs in every camera
     frames = np.stack([both, both, both], 1)  # (K, 3, H, W)
     frames[0, 1] = 0
     frames[0, 1, 10:14, 10:14] = 255  # cam0, frame 1: speckle only
@@ -134,7 +160,7 @@ def test_one_person_takes_each_views_largest_blob(tiny_model, tiny_model_file, r
 
 
 def test_overlays_png_and_mp4(tiny_model, frames_folder, rig, tmp_path):
-    """Drawn at the working resolution (here people 80 px tall: about half the lab rig's size)."""
+    """Drawn at the working resolution (here people 80 px tall: about 70 % of the default rig's size)."""
     png = run_one_person(tiny_model, frames_folder, RecordingOptions(overlays="png", work_person_px=80),
                          overlay_dir=tmp_path / "png")
     files = sorted((tmp_path / "png").glob("*.png"))
@@ -142,7 +168,7 @@ def test_overlays_png_and_mp4(tiny_model, frames_folder, rig, tmp_path):
     img = cv2.imread(str(files[0]))
     sizes = {cam.name: work_size(cam, rig.workspace.center, 80) for cam in rig}
     w, h = rig.image_size
-    assert all(0.4 * w < sw < 0.6 * w for sw, _ in sizes.values())
+    assert all(0.6 * w < sw < 0.8 * w for sw, _ in sizes.values())
     tile = (2 * max(sh for _, sh in sizes.values()), 2 * max(sw for sw, _ in sizes.values()), 3)  # 4 cameras, 2 x 2
     assert img.shape == tile and img.std() > 10
     run_one_person(tiny_model, frames_folder, RecordingOptions(overlays="mp4", work_person_px=80),
@@ -154,8 +180,10 @@ def test_overlays_png_and_mp4(tiny_model, frames_folder, rig, tmp_path):
     assert not list(tmp_path.glob(".overlays.*"))  # the videos' working folder is gone
 
 
-def test_several_people_write_png_overlays(tiny_model, two_cylinders, rig, tmp_path):
-    run_recording(tiny_model, two_cylinders, tmp_path / "o", RecordingOptions(masks=True, overlays="png", max_steps=3))
+def test_several_people_write_png_overlays(tools, tmp_path, tiny_model, rig):
+    tools.write_mask_videos(tmp_path / "v", rig, [tools.walk((-1.0, -0.6), (1.0, -0.6), 3),
+                                                  tools.walk((1.0, 0.7), (-1.0, 0.7), 3)])
+    run_recording(tiny_model, tmp_path / "v", tmp_path / "o", RecordingOptions(masks=True, overlays="png"))
     files = sorted((tmp_path / "o" / "overlays").glob("*.png"))
     w, h = rig.image_size
     assert [p.stem for p in files] == [f"{i:05d}" for i in range(3)]
