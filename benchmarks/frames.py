@@ -5,8 +5,10 @@ Section ``frames`` of ``python -m benchmarks.run``.
 The frames are composited (not timed) from the first ``n_frames`` test samples of the dataset
 (:func:`benchmarks.frames_composite.write_composite_frames`: textured room, person from the true
 mask, floor shadow, noise, flicker) and written as PNG folders, then ``silpose infer --frames``'s
-pipeline (``run_frames_pipeline``) runs on them with the trained model. Rows: each stage (background
-fit, PNG decoding, segmentation, contour extraction, inference) and the total, as seconds, ms per
+pipeline (:func:`silpose.app.recordings.one_person.run_one_person`, one thread: the stages are timed apart)
+runs on them with the trained model, with the plain posterior (no robust inference, no hypotheses: the
+rows stay comparable with earlier reports; ``silpose infer --frames`` adds both). Rows: each stage (background fit, PNG decoding, segmentation, blobs and
+contour extraction, inference) and the total, as seconds, ms per
 time step (one frame from each of the K cameras) and time steps per second; the segmentation row also
 gives camera frames per second. OpenCV is limited to ``threads`` threads while timing. Without the
 dataset or model, see :mod:`benchmarks.inputs` (``fallback``). Timings are noisy on a shared machine:
@@ -24,7 +26,8 @@ import numpy as np
 
 from benchmarks.frames_composite import write_composite_frames
 from silpose.model import load_model
-from silpose.app.frames_pipeline import run_frames_pipeline
+from silpose.app.recordings.one_person import run_one_person
+from silpose.app.recordings.pipeline import RecordingOptions
 from silpose.shared.dataset import load_split
 from silpose.shared.metrics import mask_iou, pose_error_cm
 
@@ -67,17 +70,18 @@ def _measure(src: inputs.Inputs, frames_dir: Path, n_frames: int, n_background: 
     cv2.setNumThreads(threads)
     try:
         c0, t0 = time.thread_time(), time.perf_counter()
-        fr = run_frames_pipeline(m, frames, chunk=chunk, on_chunk=score)
+        opt = RecordingOptions(overlays=False, chunk=chunk, threads=0, work_person_px=0, robust=False, hypotheses=0)
+        fr = run_one_person(m, frames, opt, frames_layout=True, temporal=False, on_chunk=score)
         wall, cpu = time.perf_counter() - t0, time.thread_time() - c0
     finally:
         cv2.setNumThreads(old)
     pose = float(np.nanmean(pose_error_cm(fr.result.joints, truth.joints)))
     n, k = len(fr.frames), len(fr.cameras)
     t = fr.timings
-    steady = sum(v for key, v in t.items() if key != "background")
+    steady = sum(v for key, v in t.items() if key not in ("background", "overlays"))
     rows = []
     labels = {"background": f"background fit ({n_background} frames x {k} cameras)", "read": "read PNG frames",
-              "segment": "segmentation (BackgroundModel.segment_batch)", "contours": "contour extraction",
+              "segment": "segmentation (BackgroundModel.segment)", "contours": "blobs and contour extraction",
               "infer": "inference (ShapeStructureModel.infer)"}
     for key, label in labels.items():
         sec = t[key]

@@ -258,7 +258,7 @@ def _floor_rows(lab: Path, rig) -> list[dict]:
     from scipy.optimize import linear_sum_assignment
 
     from silpose.app.recordings.floor import FloorGrid
-    from silpose.app.recordings.pipeline import DEFAULT_MIN_AREA_PX
+    from silpose.app.recordings.resolution import min_blob_area
     from silpose.app.recordings.silhouettes import binarise
     from silpose.shared.rig_frame import DEFAULT_WORKSPACE
 
@@ -275,7 +275,7 @@ def _floor_rows(lab: Path, rig) -> list[dict]:
         masks.append(frames)
     grid = FloorGrid(list(rig), DEFAULT_WORKSPACE.bounds)
     methods = {"occupancy grid": lambda ms: grid.locate(ms).positions,
-               "foot points": lambda ms: foot_points(ms, rig, DEFAULT_MIN_AREA_PX)}
+               "foot points": lambda ms: foot_points(ms, rig, min_blob_area(rig[0], rig[0], DEFAULT_WORKSPACE.center))}
     rows = []
     for name, fn in methods.items():
         found = false = 0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from silpose.app.contours import STATUS_EMPTY, STATUS_OK, STATUS_SMALL, view_contour
+from silpose.app.contours import view_contour
+from silpose.app.view_status import VIEW_EMPTY as STATUS_EMPTY, VIEW_OK as STATUS_OK, VIEW_TOO_SMALL as STATUS_SMALL
 from silpose.shared.contours import extract_contour
 
 

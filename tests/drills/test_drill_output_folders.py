@@ -200,7 +200,7 @@ def test_infer_refuses_to_replace_a_users_files_and_keeps_every_byte(tmp_path, d
     code, output = silpose("infer", model, dataset, "--out", folder / "other.json", "--contours")
     assert code == 2 and "other.contours.npz" in error_line(output, "infer")
     code, output = silpose("infer", model, "--frames", tmp_path / "no-frames-needed", "--out", folder / "j.parquet",
-                           "--save-overlays", "--overlay-dir", folder)
+                           "--overlays", "png", "--overlay-dir", folder)
     assert code == 2 and "README.md" in error_line(output, "infer")
     assert snapshot(folder) == before
 

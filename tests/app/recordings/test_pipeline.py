@@ -157,7 +157,7 @@ def test_colour_videos_with_the_recordings_own_median_as_background(rig, tiny_mo
         tools.write_video(videos / f"{cam.name}.mp4", np.stack(
             [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]))
     res = _invoke("infer", tiny_model_file, "--videos", videos, "--background", "median", "--out", tmp_path / "o",
-                  "--no-progress", "--no-overlays")
+                  "--no-progress", "--overlays", "none")
     assert res.exit_code == 0, res.output
     t, r = _rows(tmp_path / "o")
     assert set(r["person"]) == {1} and sorted(r["frame"]) == list(range(16))

@@ -2,15 +2,14 @@
 
 The data path, top to bottom::
 
-    inputs/            read: silhouette PNG folders, dataset splits, image folders / videos, frames folders
-    segmentation       camera frames -> silhouette masks (silpose.segment's background subtraction)
-    contours           masks -> view contours, with each view's status (used, empty, too small, ...)
+    inputs/            read: silhouette PNG folders, dataset splits; check a frames folder's layout; file suffixes
+    view_status        the one vocabulary of view statuses (used, empty mask, too small, merged, ...)
+    contours           silhouette masks -> view contours, with each view's status
     inference          contours -> the model (silpose.model) -> joints; ``silpose infer`` on silhouettes
-    frames_pipeline    ``silpose infer --frames``: frames -> masks -> contours -> joints, chunk by chunk
-    writers            joints (Parquet / JSON), reconstructed contours (.npz), segmentation status (JSON)
-    overlays           per-frame figures of frames, silhouettes, reconstructions and the inferred pose
-    recordings/        ``silpose infer --videos``: per-camera videos of several people -> each person's joints in
-                       the room (floor grid, tracking, per-person views, placement, overlay videos, floor plan)
+    writers            joints (Parquet / JSON), reconstructed contours (.npz), view status per frame (JSON)
+    recordings/        every camera input (``silpose infer --videos``, ``--frames``): per-camera videos or frame
+                       folders -> masks -> blobs -> joints; several people (floor grid, tracking, per-person views,
+                       placement, floor plan) or one (``--people 1``: each view's largest blob); overlays
     training           ``silpose train``: load a dataset, select hyperparameters, fit, report, save
     segment_quality    measurement tool: segmentation IoU on a frames dataset with truth masks
     cli/               the ``train`` and ``infer`` commands (entry points ``silpose.commands``)

@@ -32,7 +32,11 @@ from silpose.segment import BackgroundModel
 from silpose.shared.dataset import load_split
 from silpose.shared.metrics import mask_iou
 
-from .inputs.frames_folder import FramesFolder
+from .recordings.frames_source import open_frames_folder
+from .recordings.sources import CameraReader, open_recording
+
+#: frames segmented at once
+CHUNK = 64
 
 
 def grow(mask: np.ndarray, px: int) -> np.ndarray:
@@ -64,16 +68,19 @@ def evaluate(frames_dir, params: dict | None = None, grow_px: int = 2, stages: b
     frames_dir = Path(frames_dir)
     truth = load_split(frames_dir, "test", with_masks=True)
     cams = list(truth.rig.names)
-    folder = FramesFolder(frames_dir, cams)
-    if folder.n_frames != len(truth):
-        raise SystemExit(f"{frames_dir}: {folder.n_frames} frames but {len(truth)} truth rows")
+    folder = open_frames_folder(frames_dir, truth.rig)
+    if len(folder.frame_names) != len(truth):
+        raise SystemExit(f"{frames_dir}: {len(folder.frame_names)} frames but {len(truth)} truth rows")
+    backgrounds = open_recording(folder.background, truth.rig, role="background").sources
     rows = []
-    for cam in folder.present:
+    for cam, source in folder.recording.sources.items():
         k = cams.index(cam)
-        model = BackgroundModel(**(params or {})).fit(folder.background(cam))
-        for start, chunk in folder.iter_chunks():
-            out = model.segment_batch(chunk[cam], return_stages=True)
-            for i in range(len(chunk[cam])):
+        model = BackgroundModel(**(params or {}))
+        for _, chunk in _chunks(backgrounds[cam]):
+            model.partial_fit(chunk)
+        for start, chunk in _chunks(source):
+            out = model.segment_batch(chunk, return_stages=True)
+            for i in range(len(chunk)):
                 j = start + i
                 t = truth.masks[j, k] > 0
                 row = {"frame": j, "camera": cam, **view_scores(out["final"][i], t, grow_px)}
@@ -84,6 +91,22 @@ def evaluate(frames_dir, params: dict | None = None, grow_px: int = 2, stages: b
                 rows.append(row)
     rows.sort(key=lambda r: (r["frame"], cams.index(r["camera"])))
     return rows
+
+
+def _chunks(source):
+    """Yield (start, (n, H, W, 3) uint8 BGR frames) of a camera source, :data:`CHUNK` frames at a time."""
+    reader = CameraReader(source, grey=False)
+    try:
+        start, frames = 0, []
+        while (img := reader.read()) is not None:
+            frames.append(img)
+            if len(frames) == CHUNK:
+                yield start, np.stack(frames)
+                start, frames = start + CHUNK, []
+        if frames:
+            yield start, np.stack(frames)
+    finally:
+        reader.close()
 
 
 def _parse_set(items: list[str]) -> dict:

@@ -10,7 +10,8 @@
   blob or hole from, ``silpose.model.robust.excursions``; comma-separated, empty when none), ``views_reindexed``
   (the views whose points it slid back along their outline, ``silpose.model.robust.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
-- segmentation status per (frame, camera): ``<out stem>.segmentation.json`` (``--frames``).
+- view status per (frame, camera): ``<out stem>.segmentation.json`` (one person from cameras: ``--people 1``,
+  ``--frames``; :mod:`silpose.app.recordings.one_person`).
 
 :func:`claim_outputs` runs before any of them: it refuses to replace a file silpose did not write
 (:mod:`silpose.shared.output_dir`).
@@ -30,7 +31,7 @@ from silpose.shared.atomic import atomic_open, atomic_path, write_text_atomic
 from silpose.shared.output_dir import claim_files, claim_folder
 from silpose.shared.skeleton import JOINT_NAMES
 
-from .contours import STATUS_EMPTY, STATUS_NO_CAMERA, STATUS_NOT_MODELLED, STATUS_OK, STATUS_SMALL, STATUSES
+from .view_status import VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_OK, VIEW_TOO_SMALL
 
 UNITS = "metres, root-relative (pelvis at the origin), world orientation"
 
@@ -188,19 +189,22 @@ def write_contours(path: Path, frames, result, rig_names) -> None:
                  contours_px=result.contours_px, views_present=result.views_present)
 
 
-def write_segmentation(path: Path, fr, root: Path, min_area: int) -> None:
-    """Per (frame, camera) segmentation status and blob area as JSON.
+def write_segmentation(path: Path, fr, root: Path, min_area: str) -> None:
+    """Per (frame, camera) view status (:mod:`.view_status`) and blob area as JSON.
 
-    fr: the frames pipeline's result (frames (N,), cameras (K,), status (N, K) str, area (N, K) px).
+    fr: the one-person run's result (frames (N,), cameras (K,), status (N, K) str, area (N, K) px);
+    min_area: the minimum blob area, as the file explains ``too small``.
     """
+    meaning = {VIEW_OK: "used", VIEW_NO_VIDEO: "no frames or video for this camera (missing view)",
+               VIEW_EMPTY: "segmentation found no foreground (missing view for this frame)",
+               VIEW_TOO_SMALL: f"largest blob under {min_area} (missing view for this frame)",
+               VIEW_ENDED: "the camera's video ended before the others (missing view from there on)",
+               VIEW_NOT_MODELLED: "the model does not use this camera"}
     doc = {
         "frames_dir": str(root),
         "cameras": list(fr.cameras),
-        "statuses": {STATUS_OK: "used", STATUS_NO_CAMERA: "no frames for this camera (missing view)",
-                     STATUS_EMPTY: "segmentation found no foreground (missing view for this frame)",
-                     STATUS_SMALL: f"largest blob under {min_area} px (missing view for this frame)",
-                     STATUS_NOT_MODELLED: "the model does not use this camera"},
-        "counts": {c: {s: int((fr.status[:, k] == s).sum()) for s in STATUSES} for k, c in enumerate(fr.cameras)},
+        "statuses": meaning,
+        "counts": {c: {s: int((fr.status[:, k] == s).sum()) for s in meaning} for k, c in enumerate(fr.cameras)},
         "frames": [{"frame": str(f), "status": [str(s) for s in fr.status[i]], "area_px": fr.area[i].tolist()}
                    for i, f in enumerate(fr.frames)],
     }

@@ -16,6 +16,7 @@ Modules (one concept each; import them directly, nothing heavy is imported here)
 - ``e6_figures`` E6 figures (a flip resolved, robust inference on a masked input, flagged garbage)
 - ``e6_garbage``     inputs that are not a person, for E6's plausibility check
 - ``frames_eval`` segmentation quality on a camera-frames dataset and what it costs the pose
+- ``frames_figure`` its example figure (frames, silhouettes with reconstructions, stick figures; paper Fig. 9)
 - ``errors``      ``EvalInputError``
 - ``run``         load data + model, run, write ``reports/<preset>/``
 - ``cli``         ``silpose eval [PRESET]``

@@ -3,8 +3,9 @@
 On ``<frames dir>`` (``data/<preset>/frames``: per-camera background and frames, plus the truth
 split "test" whose row i is frame i), with the same model and the same frames:
 
-- **segmented**: the full camera path of ``silpose infer --frames`` (background subtraction,
-  contour extraction, inference; :func:`silpose.app.frames_pipeline.run_frames_pipeline`);
+- **segmented**: the camera path of ``silpose infer --frames`` (background subtraction, the largest blob's
+  contour, inference; :func:`silpose.app.recordings.one_person.run_one_person`), with the plain posterior
+  (no robust inference, no hypotheses) so that the two inputs differ only in their silhouettes;
 - **true**: the truth split's clean contours (extracted from the true masks) given to the model.
 
 Measures per frame: mask IoU ``|S & T| / |S | T|`` of the segmented vs the true mask per camera
@@ -28,7 +29,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from silpose.app.frames_pipeline import run_frames_pipeline
+from silpose.app.recordings.one_person import run_one_person
+from silpose.app.recordings.pipeline import RecordingOptions
 from silpose.shared.atomic import atomic_path, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import chamfer_errors, mask_iou, place_contours, pose_error_cm
@@ -45,7 +47,7 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
 
     Keys: sample_id (N,), frames (N,), cameras, iou (N, K) (NaN for cameras without frames),
     pose_cm / chamfer_px (dicts "segmented" / "true" -> (N,)), n_views (dict -> (N,)), status (N, K),
-    masks_packed (list of per-frame packed masks), pipeline (FramesResult), timings.
+    masks_packed (list of per-frame packed masks), pipeline (OnePersonResult), timings.
     """
 
     frames_dir = Path(frames_dir)
@@ -73,7 +75,10 @@ def run_frames_evaluation(frames_dir, model, progress=None, chunk: int = 32) -> 
                 per_cam[c] = np.packbits(m[i])
             packed[j] = per_cam
 
-    fr = run_frames_pipeline(model, frames_dir, chunk=chunk, on_chunk=on_chunk, progress=progress)
+    # at the rig cameras' own size (work_person_px=0): the masks are scored against the truth's
+    opt = RecordingOptions(overlays=False, chunk=chunk, robust=False, hypotheses=0, work_person_px=0)
+    fr = run_one_person(model, frames_dir, opt, frames_layout=True, temporal=False, on_chunk=on_chunk,
+                        progress=progress)
     n = len(fr.frames)
     if n != len(truth):
         raise EvalInputError(f"{frames_dir}: {n} frames per camera but {len(truth)} truth rows")
@@ -155,15 +160,23 @@ def plot_frames(ev: dict, path) -> Path:
 
 def example_overlay(ev: dict, model, frames_dir, path) -> Path | None:
     """Paper Fig. 9-style figure of the frame whose segmented pose error is nearest the median."""
-    from silpose.app.inputs.frames_folder import open_frames
-    from silpose.app.overlays import overlay_figure
+    from silpose.app.recordings.frames_source import open_frames_folder
+    from silpose.app.recordings.sources import CameraReader
+
+    from .frames_figure import overlay_figure
 
     pose = ev["pose_cm"]["segmented"]
     if not np.isfinite(pose).any():
         return None
     j = int(np.nanargmin(np.abs(pose - np.nanmedian(pose))))
-    folder = open_frames(model, frames_dir)
-    images = next(imgs for start, imgs in folder.iter_chunks(1) if start == j)
+    images = {}
+    for c, src in open_frames_folder(frames_dir, model.rig_).recording.sources.items():
+        reader = CameraReader(src, grey=False)
+        try:
+            reader.seek(j)
+            images[c] = reader.read()
+        finally:
+            reader.close()
     rig, fr = model.rig_, ev["pipeline"]
     masks = []
     for c in rig.names:
@@ -172,7 +185,7 @@ def example_overlay(ev: dict, model, frames_dir, path) -> Path | None:
         masks.append(None if p is None else np.unpackbits(p, count=cam.width * cam.height).reshape(cam.height, cam.width).astype(bool))
     recon = np.full((len(rig),) + fr.result.contours_px.shape[2:], np.nan)
     recon[list(fr.result.views)] = fr.result.contours_px[j]
-    return overlay_figure(path, [images[c][0] if c in images else None for c in rig.names], masks, recon,
+    return overlay_figure(path, [images.get(c) for c in rig.names], masks, recon,
                           list(fr.status[j]), fr.result.joints[j], rig,
                           f"frame {fr.frames[j]} (median segmented pose error {pose[j]:.1f} cm; "
                           f"from true silhouettes {ev['pose_cm']['true'][j]:.1f} cm)")

@@ -2,7 +2,7 @@
 
 Two kinds of output (docs/conventions.md, "Crash safety"):
 
-- **Folders** (``gen``, ``gen-frames``, ``eval``, ``infer --save-overlays``): a command writes only
+- **Folders** (``gen``, ``gen-frames``, ``eval``, ``infer --overlays``): a command writes only
   into a folder that is new, empty, or recognisably its own output: it holds the marker
   :data:`MARKER` naming the command (written by :func:`claim_folder` before anything else), or
   the caller's ``recognise`` function knows an output written before markers existed (a dataset's

@@ -1,4 +1,4 @@
-"""A multi-camera frames folder: per-camera background and frame images (or videos), validated.
+"""A multi-camera frames folder: per-camera background and frame images (or videos), validated (not read).
 
 Layout (the "frames dataset" contract; only the two folders below are read here)::
 
@@ -11,26 +11,24 @@ Layout (the "frames dataset" contract; only the two folders below are read here)
 file name (image folders: every camera folder must hold the same file names) or by index
 (videos: ``00000``, ``00001``, ...; every video must have the same number of frames). A camera
 whose frames entry is absent is reported in :attr:`FramesFolder.missing` (the caller decides what
-that means); every other problem raises :class:`~silpose.app.errors.FramesInputError` naming the file or folder: an
-unknown camera name, missing or too few background frames, unreadable images or videos, frame
-sizes that differ from the camera's size, frame names or counts that differ across cameras.
-
-Images are returned as BGR uint8 (``cv2.imread`` order), like :mod:`.images`. Frames are read
-in chunks (:meth:`FramesFolder.iter_chunks`) so long recordings never sit in memory at once.
-:func:`open_frames` opens a folder for a model's rig.
+that means); every other problem found without decoding a frame raises
+:class:`~silpose.app.errors.FramesInputError` naming the file or folder: an unknown camera name, missing or too
+few background frames, videos OpenCV cannot open, frame names or counts that differ across cameras.
+:func:`open_frames` checks a folder for a model's rig. The frames are read as a recording
+(:mod:`silpose.app.recordings.frames_source`), where an unreadable frame or one of another size is an error
+naming the file.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Sequence
 
 import cv2
-import numpy as np
 
 from ..errors import FramesInputError
-from .images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, frame_size_text, load_frames, load_video
+from .images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 
 
 @dataclass(frozen=True)
@@ -95,9 +93,6 @@ class FramesFolder:
         The folder holding ``background/`` and ``frames/``.
     cameras : sequence of str
         The rig's camera names, in view order.
-    sizes : sequence of (width, height) or None
-        Each camera's image size in pixels (same order as ``cameras``); every frame and
-        background frame must have it. None: each camera's first background frame sets it.
 
     Attributes
     ----------
@@ -109,12 +104,9 @@ class FramesFolder:
         Frame names (image file stems, or ``00000``-style indices for videos), in order.
     """
 
-    def __init__(self, root, cameras: Sequence[str], sizes: Sequence[tuple[int, int]] | None = None):
+    def __init__(self, root, cameras: Sequence[str]):
         self.root = Path(root)
         self.cameras = tuple(str(c) for c in cameras)
-        if sizes is not None and len(sizes) != len(self.cameras):
-            raise FramesInputError(f"sizes: {len(sizes)} sizes for {len(self.cameras)} cameras")
-        self.sizes = None if sizes is None else {c: (int(w), int(h)) for c, (w, h) in zip(self.cameras, sizes)}
         if not self.root.is_dir():
             raise FramesInputError(f"{self.root}: frames folder not found")
         frames_dir, bg_dir = self.root / "frames", self.root / "background"
@@ -172,100 +164,17 @@ class FramesFolder:
             raise FramesInputError(f"{self._frames[self.present[0]].path}: no frames")
         return names if names is not None else [f"{i:05d}" for i in range(n)]
 
-    def _check_size(self, cam: str, img: np.ndarray, source: Path | str) -> None:
-        want = self.sizes.get(cam) if self.sizes else None
-        if want is None:
-            want = getattr(self, "_bg_sizes", {}).get(cam)
-            origin = "its background frames"
-        else:
-            origin = "the rig"
-        if want is not None and (img.shape[1], img.shape[0]) != want:
-            raise FramesInputError(
-                f"{source}: frame size {frame_size_text(img.shape)} differs from camera {cam!r} "
-                f"({want[0]}x{want[1]} (WxH), from {origin})"
-            )
-
     @property
     def n_frames(self) -> int:
         return len(self.frame_names)
 
-    def entry(self, cam: str) -> CameraEntry:
-        """The frames entry (folder or video) of a present camera."""
-        return self._frames[cam]
-
-    # ------------------------------------------------------------------ reading
-    def background(self, cam: str, max_frames: int | None = None) -> np.ndarray:
-        """A present camera's background frames (N, H, W, 3) uint8 BGR, size-checked."""
-        e = self._background[cam]
-        if e.is_video:
-            stack = load_video(e.path, max_frames=max_frames)
-            if len(stack) < 2:
-                raise FramesInputError(f"{e.path}: a background needs at least 2 frames, the video has {len(stack)}")
-        else:
-            stack, _ = load_frames(e.path)
-            stack = stack[:max_frames] if max_frames else stack
-        self._check_size(cam, stack[0], e.path if e.is_video else e.images[0])
-        if not hasattr(self, "_bg_sizes"):
-            self._bg_sizes = {}
-        self._bg_sizes[cam] = (stack.shape[2], stack.shape[1])
-        return stack
-
-    def iter_chunks(self, chunk: int = 64) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
-        """Yield ``(start, {camera: (n, H, W, 3) uint8 BGR})`` for consecutive chunks of up to ``chunk`` frames.
-
-        Every image is checked (readable, size); videos must deliver exactly :attr:`n_frames` frames.
-        """
-        if chunk < 1:
-            raise FramesInputError(f"chunk: must be >= 1, got {chunk}")
-        caps = {}
-        try:
-            for cam in self.present:
-                e = self._frames[cam]
-                if e.is_video:
-                    cap = cv2.VideoCapture(str(e.path))
-                    if not cap.isOpened():
-                        raise FramesInputError(f"{e.path}: OpenCV cannot open this video")
-                    caps[cam] = cap
-            for start in range(0, self.n_frames, chunk):
-                stop = min(start + chunk, self.n_frames)
-                out = {}
-                for cam in self.present:
-                    e = self._frames[cam]
-                    imgs = []
-                    for i in range(start, stop):
-                        if e.is_video:
-                            ok, img = caps[cam].read()
-                            if not ok:
-                                raise FramesInputError(
-                                    f"{e.path}: the video ends after {i} frames; other cameras have {self.n_frames}"
-                                )
-                            source = f"{e.path} frame {i}"
-                        else:
-                            img = cv2.imread(str(e.images[i]), cv2.IMREAD_COLOR)
-                            if img is None:
-                                raise FramesInputError(f"{e.images[i]}: cannot read this image (corrupt or not an image)")
-                            source = e.images[i]
-                        self._check_size(cam, img, source)
-                        imgs.append(img)
-                    out[cam] = np.stack(imgs)
-                yield start, out
-            for cam, cap in caps.items():
-                if cap.read()[0]:
-                    raise FramesInputError(
-                        f"{self._frames[cam].path}: the video has more than the {self.n_frames} frames OpenCV reported; "
-                        f"re-encode it"
-                    )
-        finally:
-            for cap in caps.values():
-                cap.release()
-
 
 def open_frames(model, root) -> FramesFolder:
-    """A frames folder validated against a fitted model's rig (camera names and image sizes).
+    """A frames folder validated against a fitted model's rig (camera names).
 
     model: a ShapeStructureModel with a rig (``rig_``); root: the folder. FramesInputError otherwise.
     """
     if model.rig_ is None:
         raise FramesInputError("the model file stores no rig, so camera folders cannot be matched to views")
     rig = model.rig_
-    return FramesFolder(root, rig.names, [(c.width, c.height) for c in rig])
+    return FramesFolder(root, rig.names)

@@ -21,7 +21,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..contours import STATUS_OK, view_contour
+from ..contours import view_contour
+from ..view_status import VIEW_OK
 from ..errors import InferenceInputError
 
 
@@ -78,7 +79,7 @@ def read_png_input(model, folder: Path, threshold: int = 127):
             if path.suffix.lower() in LOSSY_SUFFIXES:
                 img = cv2.medianBlur(img, 3)
             points, status, _ = view_contour(foreground(img, threshold), n_pts)
-            if status == STATUS_OK:
+            if status == VIEW_OK:
                 contours[i, k] = points
                 present[i, k] = True
     return np.array(frames), contours, present, None

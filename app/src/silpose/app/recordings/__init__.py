@@ -1,8 +1,10 @@
-"""Recordings: per-camera videos of several people -> each person's joints in the room (``silpose infer --videos``).
+"""Every camera input: per-camera videos or frame folders -> joints (``silpose infer --videos``, ``--frames``).
 
-One concept per module, in data-path order::
+Several people are placed in the room (``pipeline``); one person (``--people 1``, ``one_person``) takes each
+view's largest blob. One concept per module, in data-path order::
 
     sources        the videos folder: match videos to the rig's cameras, probe, synchronise, stream frames
+    frames_source  the frames-folder layout (frames/ + background/) as a source of the same reader
     silhouettes    frames -> masks: mask videos binarised, or colour videos through the background model
     blobs          a mask's connected components, and a blob's contour
     floor          people on the floor: occupancy grid of every camera's mask
@@ -11,6 +13,8 @@ One concept per module, in data-path order::
     placement      the root in the room (floor position, stature, silhouettes) and missing views' contours
     writers        joints.parquet + joints.csv, streamed
     overlay_video  per-camera overlay videos
+    overlay_png    overlays as one tiled PNG per frame; ``--overlays png|mp4|none``
     floorplan      the tracks seen from above
-    pipeline       the run: ``run_recording``
+    pipeline       the run of several people: ``run_recording``
+    one_person     the run of one person: ``run_one_person``
 """

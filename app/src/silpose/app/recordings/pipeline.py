@@ -11,8 +11,8 @@ except a few numbers per person and step for the floor plan):
    their contours (:func:`silpose.shared.contours.extract_contour` on the blob);
 then per chunk:
 4. the model infers every detected person's root-relative joints from their usable views, missing views
-   marginalised (:func:`silpose.app.inference.infer_rows`, the path ``infer --frames`` uses); a person with
-   no usable view gets no joints;
+   marginalised (:func:`silpose.app.inference.infer_rows`, as for one person, :mod:`.one_person`); a person
+   with no usable view gets no joints;
 5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`); joints
    are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
@@ -65,9 +65,11 @@ from ..inference import TOP_K, InferOptions, infer_rows
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid
 from .floorplan import write_floorplan
+from .frames_source import bad_frame, frames_folder_run
+from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
-from .resolution import WORK_PERSON_PX, to_rig_px, to_work_px, work_camera, work_size
+from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
@@ -76,8 +78,6 @@ from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VI
                     assign_views, body_box, grounded)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
-#: pixels: smaller blobs are not people (speckle); a 1.5 m person 6 m from a 644x486 camera covers ~1,500 px
-DEFAULT_MIN_AREA_PX = 150
 #: metres: floor detections this close to the floor grid's outer edge are not people in the room but someone
 #: beyond it (people standing at the back: the rays through them cross the grid's last cells)
 EDGE_M = 0.15
@@ -93,11 +93,14 @@ MASK_DIAGNOSIS_SHARE = 0.9
 
 @dataclass
 class RecordingOptions:
-    """Options of :func:`run_recording` (``silpose infer --videos``).
+    """Options of :func:`run_recording` (``silpose infer --videos``) and of :func:`.one_person.run_one_person`.
 
     masks: the videos are foreground masks (else colour, segmented against ``background`` clips -- or the
-    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames); offsets: ``"cam1=3,..."``; min_area: px; overlays: write the
-    overlay videos; noise_variance: the model's s^2 when None; chunk: steps per inference batch; threads:
+    recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames);
+    offsets: ``"cam1=3,..."``; min_area: px of the rig camera (None: :func:`~.resolution.min_blob_area`'s share
+    of a person); overlays: ``"mp4"`` (or True: per-camera overlay videos), ``"png"`` (one tiled PNG per frame,
+    :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per
+    inference batch; threads:
     per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking, steps
     (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
@@ -110,7 +113,8 @@ class RecordingOptions:
     track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
-    (module docstring; 0: never). reader_threads: decode each camera in its own thread, frames ahead
+    (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). reader_threads:
+    decode each camera in its own thread, frames ahead
     (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
     videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
     47 and 92 without -- a mask frame decodes in ~1 ms, and the extra threads only contend for the cores).
@@ -120,8 +124,8 @@ class RecordingOptions:
     background: Path | None = None
     background_frames: int | None = None
     offsets: str | None = None
-    min_area: int = DEFAULT_MIN_AREA_PX
-    overlays: bool = True
+    min_area: int | None = None
+    overlays: bool | str = True
     noise_variance: float | None = None
     chunk: int = 16
     threads: int | None = None
@@ -135,6 +139,7 @@ class RecordingOptions:
     work_person_px: int = WORK_PERSON_PX
     absorb_s: float = ABSORB_S
     reader_threads: bool | None = None
+    overlay_dir: Path | None = None
 
 
 @dataclass
@@ -297,17 +302,9 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         model = load_model(Path(model))
     if getattr(model, "rig_", None) is None:
         raise RecordingError("the model file stores no rig, so videos cannot be matched to cameras")
-    if opt.masks and (opt.background is not None or opt.background_frames is not None):
-        raise RecordingError("--masks: mask videos need no background (--background / --background-frames)")
-    if not opt.masks and opt.background is not None and opt.background_frames is not None:
-        raise RecordingError("give one background: --background DIR or --background-frames N, not both")
-    if not opt.masks and opt.background is None and opt.background_frames is None:
-        hint = (f" (the camera folders of {videos} hold empty-room clips: --background {videos})"
-                if holds_background_clips(Path(videos), model.rig_.names) else "")
-        raise RecordingError("colour videos need a background: give --background DIR (empty-room clips) or "
-                             "--background-frames N (the first N frames show the empty room), or --masks for mask "
-                             f"videos{hint}")
-    if opt.chunk < 1 or opt.min_area < 1:
+    videos, opt, frame_names = frames_folder_run(videos, opt, model.rig_)
+    check_background_options(opt, videos, model.rig_)
+    if opt.chunk < 1 or (opt.min_area is not None and opt.min_area < 1):
         raise RecordingError("chunk and min_area must be >= 1")
     rig = model.rig_
     names = list(rig.names)
@@ -327,17 +324,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
                for c, s in recording.sources.items()}
     grid = FloorGrid(work, workspace.bounds)
-    start = 0
-    if opt.masks:
-        silhouettes = MaskBinariser()
-    elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():
-        silhouettes = background_from_recording(sources, opt.segment_params)
-    elif opt.background is not None:
-        silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
-                                            {c.name: (c.width, c.height) for c in work})
-    else:
-        silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
-        start = int(opt.background_frames)
+    silhouettes, start = make_silhouettes(opt, rig, sources, work)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
         raise RecordingError(f"{videos}: no frames left after the {start} background frames")
@@ -352,7 +339,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
     reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
     cams = {c: _Camera(reader(CameraReader(s, silhouettes.grey, start)), silhouettes,
-                       _scaled_area(opt.min_area, rig[names.index(c)], work[names.index(c)]), keep_frame=not opt.masks,
+                       min_blob_area(rig[names.index(c)], work[names.index(c)], workspace.center, opt.min_area),
+                       keep_frame=not opt.masks,
                        cam=work[names.index(c)], absorb_frames=absorb)
             for c, s in sources.items()}
     out = Path(out)
@@ -380,8 +368,9 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
-        if opt.overlays:
-            overlays = OverlayVideos(out, names, {c.name: (c.width, c.height) for c in work}, fps)
+        overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
+                                {c.name: (c.width, c.height) for c in work}, fps, first_frame,
+                                frame_names[start:] if frame_names is not None else None)
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -394,6 +383,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 seen = dict(zip(cams, stepper()))
                 timings["cameras"] += time.perf_counter() - t0
                 ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
+                if ended and frame_names is not None and start + step < len(frame_names):  # a frames folder's contract
+                    raise bad_frame(recording.sources[ended[0]], start + step)
                 if ended:
                     gone.update(ended)
                     if len(gone) == len(seen):  # no camera left: the recording is over
@@ -481,9 +472,36 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     return summary
 
 
-def _scaled_area(area_px: int, cam, work) -> int:
-    """A minimum blob area in ``cam``'s pixels, in ``work``'s (its working resolution)."""
-    return max(1, int(round(area_px * work.width * work.height / (cam.width * cam.height))))
+def check_background_options(opt: RecordingOptions, videos, rig) -> None:
+    """One-line errors for a recording's mask / background options that contradict each other or are missing."""
+    if opt.masks and (opt.background is not None or opt.background_frames is not None):
+        raise RecordingError("--masks: mask videos need no background (--background / --background-frames)")
+    if not opt.masks and opt.background is not None and opt.background_frames is not None:
+        raise RecordingError("give one background: --background DIR or --background-frames N, not both")
+    if not opt.masks and opt.background is None and opt.background_frames is None:
+        hint = (f" (the camera folders of {videos} hold empty-room clips: --background {videos})"
+                if holds_background_clips(Path(videos), rig.names) else "")
+        raise RecordingError("colour videos need a background: give --background DIR (empty-room clips) or "
+                             "--background-frames N (the first N frames show the empty room), or --masks for mask "
+                             f"videos{hint}")
+
+
+def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
+    """(the mask maker of :mod:`.silhouettes` the options ask for, the first step's frame index): mask videos
+    binarised, or colour videos segmented against empty-room clips, the recording's median or its first frames;
+    ``sources`` {camera: CameraSource} at the working sizes of ``work`` (cameras in rig order)."""
+    start = 0
+    if opt.masks:
+        silhouettes = MaskBinariser()
+    elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():
+        silhouettes = background_from_recording(sources, opt.segment_params)
+    elif opt.background is not None:
+        silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
+                                            {c.name: (c.width, c.height) for c in work})
+    else:
+        silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
+        start = int(opt.background_frames)
+    return silhouettes, start
 
 
 def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
@@ -583,7 +601,7 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
         # untangled (simple) contours only matter where they are drawn or written (~1 ms per crossing contour)
         robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
         options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=robust,
-                               untangle=opt.overlays or opt.contours)
+                               untangle=draws_overlays(opt.overlays) or opt.contours)
         res = infer_rows(model, c, used[rows], options=options)
         pose = res.joints
         if res.hypotheses is not None:
@@ -646,7 +664,7 @@ def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_track
     return keep
 
 
-def _draw_chunk(overlays: OverlayVideos, rig, work, names, modelled, step0: int, seen_chunk, people, rows: PersonRows,
+def _draw_chunk(overlays: "OverlayVideos | OverlayPngs", rig, work, names, modelled, step0: int, seen_chunk, people, rows: PersonRows,
                 world, first_frame: int) -> None:
     """Overlay frames of the chunk's steps (module :mod:`.overlay_video`), at the cameras' working size."""
     by_step: dict[int, list[int]] = {}

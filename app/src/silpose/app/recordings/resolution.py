@@ -105,3 +105,27 @@ def shrink(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         if w // k < 2 * tw and h // k < 2 * th:
             return cv2.resize(img, (tw, th), interpolation=cv2.INTER_LINEAR)
     return cv2.resize(img, (tw, th), interpolation=cv2.INTER_AREA)
+
+
+#: a standing person's silhouette area over their image height squared (measured: the median of area / h^2 is
+#: 0.18-0.19 per camera over 300 test samples x 4 views of the default dataset, h the silhouette's height)
+PERSON_AREA_SHARE = 0.19
+#: the minimum blob area as a share of a person's expected silhouette area: smaller blobs are speckle (docs/
+#: conventions.md, "Minimum blob area"). 3 % gives 73 px for the default rig's 114 px people, 128 px for the lab
+#: rig's 150 px and 146 px at the working resolution's 160 px
+MIN_BLOB_SHARE = 0.03
+
+
+def min_blob_area(cam, work, centre_xy, area_px: int | None = None) -> int:
+    """The smallest usable blob, pixels at ``work``'s resolution (:func:`work_camera` of ``cam``).
+
+    ``area_px`` (pixels of ``cam``, e.g. ``--min-area``) scaled to ``work``; by default
+    ``MIN_BLOB_SHARE * PERSON_AREA_SHARE * h**2``, h the height of a person at ``centre_xy`` at the working
+    resolution (:func:`person_height_px`; the image's half height when the rig cannot say).
+    """
+    if area_px is not None:
+        return max(1, int(round(area_px * work.width * work.height / (cam.width * cam.height))))
+    h = person_height_px(work, centre_xy)
+    if not np.isfinite(h) or h <= 0:
+        h = work.height / 2
+    return max(1, int(round(MIN_BLOB_SHARE * PERSON_AREA_SHARE * h * h)))

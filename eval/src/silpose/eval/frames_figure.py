@@ -1,6 +1,6 @@
-"""Per-frame figures of ``silpose infer --frames --save-overlays`` in the style of the paper's Fig. 9.
+"""The camera-frames evaluation's example figure (``frames_example.png``), in the style of the paper's Fig. 9.
 
-One PNG per frame, one column per camera of the model's rig:
+One PNG, one column per camera of the model's rig:
 
 - row 1, the camera frame (as recorded);
 - row 2, the extracted silhouette (grey; cropped around it) with the model's reconstructed contour over it (red);
@@ -10,7 +10,7 @@ One PNG per frame, one column per camera of the model's rig:
   (orthographic: the joints rotated by the camera's R, x right and y down), so it lines up with the
   frame above it. The paper picked such viewpoints by hand; the rig gives them exactly.
 
-matplotlib (heavy) is imported when a figure is drawn, with the non-interactive Agg backend.
+matplotlib (heavy) is imported when a figure is drawn, with the non-interactive Agg backend (:func:`.plots.pyplot`).
 """
 
 from __future__ import annotations
@@ -22,17 +22,9 @@ import numpy as np
 from silpose.shared.atomic import write_figure_atomic
 from silpose.shared.skeleton import BONES
 
-from .contours import STATUS_OK
+from silpose.app.view_status import VIEW_OK
 
-
-def pyplot():
-    """matplotlib.pyplot on the Agg backend (files only, no display)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+from .plots import pyplot
 
 
 def _crop(mask, recon: np.ndarray, width: int, height: int, pad: float = 15.0) -> tuple[float, float, float, float]:
@@ -87,7 +79,7 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
             a1.imshow(masks[k], cmap="gray", vmin=0, vmax=1.6)
         else:
             a1.imshow(np.zeros((cam.height, cam.width)), cmap="gray", vmin=0, vmax=1.6)
-        if status[k] == STATUS_OK:
+        if status[k] == VIEW_OK:
             c = recon_px[k]
             if np.all(np.isfinite(c)):
                 c = np.vstack([c, c[:1]])
@@ -113,29 +105,3 @@ def overlay_figure(path, images: list, masks: list, recon_px: np.ndarray, status
     fig.tight_layout()
     return write_figure_atomic(fig, path, dpi=90)
 
-
-class OverlayWriter:
-    """``on_chunk`` callback of :func:`silpose.app.frames_pipeline.run_frames_pipeline` writing one PNG per frame.
-
-    Files: ``<folder>/<frame name>.png``. ``n_written`` counts them.
-    """
-
-    def __init__(self, model, folder):
-        pyplot()  # import matplotlib now, before any work
-        self.model = model
-        self.folder = Path(folder)
-        self.n_written = 0
-
-    def __call__(self, chunk) -> None:
-        rig = self.model.rig_
-        names = list(rig.names)
-        views = list(chunk.result.views)
-        for i, frame in enumerate(chunk.names):
-            recon = np.full((len(names),) + chunk.result.contours_px.shape[2:], np.nan)
-            recon[views] = chunk.result.contours_px[i]
-            imgs = [chunk.images[c][i] if c in chunk.images else None for c in names]
-            masks = [chunk.masks[c][i] if c in chunk.masks else None for c in names]
-            n_used = int(chunk.present[i].sum())
-            overlay_figure(self.folder / f"{frame}.png", imgs, masks, recon, list(chunk.status[i]),
-                           chunk.result.joints[i], rig, f"frame {frame}: pose inferred from {n_used} view(s)")
-            self.n_written += 1
