@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from silpose.model.hypotheses import heading, is_flip
-from silpose.model.mixing import Mixing, calibrate_mixing, mixed_joints, mixture_terms, vote_agreement
+from silpose.model.hypotheses import heading, is_flip, single_answer, top_hypotheses
+from silpose.model.mixing import (Mixing, agreeing_choice, calibrate_mixing, mixed_joints, mixture_terms,
+                                  vote_agreement)
 from silpose.model.persistence import load_model, save_model
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
@@ -68,6 +69,12 @@ def test_votes_choose_the_mirrored_pose_when_the_views_see_it():
     w = 0.01 * np.exp(beta) / (0.99 * np.exp(-beta) + 0.01 * np.exp(beta))  # by hand
     np.testing.assert_allclose(out[0], w * mirrored + (1 - w) * facing, atol=1e-12)
     assert not is_flip(out, mirrored[None])[0] and pose_error_cm(out, mirrored[None])[0] < 0.1
+    # silpose infer's single answer keeps the voted pose: the chosen hypothesis is the one facing its way
+    hyp = top_hypotheses(comp, resp, 2)
+    assert hyp.component[0, 0] == 0 and is_flip(single_answer(out, hyp), mirrored[None])[0]  # slot 0 would undo it
+    hyp.chosen = agreeing_choice(hyp, out)
+    assert hyp.chosen[0] == 1
+    np.testing.assert_array_equal(single_answer(out, hyp), out)
     # a high temperature spreads the weight evenly: the average of the two
     np.testing.assert_allclose(mixed_joints(comp, resp, 1e9)[0], 0.5 * (facing + mirrored), atol=1e-6)
     # a frame without votes keeps the mixture's weights; a component not evaluated (NaN) gets none

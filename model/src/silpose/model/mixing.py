@@ -38,11 +38,11 @@ import numpy as np
 from silpose.shared.metrics import pose_error_cm
 
 from .checks import model_inputs
-from .hypotheses import heading, wrap_angle
+from .hypotheses import FLIP_ANGLE, Hypotheses, heading, wrap_angle
 from .plausibility import view_subsets
 from .robust import RobustSettings, robust_infer
 
-__all__ = ["Mixing", "mixed_joints", "vote_agreement", "mixture_terms", "calibrate_mixing", "TEMPERATURES", "VOTE_WEIGHTS"]
+__all__ = ["Mixing", "mixed_joints", "vote_agreement", "agreeing_choice", "mixture_terms", "calibrate_mixing", "TEMPERATURES", "VOTE_WEIGHTS"]
 
 #: temperatures tried by :func:`calibrate_mixing`
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 7.0, 10.0, 15.0, 20.0)
@@ -150,6 +150,16 @@ def mixed_joints(component_joints: np.ndarray, responsibilities: np.ndarray, tem
     out = np.einsum("nm,nmjc->njc", w, np.where(ok[..., None, None], cj, 0.0))
     out[total[:, 0] <= 0] = np.nan
     return out
+
+
+def agreeing_choice(hyp: Hypotheses, joints: np.ndarray) -> np.ndarray:
+    """(N,) slot of the most probable hypothesis facing within 90 deg of ``joints`` (N, 19, 3) (the mixed posterior
+    mean), 0 where none does: the hypotheses' ``chosen`` for a calibrated answer, so that
+    :func:`~silpose.model.hypotheses.single_answer` does not turn the answer back to a likelier hypothesis the votes
+    overruled."""
+    diff = np.abs(wrap_angle(hyp.heading - heading(joints)[:, None]))  # (N, K), NaN in unused slots
+    ok = (hyp.component >= 0) & np.where(np.isfinite(diff), diff <= FLIP_ANGLE, False)
+    return np.where(ok.any(axis=1), np.argmax(ok, axis=1), 0).astype(np.intp)  # slots are sorted by probability
 
 
 def mixture_terms(model, contours_px: np.ndarray, present: np.ndarray, *, robust=True,

@@ -33,7 +33,7 @@ from silpose.shared.skeleton import N_JOINTS
 from .checks import check_contours, check_views, model_inputs
 from .features import FeatureLayout, shape_vectors
 from .hypotheses import consensus_choice, top_hypotheses
-from .mixing import Mixing, mixed_joints, vote_agreement
+from .mixing import Mixing, agreeing_choice, mixed_joints, vote_agreement
 from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
 from .plausibility import PlausibilityCalibration, convex_in_every_view
 from .posterior import Posterior
@@ -435,6 +435,8 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
             if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
                 hyp.chosen = consensus_choice(hyp, posterior.pair_headings(inputs, s2))
+            elif mix is not None:  # the hypothesis facing the calibrated answer's way (silpose.model.mixing)
+                hyp.chosen = agreeing_choice(hyp, res.joints)
             res.hypotheses = hyp
         if untangle:
             res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
