@@ -36,6 +36,7 @@ import pyarrow as pa
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from silpose.model.augment import Roughness, training_rows
+from silpose.model.mixing import calibrate_mixing
 from silpose.model.persistence import is_model_file, save_model
 from silpose.model.selection import is_real_em, unit_weight_loglik, view_errors
 from silpose.model.selection import select as run_selection
@@ -341,6 +342,8 @@ def run_training(
         held_err = pose_error_cm(model.infer(c_held).joints, j_held)
         held_1view = view_errors(model, np.asarray(c_held, np.float64), j_held)["one"]
     model.calibrate_plausibility(held_contours, seed=seed)  # stored in the model file (silpose.model.plausibility)
+    if not streaming:  # the posterior mean's weights, calibrated on the clean held-out rows (silpose.model.mixing)
+        model.mixing_ = calibrate_mixing(model, c_held, j_held)
 
     save_model(out, model)
     mix = model.mixture_
@@ -380,6 +383,7 @@ def run_training(
             "joint_error_median_cm": float(np.median(held_err)),
             "joint_error_1view_cm": float(held_1view),
         },
+        "mixing": None if getattr(model, "mixing_", None) is None else model.mixing_.to_dict(),
         "selection": None if selection is None else selection.to_dict(),
         "roughness": None if roughness is None else roughness.to_dict(),
         "mirrors": [m.to_dict() for m in mirrors],

@@ -10,6 +10,7 @@ I/O (those live in ``silpose.app``). Modules, lowest first::
     stature           metric stature from calibrated silhouettes
     features          FeatureLayout, contour normalisation, shape_vectors (paper eq. 4)
     hypotheses        top-K pose hypotheses and the choice among them
+    mixing            calibrated weights of the posterior mean (tempered responsibilities, heading votes)
     result            InferenceResult: what infer returns, its row operations (take, put, merge, nan_like)
     posterior         Posterior: conditioning on the present views, its cache of Conditioners
     checks            input checks of the shape model

@@ -20,7 +20,8 @@ null), ``hyperparameters`` (ShapeStructureModel.hyperparameters), ``training`` (
 lower_bound, initial_bound, fit time, n_train), ``dataset`` (root, manifest sha256 when known, the generator
 config, ...), ``training_config`` (how ``silpose train`` was run: held-out fraction, seed, selection),
 ``plausibility`` (the :class:`~silpose.model.plausibility.PlausibilityCalibration` as a dict, or
-null: files written before it have none), ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
+null: files written before it have none), ``mixing`` (the :class:`~silpose.model.mixing.Mixing` calibration of the
+posterior mean's weights as a dict, or null: files written before it have none), ``arrays`` (name -> [dtype, shape]) and ``arrays_sha256`` (sha256 over every array's name,
 dtype, shape and bytes, in sorted key order) which :func:`load_model` verifies.
 """
 
@@ -39,6 +40,7 @@ from silpose.shared.skeleton import JOINT_NAMES
 
 from .features import FeatureLayout
 from .mppca import MPPCA
+from .mixing import Mixing
 from .plausibility import PlausibilityCalibration
 from .shape_model import ShapeStructureModel
 
@@ -96,6 +98,7 @@ def save_model(path: str | Path, model: ShapeStructureModel) -> Path:
         "dataset": dict(getattr(model, "dataset_info_", {}) or {}),
         "training_config": dict(getattr(model, "training_config_", {}) or {}),
         "plausibility": None if getattr(model, "plausibility_", None) is None else model.plausibility_.to_dict(),
+        "mixing": None if getattr(model, "mixing_", None) is None else model.mixing_.to_dict(),
         "arrays": {k: [v.dtype.str, list(v.shape)] for k, v in arrays.items()},
         "arrays_sha256": arrays_sha256(arrays),
     }
@@ -257,6 +260,12 @@ def load_model(path: str | Path) -> ShapeStructureModel:
         try:
             model.plausibility_ = PlausibilityCalibration.from_dict(header["plausibility"],
                                                                     source=f"{path}: field 'header.plausibility'")
+        except ValueError as exc:
+            raise ModelFileError(str(exc)) from None
+    model.mixing_ = None
+    if header.get("mixing") is not None:
+        try:
+            model.mixing_ = Mixing.from_dict(header["mixing"], source=f"{path}: field 'header.mixing'")
         except ValueError as exc:
             raise ModelFileError(str(exc)) from None
     model.header_ = header

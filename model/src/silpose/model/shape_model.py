@@ -33,6 +33,7 @@ from silpose.shared.skeleton import N_JOINTS
 from .checks import check_contours, check_views, model_inputs
 from .features import FeatureLayout, shape_vectors
 from .hypotheses import consensus_choice, top_hypotheses
+from .mixing import Mixing, agreeing_choice, mixed_joints, vote_agreement
 from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
 from .plausibility import PlausibilityCalibration, convex_in_every_view
 from .posterior import Posterior
@@ -373,6 +374,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         consensus: bool = False,
         robust: bool | RobustSettings = False,
         untangle: bool = False,
+        mixing: Mixing | bool | None = None,
     ) -> InferenceResult:
         """Infer joints and reconstruct every modelled view's contour from the observed views.
 
@@ -398,6 +400,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                 describes the last pass, ``log_marginal`` (and the plausibility) the observed input.
             untangle: make every reconstructed contour a simple polygon (:mod:`silpose.model.untangle`; about
                 1 ms per self-intersecting contour).
+            mixing: the weights of the posterior mean ``joints`` (:mod:`silpose.model.mixing`): None = the model's
+                calibration ``mixing_`` when it has one, else the mixture's own responsibilities; False = the
+                mixture's own; a :class:`~silpose.model.mixing.Mixing` = that one.
         Returns:
             :class:`InferenceResult` over the K modelled views.
         """
@@ -411,7 +416,8 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         inputs = model_inputs(self.fitted_layout(), self.n_rig_views_, contours_px, views_present, input_views,
                               centroid, scale)
         posterior = self.posterior()
-        want = hypotheses > 0  # component means (hypotheses) come from the last pass only
+        mix = getattr(self, "mixing_", None) if mixing is None or mixing is True else (mixing or None)
+        want = hypotheses > 0 or mix is not None  # component means (hypotheses) come from the last pass only
         if settings is None:
             res, comp = posterior.infer(inputs, s2, components=want)
         else:
@@ -421,10 +427,16 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             res.plausibility = cal.percentile(res.log_marginal, inputs.present)
             # a likelihood percentile cannot flag a smooth blob: convex silhouettes are flagged too
             res.implausible = cal.implausible(res.plausibility) | convex_in_every_view(inputs.contours, inputs.present)
+        if mix is not None:  # calibrated weights of the posterior mean (silpose.model.mixing)
+            agree = vote_agreement(comp, posterior.pair_headings(inputs, s2)) if mix.needs_votes else None
+            res.joints = mixed_joints(comp, res.responsibilities, mix.temperature(inputs.present.sum(axis=1)), agree,
+                                      mix.vote_weight)
         if hypotheses > 0:
             hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
             if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
                 hyp.chosen = consensus_choice(hyp, posterior.pair_headings(inputs, s2))
+            elif mix is not None:  # the hypothesis facing the calibrated answer's way (silpose.model.mixing)
+                hyp.chosen = agreeing_choice(hyp, res.joints)
             res.hypotheses = hyp
         if untangle:
             res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
