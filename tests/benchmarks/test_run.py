@@ -42,7 +42,9 @@ def test_quick_run_writes_markdown_and_json_with_the_blas_floor(tmp_path):
     assert len(kernels) == 11
     for r in kernels:
         seconds = r.get("seconds", r["value"])
-        assert 0 < r["blas_floor_s"] < seconds
+        # both timed, in the same run; their order is not asserted (a tiny CI kernel can come within timing noise
+        # of its floor, and tests never assert wall-clock figures)
+        assert r["blas_floor_s"] > 0 and seconds > 0
         assert math.isclose(r["over_floor"], seconds / r["blas_floor_s"], rel_tol=1e-12)
     md = (tmp_path / "bench.md").read_text()
     assert proc.stdout == md + "\n"  # the report is also printed
