@@ -232,7 +232,7 @@ class Rig:
             return None
         r0, r1, c0, c1 = rect
         lo, hi = np.array([xe[c0], ye[r0]]), np.array([xe[c1 + 1], ye[r1 + 1]])
-        return Workspace((lo + hi) / 2, hi - lo)
+        return Workspace(np.round((lo + hi) / 2, 9), np.round(hi - lo, 9))  # free of the float sums' 1e-17 m
 
 
 def _in_view(cam: Camera, points: np.ndarray) -> np.ndarray:
