@@ -9,24 +9,13 @@ import pytest
 
 from silpose.datagen.config import ConfigError, load_config
 from silpose.datagen.render import RenderResult
+from silpose.datagen.testing import tiny_config_toml
 from silpose.datagen.worker import SampleError, check_worker_config, motion_from_config, placement_area, render_sample
-from silpose.shared.camera import ring_rig
+from silpose.shared.camera import RigError, ring_rig
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 from silpose.shared.skeleton import BONES
 
-BASE = """name = "tiny"
-seed = 7
-renderer = "raster"
-blender_engine = "workbench"
-shard_size = 4
-n_points = 200
-max_redraws = 50
-[splits]
-train = 8
-test = 4
-[rig]
-file = "rig.json"
-"""
+BASE = tiny_config_toml() + '[rig]\nfile = "rig.json"\n'
 
 
 class StickRenderer:
@@ -60,7 +49,7 @@ def partial(tmp_path):
 
 def test_gen_accepts_a_rig_file_whose_workspace_some_camera_misses(partial):
     rig, path = partial
-    with pytest.raises(Exception, match="does not see the workspace corner"):
+    with pytest.raises(RigError, match="does not see the workspace corner"):
         rig.check_sees_workspace(height=PERSON_HEIGHT_M)  # the rig really misses part of its workspace
     cfg = load_config(path)  # refused before: "camera 'cam0' does not see the workspace corner"
     p = cfg.placement
@@ -70,9 +59,9 @@ def test_gen_accepts_a_rig_file_whose_workspace_some_camera_misses(partial):
     wc = cfg.worker_config()
     assert wc["placement"] == p.to_dict() and "workspace" not in wc["rig"]
     assert cfg.to_dict()["placement"] == p.to_dict()
-    # a placement area that is not just the rig's workspace shrunk about its centre: the cameras' own
+    # and about the largest such part: 0.1 m more on every side is not seen
     grown = Workspace(p.center, p.size + 0.2)
-    with pytest.raises(Exception, match="does not see"):
+    with pytest.raises(RigError, match="does not see"):
         cfg.rig.check_sees_workspace(height=PERSON_HEIGHT_M, workspace=grown)
 
 
