@@ -207,9 +207,13 @@ class FloorGrid:
                 kept.append(p)
                 scores.append(float(smooth[rows[i], cols[i]]))
         out = []
+        r = int(np.ceil(0.25 / self.cell)) + 1  # the cells within 0.25 m of a peak lie in this window
         for p in kept:
-            near = ((self.X - p[0]) ** 2 + (self.Y - p[1]) ** 2 <= 0.25**2) & (occupancy > 0.5)
-            w = occupancy * near
+            i, j = int(round((p[1] - self.ys[0]) / self.cell)), int(round((p[0] - self.xs[0]) / self.cell))
+            win = np.s_[max(0, i - r): i + r + 1, max(0, j - r): j + r + 1]
+            X, Y, occ = self.X[win], self.Y[win], occupancy[win]
+            near = ((X - p[0]) ** 2 + (Y - p[1]) ** 2 <= 0.25**2) & (occ > 0.5)
+            w = occ * near
             total = float(w.sum())
-            out.append([(w * self.X).sum() / total, (w * self.Y).sum() / total] if total > 0 else p)
+            out.append([(w * X).sum() / total, (w * Y).sum() / total] if total > 0 else p)
         return Detections(np.asarray(out, float).reshape(-1, 2), np.asarray(scores, float))
