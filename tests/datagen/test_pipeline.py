@@ -19,10 +19,11 @@ import pytest
 
 from silpose.datagen.executor import ExecutorError
 from silpose.datagen.manifest import LOCK, FolderLock, LockError, sha256_file
-from silpose.datagen.pipeline import GenerationError, generate
+from silpose.datagen.pipeline import GenerationError, dataset_metadata, generate, plan_shards
+from silpose.datagen.shards import shard_is_complete
 from silpose.datagen.validate import validate_dataset
-from silpose.datagen.testing import SYNTH_RENDER, tiny_config, tiny_config_toml
-from silpose.shared.dataset import load_split
+from silpose.datagen.testing import SYNTH_RENDER, synthetic_render_samples, tiny_config, tiny_config_toml
+from silpose.shared.dataset import load_split, write_shard
 
 SYNTH = SYNTH_RENDER
 TINY = tiny_config_toml()
@@ -85,6 +86,33 @@ def test_a_folder_of_another_config_is_refused(tmp_path):
     with pytest.raises(GenerationError, match="shard of another configuration"):
         generate(other_shards, out, workers=1, render=SYNTH, progress=False)
     assert leftovers(out) == []
+
+
+def test_a_resume_with_another_max_redraws_keeps_the_finished_shards(tmp_path):
+    """A failed run (a sample beyond max_redraws) resumed with a larger max_redraws keeps its finished shards
+    (their samples cannot change: shards.RESUME_NEUTRAL), restamped so every shard holds the new config."""
+    out = tmp_path / "ds"
+    out.mkdir()
+    first = tiny_config(tmp_path)  # max_redraws = 50; its train shards finished, its test shard failed:
+    for task in plan_shards(first)[:2]:  # written here as the run writes them, without spawning workers
+        write_shard(out / task.file, synthetic_render_samples(first.worker_config(), task.split, list(task.indices)),
+                    dataset_metadata(first))
+    kept = {p.name: pq.read_table(p).to_pydict() for p in sorted(out.glob("train-*.parquet"))}
+    assert len(kept) == 2
+    more = tiny_config(tmp_path, TINY.replace("max_redraws = 50", "max_redraws = 1000"))
+    manifest = generate(more, out, workers=1, render=SYNTH, progress=False)  # refused before: "differs"
+    assert manifest["timing"]["shards_skipped"] == 2 and manifest["timing"]["shards_rendered"] == 1
+    assert {p.name: pq.read_table(p).to_pydict() for p in sorted(out.glob("train-*.parquet"))} == kept
+    split = load_split(out, "train")  # the readers demand one config in every shard
+    assert split.metadata["config"]["max_redraws"] == 1000 and manifest["config"]["max_redraws"] == 1000
+    # lowered below a kept sample's redraws: that shard is not kept (this run would have failed the sample)
+    fewer = dataset_metadata(tiny_config(tmp_path, TINY.replace("max_redraws = 50", "max_redraws = 0")))
+    verdicts = []
+    for task in plan_shards(more):
+        redrawn = bool(np.any(pq.read_table(out / task.file, columns=["redraws"]).column("redraws").to_numpy() > 0))
+        verdicts.append(redrawn)
+        assert shard_is_complete(out / task.file, task, fewer) is not redrawn
+    assert any(verdicts)  # the stand-in redraws some samples once
 
 
 def test_worker_failure_names_the_shard_and_leaves_no_partial_file(tmp_path):

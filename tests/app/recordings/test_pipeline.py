@@ -94,7 +94,7 @@ def test_nobody_anywhere_writes_no_rows(rig, tiny_model, tools, tmp_path):
     s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
     t, _ = _rows(tmp_path / "o")
     assert len(t) == 0 and s.n_persons == 0 and s.camera_status["cam0"]["empty mask"] == 6
-    assert any("nobody" in w for w in s.warnings)
+    assert any("nobody stood on the floor that 2 cameras see" in w for w in s.warnings), s.warnings
 
 
 def test_masks_stored_as_0_1_or_inverted_are_diagnosed(rig, tiny_model, tools, tmp_path):
@@ -114,7 +114,7 @@ def test_masks_stored_as_0_1_or_inverted_are_diagnosed(rig, tiny_model, tools, t
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["warnings"] == s.warnings
 
 
-def test_a_detection_that_never_becomes_a_person_leaves_no_rows(rig, tiny_model, tools, tmp_path):
+def test_a_detection_that_never_becomes_a_person_leaves_no_rows(rig, tiny_model, tiny_model_file, tools, tmp_path):
     videos = tmp_path / "v"
     videos.mkdir()
     frames = np.zeros((len(rig), 10, 486, 644), np.uint8)
@@ -123,6 +123,33 @@ def test_a_detection_that_never_becomes_a_person_leaves_no_rows(rig, tiny_model,
         tools.write_video(videos / f"{cam.name}.mp4", frames[k])
     s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
     assert s.n_persons == 0 and _rows(tmp_path / "o")[0].num_rows == 0
+    # the warning names the cause (a few moments far apart, as CMU Panoptic's demo frames) and the option
+    assert any("someone stood on the floor in 1 of 10 frames" in w and "--min-hits 1" in w for w in s.warnings), s.warnings
+    res = _invoke("infer", tiny_model_file, "--videos", videos, "--masks", "--min-hits", "1", "--overlays", "none",
+                  "--out", tmp_path / "o1", "--no-progress")
+    assert res.exit_code == 0 and "1 person(s) over 10 frames" in res.output, res.output
+    assert _rows(tmp_path / "o1")[0].num_rows >= 1
+
+
+def test_people_beyond_a_small_workspace_are_found(rig, tiny_model, tools, tmp_path):
+    """An imported rig's workspace can be the small square every camera sees whole (CMU Panoptic's five cameras:
+    0.4 m) while people stand a metre or two away: they are looked for wherever the cameras look
+    (floor.capture_area), not on the workspace plus a margin."""
+    import copy
+
+    from silpose.shared.rig_frame import Workspace
+
+    model = copy.copy(tiny_model)
+    model.rig_ = rig.with_workspace(Workspace([0.0, 0.0], [0.4, 0.4]))
+    videos = tmp_path / "v"
+    write = tools.write_mask_videos
+    write(videos, rig, [tools.walk((1.2, 0.9), (1.4, 1.0), 12), tools.walk((-1.3, -0.6), (-1.1, -0.9), 12)])
+    s = run_recording(model, videos, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
+    assert s.n_persons == 2, s.warnings
+    t, _ = _rows(tmp_path / "o")
+    xy = np.stack([t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()], 1)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    assert len(xy) >= 2 * 8 and np.all(np.abs(xy).max(axis=1) > 0.7)  # all beyond the workspace plus the margin
 
 
 def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, tmp_path):
@@ -202,6 +229,8 @@ def test_videos_excludes_other_inputs(tiny_model_file, two_cylinders, tmp_path):
     assert res.exit_code != 0 and "not INPUT and --videos" in res.output
     res = _invoke("infer", tiny_model_file, tmp_path, "--masks")
     assert res.exit_code != 0 and "--masks needs --videos" in res.output
+    res = _invoke("infer", tiny_model_file, "--frames", two_cylinders, "--min-hits", "1")
+    assert res.exit_code != 0 and "--min-hits is for several people" in res.output
 
 
 def test_a_video_shorter_than_its_header_is_a_missing_view_from_there_on(rig, tiny_model, tools, tmp_path, monkeypatch):

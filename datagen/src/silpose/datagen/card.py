@@ -121,12 +121,18 @@ def _distribution_section(split: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _rig_frame_section(rig: Rig) -> str:
-    """The rig's workspace and its calibration -> world transform, in words and numbers."""
+def _rig_frame_section(rig: Rig, placement: Workspace) -> str:
+    """The rig's workspace, where walkers were placed (``placement``), and the calibration -> world
+    transform, in words and numbers."""
     ws, tr = rig.workspace, rig.transform
-    (x0, x1), (y0, y1) = ws.bounds
-    lines = [f"- **workspace** (walkers' pelvis positions, uniform): {ws.describe()}, i.e. x in "
-             f"[{x0:.3f}, {x1:.3f}] m, y in [{y0:.3f}, {y1:.3f}] m on the floor (z = 0)."]
+    (x0, x1), (y0, y1) = placement.bounds
+    if placement.to_dict() == ws.to_dict():
+        lines = [f"- **workspace** (walkers' pelvis positions, uniform): {ws.describe()}, i.e. x in "
+                 f"[{x0:.3f}, {x1:.3f}] m, y in [{y0:.3f}, {y1:.3f}] m on the floor (z = 0)."]
+    else:
+        lines = [f"- **workspace** (the floor enough cameras see, not every one): {ws.describe()}; walkers' pelvis "
+                 f"positions (uniform) are on its part every camera sees (config field `placement`): "
+                 f"{placement.describe()}, i.e. x in [{x0:.3f}, {x1:.3f}] m, y in [{y0:.3f}, {y1:.3f}] m on the floor."]
     if tr.is_identity:
         lines.append("- **calibration frame**: the world frame itself (identity transform).")
     else:
@@ -296,6 +302,7 @@ def write_card(root: str | Path) -> Path:
     first = loaded[splits[0]]
     subject, gait = list(first.subject), list(first.gait)
     cfg = manifest["config"]
+    placement = Workspace.from_dict(cfg["placement"]) if "placement" in cfg else rig.workspace
     motion = cfg.get("motion")
     parts = [
         _front_matter(manifest["name"], splits, sum(int(manifest["counts"][s]) for s in splits)),
@@ -328,10 +335,10 @@ def write_card(root: str | Path) -> Path:
         "## Camera rig\n",
         "World->camera `x ~ K (R X + t)` (OpenCV axes); K, R, t of every camera are in the metadata.\n",
         _rig_table(meta), "",
-        _rig_frame_section(rig),
+        _rig_frame_section(rig, placement),
         "## Subjects and gait\n",
         *(["### motion-capture clips (both splits)\n", _motion_section(motion, loaded)] if motion else
-          ["### documented gait distribution (both splits)\n", _gait_section(rig.workspace)]),
+          ["### documented gait distribution (both splits)\n", _gait_section(placement)]),
     ]
     if "train" in loaded and "test" in loaded:
         parts += ["### train vs test characters (documented)\n", *_characters_picture(root), side_by_side(),

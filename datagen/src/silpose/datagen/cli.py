@@ -6,6 +6,7 @@ inside the commands, and bpy only ever inside spawned worker processes.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -54,6 +55,9 @@ def gen(
         config = load_config(preset, **overrides)
         target = out if out is not None else Path("data") / config.name
         claim_folder(target, "gen", recognise=is_dataset_folder)
+        if config.placement is not None:
+            print(f"note: some camera misses parts of the rig's workspace ({config.rig.workspace.describe()}); walkers "
+                  f"are placed on the part every camera sees: {config.placement.describe()}", file=sys.stderr)
         manifest = generate(config, target, workers=workers, executor=executor, progress=progress,
                             preview=preview, card=True)
     except (ConfigError, GenerationError, LockError, DatasetError, ExecutorError, RigError, OutputFolderError,

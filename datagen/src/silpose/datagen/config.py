@@ -23,7 +23,12 @@ Keys (all validated; errors are one line naming the file and the field)::
 
 Relative rig and clip paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
 workspace (the rig's, or ``[workspace]``); every camera must see it up to a tall person's head
-(``silpose.shared.rig_frame.PERSON_HEIGHT_M``). Calibration files of other tools are converted by
+(``silpose.shared.rig_frame.PERSON_HEIGHT_M``), because every sample needs every view whole. A rig file's
+own workspace that some camera misses (``silpose rig import --min-views``: the floor enough cameras see) is
+accepted: walkers are then placed on its *placement area*, the largest part of it every camera sees
+(``Rig.seen_workspace``; ``GenConfig.placement``, stored as ``config.placement`` in the dataset), while the
+dataset keeps the rig's whole workspace, where ``silpose infer --videos`` looks for people. A ``[workspace]``
+table is where walkers are placed, so every camera must see it whole. Calibration files of other tools are converted by
 ``silpose rig import`` first (units, up axis, origin, automatic workspace). A ``[motion] source =
 "bvh"`` config must be prepared (:meth:`GenConfig.with_motion`, done by ``generate``: the clips are
 imported and checked) before its ``to_dict`` and ``worker_config`` exist; a procedural config's
@@ -90,6 +95,7 @@ class GenConfig:
     rig: Rig = field(repr=False)
     source: str = ""
     workspace_spec: dict | None = None
+    placement: Workspace | None = None
     motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
     prepared: PreparedMotion | PreparedLibrary | None = field(default=None, repr=False)
 
@@ -123,6 +129,8 @@ class GenConfig:
         }
         if self.workspace_spec is not None:
             out["workspace"] = dict(self.workspace_spec)
+        if self.placement is not None:
+            out["placement"] = self.placement.to_dict()
         if prepared is not None:
             out["motion"] = prepared.metadata()
         return out
@@ -139,6 +147,8 @@ class GenConfig:
             "n_points": self.n_points,
             "max_redraws": self.max_redraws,
         }
+        if self.placement is not None:
+            out["placement"] = self.placement.to_dict()
         if prepared is not None:
             out["motion"] = prepared.worker()
         return out
@@ -228,14 +238,15 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     workspace_spec = raw.get("workspace")
     if workspace_spec is not None:
         rig = rig.with_workspace(parse_workspace(workspace_spec, src))
-    check_rig(rig, src, workspace_from=None if workspace_spec is None else f"{src}: field 'workspace'")
+    placement = check_rig(rig, src, workspace_from=None if workspace_spec is None else f"{src}: field 'workspace'")
     try:
         motion = motion_from_dict(raw.get("motion"), base, src)
     except MotionConfigError as exc:
         raise ConfigError(str(exc)) from None
     return GenConfig(name, seed, renderer, engine, shard_size, n_points, max_redraws, splits,
                      _portable_rig_spec(rig_spec), rig, source,
-                     workspace_spec=None if workspace_spec is None else rig.workspace.to_dict(), motion=motion)
+                     workspace_spec=None if workspace_spec is None else rig.workspace.to_dict(),
+                     placement=None if placement is rig.workspace else placement, motion=motion)
 
 
 def _portable_rig_spec(spec) -> dict:
@@ -296,10 +307,13 @@ def build_rig(spec, base: Path, src: str) -> Rig:
 MIN_PERSON_PX = 20.0
 
 
-def check_rig(rig: Rig, src: str, workspace_from: str | None = None) -> None:
-    """Raise ConfigError unless every camera sees the workspace from the floor to head height
-    and shows a 1.75 m person at the workspace centre at least ``MIN_PERSON_PX`` pixels tall (a
-    wrong unit typically puts the cameras 1000 times too far or too close).
+def check_rig(rig: Rig, src: str, workspace_from: str | None = None) -> Workspace:
+    """Where walkers are placed: the rig's workspace when every camera sees it from the floor to head
+    height, else (a rig file's own workspace only, module docstring) the largest part of it every camera
+    sees (``Rig.seen_workspace``). Raise ConfigError when no camera-seen part exists, when a ``[workspace]``
+    table (``workspace_from``) is not seen whole, or when a camera shows a 1.75 m person at the placement
+    area's centre less than ``MIN_PERSON_PX`` pixels tall (a wrong unit typically puts the cameras 1000
+    times too far or too close).
 
     Errors name the rig's file (or ``src`` for the built-in rig); ``workspace_from`` (e.g.
     ``"cfg.toml: field 'workspace'"``) prefixes them when the config overrides the workspace.
@@ -307,9 +321,13 @@ def check_rig(rig: Rig, src: str, workspace_from: str | None = None) -> None:
     prefix = f"{workspace_from}: " if workspace_from else ("" if rig.source else f"{src}: field 'rig': ")
     try:
         rig.check_sees_workspace(height=WORKSPACE_CHECK_HEIGHT)
+        placement = rig.workspace
     except RigError as exc:
-        raise ConfigError(f"{prefix}{exc}") from None
-    cx, cy = rig.workspace.center
+        placement = None if workspace_from or not rig.source else rig.seen_workspace(WORKSPACE_CHECK_HEIGHT)
+        if placement is None:
+            hint = "" if workspace_from or not rig.source else "; no part of the workspace is seen by every camera"
+            raise ConfigError(f"{prefix}{exc}{hint}") from None
+    cx, cy = placement.center
     for cam in rig:
         feet, head = cam.project(np.array([[cx, cy, 0.0], [cx, cy, 1.75]]))
         size = float(np.linalg.norm(head - feet))
@@ -319,6 +337,7 @@ def check_rig(rig: Rig, src: str, workspace_from: str | None = None) -> None:
                 f"{size:.2f} px tall (need {MIN_PERSON_PX:.0f}); check the calibration's unit "
                 "(`silpose rig import --unit`)"
             )
+    return placement
 
 
 def _path(value, base: Path, src: str, what: str) -> Path:

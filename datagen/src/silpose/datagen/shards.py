@@ -24,6 +24,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from silpose.shared.atomic import TMP_GLOB
 from silpose.shared.dataset import DatasetError, read_metadata, read_shard, shard_name
 from silpose.shared.dataset_schema import ALL_COLUMNS
+from silpose.shared.dataset_writer import restamp_shard
 
 from .executor import DEFAULT_MAX_TASKS_PER_CHILD, EXECUTORS, ShardTask
 from .manifest import FolderLock
@@ -78,18 +79,27 @@ def locked_folder(out: Path, recursive: bool = False) -> Iterator[FolderLock]:
         yield lock
 
 
+#: Config fields a finished shard does not depend on, so a rerun with another value keeps it (restamped with
+#: the new config). ``max_redraws``: a sample is its first draw that every view sees whole, each draw a pure
+#: function of (seed, split, index, redraw), so a sample found within 50 draws is the same with 1000 allowed
+#: (a shard whose ``redraws`` exceed a lowered value is rendered again, and fails as this run would).
+RESUME_NEUTRAL = ("max_redraws",)
+
+
 def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
     """True if ``path`` is a readable shard of this config holding exactly ``task.indices``.
 
     Reads the whole shard through ``read_shard``, which verifies the schema, NaNs and every data
     page's checksum, so a shard with an intact footer but damaged data is rewritten, not kept (and
-    hashed into the manifest). Raises GenerationError if the shard belongs to another configuration.
+    hashed into the manifest). Raises GenerationError if the shard belongs to another configuration; a shard
+    whose config differs only in :data:`RESUME_NEUTRAL` fields is kept and restamped with ``metadata``.
     """
     try:
         meta = read_metadata(path)
     except DatasetError:
         return False  # unreadable or foreign: it will be rewritten
-    if any(meta.get(k) != metadata.get(k) for k in ("config", "cameras", "transform", "workspace")):
+    keys = ("config", "cameras", "transform", "workspace")
+    if any(_resume_key(meta, k) != _resume_key(metadata, k) for k in keys):
         raise GenerationError(
             f"{path}: field 'config' differs from this run's; the folder holds another dataset "
             "(choose another --out or delete it)"
@@ -100,7 +110,22 @@ def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
         shard = read_shard(path, columns=ALL_COLUMNS)
     except DatasetError:
         return False  # damaged data: it will be rewritten
-    return bool(np.array_equal(shard.sample_id, np.asarray(task.indices)))
+    if not np.array_equal(shard.sample_id, np.asarray(task.indices)):
+        return False
+    if any(meta.get(k) != metadata.get(k) for k in keys):  # only RESUME_NEUTRAL fields differ
+        limit = metadata["config"].get("max_redraws")
+        if limit is not None and "redraws" in shard.extra and np.any(shard.extra["redraws"] > int(limit)):
+            return False  # a sample took more redraws than this run allows: this run would fail it
+        restamp_shard(path, metadata)  # one config in every shard of the folder (the readers check)
+    return True
+
+
+def _resume_key(metadata: dict, key: str):
+    """``metadata[key]``, without the :data:`RESUME_NEUTRAL` fields for ``config``."""
+    value = metadata.get(key)
+    if key == "config" and isinstance(value, dict):
+        return {k: v for k, v in value.items() if k not in RESUME_NEUTRAL}
+    return value
 
 
 def run_tasks(

@@ -66,6 +66,12 @@ def motion_from_config(config: dict, workspace: Workspace = DEFAULT_WORKSPACE, s
     return BvhMotion.from_config(motion, workspace)
 
 
+def placement_area(config: dict, rig: Rig) -> Workspace:
+    """Where the worker config's walkers are placed: its ``placement`` (the part of the rig's workspace every
+    camera sees, ``GenConfig.placement``), else the rig's workspace."""
+    return Workspace.from_dict(config["placement"]) if "placement" in config else rig.workspace
+
+
 def make_record(scene: SampleScene, result: RenderResult, seed: int, n_points: int,
                 fields: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Assemble one output record (see :func:`render_samples`) from a scene and its masks.
@@ -127,7 +133,8 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
         config: ``seed`` (int), ``renderer`` ("raster" | "blender"), ``blender_engine``
             ("workbench" | "cycles", blender renderer only), ``rig`` (``Rig.to_dict()``),
             ``n_points`` (contour points), ``max_redraws``, optionally ``motion`` (motion-capture
-            clips, :meth:`clips.PreparedMotion.worker`; default the walk cycle).
+            clips, :meth:`clips.PreparedMotion.worker`; default the walk cycle) and ``placement`` (a
+            ``Workspace`` dict: where walkers are placed; default the rig's workspace).
         split: "train" or "test".
         indices: sample indices.
     Returns:
@@ -143,6 +150,6 @@ def render_samples(config: dict, split: str, indices: list[int]) -> list[dict]:
     if split not in SPLIT_CODE:
         raise ValueError(f"split must be one of {tuple(SPLIT_CODE)}, got {split!r}")
     seed, rig, n_points, max_redraws = check_worker_config(config)
-    motion = motion_from_config(config, rig.workspace, split)
+    motion = motion_from_config(config, placement_area(config, rig), split)
     with rendering(renderer_from_config(config), rig) as renderer:
         return [render_sample(renderer, seed, split, index, rig, n_points, max_redraws, motion) for index in indices]

@@ -23,6 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from .pinhole import Camera, RigError
+from .rectangles import largest_rectangle
 from .rig_frame import Workspace, WorldTransform
 
 __all__ = [
@@ -182,7 +183,7 @@ class Rig:
         for cam in self.cameras:
             depth = cam.to_camera(corners)[:, 2]
             px = cam.project(corners)
-            ok = (depth > 0) & cam.in_image(px)
+            ok = _in_view(cam, corners)
             if np.all(ok):
                 continue
             i = int(np.flatnonzero(~ok)[0])
@@ -200,6 +201,44 @@ class Rig:
                 "or --workspace, and look at it with `silpose rig show`"
             )
 
+
+    def seen_workspace(self, height: float = 0.0, step: float = 0.05) -> Workspace | None:
+        """The largest axis-aligned part of the workspace that every camera sees (None: no part).
+
+        The workspace is cut into equal cells about ``step`` metres wide (whole cells: n = ceil(size / step)
+        per side); a cell is seen when the corners of its box, from the floor to ``height`` metres, pass the
+        test of :meth:`check_sees_workspace` in every camera (in front of it, inside its image), and the
+        answer is the largest rectangle of seen cells (:func:`silpose.shared.rectangles.largest_rectangle`).
+        Its corners are corners of seen cells, so ``check_sees_workspace(height, workspace=answer)`` passes.
+        The whole workspace when every camera sees it. ``silpose gen`` places its walkers there on a rig whose
+        workspace some camera misses (``silpose rig import --min-views``), while people are still looked for
+        on the whole floor the cameras see (docs/conventions.md, "World frame").
+        """
+        ws = self.workspace
+        if all(np.all(_in_view(cam, np.concatenate([ws.corners(0.0), ws.corners(height)]))) for cam in self.cameras):
+            return ws
+        n = np.maximum(1, np.ceil(ws.size / float(step) - 1e-9)).astype(int)  # (nx, ny) cells
+        (x0, x1), (y0, y1) = ws.bounds
+        xe, ye = np.linspace(x0, x1, n[0] + 1), np.linspace(y0, y1, n[1] + 1)  # cell edges, metres
+        X, Y = np.meshgrid(xe, ye)  # (ny + 1, nx + 1) cell corners
+        corner_ok = np.ones(X.shape, bool)
+        for z in (0.0, float(height)):
+            pts = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], axis=1)
+            for cam in self.cameras:
+                corner_ok &= _in_view(cam, pts).reshape(X.shape)
+        cells = corner_ok[:-1, :-1] & corner_ok[1:, :-1] & corner_ok[:-1, 1:] & corner_ok[1:, 1:]  # (ny, nx)
+        rect = largest_rectangle(cells)
+        if rect is None:
+            return None
+        r0, r1, c0, c1 = rect
+        lo, hi = np.array([xe[c0], ye[r0]]), np.array([xe[c1 + 1], ye[r1 + 1]])
+        return Workspace(np.round((lo + hi) / 2, 9), np.round(hi - lo, 9))  # free of the float sums' 1e-17 m
+
+
+def _in_view(cam: Camera, points: np.ndarray) -> np.ndarray:
+    """(N,) bool: world points (N, 3) metres in front of ``cam`` and projecting inside its image."""
+    depth = cam.to_camera(points)[:, 2]
+    return (depth > 0) & cam.in_image(cam.project(points))
 
 def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)):
     """World->camera (R, t) for a camera at ``eye`` looking at ``target`` (OpenCV axes).

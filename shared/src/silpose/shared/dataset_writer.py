@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from .atomic import atomic_path
 from .dataset_schema import (
     FORMAT_VERSION,
     MASK_IMAGE_TYPE,
+    METADATA_KEY,
     SCALAR_COLUMNS,
     TENSOR_COLUMNS,
     TENSOR_DTYPES,
@@ -43,11 +45,27 @@ def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
     check_metadata(metadata, str(path))
     if not records:
         raise DatasetError(f"{path}: no records to write")
-    table = records_to_table(records, metadata, source=str(path))
+    _write_table(records_to_table(records, metadata, source=str(path)), path)
+
+
+def restamp_shard(path: str | Path, metadata: dict) -> None:
+    """Rewrite the shard ``path`` with the ``silpose`` metadata document ``metadata``, its rows and schema
+    unchanged (atomically, written as :func:`write_shard` writes). For metadata fields the rows do not depend
+    on (``silpose gen``'s resume: ``silpose.datagen.shards.RESUME_NEUTRAL``)."""
+    path = Path(path)
+    check_metadata(metadata, str(path))
+    table = pq.read_table(path)
+    meta = dict(table.schema.metadata or {})
+    meta[METADATA_KEY] = json.dumps(metadata, sort_keys=True).encode()
+    _write_table(table.replace_schema_metadata(meta), path)
+
+
+def _write_table(table: pa.Table, path: Path) -> None:
+    """Write a shard's ``table`` to ``path`` atomically: zstd, one row group, a CRC32 on every page."""
     leaves = parquet_leaves(table.schema)
     with atomic_path(path, mkdir=False) as tmp:
         pq.write_table(
-            table, tmp, compression="zstd", row_group_size=len(records), write_page_checksum=True,
+            table, tmp, compression="zstd", row_group_size=max(1, table.num_rows), write_page_checksum=True,
             use_byte_stream_split=[p for p, typ in leaves if pa.types.is_floating(typ)],
             use_dictionary=[p for p, typ in leaves if not pa.types.is_floating(typ) and not p.startswith("masks.")],
         )

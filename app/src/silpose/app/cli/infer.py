@@ -44,6 +44,7 @@ def infer(
     overlays: Annotated[Optional[Overlays], typer.Option("--overlays", help="Overlays of every frame: one PNG per frame (the cameras tiled) or one mp4 per camera (default: mp4 for several people, none for one).")] = None,
     overlay_dir: Annotated[Optional[Path], typer.Option(help="Folder of the overlays (default <out stem>.overlays/, for several people <out>/overlays/).")] = None,
     min_area: Annotated[Optional[int], typer.Option("--min-area", min=1, help="Blobs with fewer pixels (of the camera) are ignored (default: 3 % of a person's expected silhouette area at the working resolution).")] = None,
+    min_hits: Annotated[Optional[int], typer.Option("--min-hits", min=1, help="Several people: frames in a row someone must be found on the floor before they become a person with an id (default: 0.3 s of the recording's frame rate, 25 frames/s for image folders). 1 for a few moments far apart or a very short clip: a ghost between people may then get an id too, and ids across moments far apart mean nothing.")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
@@ -84,12 +85,15 @@ def infer(
     camera_only = {"--masks": masks, "--background-frames": background_frames is not None,
                    "--background": background is not None, "--offsets": offsets is not None,
                    "--people": people is not None, "--overlays": overlays is not None,
-                   "--overlay-dir": overlay_dir is not None, "--min-area": min_area is not None}
+                   "--overlay-dir": overlay_dir is not None, "--min-area": min_area is not None,
+                   "--min-hits": min_hits is not None}
     if input is not None and any(camera_only.values()):
         fail("infer", f"{next(k for k, v in camera_only.items() if v)} needs --videos or --frames")
     if people is not None and people != 1:
         fail("infer", f"--people: {people} is not 1; omit --people for several people (found on the floor)")
     one = frames is not None or people == 1
+    if one and min_hits is not None:
+        fail("infer", "--min-hits is for several people (floor tracking); --people 1 and --frames track nobody")
     shown = (overlays.value if overlays is not None else "none" if one else "mp4")
     if overlay_dir is not None and shown == "none":
         fail("infer", "--overlay-dir needs --overlays png or mp4")
@@ -105,7 +109,7 @@ def infer(
 
             options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                        offsets=offsets, overlays=shown, min_area=min_area,
-                                       noise_variance=noise_variance, contours=save_contours,
+                                       noise_variance=noise_variance, contours=save_contours, min_hits=min_hits,
                                        robust=(not masks) if robust is None else robust)
             source = frames if frames is not None else videos
             if one:

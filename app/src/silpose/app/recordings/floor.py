@@ -1,6 +1,7 @@
 """People on the floor: a visual-hull occupancy grid over the floor plane, combining every camera's mask.
 
-The floor (the rig's workspace plus a margin) is cut into square cells. For each cell a short vertical
+The floor searched (the rig's workspace plus a margin, or for ``silpose infer --videos`` wherever 2 cameras
+see a person, :func:`capture_bounds`) is cut into square cells. For each cell a short vertical
 column at the cell's centre, at torso heights (:data:`COLUMN_HEIGHTS`, 0.9-1.3 m: between the hips and
 the shoulders of a 1.5-2.0 m person, where the body is solid from every side, unlike the legs during
 the stride), is projected into every camera once, at construction. Per frame, a cell's occupancy is the
@@ -38,12 +39,61 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from silpose.shared.rig_frame import PERSON_HEIGHT_M
+
+from ..rig.workspace import MIN_PERSON_FRACTION, project_fast
+
 #: heights (m) of the column sampled above each floor cell: the torso of a 1.5-2.0 m person
 COLUMN_HEIGHTS = (0.9, 1.0, 1.1, 1.2, 1.3)
 #: floor cell side, metres
 CELL_M = 0.05
 #: metres of floor searched around the workspace
 MARGIN_M = 0.5
+
+
+def person_reach(cam, person_height: float = PERSON_HEIGHT_M, fraction: float = MIN_PERSON_FRACTION) -> float:
+    """Metres: the depth up to which a ``person_height`` person is at least ``fraction`` of ``cam``'s image height
+    (``fy h / (fraction H)``; the criterion of ``silpose rig import``'s automatic workspace)."""
+    return float(cam.K[1, 1] * person_height / (fraction * cam.height))
+
+
+def capture_bounds(cameras, bounds, margin: float = MARGIN_M, min_views: int = 2, coarse: float = 0.25):
+    """((x_min, x_max), (y_min, y_max)) metres: the floor ``silpose infer --videos`` searches -- the workspace
+    ``bounds`` grown by ``margin``, and every floor spot where ``min_views`` cameras see a person's torso column
+    (:data:`COLUMN_HEIGHTS`) with the person at least :data:`MIN_PERSON_FRACTION` of the image tall
+    (:func:`person_reach`), found on a ``coarse`` grid and grown by one coarse cell.
+
+    Why not the workspace: an imported rig's workspace is where a person is whole in every camera (or in
+    ``--min-views`` of them), which on rigs whose cameras each see part of the room (a dome, cameras on
+    several walls) is a small square, while people stand anywhere the cameras look. The occupancy grid
+    needs ``min_views`` cameras per cell anyway (:class:`FloorGrid`, which searches the same cells).
+    """
+    (x0, x1), (y0, y1) = bounds
+    lo, hi = np.array([x0 - margin, y0 - margin]), np.array([x1 + margin, y1 + margin])
+    cams = list(cameras)
+    reach = np.array([person_reach(c) for c in cams])
+    centres = np.array([np.asarray(c.center, float)[:2] for c in cams]).reshape(-1, 2)
+    a, b = (centres - reach[:, None]).min(axis=0), (centres + reach[:, None]).max(axis=0)
+    xs, ys = np.arange(a[0], b[0] + coarse, coarse), np.arange(a[1], b[1] + coarse, coarse)
+    X, Y = np.meshgrid(xs, ys)
+    views = np.zeros(X.size, int)
+    for cam, r in zip(cams, reach):
+        views += sees_columns(cam, np.stack([X.ravel(), Y.ravel()], 1), r)
+    ok = views >= min_views
+    if ok.any():
+        pts = np.stack([X.ravel()[ok], Y.ravel()[ok]], 1)
+        lo, hi = np.minimum(lo, pts.min(axis=0) - coarse), np.maximum(hi, pts.max(axis=0) + coarse)
+    return (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
+
+
+def sees_columns(cam, xy: np.ndarray, reach: float = np.inf, heights=COLUMN_HEIGHTS) -> np.ndarray:
+    """(N,) bool: ``cam`` sees the torso column above each floor point ``xy`` (N, 2) metres whole (every height in
+    front of it, every pixel, rounded, inside its image) and nearer than ``reach`` metres."""
+    hz = np.asarray(heights, float)
+    pts = np.concatenate([np.repeat(xy[:, None, :], len(hz), 1), np.broadcast_to(hz[None, :, None], (len(xy), len(hz), 1))], 2)
+    depth = cam.to_camera(pts.reshape(-1, 3))[:, 2].reshape(len(xy), len(hz))
+    px = np.round(project_fast(cam, pts.reshape(-1, 3))).reshape(len(xy), len(hz), 2)
+    return np.all((depth > 0) & (depth <= reach) & cam.in_image(px, margin=0.5), axis=1)
 
 
 @dataclass(frozen=True)
@@ -61,30 +111,44 @@ class FloorGrid:
         cameras: the rig's cameras (``Camera``), in the order masks are given.
         bounds: ((x_min, x_max), (y_min, y_max)) metres of the workspace; the grid adds ``margin``.
         cell, margin: metres. min_views: cameras that must see a cell.
+        search: ((x_min, x_max), (y_min, y_max)) metres, a larger floor to search (:func:`capture_bounds`,
+            ``silpose infer --videos``): the grid spans it too, and there, beyond the workspace plus ``margin``,
+            a camera sees only cells nearer than :func:`person_reach`.
     Attributes:
         xs (nx,), ys (ny,): cell centres, metres.
     """
 
     def __init__(self, cameras, bounds, cell: float = CELL_M, margin: float = MARGIN_M, min_views: int = 2,
-                 heights=COLUMN_HEIGHTS):
+                 heights=COLUMN_HEIGHTS, search=None):
         (x0, x1), (y0, y1) = bounds
+        x0, x1, y0, y1 = x0 - margin, x1 + margin, y0 - margin, y1 + margin
+        (sx0, sx1), (sy0, sy1) = search if search is not None else ((x0, x1), (y0, y1))
         self.cell = float(cell)
-        self.xs = np.arange(x0 - margin, x1 + margin + 1e-9, cell)
-        self.ys = np.arange(y0 - margin, y1 + margin + 1e-9, cell)
+        self.xs = x0 + cell * np.arange(np.floor((min(sx0, x0) - x0) / cell), np.floor((max(sx1, x1) - x0) / cell + 1e-9) + 1)
+        self.ys = y0 + cell * np.arange(np.floor((min(sy0, y0) - y0) / cell), np.floor((max(sy1, y1) - y0) / cell + 1e-9) + 1)
         self.min_views = int(min_views)
         X, Y = np.meshgrid(self.xs, self.ys, indexing="xy")  # (ny, nx)
         self.X, self.Y = X, Y
+        beyond = ((X < x0 - 1e-9) | (X > x1 + 1e-9) | (Y < y0 - 1e-9) | (Y > y1 + 1e-9)).reshape(-1, 1)
         hz = np.asarray(heights, float)
         pts = np.stack([np.repeat(X[..., None], len(hz), -1), np.repeat(Y[..., None], len(hz), -1),
-                        np.broadcast_to(hz, X.shape + (len(hz),))], axis=-1)  # (ny, nx, h, 3)
-        self.index, self.sees = [], []
+                        np.broadcast_to(hz, X.shape + (len(hz),))], axis=-1).reshape(-1, len(hz), 3)  # (cells, h, 3)
+        sees, pixels = [], []
         for cam in cameras:
             depth = cam.to_camera(pts)[..., 2]
-            px = np.round(cam.project(pts)).astype(np.int64)
-            inside = (depth > 0) & (px[..., 0] >= 0) & (px[..., 0] < cam.width) & (px[..., 1] >= 0) & (px[..., 1] < cam.height)
-            self.sees.append(inside.all(axis=-1).reshape(-1))
+            px = np.round(project_fast(cam, pts.reshape(-1, 3)).reshape(pts.shape[:-1] + (2,)))  # cam.project's pixels
+            near = ~beyond | (depth <= person_reach(cam))
+            sees.append(np.all((depth > 0) & near & cam.in_image(px, margin=0.5), axis=-1))
+            pixels.append(px)
+        # only the cells min_views cameras see are ever gathered (the others score 0): the search area may be
+        # much larger than the workspace
+        self.active = np.flatnonzero(np.sum(sees, axis=0) >= self.min_views) if sees else np.zeros(0, np.intp)
+        self.index, self.sees = [], []
+        for cam, seen, px in zip(cameras, sees, pixels):
+            px = np.nan_to_num(px[self.active], nan=-1.0).astype(np.int64)
             flat = np.clip(px[..., 1], 0, cam.height - 1) * cam.width + np.clip(px[..., 0], 0, cam.width - 1)
-            self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, cells)
+            self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, active cells)
+            self.sees.append(seen[self.active])
         self.n_heights = len(hz)
 
     def occupancy(self, masks: list) -> tuple[np.ndarray, np.ndarray]:
@@ -92,9 +156,9 @@ class FloorGrid:
         masks (None: no mask)."""
         ny, nx = self.X.shape
         unseen = np.uint8(255)
-        best = np.full(ny * nx, unseen, np.uint8)
+        best = np.full(len(self.active), unseen, np.uint8)
         second = best.copy()
-        views = np.zeros(ny * nx, np.int16)
+        views = np.zeros(len(self.active), np.int16)
         for k, m in enumerate(masks):
             if m is None:
                 continue
@@ -111,7 +175,9 @@ class FloorGrid:
         off = (views < self.min_views) | (best == unseen)
         strict[off] = 0.0
         tolerant[off] = 0.0
-        return strict.reshape(ny, nx), tolerant.reshape(ny, nx)
+        maps = np.zeros((2, ny * nx), np.float32)
+        maps[0, self.active], maps[1, self.active] = strict, tolerant
+        return maps[0].reshape(ny, nx), maps[1].reshape(ny, nx)
 
     def locate(self, masks: list, min_score: float = 0.7, separation: float = 0.5) -> Detections:
         """People on the floor from per-camera masks: the strict map's peaks plus the tolerant map's peaks
@@ -141,9 +207,13 @@ class FloorGrid:
                 kept.append(p)
                 scores.append(float(smooth[rows[i], cols[i]]))
         out = []
+        r = int(np.ceil(0.25 / self.cell)) + 1  # the cells within 0.25 m of a peak lie in this window
         for p in kept:
-            near = ((self.X - p[0]) ** 2 + (self.Y - p[1]) ** 2 <= 0.25**2) & (occupancy > 0.5)
-            w = occupancy * near
+            i, j = int(round((p[1] - self.ys[0]) / self.cell)), int(round((p[0] - self.xs[0]) / self.cell))
+            win = np.s_[max(0, i - r): i + r + 1, max(0, j - r): j + r + 1]
+            X, Y, occ = self.X[win], self.Y[win], occupancy[win]
+            near = ((X - p[0]) ** 2 + (Y - p[1]) ** 2 <= 0.25**2) & (occ > 0.5)
+            w = occ * near
             total = float(w.sum())
-            out.append([(w * self.X).sum() / total, (w * self.Y).sum() / total] if total > 0 else p)
+            out.append([(w * X).sum() / total, (w * Y).sum() / total] if total > 0 else p)
         return Detections(np.asarray(out, float).reshape(-1, 2), np.asarray(scores, float))

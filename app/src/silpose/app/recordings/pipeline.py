@@ -63,7 +63,7 @@ from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
 from ..errors import RecordingError
 from ..inference import TOP_K, InferOptions, infer_rows
 from .blobs import Blobs, blob_contour, find_blobs
-from .floor import FloorGrid
+from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
@@ -73,7 +73,7 @@ from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, wo
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
-from .tracking import Track, Tracker, tracker_for_fps
+from .tracking import CONFIRM_S, Track, Tracker, tracker_for_fps
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, body_box, grounded)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
@@ -234,6 +234,8 @@ class _Camera:
         if len(people_xy):
             h, w = loose.shape
             for x0, y0, x1, y1 in body_box(self.cam, people_xy, PROTECT_RADIUS_M):
+                if not np.isfinite([x0, y0, x1, y1]).all():  # beyond this camera's lens model: not in its image
+                    continue
                 a, b = max(0, int(np.floor(x0))), min(w, int(np.ceil(x1)) + 1)
                 c, d = max(0, int(np.floor(y0))), min(h, int(np.ceil(y1)) + 1)
                 if a < b and c < d:
@@ -323,7 +325,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     work = [work_camera(c, work_size(c, workspace.center, opt.work_person_px)) for c in rig]
     sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
                for c, s in recording.sources.items()}
-    grid = FloorGrid(work, workspace.bounds)
+    grid = FloorGrid(work, workspace.bounds, search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
     silhouettes, start = make_silhouettes(opt, rig, sources, work)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
@@ -365,6 +367,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     cam_list = list(cams.values())
     stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     step = 0
+    detected = 0  # steps with someone on the floor (tracked or not): says why nobody was found
     gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     try:
@@ -399,6 +402,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
                                             pool.map if pool else map)
                 people += found
+                detected += bool(len(where))
                 for c, cam in cams.items():
                     if seen[c].status is None:
                         cam.settle(seen[c], where)
@@ -456,9 +460,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     tracks = {p: np.array(v, float).reshape(-1, 3) for p, v in floor_tracks.items()}
     n_persons = len(tracks)
     if n_persons == 0:
-        warnings.append("nobody was found on the floor in any frame: joints.parquet has no rows" + (
-            "; with --background median, whoever hardly moves over the recording (feet included) is part of its "
-            "background: give empty-room clips (--background DIR)" if str(opt.background) == MEDIAN else ""))
+        warnings.append(nobody_found(detected, step, tracker.min_hits, fps, opt))
     files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
                                  f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
     timings["total"] = time.perf_counter() - t_start
@@ -470,6 +472,21 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     })
     summary.files.append(out / "summary.json")
     return summary
+
+
+def nobody_found(detected: int, steps: int, min_hits: int, fps: float | None, opt: RecordingOptions) -> str:
+    """The warning of a run that found nobody, with its cause: nobody on the searched floor in any frame
+    (``detected`` = 0; :func:`~.floor.capture_bounds`), or someone on the floor in ``detected`` of ``steps`` frames
+    but never ``min_hits`` frames in a row (a track becomes a person after that many, :mod:`.tracking`)."""
+    head = "nobody was found on the floor in any frame: joints.parquet has no rows"
+    if detected:
+        rule = "--min-hits" if opt.min_hits is not None else f"{CONFIRM_S:g} s at {fps or 25.0:g} frames/s"
+        return (f"{head}; someone stood on the floor in {detected} of {steps} frames, but a track becomes a person "
+                f"after {min_hits} detections in a row ({rule}): for a few moments far apart or a very short clip, "
+                "pass --min-hits 1")
+    return head + ("; nobody stood on the floor that 2 cameras see"
+                   + ("; with --background median, whoever hardly moves over the recording (feet included) is part of "
+                      "its background: give empty-room clips (--background DIR)" if str(opt.background) == MEDIAN else ""))
 
 
 def check_background_options(opt: RecordingOptions, videos, rig) -> None:

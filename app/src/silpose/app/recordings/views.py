@@ -79,7 +79,7 @@ def _column_labels(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
     hz = np.asarray(COLUMN_HEIGHTS)
     P = len(xy)
     pts = np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (P, len(hz), 1))], -1)
-    lab = blobs.label_at(np.round(cam.project(pts)).astype(int))
+    lab = blobs.label_at(np.nan_to_num(np.round(cam.project(pts)), nan=-1.0).astype(int))  # NaN: beyond the lens model
     return np.where(blobs.usable[lab], lab, 0)
 
 
@@ -106,7 +106,7 @@ def grounded(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
     h, w = blobs.labels.shape
     for p in range(len(xy)):
         b = _main_label(lab[p])
-        if b == 0 or depth[p] <= 0:
+        if b == 0 or depth[p] <= 0 or not np.all(np.isfinite(foot_px[p])):  # NaN: beyond the lens model
             continue
         f = cam.K[0, 0] / depth[p]
         u = int(round(foot_px[p, 0])) - ox

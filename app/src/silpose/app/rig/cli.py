@@ -48,7 +48,8 @@ def import_command(
     workspace: Annotated[str, typer.Option(help="auto (the largest floor rectangle where a person is fully visible), "
                                                 "WxH (metres, centred at the origin) or WxH@X,Y.")] = "auto",
     min_views: Annotated[Optional[int], typer.Option(min=1, help="Cameras that must see a person in the automatic "
-                                                                 "workspace (default: all).")] = None,
+                                                                 "workspace (default: all). With fewer than all, silpose "
+                                                                 "gen places its walkers on the part every camera sees.")] = None,
     person_height: Annotated[float, typer.Option(help="Height (m) of the tallest person to keep in view.")] = 2.0,
     footprint: Annotated[float, typer.Option(help="Side (m) of the person's square footprint kept in view (0: a "
                                                   "vertical line at the walker's position).")] = 0.0,

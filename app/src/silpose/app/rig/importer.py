@@ -237,8 +237,11 @@ def import_rig(paths, options: ImportOptions | None = None) -> ImportResult:
     if min_views == k:
         rig.check_sees_workspace(height=o.person_height)
     else:
+        seen = rig.seen_workspace(height=o.person_height)
         notes.append(f"--min-views {min_views}: some cameras miss parts of the workspace; silpose gen needs every view "
-                     "of every sample, so its redraws will be frequent")
+                     "of every sample, so it places its walkers on the part every camera sees: "
+                     + (seen.describe() if seen is not None else "none (gen cannot use this rig; infer can)")
+                     + "; silpose infer --videos looks for people wherever 2 cameras see them")
     cx, cy = ws.center
     for cam in rig:
         feet, head = cam.project(np.array([[cx, cy, 0.0], [cx, cy, 1.75]]))

@@ -14,8 +14,8 @@ camera when the box is fully visible and the person, at the cell centre, is at l
 
 The workspace is the largest-area axis-aligned rectangle of visible cells, found with the classic
 maximal-rectangle algorithm: row by row, the heights of the columns of visible cells form a
-histogram whose largest rectangle comes from one pass with a stack (:func:`largest_rectangle`,
-O(cells)).
+histogram whose largest rectangle comes from one pass with a stack
+(:func:`silpose.shared.rectangles.largest_rectangle`, O(cells); re-exported here).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from silpose.shared.camera import Camera
+from silpose.shared.rectangles import largest_histogram_rectangle, largest_rectangle
 from silpose.shared.rig_frame import PERSON_HEIGHT_M, Workspace
 
 __all__ = ["VisibilityGrid", "visibility_grid", "largest_rectangle", "largest_histogram_rectangle",
@@ -176,39 +177,6 @@ def visibility_grid(cameras, person_height: float = PERSON_HEIGHT_M, footprint: 
     per_camera = np.stack([
         _sees(c, boxes, feet_head, min_person_fraction * c.height).reshape(len(ys), len(xs)) for c in cams])
     return VisibilityGrid(xs, ys, step, per_camera, k_min)
-
-
-def largest_histogram_rectangle(heights) -> tuple[int, int, int, int]:
-    """(area, left, right, height) of the largest rectangle under a histogram (columns left..right inclusive).
-
-    One pass with a stack of increasing heights; each bar's rectangle ends when a lower bar comes.
-    """
-    best = (0, 0, -1, 0)
-    stack: list[tuple[int, int]] = []  # (start column, height)
-    for i, h in enumerate(list(heights) + [0]):
-        start = i
-        while stack and stack[-1][1] >= h:
-            s, sh = stack.pop()
-            area = sh * (i - s)
-            if area > best[0]:
-                best = (area, s, i - 1, sh)
-            start = s
-        stack.append((start, h))
-    return best
-
-
-def largest_rectangle(mask: np.ndarray) -> tuple[int, int, int, int] | None:
-    """(r0, r1, c0, c1), inclusive, of the largest-area all-True axis-aligned rectangle in ``mask``
-    (ny, nx); None if ``mask`` has no True cell. Ties keep the first found (lowest bottom row)."""
-    mask = np.asarray(mask, dtype=bool)
-    heights = np.zeros(mask.shape[1], dtype=np.int64)
-    best, rect = 0, None
-    for r in range(mask.shape[0]):
-        heights = np.where(mask[r], heights + 1, 0)
-        area, c0, c1, h = largest_histogram_rectangle(heights.tolist())
-        if area > best:
-            best, rect = area, (r - h + 1, r, c0, c1)
-    return rect
 
 
 def auto_workspace(cameras, **kwargs) -> tuple[Workspace | None, VisibilityGrid]:

@@ -18,7 +18,7 @@ from silpose.shared.camera import Rig
 
 from ..render import rendering
 from ..scene import draw_scene
-from ..worker import motion_from_config, render_samples
+from ..worker import motion_from_config, placement_area, render_samples
 from .render import TexturedRenderer
 from .scene import draw_appearance
 
@@ -52,7 +52,7 @@ def render_person_frames(config: dict, indices: list[int]) -> dict:
     rig = Rig.from_dict(config["rig"])
     renderer = TexturedRenderer.from_config(config)  # checks the frames options before any render
     records = render_samples(config, "test", list(indices))
-    motion = motion_from_config(config, rig.workspace, "test")  # the walk, or the dataset's motion-capture clips
+    motion = motion_from_config(config, placement_area(config, rig), "test")  # the walk, or the motion-capture clips
     frames, looks, seconds = [], [], []
     with rendering(renderer, rig):
         for rec in records:
