@@ -48,6 +48,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 _FORBIDDEN = 1e6
+_CAP = 16.0  # appearance distances above this count as this (one wild view does not decide)
 
 #: metres: the gate of a track seen at the previous step (the floor grid's jitter and a step's change of pace;
 #: 0.6 m let a person's track jump to a ghost between two people who were merging)
@@ -66,12 +67,22 @@ RECENT_S = 0.12
 REID_GATE_M = 3.0
 #: weight of the newest velocity in the smoothed one
 SMOOTHING = 0.2
+#: metres: a person's appearance model learns only while no other person's track is this near (their blobs
+#: may hold both of them although the views call them the person's alone)
+CONTACT_M = 0.8
+#: metres of assignment cost per unit of appearance distance (:meth:`.appearance.PersonLooks.distance`, ~1 for
+#: the same person): the cost of a pair is its floor distance plus this times the distance, capped
+LOOK_M = 0.1
+#: a track that missed a step never takes a detection, nor a new track a lost person's id, whose appearance
+#: distance is above this (about 3 standard deviations on every cue)
+LOOK_GATE = 9.0
 
 
 @dataclass
 class Track:
     """One track. key: internal number; person: public id (0 while tentative); position, velocity: (2,) m and
-    m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step."""
+    m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step;
+    looks: its appearance model, set by the caller (:class:`~.appearance.PersonLooks`) or None."""
 
     key: int
     position: np.ndarray
@@ -80,6 +91,7 @@ class Track:
     misses: int = 0
     last: int = 0
     person: int = 0
+    looks: object = None  # appearance model (the caller's: ``distance(observation) -> float``, NaN unknown)
 
     def predict(self, step: int, coast: int = 1 << 30) -> np.ndarray:
         """(2,) metres: where the motion model puts the track at ``step`` (at most ``coast`` steps extrapolated)."""
@@ -92,10 +104,15 @@ class Tracker:
 
     def __init__(self, gate: float = 0.6, max_misses: int = 12, min_hits: int = 3, smoothing: float = 0.5,
                  growth: float = 0.0, max_gate: float = 2.0, coast: int = 12, tentative_misses: int = 2,
-                 reid_gate: float = 0.0, recent: int = 3):
+                 reid_gate: float = 0.0, recent: int = 3, contact: float = 0.0, look_weight: float = 0.0,
+                 look_gate: float = LOOK_GATE, max_people: int = 0):
         self.gate, self.max_misses, self.min_hits, self.smoothing = float(gate), int(max_misses), int(min_hits), float(smoothing)
         self.growth, self.max_gate, self.coast = float(growth), float(max_gate), int(coast)
         self.tentative_misses, self.reid_gate, self.recent = int(tentative_misses), float(reid_gate), int(recent)
+        self.contact, self.look_weight, self.look_gate = float(contact), float(look_weight), float(look_gate)
+        self.max_people = int(max_people)
+        self._looks: Callable[[np.ndarray], list] | None = None  # this step's detections' observations
+        self._seen: dict[int, object] = {}  # detection -> its observation, this step
         self.tracks: list[Track] = []
         self.n_keys = 0
         self.n_persons = 0
@@ -111,28 +128,68 @@ class Tracker:
     def _gate(self, t: Track, step: int) -> float:
         return min(self.gate + self.growth * max(step - t.last - 1, 0), max(self.max_gate, self.gate))
 
+    def _observations(self, detections: np.ndarray) -> list:
+        """The observations of ``detections`` (I,) (asked of the caller once per detection and step)."""
+        ask = [int(d) for d in detections if int(d) not in self._seen]
+        if ask and self._looks is not None:
+            self._seen.update(zip(ask, self._looks(np.array(ask, int))))
+        return [self._seen.get(int(d)) for d in detections]
+
+    def _look_distances(self, tracks: list[Track], cols: np.ndarray, feasible: np.ndarray) -> np.ndarray | None:
+        """(T, C) appearance distances of the tracks' models to the detections ``cols`` where ``feasible`` (NaN
+        where unknown), or None when they cannot matter: no track has a model, or no track or detection has
+        two feasible partners and no track missed a step (only those are gated on appearance)."""
+        if (self.look_weight <= 0 or self._looks is None or not feasible.any()
+                or not any(t.looks is not None and t.looks.seen for t in tracks)):
+            return None
+        contested = feasible.sum(axis=0).max() > 1 or feasible.sum(axis=1).max() > 1
+        if not contested and not any(t.misses > 0 and feasible[i].any() for i, t in enumerate(tracks)):
+            return None
+        obs = self._observations(cols)
+        out = np.full(feasible.shape, np.nan)
+        for i, t in enumerate(tracks):
+            if t.looks is None:
+                continue
+            for j in np.flatnonzero(feasible[i]):
+                if obs[j] is not None:
+                    out[i, j] = t.looks.distance(obs[j])
+        return out
+
     def _link(self, tracks: list[Track], positions: np.ndarray, free: np.ndarray, step: int) -> dict[int, int]:
-        """Optimal assignment of ``tracks`` to the ``free`` (D,) bool detections; {track index: detection}."""
+        """Optimal assignment of ``tracks`` to the ``free`` (D,) bool detections; {track index: detection}.
+        Cost: floor distance + ``look_weight`` x appearance distance (capped; 1 where unknown); a track that
+        missed a step is not given a detection whose appearance distance exceeds ``look_gate``."""
         cols = np.flatnonzero(free)
         if not tracks or not len(cols):
             return {}
         pred = np.stack([t.predict(step, self.coast) for t in tracks])
-        cost = np.linalg.norm(pred[:, None] - positions[cols][None], axis=2)
+        dist = np.linalg.norm(pred[:, None] - positions[cols][None], axis=2)
         gates = np.array([self._gate(t, step) for t in tracks])
-        cost = np.where(cost > gates[:, None], _FORBIDDEN, cost)
+        feasible = dist <= gates[:, None]
+        look = self._look_distances(tracks, cols, feasible)
+        if look is not None:
+            missed = np.array([t.misses > 0 for t in tracks])
+            feasible &= ~(missed[:, None] & (look > self.look_gate))  # NaN compares False: unknown is no veto
+            dist = dist + self.look_weight * np.where(np.isfinite(look), np.minimum(look, _CAP), 1.0)
+        cost = np.where(feasible, dist, _FORBIDDEN)
         r, c = linear_sum_assignment(cost)
         ok = cost[r, c] < _FORBIDDEN
         return {int(i): int(cols[j]) for i, j in zip(r[ok], c[ok])}
 
     def update(self, step: int, positions: np.ndarray,
-               can_start: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[Track, int]]:
+               can_start: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
+               looks: Callable[[np.ndarray], list] | None = None) -> list[tuple[Track, int]]:
         """Link the detections ``positions`` (D, 2) of ``step``; returns (track, detection index or -1) for
         every live track (tentative and lost ones included).
 
         ``can_start``: which detections may start a track or count toward a tentative track's ``min_hits``:
         (D,) bool, or a function of detection indices (I,) -> (I,) bool, asked only about the detections not
-        taken by a person's track (so the test costs nothing once everybody is tracked); None: all."""
+        taken by a person's track (so the test costs nothing once everybody is tracked); None: all.
+        ``looks``: a function of detection indices (I,) -> I observations (None where unknown) that the tracks'
+        ``looks`` models compare (:meth:`~.appearance.PersonLooks.distance`), asked only when an assignment or a
+        re-identification has a choice; None: motion alone."""
         positions = np.asarray(positions, float).reshape(-1, 2)
+        self._looks, self._seen = looks, {}
         live = self.tracks
         free = np.ones(len(positions), bool)
         assigned = -np.ones(len(live), int)
@@ -186,20 +243,43 @@ class Tracker:
         return out
 
     def _confirm(self, t: Track, tracks: list[Track], step: int) -> None:
-        """Make tentative ``t`` a person: the id of the nearest lost person's track within ``reid_gate``
-        (which then ends), else a new id. ``tracks``: the live tracks kept so far this step."""
-        lost = [u for u in self.tracks if u.person > 0 and u.last < step and u is not t]
-        if lost and self.reid_gate > 0:
-            dist = [float(np.linalg.norm(u.predict(step, self.coast) - t.position)) for u in lost]
-            j = int(np.argmin(dist))
-            if dist[j] <= self.reid_gate:
-                u = lost[j]
+        """Make tentative ``t`` a person: the id of the lost person's track within ``reid_gate`` of lowest cost
+        (distance to its prediction + ``look_weight`` times the appearance distance of the two tracks' models;
+        which then ends), else a new id. With ``max_people`` ids given out already, the lost track of lowest
+        cost whatever its distance. ``tracks``: the live tracks kept so far this step."""
+        lost = [u for u in self.tracks if u.person > 0 and u.last < step and u is not t
+                and u.key not in self._reidentified]
+        full = 0 < self.max_people <= self.n_persons
+        if lost and (self.reid_gate > 0 or full):
+            dist = np.array([float(np.linalg.norm(u.predict(step, self.coast) - t.position)) for u in lost])
+            a = np.array([self._track_look(u, t) for u in lost])
+            look = self.look_weight * np.where(np.isfinite(a), np.minimum(a, _CAP), 1.0)
+            # beyond the head count the motion model has failed (they came back far from where they were lost):
+            # the most alike lost person, distance only breaking ties
+            cost = look + 1e-3 * dist if full else dist + look
+            ok = (np.ones(len(lost), bool) if full else dist <= self.reid_gate) & ~(a > self.look_gate)
+            if ok.any():
+                u = lost[int(np.flatnonzero(ok)[np.argmin(cost[ok])])]
                 t.person = u.person
+                if u.looks is not None and getattr(u.looks, "seen", False):
+                    t.looks = u.looks  # the person's longer memory goes on (the new track's views are few)
                 self._reidentified.add(u.key)  # u ends: t goes on as that person
                 self.ended.append(u)
                 return
         self.n_persons += 1
         t.person = self.n_persons
+
+    def _track_look(self, u: Track, t: Track) -> float:
+        """Appearance distance of track ``t``'s model (its means as one observation) to ``u``'s; NaN unknown."""
+        if self.look_weight <= 0 or u.looks is None or t.looks is None:
+            return float("nan")
+        return u.looks.distance(t.looks.views())
+
+    def isolated(self, t: Track, step: int) -> bool:
+        """No other person's track (live or lost, at its prediction) within ``contact`` metres of ``t``'s position:
+        ``t``'s blobs hold ``t`` alone, its appearance model may learn from them."""
+        others = [u.predict(step, self.coast) for u in self.tracks if u is not t and u.person]
+        return not others or float(np.min(np.linalg.norm(np.array(others) - t.position, axis=1))) > self.contact
 
 
 def tracker_for_fps(fps: float, min_hits: int | None = None, max_misses: int | None = None) -> Tracker:
@@ -209,4 +289,5 @@ def tracker_for_fps(fps: float, min_hits: int | None = None, max_misses: int | N
     steps = lambda seconds: max(1, int(round(seconds * fps)))  # noqa: E731
     return Tracker(gate=GATE_M, min_hits=steps(CONFIRM_S) if min_hits is None else min_hits,
                    max_misses=steps(LOST_S) if max_misses is None else max_misses, smoothing=SMOOTHING,
-                   growth=UNSEEN_SPEED_M_S / fps, coast=steps(COAST_S), reid_gate=REID_GATE_M, recent=steps(RECENT_S))
+                   growth=UNSEEN_SPEED_M_S / fps, coast=steps(COAST_S), reid_gate=REID_GATE_M, recent=steps(RECENT_S),
+                   contact=CONTACT_M, look_weight=LOOK_M)
