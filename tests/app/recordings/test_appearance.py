@@ -3,7 +3,7 @@ against an independent computation, the per-person model, and a crossing that mo
 
 import numpy as np
 
-from silpose.app.recordings.appearance import (COLOUR_SD, HIST_BINS, MEMORY, STATURE_SD_M, WIDTH_SD, Look,
+from silpose.app.recordings.appearance import (CAP, COLOUR_SD, HIST_BINS, MEMORY, STATURE_SD_M, WIDTH_SD, Look,
                                                PersonLooks, colour_histograms, observe)
 from silpose.app.recordings.blobs import find_blobs
 from silpose.app.recordings.tracking import Tracker, tracker_for_fps
@@ -63,8 +63,8 @@ def test_model_means_and_distance_by_hand():
     m.update([Look(s[MEMORY], w[MEMORY]), None])  # then an exponential mean with weight 1 / MEMORY
     assert np.isclose(m.stature[0], ref + (s[MEMORY] - ref) / MEMORY)
     # camera 1 has no observation: compared with the model's mean over cameras
-    o = Look(m.stature[0] + 0.1, m.width[0] * np.exp(0.3))
-    want = ((0.1 / STATURE_SD_M) ** 2 + (0.3 / WIDTH_SD) ** 2) / 2
+    o = Look(m.stature[0] + 0.05, m.width[0] * np.exp(0.3))
+    want = (min((0.05 / STATURE_SD_M) ** 2, CAP) + (0.3 / WIDTH_SD) ** 2) / 2
     assert np.isclose(m.distance([None, o]), want) and np.isclose(m.distance([o, None]), want)
     assert np.isnan(m.distance([None, None])) and np.isnan(PersonLooks(2).distance([o, o]))
     # colour: the Bhattacharyya distance of the parts' histograms

@@ -602,9 +602,8 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
                                np.full((len(names), n_pts, 2), np.nan)))
         else:
             i = taken.index(d)
-            if (tracker.look_weight > 0 or tracker.max_people > 0) and tracker.isolated(track, step):
-                track.looks = track.looks or PersonLooks(len(names))  # the person's appearance model learns
-                track.looks.update([lk[i] for _, _, lk in per_cam])
+            if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
+                tracker.learn(track, step, [lk[i] for _, _, lk in per_cam], lambda: PersonLooks(len(names)))
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _ in per_cam],
                                np.stack([c[i] for _, c, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0

@@ -8,9 +8,19 @@ Motion model: a track predicts its position at step ``s`` as ``position + veloci
 people turn and stop). It may take a detection within its gate, which grows with the time it has gone
 unseen: ``gate + growth * (s - last - 1)`` metres, at most ``max_gate``.
 
-Per step the detections (D, 2) are linked in three rounds, each an optimal assignment on the floor distance
+Appearance (:mod:`.appearance`; on when ``look_weight`` > 0 and the caller passes ``looks``): each person's
+track carries a model of their looks per camera (stature and width in metres, for colour videos the colour
+histograms of the upper and lower body), learnt by :meth:`Tracker.learn` from the views where they are alone,
+only while no other person's track is within ``contact`` metres (a blob then may hold both although the views
+call it theirs), slowly, leaving out views far from a settled model.
+
+Per step the detections (D, 2) are linked in three rounds, each an optimal assignment
 (``scipy.optimize.linear_sum_assignment``, pairs outside the track's gate forbidden), each on the detections
-the rounds before left:
+the rounds before left. The cost of a pair is the floor distance to the track's prediction plus ``look_weight``
+times the appearance distance of the detection's views to the track's model (capped; 1 where either is
+unknown; asked of the caller only when some track or detection has two feasible partners, or a track that
+missed a step has one: that is where people part after a merge); a track that missed a step never takes a
+detection whose appearance distance exceeds ``look_gate``:
 
 1. persons' tracks seen within the last ``recent`` steps (jointly: two people who merged into one detection
    for a frame or two are sorted out together when they part);
@@ -24,19 +34,34 @@ detections whose feet some camera sees start one, :func:`silpose.app.recordings.
 count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits, and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
 people, rarely hold that long; a dropped track leaves no rows). On becoming a person it is first
-re-identified: while persons' tracks are lost, it takes the id of the one whose prediction is nearest, if
-within ``reid_gate`` metres (that track ends); else it gets a new public id (1, 2, ... in order). A
-person's track missed for more than ``max_misses`` steps ends; a person coming back after that gets a new id.
+re-identified: while persons' tracks are lost, it takes the id of the one of lowest cost -- distance to its
+prediction plus ``look_weight`` times the appearance distance of the two models, none above ``look_gate`` --
+within ``reid_gate`` metres (that track ends); else it gets a new public id (1, 2, ... in order). With a head
+count (``max_people``) reached, it takes the id of the most alike lost person wherever they were lost, and
+while nobody is lost it stays tentative (its rows are not written). A person's track missed for more than
+``max_misses`` steps ends; a person coming back after that gets a new id.
 
-No appearance cue: on mask videos the one per-person cue is the silhouette's size, and the four walkers of
-the synthetic lab recording are all 1.92 m tall. Measured there (four walkers crossing, 200 frames at 25 fps,
-mask videos, a model trained on 120 lab-rig walkers; scored by ``benchmarks.recording_scores``): the tracker
-before (lost after 0.5 s, 3 hits, smoothing 0.5, a fixed 0.6 m gate) gave 19 ids, 23 identity switches and
-72 rows off every true person; this one 4 ids, 10 switches, 11 such rows (625 of 800 person-frames found,
-656 before). Offline on the same detections, every one of 18 settings (min_hits 6-10, smoothing 0.1-0.3,
-lost 2-4 s) gave 4 ids and 9-12 switches with the 0.3 m gate; with 0.6 m, 14 of 18 gave 4 ids; smoothing 0.5
-gave 17-22 switches (the velocity followed the detections' jitter). Merges and ghosts still cost switches:
-the switches left are mostly where two walkers' hulls merge into one detection and part again.
+Measured on the synthetic lab recording (:data:`silpose.datagen.lab.FOUR_WALKERS`: four walkers of 1.65-1.82 m
+crossing, 200 frames at 25 fps, a model trained on 120 lab-rig walkers; ``python -m benchmarks.identities``,
+scored by ``benchmarks.recording_scores``; load 7-11 on 2 cores): mask videos, 4 ids and 12 identity switches
+with the appearance model, 4 and 12 with motion alone (``look_weight`` 0), 4 and 12 with the tracker before
+it; colour videos (each walker in their own shirt and trousers over a textured room, empty-room clips), 4 ids
+and 10 switches all three ways; 11.8 vs 10.6 time steps/s on the masks with and without it (no measurable
+cost). The cue is strong where it is seen -- statures from lone views spread 1.3-1.7 cm within a walker, the
+walkers are 4-17 cm apart -- but the switches left happen where it is not: two or three walkers the floor grid
+sees as one detection (a peak between them), where no view shows anyone alone, so a track that follows such a
+peak, or jumps to one, has nothing to compare. Tried and dropped: a stricter veto (``look_gate`` 4: 5 ids,
+13-16 switches -- vetoed links made new ids), and exchanging ids after a contact when each track's looks since
+then matched the other's model (never triggered: the models had learnt from blobs holding two walkers the
+floor grid saw as one). Where people part in view, appearance holds ids motion alone swaps (two people who
+turn back inside a merge: ``tests/app/recordings/test_appearance.py``).
+
+History, same recording before its walkers' statures were drawn (all four 1.91-1.93 m): the tracker before
+lost tracks and re-identification (lost after 0.5 s, 3 hits, smoothing 0.5, a fixed 0.6 m gate) gave 19 ids,
+23 identity switches and 72 rows off every true person; with them 4 ids, 10 switches, 11 such rows (625 of 800
+person-frames found, 656 before). Offline on the same detections, every one of 18 settings (min_hits 6-10,
+smoothing 0.1-0.3, lost 2-4 s) gave 4 ids and 9-12 switches with the 0.3 m gate; with 0.6 m, 14 of 18 gave 4
+ids; smoothing 0.5 gave 17-22 switches (the velocity followed the detections' jitter).
 """
 
 from __future__ import annotations
@@ -82,7 +107,7 @@ LOOK_GATE = 9.0
 class Track:
     """One track. key: internal number; person: public id (0 while tentative); position, velocity: (2,) m and
     m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step;
-    looks: its appearance model, set by the caller (:class:`~.appearance.PersonLooks`) or None."""
+    looks: its appearance model (:class:`~.appearance.PersonLooks`, :meth:`Tracker.learn`) or None."""
 
     key: int
     position: np.ndarray
@@ -246,7 +271,8 @@ class Tracker:
         """Make tentative ``t`` a person: the id of the lost person's track within ``reid_gate`` of lowest cost
         (distance to its prediction + ``look_weight`` times the appearance distance of the two tracks' models;
         which then ends), else a new id. With ``max_people`` ids given out already, the lost track of lowest
-        cost whatever its distance. ``tracks``: the live tracks kept so far this step."""
+        cost whatever its distance (appearance first, distance breaking ties), and while none is lost ``t``
+        stays tentative. ``tracks``: the live tracks kept so far this step."""
         lost = [u for u in self.tracks if u.person > 0 and u.last < step and u is not t
                 and u.key not in self._reidentified]
         full = 0 < self.max_people <= self.n_persons
@@ -266,6 +292,8 @@ class Tracker:
                 self._reidentified.add(u.key)  # u ends: t goes on as that person
                 self.ended.append(u)
                 return
+        if full:  # every id is someone seen now: t stays tentative (its rows unwritten) until one is lost
+            return
         self.n_persons += 1
         t.person = self.n_persons
 
@@ -274,6 +302,14 @@ class Tracker:
         if self.look_weight <= 0 or u.looks is None or t.looks is None:
             return float("nan")
         return u.looks.distance(t.looks.views())
+
+    def learn(self, t: Track, step: int, looks: list, new_model: Callable[[], object]) -> None:
+        """Let detected track ``t``'s appearance models learn this step's observations ``looks`` (one per
+        camera, None where it is not alone in the view) -- only while no other person is near (:meth:`isolated`;
+        else their blobs may hold both). ``new_model``: makes an empty model."""
+        if self.isolated(t, step):
+            t.looks = t.looks or new_model()
+            t.looks.update(looks)
 
     def isolated(self, t: Track, step: int) -> bool:
         """No other person's track (live or lost, at its prediction) within ``contact`` metres of ``t``'s position:
