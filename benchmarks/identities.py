@@ -9,8 +9,10 @@ trousers colours over a textured room (:func:`silpose.segment.composite.composit
 over farther ones), with an empty-room clip per camera; a model of the lab rig trained on ``train`` walkers
 (tiny hyperparameters: the tracker does not depend on the model).
 
-Rows ``identities``, one per input (mask videos, colour videos) and tracker (``appearance``: with the
-per-person appearance model, :mod:`silpose.app.recordings.appearance`; ``motion only``: without it): ids,
+A third input: the mask videos with walkers hidden from every camera for 1.6-2 s (:data:`HIDDEN`; two at
+once), made from the walkers' own masks. Rows ``identities``, one per input and tracker (``appearance``: with the
+per-person appearance model, :mod:`silpose.app.recordings.appearance`; ``motion only``: without it; on the
+third input also ``appearance, --max-people 4``): ids,
 identity switches, person-frames found, rows off every true person (:mod:`benchmarks.recording_scores`),
 time steps/s.
 """
@@ -25,6 +27,9 @@ from pathlib import Path
 from . import subproc
 
 N_FRAMES, TRAIN = 200, 120
+#: walker -> (first, last + 1) frames hidden from every camera (behind a pillar, out of the room): two at once,
+#: so a re-emerging walker must be told from the other lost one
+HIDDEN = {0: (40, 80), 3: (45, 85), 2: (110, 160)}
 
 
 def make_inputs(work: Path, n_frames: int = N_FRAMES, train: int = TRAIN) -> tuple[Path, Path]:
@@ -40,6 +45,8 @@ def make_inputs(work: Path, n_frames: int = N_FRAMES, train: int = TRAIN) -> tup
         make_lab_recording(lab, walkers=FOUR_WALKERS, n_frames=n_frames)
     if not (lab / "colour").is_dir():
         colour_videos(lab, lab_rig())
+    if not (lab / "hidden").is_dir():
+        hidden_videos(lab, lab_rig(), HIDDEN)
     if not model.is_file():
         (work / "train").mkdir(parents=True, exist_ok=True)
         _train(work / "train", train, 100, TINY_MODEL)
@@ -75,7 +82,29 @@ def colour_videos(lab: Path, rig, n_background: int = 20) -> None:
             w.release()
 
 
-def measure(model: str, videos: str, out: str, background: str | None, appearance: bool) -> dict:
+def hidden_videos(lab: Path, rig, hidden: dict) -> None:
+    """``lab/hidden/<camera>.mp4``: the lab's mask videos with walkers left out of some frames (``hidden``:
+    walker -> (first, stop) frame), made like the lab's own (the OR of the walkers' clean masks, through JPEG
+    and mp4v: :func:`silpose.datagen.lab.lossy`)."""
+    import cv2
+    import numpy as np
+
+    from silpose.datagen.lab import LAB_FPS, lossy, unpack_masks
+
+    masks = unpack_masks(np.load(lab / "truth.npz"))  # (T, P, K, H, W)
+    shown = np.ones(masks.shape[:2], bool)
+    for p, (a, b) in hidden.items():
+        shown[a:b, p] = False
+    (lab / "hidden").mkdir(exist_ok=True)
+    for k, cam in enumerate(rig):
+        w = cv2.VideoWriter(str(lab / "hidden" / f"{cam.name}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), LAB_FPS,
+                            (cam.width, cam.height), isColor=False)
+        for f in range(len(masks)):
+            w.write(lossy((masks[f, shown[f], k].any(axis=0) * 255).astype(np.uint8)))
+        w.release()
+
+
+def measure(model: str, videos: str, out: str, background: str | None, appearance: bool, max_people: int = 0) -> dict:
     """Child side: one pipeline run, scored against the truth beside ``videos``."""
     import time
 
@@ -89,6 +118,8 @@ def measure(model: str, videos: str, out: str, background: str | None, appearanc
                            overlays=False, hypotheses=0)
     if not appearance:
         opt.appearance = False
+    if max_people:
+        opt.max_people = max_people
     s = run_recording(model, videos, out, opt)
     wall = time.perf_counter() - t0
     sc = score_rows(read_rows(Path(out) / "joints.parquet"), np.load(Path(videos).parent / "truth.npz")["joints"])
@@ -103,13 +134,16 @@ def run(n_frames: int = N_FRAMES, train: int = TRAIN, work: str | None = None, c
         folder = Path(work) if work else Path(tmp)
         lab, model = make_inputs(folder, n_frames, train)
         rows = []
-        inputs = [("mask videos", lab / "masks", None)] + ([("colour videos", lab / "colour", lab / "empty")] if colour else [])
+        inputs = ([("mask videos", lab / "masks", None)] + ([("colour videos", lab / "colour", lab / "empty")] if colour else [])
+                  + [("mask videos, walkers hidden " + ", ".join(f"{p} {a}-{b}" for p, (a, b) in HIDDEN.items()),
+                      lab / "hidden", None)])
         for label, videos, background in inputs:
-            for tracker in trackers:
+            for tracker in trackers + (("appearance, --max-people 4",) if "hidden" in label else ()):
                 out = Path(tmp) / f"out-{len(rows)}"
                 res = subproc.call("benchmarks.identities", "measure", dict(model=str(model), videos=str(videos), out=str(out),
                                                               background=None if background is None else str(background),
-                                                              appearance=tracker == "appearance"))
+                                                              appearance=tracker.startswith("appearance"),
+                                                              max_people=4 if "max-people" in tracker else 0))
                 if res.error:
                     raise RuntimeError(f"identities: {label}, {tracker} failed ({res.error})")
                 rows.append({"name": "identities", "input": label, "tracker": tracker, "frames": n_frames, **res.value})
