@@ -134,3 +134,34 @@ def test_max_people_reidentifies_the_most_alike_lost_person_wherever_they_come_b
 
     assert run(0) == (4, 4)
     assert run(3) == (1, 3)
+
+
+def test_max_people_reaches_the_tracker_and_is_for_several_people_only(tiny_model_file, two_cylinders, tmp_path,
+                                                                       monkeypatch):
+    import dataclasses
+
+    from typer.testing import CliRunner
+
+    from silpose.app.recordings import pipeline
+    from silpose.shared.cli import build_app
+
+    res = CliRunner().invoke(build_app(), ["infer", str(tiny_model_file), "--videos", str(two_cylinders), "--masks",
+                                           "--people", "1", "--max-people", "3", "--out", str(tmp_path / "a.parquet")])
+    assert res.exit_code != 0 and "--max-people" in res.output
+    made = []
+    real_tracker, real_run = pipeline.tracker_for_fps, pipeline.run_recording
+
+    def spy(*args, **kwargs):
+        made.append(real_tracker(*args, **kwargs))
+        return made[-1]
+
+    def short(model, videos, out, options, **kwargs):  # the real run, three steps of it
+        return real_run(model, videos, out, dataclasses.replace(options, max_steps=3), **kwargs)
+
+    monkeypatch.setattr(pipeline, "tracker_for_fps", spy)
+    monkeypatch.setattr(pipeline, "run_recording", short)
+    res = CliRunner().invoke(build_app(), ["infer", str(tiny_model_file), "--videos", str(two_cylinders), "--masks",
+                                           "--max-people", "3", "--overlays", "none", "--out", str(tmp_path / "o"),
+                                           "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert made[0].max_people == 3 and made[0].look_weight > 0
