@@ -4,7 +4,7 @@ against an independent computation, the per-person model, and a crossing that mo
 import numpy as np
 
 from silpose.app.recordings.appearance import (CAP, COLOUR_SD, HIST_BINS, MEMORY, STATURE_SD_M, WIDTH_SD, Look,
-                                               PersonLooks, colour_histograms, observe)
+                                               PersonLooks, UPPER_SHARE, colour_histograms, observe)
 from silpose.app.recordings.blobs import find_blobs
 from silpose.app.recordings.tracking import Tracker, tracker_for_fps
 
@@ -37,6 +37,16 @@ def test_stature_and_width_of_a_cylinder_against_its_geometry(rig, tools):
         depth = cam.to_camera(np.array([[xy[0], xy[1], 0.9]]))[0, 2]
         assert abs(look.width - 2 * radius) < 0.1 * 2 * radius + 2 * depth / cam.K[0, 0]  # mean width ~ diameter
         assert look.colour is None
+    # colour: a frame whose rows above the blob's upper share are red, the rest blue (BGR)
+    blobs = find_blobs((masks[1] > 0).view(np.uint8), 50)
+    label = int(np.argmax(blobs.area[1:])) + 1
+    x, y, w, h = blobs.bbox[label]
+    frame = np.zeros(masks[1].shape + (3,), np.uint8)
+    frame[:] = (255, 0, 0)
+    frame[: y + int(np.ceil(UPPER_SHARE * h))] = (0, 0, 255)
+    c = observe(rig[1], blobs, label, xy, frame).colour
+    red, blue = (0 * HIST_BINS + 0) * HIST_BINS + HIST_BINS - 1, (HIST_BINS - 1) * HIST_BINS ** 2
+    assert c[0, red] == 1.0 and c[1, blue] == 1.0
 
 
 def test_colour_histograms_against_numpy_histogramdd():
