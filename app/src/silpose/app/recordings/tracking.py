@@ -55,7 +55,8 @@ detection (a peak between them), where no view shows anyone alone, so a track th
 jumps to one, has nothing to compare. Tried and dropped: a veto on appearance (``look_gate`` 9: 12 and 11
 switches on masks and hidden walkers; 4: 13 and 5 ids -- the models are not clean enough to forbid links, having
 learnt from blobs of two walkers the floor grid saw as one), and exchanging two tracks' ids after a contact
-when each one's looks since then matched the other's model (no change: 12). Where people part in view,
+when each one's looks since then matched the other's model (no change: 12), and an unknown appearance counted
+as 4 instead of 1 (so that a lone view a little off its model is not worse than none: 11 / 10 / 9, the same). Where people part in view,
 appearance holds ids that motion alone swaps (two people who turn back inside a merge:
 ``tests/app/recordings/test_appearance.py``).
 
