@@ -106,6 +106,11 @@ SECTIONS: dict[str, Section] = {
         "silpose infer --videos on the lab recording (4 cameras 644x486, mask videos): time steps/s, CPU per step, "
         "peak RSS on 1x vs a repeat-x longer video; accuracy vs truth and clean masks; occupancy grid vs foot points",
     ),
+    "identities": Section(
+        "identities", {"n_frames": 200}, {"n_frames": 60, "colour": False},
+        "ids and identity switches of four walkers of different statures crossing (lab recording, mask and colour "
+        "videos), with and without the per-person appearance model",
+    ),
     "protocol": Section(
         "protocol", {"n_test": 500, "fallback": "skip"},
         {"n_test": 40, "experiments": ["E2", "E4"], "fallback": "tiny"},

@@ -12,9 +12,12 @@ end to end against known joints:
   ``cv2.FileStorage`` file per camera, the way a lab would bring it
   (``silpose rig import`` reads it).
 - :class:`Walker`: a person walking back and forth between two floor points at constant speed; its
-  body and gait style are those of test sample ``index`` (:func:`silpose.datagen.scene.draw_sample_parameters`,
-  so test-split builds and clothing), its pose at time ``t`` is the procedural walk
-  (:class:`silpose.datagen.motion.source.WalkMotion`) at the phase its travelled distance gives.
+  build and gait style are those of test sample ``index`` (:func:`silpose.datagen.scene.draw_sample_parameters`,
+  so test-split builds and clothing), its stature its own (:func:`walker_stature`: adults' statures, not the
+  test split's uniform range -- the first four test samples of seed 0 are all 1.91-1.93 m tall, which made
+  every walker of a recording look alike), its clothing colours those of test sample ``index``'s frames
+  (:func:`walker_clothing_bgr`, for colour videos composited from the masks), its pose at time ``t`` the
+  procedural walk (:class:`silpose.datagen.motion.source.WalkMotion`) at the phase its travelled distance gives.
 - :func:`render_lab`: the spawned-worker entry point (Blender): every frame, each walker is rendered
   ALONE through the renderer registry (``raster`` by default), and the cameras' masks are the OR of
   the walkers' masks. Written: ``masks/<camera>.mp4`` (the OR, 0/255, each frame through JPEG at quality
@@ -27,7 +30,8 @@ end to end against known joints:
 
 Walkers' subjects and gaits come from the sample-draw stream of the test split (docs/conventions.md,
 "Seeds"): walker ``index`` i is test sample i's first draw, so a recording is a pure function of
-``(seed, walkers, n_frames, fps)``.
+``(seed, walkers, n_frames, fps)``. Statures come from their own stream, ``derive_rng(seed,
+stream_code("lab stature"), index)`` (:mod:`silpose.shared.seeds`).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ import numpy as np
 from silpose.shared.atomic import atomic_open, atomic_path
 from silpose.shared.camera import Camera, Rig, look_at
 from silpose.shared.rig_frame import Workspace, WorldTransform
+from silpose.shared.seeds import derive_rng, stream_code
 
 from .motion.source import WALK
 from .render import rendering
@@ -65,6 +70,9 @@ STRIDE_M, CYCLE_S = 1.3, 1.1
 MASK_FOURCC, MASK_SUFFIX = "mp4v", ".mp4"
 #: JPEG quality every mask frame goes through before the video encoder (module docstring)
 MASK_JPEG_QUALITY = 15
+#: metres: mean and standard deviation of the walkers' statures (adults of both sexes: about 1.78 m and 1.65 m
+#: means, 7 cm within each), clipped to the test split's stature range (:mod:`silpose.datagen.subjects`)
+STATURE_MEAN_M, STATURE_STD_M, STATURE_RANGE_M = 1.71, 0.09, (1.50, 1.98)
 
 
 def lab_rig(focal_px: float = LAB_FOCAL_PX) -> Rig:
@@ -129,7 +137,7 @@ class Walker:
 
     index: test sample whose subject and gait style the walker has; start, end: (x, y) metres;
     speed: metres per second; delay: seconds of walking already done at t = 0 (where the walker is when
-    the recording starts).
+    the recording starts); stature: metres (None: :func:`walker_stature`'s draw).
     """
 
     index: int
@@ -137,6 +145,7 @@ class Walker:
     end: tuple[float, float]
     speed: float = 1.2
     delay: float = 0.0
+    stature: float | None = None
 
 
 #: two walkers crossing in front of the rig: one near the cameras walking right, one farther walking left
@@ -144,6 +153,36 @@ DEFAULT_WALKERS = (
     Walker(index=0, start=(-1.35, -0.55), end=(1.35, -0.45), speed=1.15),
     Walker(index=1, start=(1.35, 0.6), end=(-1.35, 0.5), speed=1.05),
 )
+
+
+#: four walkers crossing in front of the rig (the identities benchmark): two along the width at different
+#: depths in opposite directions, one diagonal through the others' paths, one along the back
+FOUR_WALKERS = (
+    Walker(index=0, start=(-1.35, -0.9), end=(1.35, -0.7), speed=1.15),
+    Walker(index=1, start=(1.35, -0.1), end=(-1.35, -0.35), speed=1.0),
+    Walker(index=2, start=(-0.7, 1.3), end=(0.8, -1.3), speed=0.9, delay=0.5),
+    Walker(index=3, start=(1.3, 0.95), end=(-1.3, 0.7), speed=1.1, delay=1.0),
+)
+
+
+def walker_stature(seed: int, walker: Walker) -> float:
+    """Metres: ``walker.stature``, or a draw from N(:data:`STATURE_MEAN_M`, :data:`STATURE_STD_M`) clipped to
+    :data:`STATURE_RANGE_M`, from ``derive_rng(seed, stream_code("lab stature"), walker.index)``."""
+    if walker.stature is not None:
+        return float(walker.stature)
+    rng = derive_rng(seed, stream_code("lab stature"), walker.index)
+    return float(np.clip(rng.normal(STATURE_MEAN_M, STATURE_STD_M), *STATURE_RANGE_M))
+
+
+def walker_clothing_bgr(seed: int, walker: Walker) -> np.ndarray:
+    """(2, 3) uint8: the walker's shirt and trousers colours, sRGB BGR (test sample ``walker.index``'s
+    clothing, :func:`silpose.datagen.frames.scene.draw_appearance`, linear RGB encoded with the sRGB curve)."""
+    from .frames.scene import draw_appearance
+
+    look = draw_appearance(seed, walker.index)
+    lin = np.array([look["shirt"], look["trousers"]], float)
+    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
+    return np.round(255 * np.clip(srgb, 0, 1))[:, ::-1].astype(np.uint8)
 
 
 def walker_state(walker: Walker, t: float) -> tuple[float, float, float, float]:
@@ -160,9 +199,10 @@ def walker_state(walker: Walker, t: float) -> tuple[float, float, float, float]:
 
 
 def walker_scene(seed: int, walker: Walker, t: float, rig: Rig) -> SampleScene:
-    """The scene of ``walker`` at time ``t``: test sample ``walker.index``'s subject and gait style, placed
-    and phased by :func:`walker_state`."""
+    """The scene of ``walker`` at time ``t``: test sample ``walker.index``'s subject (its stature
+    :func:`walker_stature`'s) and gait style, placed and phased by :func:`walker_state`."""
     subject, gait = draw_sample_parameters(seed, "test", walker.index, 0)
+    subject = dict(subject, height=walker_stature(seed, walker))
     x, y, heading, travelled = walker_state(walker, t)
     gait = dict(gait, x=x, y=y, heading=heading, phase=(gait["phase"] + travelled / STRIDE_M) % 1.0)
     return SampleScene(split="test", index=walker.index, redraw=0, subject=subject, motion=gait,
@@ -192,7 +232,7 @@ def render_lab(config: dict, out: str) -> dict:
             ``n_frames``, ``fps``, ``renderer`` (registry name, default ``raster``).
         out: folder; gets ``masks/<camera>.mp4`` and ``truth.npz`` (``joints`` (T, P, 19, 3) metres,
             ``heading`` (T, P), ``masks`` bit-packed per-walker masks with ``mask_shape`` (T, P, K, H, W),
-            ``fps``, ``cameras``).
+            ``fps``, ``cameras``, ``stature`` (P,) metres, ``clothing_bgr`` (P, 2, 3) uint8 shirt and trousers).
     Returns:
         ``{"frames": T, "walkers": P, "empty_views": (P,) count of (frame, camera) where a walker is not rendered}``.
     """
@@ -230,7 +270,9 @@ def render_lab(config: dict, out: str) -> dict:
             wr.release()
     with atomic_open(out / "truth.npz", "wb") as fh:
         np.savez_compressed(fh, joints=joints, heading=heading, masks=np.stack(packed), mask_shape=np.array([n, P, K, h, w]),
-                            fps=np.array(fps), cameras=np.array(rig.names))
+                            fps=np.array(fps), cameras=np.array(rig.names),
+                            stature=np.array([walker_stature(seed, w) for w in walkers]),
+                            clothing_bgr=np.stack([walker_clothing_bgr(seed, w) for w in walkers]))
     return {"frames": n, "walkers": P, "empty_views": empty.tolist()}
 
 

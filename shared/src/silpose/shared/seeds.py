@@ -20,6 +20,7 @@ below are part of the data format (changing one changes every dataset or report 
 | plausibility calibration | ``seed, stream_code("plausibility")`` | ``silpose.model.plausibility``: the observation-noise draws added to held-out inputs when ``silpose train`` calibrates a model's plausibility percentiles |
 | validation split | ``seed, VALIDATION_STREAM`` | ``silpose.model.selection.validation_split``: the train / validation permutation of model selection and the held-out part of ``silpose train`` |
 | synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
+| lab stature | ``seed, stream_code("lab stature"), index`` | datagen (``lab.walker_stature``): the stature of the synthetic lab recording's walker of test sample ``index`` |
 | synthetic scene | ``seed, camera`` (room), ``seed, camera, 0, b`` (background frame b), ``seed, camera, 1 + frame`` (frame) | segment.composite test scenes |
 
 Estimators that take a ``random_state`` (``MPPCA``, k-means) follow scikit-learn and call

@@ -48,6 +48,7 @@ def infer(
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
+    max_people: Annotated[Optional[int], typer.Option("--max-people", min=1, help="Several people: at most N ids (the head count, if known). A new person beyond N takes the id of the lost person who looks most alike (stature, build, clothing colours), wherever they were lost. Default: no limit.")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or cameras.
 
@@ -86,7 +87,7 @@ def infer(
                    "--background": background is not None, "--offsets": offsets is not None,
                    "--people": people is not None, "--overlays": overlays is not None,
                    "--overlay-dir": overlay_dir is not None, "--min-area": min_area is not None,
-                   "--min-hits": min_hits is not None}
+                   "--min-hits": min_hits is not None, "--max-people": max_people is not None}
     if input is not None and any(camera_only.values()):
         fail("infer", f"{next(k for k, v in camera_only.items() if v)} needs --videos or --frames")
     if people is not None and people != 1:
@@ -94,6 +95,8 @@ def infer(
     one = frames is not None or people == 1
     if one and min_hits is not None:
         fail("infer", "--min-hits is for several people (floor tracking); --people 1 and --frames track nobody")
+    if one and max_people is not None:
+        fail("infer", "--max-people is for several people (omit --people 1 / --frames)")
     shown = (overlays.value if overlays is not None else "none" if one else "mp4")
     if overlay_dir is not None and shown == "none":
         fail("infer", "--overlay-dir needs --overlays png or mp4")
@@ -110,7 +113,7 @@ def infer(
             options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                        offsets=offsets, overlays=shown, min_area=min_area,
                                        noise_variance=noise_variance, contours=save_contours, min_hits=min_hits,
-                                       robust=(not masks) if robust is None else robust)
+                                       robust=(not masks) if robust is None else robust, max_people=max_people or 0)
             source = frames if frames is not None else videos
             if one:
                 out = out or Path("joints.parquet")

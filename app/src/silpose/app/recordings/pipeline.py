@@ -62,6 +62,7 @@ from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
 
 from ..errors import RecordingError
 from ..inference import TOP_K, InferOptions, infer_rows
+from .appearance import PersonLooks, observe
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
@@ -106,6 +107,9 @@ class RecordingOptions:
     (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
     0.3 s and 4 s).
     contours: also write every view's reconstructed contour (``contours_px``) to joints.parquet.
+    appearance: tell people apart by their looks too (:mod:`.appearance`: stature, width, colours) where
+    motion cannot (merges, re-identification); False: motion alone. max_people: at most this many ids
+    (``--max-people``; 0: no limit): a new person beyond that takes the id of the most alike lost one.
     robust: robust inference (``silpose.model.robust``: contour points far from the reconstruction are
     down-weighted); None = on for colour videos (silpose's segmentation leaves holes, blobs and shadows), off
     for mask videos (measured on the lab recording of :mod:`silpose.datagen.lab`, M 10 q 30 model: world-frame
@@ -134,6 +138,8 @@ class RecordingOptions:
     min_hits: int | None = None
     max_misses: int | None = None
     contours: bool = False
+    appearance: bool = True
+    max_people: int = 0
     robust: bool | None = None
     hypotheses: int = TOP_K
     work_person_px: int = WORK_PERSON_PX
@@ -336,6 +342,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
     fps = recording.fps
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
+    tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)
     lag = tracker.decided_within
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
@@ -400,7 +407,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     if warn:
                         warn(msg)
                 found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
-                                            pool.map if pool else map)
+                                            pool.map if pool else map, colour=not opt.masks)
                 people += found
                 detected += bool(len(where))
                 for c, cam in cams.items():
@@ -521,16 +528,19 @@ def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
     return silhouettes, start
 
 
-def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int) -> tuple[list, np.ndarray]:
+def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int,
+                  colour: bool = False) -> tuple[list, np.ndarray, list]:
     """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) in ``cam``'s px, NaN
-    where unused), from the masks at ``work``'s resolution. Runs in a worker thread (OpenCV's labelling and
+    where unused, looks (P,) :class:`~.appearance.Look` or None), from the masks at ``work``'s resolution
+    (``colour``: colour histograms from the frame). Runs in a worker thread (OpenCV's labelling and
     contour tracing release the GIL)."""
     P = len(positions)
     cont = np.full((P, n_pts, 2), np.nan)
+    looks: list = [None] * P
     if s is None:
-        return [VIEW_NO_VIDEO] * P, cont
+        return [VIEW_NO_VIDEO] * P, cont, looks
     if s.blobs is None or s.blobs.empty:
-        return [s.status or VIEW_EMPTY] * P, cont
+        return [s.status or VIEW_EMPTY] * P, cont, looks
     labels, status = assign_views(work, s.blobs, positions)
     for d in range(P):
         if status[d] == VIEW_OK:
@@ -539,11 +549,35 @@ def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int)
                 status[d] = VIEW_EMPTY
             else:
                 cont[d] = to_rig_px(pts, cam, work)
-    return status, cont
+                looks[d] = observe(work, s.blobs, labels[d], positions[d], s.background if colour else None)
+    return status, cont, looks
+
+
+def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapper=map) -> Callable:
+    """The tracker's ``looks``: detection indices (I,) -> I lists of per-camera :class:`~.appearance.Look`
+    (None where the detection is not alone in that view: every camera's views of all ``positions`` (D, 2)
+    assigned at once, when first asked, so a blob two detections share is nobody's)."""
+    cache: list = []
+
+    def one_camera(k: int) -> list:
+        s = seen[k]
+        if s is None or s.blobs is None or s.blobs.empty:
+            return [None] * len(positions)
+        labels, status = assign_views(work[k], s.blobs, positions)
+        return [observe(work[k], s.blobs, labels[d], positions[d], s.background if colour else None)
+                if status[d] == VIEW_OK else None for d in range(len(positions))]
+
+    def looks(idx: np.ndarray) -> list:
+        if not cache:
+            per_cam = list(mapper(one_camera, range(len(work))))
+            cache.append([[per_cam[k][d] for k in range(len(work))] for d in range(len(positions))])
+        return [cache[0][int(d)] for d in idx]
+
+    return looks
 
 
 def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
-                 mapper=map) -> tuple[list[_Person], np.ndarray]:
+                 mapper=map, colour: bool = False) -> tuple[list[_Person], np.ndarray]:
     """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
 
     Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
@@ -569,13 +603,14 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
         return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
             np.zeros(len(idx), bool)
 
-    links = tracker.update(step, det.positions, feet_seen)
+    looks = _detection_looks(work, [seen.get(c) for c in names], det.positions, colour, mapper)
+    links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
     near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
-    per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts),
+    per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts, colour),
                           range(len(names))))
     out = []
     for track, d in links:
@@ -584,8 +619,10 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
                                np.full((len(names), n_pts, 2), np.nan)))
         else:
             i = taken.index(d)
-            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _ in per_cam],
-                               np.stack([c[i] for _, c in per_cam])))
+            if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
+                tracker.learn(track, step, [lk[i] for _, _, lk in per_cam], lambda: PersonLooks(len(names)))
+            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _ in per_cam],
+                               np.stack([c[i] for _, c, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0
     return out, near
 
