@@ -46,6 +46,7 @@ def infer(
     min_area: Annotated[Optional[int], typer.Option("--min-area", min=1, help="Blobs with fewer pixels (of the camera) are ignored (default: 3 % of a person's expected silhouette area at the working resolution).")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
+    carve: Annotated[bool, typer.Option(help="Several people: cut each person's views down to their visual hull (the part of each blob the other cameras support) before the views are judged, so clutter touching a person in one camera (a prop, a lamp, someone standing still) is cut off (column view_cut).")] = True,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or cameras.
@@ -106,7 +107,7 @@ def infer(
             options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                        offsets=offsets, overlays=shown, min_area=min_area,
                                        noise_variance=noise_variance, contours=save_contours,
-                                       robust=(not masks) if robust is None else robust)
+                                       robust=(not masks) if robust is None else robust, carve=carve)
             source = frames if frames is not None else videos
             if one:
                 out = out or Path("joints.parquet")

@@ -1,0 +1,228 @@
+"""Multi-view consistency of a person's silhouettes: each view's foreground cut down to the person's visual hull.
+
+Background subtraction against plates shot earlier also finds whatever changed since -- a prop, a lamp, someone
+standing still at the back. When such clutter touches a person in one camera's image, their blob holds it and
+may reach the image border, and the view is lost ("border", "clutter"), although the other cameras see the
+person clear of it. Clutter in one camera has no support in the others; the person has. So, per detected person
+(floor point ``xy``, :mod:`.floor`), silpose carves a coarse voxel volume -- the cylinder of radius
+:data:`~.views.BODY_RADIUS_M` and height :data:`~.views.BODY_HEIGHT_M` standing at ``xy``, the volume the view
+rules already allow a person (:func:`~.views.body_box`) -- in cubes of :data:`VOXEL_M`:
+
+- a camera *sees* a voxel when its centre projects inside the image, in front of the camera (cameras with no
+  mask this step, or an empty one, see nothing: they say nothing);
+- a voxel is *foreground* in a camera when some foreground pixel lies within ``r`` px (a square window,
+  Chebyshev distance) of its centre's image, ``r`` = the camera's :func:`footprint_px`: the projected
+  half-diagonal of a voxel at the workspace centre, so a limb thinner than a voxel is not carved away
+  between voxel centres (a conservative hull);
+- a voxel is *kept* when every camera that sees it finds it foreground (``MAX_MISSES`` = 0), and at least 2
+  cameras see it. Letting one camera miss it where at least three others agree (``MAX_MISSES`` = 1, the floor
+  grid's tolerant rule, :mod:`.floor`) was tried and rejected: plates shot earlier leave clutter in several
+  cameras at once, and two cameras whose masks are mostly clutter then agree with any third about almost the
+  whole cylinder. Measured on Pose2Sim's single-person demo (docs/real-recordings.md, section 1: cam01 and cam02
+  mostly clutter), person-frames with >= 3 / 4 usable views: 88 / 17 % with one miss allowed, 95 / 71 % with
+  none (0 / 0 % uncut). Holes smaller than the footprint (below) are closed by it; a larger hole in one camera
+  (clothes the colour of the background) carves that part of the person from every view.
+
+Each camera's *support* is the image of the kept voxels of every person: their centres' pixels dilated by
+``r + SLACK_PX``. The pipeline intersects the camera's mask with its support before the blobs are labelled and
+the view rules (:func:`~.views.assign_views`) judge them: clutter with no support is cut off; a person really cut
+by the image border still touches it ("border"); two people whose hulls overlap in the image still share a blob
+("merged"). The share of the person's original blob that was cut is reported per view (``view_cut``,
+:mod:`.writers`).
+
+Cost: the voxel centres of the room (the floor grid's area plus the cylinder's radius) are projected into each
+camera once, lazily, in tiles of :data:`TILE` x :data:`TILE` columns when a person first comes near them
+(projection through a distorted lens is ~2 us per point, so a room of ~300,000 voxels would cost seconds up
+front); per step and person the work is a gather of one byte per voxel and camera (~46,000 voxels), a sum, and
+a dilation of each mask and each support image.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from .views import BODY_HEIGHT_M, BODY_RADIUS_M
+
+#: metres: side of the carving's cubes (at the working resolution a 1.75 m person is ~160 px tall, so a voxel
+#: is ~4-5 px)
+VOXEL_M = 0.05
+#: cameras that see a voxel and may miss it while it is kept, where at least three others agree (module docstring:
+#: 0, measured better than 1)
+MAX_MISSES = 0
+#: pixels added to the support's dilation beyond a voxel's footprint (rounding of the centres' pixels)
+SLACK_PX = 2
+#: columns per side of the lazily projected tiles
+TILE = 8
+
+
+def need_views(n_seen: np.ndarray) -> np.ndarray:
+    """(...,) int: cameras that must find a voxel foreground when ``n_seen`` (...,) cameras see it (module
+    docstring): ``n`` (with ``MAX_MISSES``: ``n`` up to 3, ``n - MAX_MISSES`` beyond), and more than any camera
+    count (never kept) below 2."""
+    n = np.asarray(n_seen, np.int16)
+    out = np.where(n <= 3, n, np.maximum(3, n - MAX_MISSES)) if MAX_MISSES else n
+    return np.where(n < 2, 255, out).astype(np.int16)
+
+
+def footprint_px(cam, centre_xy, voxel: float = VOXEL_M) -> int:
+    """Pixels (>= 1, rounded up) of a voxel's projected half-diagonal, ``sqrt(3) / 2 * voxel * f / depth``, at the
+    workspace centre ``centre_xy`` (2,) 1 m above the floor in camera ``cam``."""
+    depth = float(cam.to_camera(np.array([[centre_xy[0], centre_xy[1], 1.0]]))[0, 2])
+    if not depth > 0:
+        return 1
+    return max(1, int(math.ceil(0.5 * math.sqrt(3.0) * voxel * float(cam.K[0, 0]) / depth)))
+
+
+class PersonHulls:
+    """The carving of the module docstring over one rig's room.
+
+    Args:
+        cameras: the cameras (``Camera``, at the masks' resolution), in the order masks are given.
+        bounds: ((x_min, x_max), (y_min, y_max)) metres where people can be found (the floor grid's area);
+            voxels cover it plus ``radius``.
+        centre: (2,) metres, where :func:`footprint_px` is measured (the workspace centre).
+        voxel, radius, height: metres.
+    Attributes:
+        xs (nx,), ys (ny,), zs (nz,): voxel centres, metres; footprint: (K,) px per camera.
+    """
+
+    def __init__(self, cameras, bounds, centre, voxel: float = VOXEL_M, radius: float = BODY_RADIUS_M,
+                 height: float = BODY_HEIGHT_M):
+        (x0, x1), (y0, y1) = bounds
+        self.cameras = list(cameras)
+        self.voxel, self.radius = float(voxel), float(radius)
+        pad = self.radius + self.voxel
+        self.xs = np.arange(x0 - pad, x1 + pad + 1e-9, self.voxel)
+        self.ys = np.arange(y0 - pad, y1 + pad + 1e-9, self.voxel)
+        self.zs = np.arange(0.5 * self.voxel, float(height), self.voxel)
+        ny, nx, nz = len(self.ys), len(self.xs), len(self.zs)
+        self.footprint = np.array([footprint_px(c, centre, self.voxel) for c in self.cameras], int)
+        # per camera: (ny, nx, nz) flat pixel index of each voxel centre, H * W (a padding pixel that is never
+        # foreground) where the camera does not see it; filled tile by tile (_ensure)
+        self.index = [np.zeros((ny, nx, nz), np.int32) for _ in self.cameras]
+        self.ready = np.zeros((-(-ny // TILE), -(-nx // TILE)), bool)
+
+    # -- geometry ---------------------------------------------------------------------------------------------
+    def _ensure(self, r0: int, r1: int, c0: int, c1: int) -> None:
+        """Project the voxel columns of every tile overlapping rows r0:r1, columns c0:c1 that is not yet done."""
+        t = np.argwhere(~self.ready[r0 // TILE : (r1 - 1) // TILE + 1, c0 // TILE : (c1 - 1) // TILE + 1])
+        if not len(t):
+            return
+        t += (r0 // TILE, c0 // TILE)
+        ny, nx = len(self.ys), len(self.xs)
+        rows, cols = [], []
+        for tr, tc in t:
+            rr, cc = np.meshgrid(np.arange(tr * TILE, min(ny, tr * TILE + TILE)),
+                                 np.arange(tc * TILE, min(nx, tc * TILE + TILE)), indexing="ij")
+            rows.append(rr.ravel())
+            cols.append(cc.ravel())
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        nz = len(self.zs)
+        pts = np.stack([np.repeat(self.xs[cols], nz), np.repeat(self.ys[rows], nz), np.tile(self.zs, len(rows))], -1)
+        for k, cam in enumerate(self.cameras):
+            self.index[k][rows, cols] = self._flat_index(cam, pts).reshape(len(rows), nz)
+        self.ready[t[:, 0], t[:, 1]] = True
+
+    @staticmethod
+    def _flat_index(cam, pts: np.ndarray) -> np.ndarray:
+        """(N,) int32 ``y * W + x`` of the rounded images of world points ``pts`` (N, 3); ``W * H`` where unseen."""
+        depth = cam.to_camera(pts)[:, 2]
+        with np.errstate(invalid="ignore"):
+            px = np.round(cam.project(pts))
+            seen = (depth > 0) & np.isfinite(px).all(axis=1)
+            x, y = np.where(seen, px[:, 0], -1), np.where(seen, px[:, 1], -1)
+        seen &= (x >= 0) & (x < cam.width) & (y >= 0) & (y < cam.height)
+        flat = np.where(seen, y * cam.width + x, cam.width * cam.height)
+        return flat.astype(np.int32)
+
+    def _box(self, xy) -> tuple[slice, slice, np.ndarray]:
+        """Rows, columns of the voxel columns around floor point ``xy`` (2,) and the (rows, cols) bool mask of those
+        within the radius."""
+        x, y = float(xy[0]), float(xy[1])
+        c0 = max(0, int(np.searchsorted(self.xs, x - self.radius)))
+        c1 = min(len(self.xs), int(np.searchsorted(self.xs, x + self.radius, side="right")))
+        r0 = max(0, int(np.searchsorted(self.ys, y - self.radius)))
+        r1 = min(len(self.ys), int(np.searchsorted(self.ys, y + self.radius, side="right")))
+        if r0 >= r1 or c0 >= c1:
+            return slice(0, 0), slice(0, 0), np.zeros((0, 0), bool)
+        self._ensure(r0, r1, c0, c1)
+        inside = (self.xs[None, c0:c1] - x) ** 2 + (self.ys[r0:r1, None] - y) ** 2 <= self.radius**2
+        return slice(r0, r1), slice(c0, c1), inside
+
+    def centres(self, xy) -> np.ndarray:
+        """(rows, cols, nz, 3) metres: the voxel centres of the box around floor point ``xy`` (2,) (as :meth:`keep`'s
+        arrays)."""
+        rs, cs, _ = self._box(xy)
+        X, Y, Z = np.meshgrid(self.ys[rs], self.xs[cs], self.zs, indexing="ij")
+        return np.stack([Y, X, Z], -1)
+
+    # -- per step ---------------------------------------------------------------------------------------------
+    def evidence(self, k: int, mask: np.ndarray | None, people_xy) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Camera ``k``'s (foreground, seen) (rows, cols, nz) uint8 arrays for each person's box, from its (H, W)
+        mask (non-zero = foreground; None or empty: the camera says nothing, None returned). Thread-safe once
+        the boxes' tiles are projected (:meth:`prepare`)."""
+        if mask is None or not mask.any():
+            return None
+        r = int(self.footprint[k])
+        fg = np.zeros(mask.size + 1, np.uint8)
+        dil = cv2.dilate((mask > 0).view(np.uint8) if mask.dtype == bool else (mask > 0).astype(np.uint8),
+                         np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+        fg[:-1] = dil.reshape(-1)
+        sentinel = mask.size
+        out = []
+        for xy in people_xy:
+            rs, cs, _ = self._box(xy)
+            idx = self.index[k][rs, cs]
+            out.append((np.take(fg, idx), (idx != sentinel).view(np.uint8) if idx.size else np.zeros(idx.shape, np.uint8)))
+        return out
+
+    def prepare(self, people_xy) -> None:
+        """Project every tile the people's boxes need (before :meth:`evidence` runs in threads)."""
+        for xy in people_xy:
+            self._box(xy)
+
+    def keep(self, evidence: list, people_xy) -> list[np.ndarray]:
+        """Per person: the (rows, cols, nz) bool kept voxels of their box (module docstring), from every camera's
+        :meth:`evidence` (None: a camera that says nothing)."""
+        out = []
+        for p, xy in enumerate(people_xy):
+            _, _, inside = self._box(xy)
+            fg = seen = None
+            for ev in evidence:
+                if ev is None:
+                    continue
+                f, s = ev[p]
+                fg = f.astype(np.int16) if fg is None else fg + f
+                seen = s.astype(np.int16) if seen is None else seen + s
+            if fg is None:
+                out.append(np.zeros(inside.shape + (len(self.zs),), bool))
+                continue
+            out.append((fg >= need_views(seen)) & inside[..., None])
+        return out
+
+    def support(self, k: int, kept: list[np.ndarray], people_xy, shape: tuple[int, int]) -> np.ndarray:
+        """(H, W) uint8 {0, 1}: the image in camera ``k`` of every person's kept voxels, dilated by the footprint
+        plus :data:`SLACK_PX` (``shape`` = (H, W) of the camera's masks)."""
+        h, w = shape
+        img = np.zeros(h * w + 1, np.uint8)
+        for keep, xy in zip(kept, people_xy):
+            rs, cs, _ = self._box(xy)
+            img[self.index[k][rs, cs][keep]] = 1
+        img = img[:-1].reshape(h, w)
+        r = int(self.footprint[k]) + SLACK_PX
+        return cv2.dilate(img, np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+
+    def carve(self, masks: list, people_xy) -> list[np.ndarray | None]:
+        """Every camera's support (:meth:`support`) of the people at floor points ``people_xy`` (P, 2), from the
+        cameras' (H, W) masks (None: no mask); None for a camera without a mask, and for every camera when fewer
+        than 2 masks have foreground (nothing to compare)."""
+        people_xy = np.asarray(people_xy, float).reshape(-1, 2)
+        self.prepare(people_xy)
+        ev = [self.evidence(k, m, people_xy) for k, m in enumerate(masks)]
+        if sum(e is not None for e in ev) < 2:
+            return [None] * len(masks)
+        kept = self.keep(ev, people_xy)
+        return [None if m is None else self.support(k, kept, people_xy, m.shape) for k, m in enumerate(masks)]
