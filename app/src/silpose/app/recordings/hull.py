@@ -104,6 +104,9 @@ class PersonHulls:
         # foreground) where the camera does not see it; filled tile by tile (_ensure)
         self.index = [np.zeros((ny, nx, nz), np.int32) for _ in self.cameras]
         self.ready = np.zeros((-(-ny // TILE), -(-nx // TILE)), bool)
+        # per camera and tile: x0, y0, x1, y1 px (exclusive) of its seen voxel centres (empty: x0 >= x1)
+        self.tile_box = [np.zeros(self.ready.shape + (4,), np.int32) for _ in self.cameras]
+        self._fg: list[np.ndarray | None] = [None] * len(self.cameras)  # per camera: its dilated mask, flat + 1
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def _ensure(self, r0: int, r1: int, c0: int, c1: int) -> None:
@@ -113,17 +116,26 @@ class PersonHulls:
             return
         t += (r0 // TILE, c0 // TILE)
         ny, nx = len(self.ys), len(self.xs)
-        rows, cols = [], []
-        for tr, tc in t:
+        rows, cols, tile = [], [], []
+        for i, (tr, tc) in enumerate(t):
             rr, cc = np.meshgrid(np.arange(tr * TILE, min(ny, tr * TILE + TILE)),
                                  np.arange(tc * TILE, min(nx, tc * TILE + TILE)), indexing="ij")
             rows.append(rr.ravel())
             cols.append(cc.ravel())
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
+            tile.append(np.full(rr.size, i))
+        rows, cols, tile = np.concatenate(rows), np.concatenate(cols), np.concatenate(tile)
         nz = len(self.zs)
         pts = np.stack([np.repeat(self.xs[cols], nz), np.repeat(self.ys[rows], nz), np.tile(self.zs, len(rows))], -1)
+        of = np.repeat(tile, nz)
         for k, cam in enumerate(self.cameras):
-            self.index[k][rows, cols] = self._flat_index(cam, pts).reshape(len(rows), nz)
+            flat = self._flat_index(cam, pts)
+            self.index[k][rows, cols] = flat.reshape(len(rows), nz)
+            seen = flat < cam.width * cam.height
+            x, y = flat % cam.width, flat // cam.width
+            for i, (tr, tc) in enumerate(t):
+                sel = seen & (of == i)
+                self.tile_box[k][tr, tc] = ((x[sel].min(), y[sel].min(), x[sel].max() + 1, y[sel].max() + 1)
+                                            if sel.any() else (cam.width, cam.height, 0, 0))
         self.ready[t[:, 0], t[:, 1]] = True
 
     @staticmethod
@@ -140,7 +152,7 @@ class PersonHulls:
 
     def _box(self, xy) -> tuple[slice, slice, np.ndarray]:
         """Rows, columns of the voxel columns around floor point ``xy`` (2,) and the (rows, cols) bool mask of those
-        within the radius."""
+        within the radius (the tiles they need are projected)."""
         x, y = float(xy[0]), float(xy[1])
         c0 = max(0, int(np.searchsorted(self.xs, x - self.radius)))
         c1 = min(len(self.xs), int(np.searchsorted(self.xs, x + self.radius, side="right")))
@@ -160,36 +172,51 @@ class PersonHulls:
         return np.stack([Y, X, Z], -1)
 
     # -- per step ---------------------------------------------------------------------------------------------
-    def evidence(self, k: int, mask: np.ndarray | None, people_xy) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """Camera ``k``'s (foreground, seen) (rows, cols, nz) uint8 arrays for each person's box, from its (H, W)
-        mask (non-zero = foreground; None or empty: the camera says nothing, None returned). Thread-safe once
-        the boxes' tiles are projected (:meth:`prepare`)."""
+    def prepare(self, people_xy) -> list:
+        """The boxes (rows, cols, inside) of the people at floor points ``people_xy`` (P, 2), their tiles projected
+        (call before :meth:`evidence` runs in threads; the other methods take these boxes)."""
+        return [self._box(xy) for xy in np.asarray(people_xy, float).reshape(-1, 2)]
+
+    def _roi(self, k: int, boxes, pad: int, shape) -> tuple[int, int, int, int]:
+        """x0, y0, x1, y1 px (exclusive, clipped to ``shape`` (H, W)): camera ``k``'s pixels of every voxel of
+        ``boxes``, ``pad`` px around them."""
+        h, w = shape
+        x0, y0, x1, y1 = w, h, 0, 0
+        for rs, cs, _ in boxes:
+            tb = self.tile_box[k][rs.start // TILE : (rs.stop - 1) // TILE + 1, cs.start // TILE : (cs.stop - 1) // TILE + 1]
+            if tb.size:
+                x0, y0 = min(x0, int(tb[..., 0].min())), min(y0, int(tb[..., 1].min()))
+                x1, y1 = max(x1, int(tb[..., 2].max())), max(y1, int(tb[..., 3].max()))
+        return max(0, x0 - pad), max(0, y0 - pad), min(w, x1 + pad), min(h, y1 + pad)
+
+    def evidence(self, k: int, mask: np.ndarray | None, boxes) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Camera ``k``'s (foreground, seen) (rows, cols, nz) uint8 arrays for each of :meth:`prepare`'s ``boxes``,
+        from its (H, W) mask (non-zero = foreground; None or empty: the camera says nothing, None returned). Only
+        the boxes' pixels are dilated. Thread-safe for distinct ``k``."""
         if mask is None or not mask.any():
             return None
         r = int(self.footprint[k])
-        fg = np.zeros(mask.size + 1, np.uint8)
-        dil = cv2.dilate((mask > 0).view(np.uint8) if mask.dtype == bool else (mask > 0).astype(np.uint8),
-                         np.ones((2 * r + 1, 2 * r + 1), np.uint8))
-        fg[:-1] = dil.reshape(-1)
-        sentinel = mask.size
+        h, w = mask.shape
+        if self._fg[k] is None or self._fg[k].size != h * w + 1:
+            self._fg[k] = np.zeros(h * w + 1, np.uint8)  # the last pixel: unseen voxels, never foreground
+        x0, y0, x1, y1 = self._roi(k, boxes, 0, mask.shape)
+        if x0 < x1 and y0 < y1:
+            ex0, ey0, ex1, ey1 = max(0, x0 - r), max(0, y0 - r), min(w, x1 + r), min(h, y1 + r)
+            dil = cv2.dilate((mask[ey0:ey1, ex0:ex1] > 0).view(np.uint8), np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+            # pixels outside this step's boxes keep older values: no voxel of these boxes reads them
+            self._fg[k][:-1].reshape(h, w)[y0:y1, x0:x1] = dil[y0 - ey0 : y1 - ey0, x0 - ex0 : x1 - ex0]
+        sentinel = h * w
         out = []
-        for xy in people_xy:
-            rs, cs, _ = self._box(xy)
+        for rs, cs, _ in boxes:
             idx = self.index[k][rs, cs]
-            out.append((np.take(fg, idx), (idx != sentinel).view(np.uint8) if idx.size else np.zeros(idx.shape, np.uint8)))
+            out.append((np.take(self._fg[k], idx), (idx != sentinel).view(np.uint8)))
         return out
 
-    def prepare(self, people_xy) -> None:
-        """Project every tile the people's boxes need (before :meth:`evidence` runs in threads)."""
-        for xy in people_xy:
-            self._box(xy)
-
-    def keep(self, evidence: list, people_xy) -> list[np.ndarray]:
-        """Per person: the (rows, cols, nz) bool kept voxels of their box (module docstring), from every camera's
-        :meth:`evidence` (None: a camera that says nothing)."""
+    def keep(self, evidence: list, boxes) -> list[np.ndarray]:
+        """Per box: the (rows, cols, nz) bool kept voxels (module docstring), from every camera's :meth:`evidence`
+        (None: a camera that says nothing)."""
         out = []
-        for p, xy in enumerate(people_xy):
-            _, _, inside = self._box(xy)
+        for p, (_, _, inside) in enumerate(boxes):
             fg = seen = None
             for ev in evidence:
                 if ev is None:
@@ -203,26 +230,28 @@ class PersonHulls:
             out.append((fg >= need_views(seen)) & inside[..., None])
         return out
 
-    def support(self, k: int, kept: list[np.ndarray], people_xy, shape: tuple[int, int]) -> np.ndarray:
-        """(H, W) uint8 {0, 1}: the image in camera ``k`` of every person's kept voxels, dilated by the footprint
+    def support(self, k: int, kept: list[np.ndarray], boxes, shape: tuple[int, int]) -> np.ndarray:
+        """(H, W) uint8 {0, 1}: the image in camera ``k`` of the kept voxels of every box, dilated by the footprint
         plus :data:`SLACK_PX` (``shape`` = (H, W) of the camera's masks)."""
         h, w = shape
         img = np.zeros(h * w + 1, np.uint8)
-        for keep, xy in zip(kept, people_xy):
-            rs, cs, _ = self._box(xy)
+        for keep, (rs, cs, _) in zip(kept, boxes):
             img[self.index[k][rs, cs][keep]] = 1
         img = img[:-1].reshape(h, w)
         r = int(self.footprint[k]) + SLACK_PX
-        return cv2.dilate(img, np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+        x0, y0, x1, y1 = self._roi(k, boxes, r, shape)
+        out = np.zeros((h, w), np.uint8)
+        if x0 < x1 and y0 < y1:
+            out[y0:y1, x0:x1] = cv2.dilate(img[y0:y1, x0:x1], np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+        return out
 
     def carve(self, masks: list, people_xy) -> list[np.ndarray | None]:
         """Every camera's support (:meth:`support`) of the people at floor points ``people_xy`` (P, 2), from the
         cameras' (H, W) masks (None: no mask); None for a camera without a mask, and for every camera when fewer
         than 2 masks have foreground (nothing to compare)."""
-        people_xy = np.asarray(people_xy, float).reshape(-1, 2)
-        self.prepare(people_xy)
-        ev = [self.evidence(k, m, people_xy) for k, m in enumerate(masks)]
+        boxes = self.prepare(people_xy)
+        ev = [self.evidence(k, m, boxes) for k, m in enumerate(masks)]
         if sum(e is not None for e in ev) < 2:
             return [None] * len(masks)
-        kept = self.keep(ev, people_xy)
-        return [None if m is None else self.support(k, kept, people_xy, m.shape) for k, m in enumerate(masks)]
+        kept = self.keep(ev, boxes)
+        return [None if m is None else self.support(k, kept, boxes, m.shape) for k, m in enumerate(masks)]

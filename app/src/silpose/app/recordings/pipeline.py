@@ -7,8 +7,10 @@ except a few numbers per person and step for the floor plan):
    its connected components found (:mod:`.blobs`) -- per camera, in a thread pool (OpenCV releases the GIL);
 2. people are found on the floor by the occupancy grid of all masks (:mod:`.floor`) and linked into
    tracks (:mod:`.tracking`);
-3. per person and camera, the blob that is theirs alone, or the reason there is none (:mod:`.views`);
-   their contours (:func:`silpose.shared.contours.extract_contour` on the blob);
+3. each camera's mask cut down to the detected people's visual hulls (:mod:`.hull`: clutter that touches a
+   person in one camera has no support in the others); per person and camera, the blob of the cut mask that is
+   theirs alone, or the reason there is none (:mod:`.views`), and the share of their blob that was cut; their
+   contours (:func:`silpose.shared.contours.extract_contour` on the blob);
 then per chunk:
 4. the model infers every detected person's root-relative joints from their usable views, missing views
    marginalised (:func:`silpose.app.inference.infer_rows`, as for one person, :mod:`.one_person`); a person
@@ -580,17 +582,17 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
     near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
-    kept = None
+    kept = boxes = None
     if hulls is not None and len(where):
-        hulls.prepare(where)  # the tiles the threads read
-        ev = list(mapper(lambda k: hulls.evidence(k, masks[k], where), range(len(names))))
+        boxes = hulls.prepare(where)  # and the tiles the threads read
+        ev = list(mapper(lambda k: hulls.evidence(k, masks[k], boxes), range(len(names))))
         if sum(e is not None for e in ev) >= 2:  # one camera alone supports nothing
-            kept = hulls.keep(ev, where)
+            kept = hulls.keep(ev, boxes)
 
     def views(k: int):
         sup = None
         if kept is not None and masks[k] is not None:
-            sup = lambda: hulls.support(k, kept, where, masks[k].shape)  # noqa: E731
+            sup = lambda: hulls.support(k, kept, boxes, masks[k].shape)  # noqa: E731
         return _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts, sup,
                              1 if min_areas is None else int(min_areas[k]))
 
