@@ -14,9 +14,9 @@ rules already allow a person (:func:`~.views.body_box`) -- in cubes of :data:`VO
   Chebyshev distance) of its centre's image, ``r`` = the camera's :func:`footprint_px`: the projected
   half-diagonal of a voxel at the workspace centre, so a limb thinner than a voxel is not carved away
   between voxel centres (a conservative hull);
-- a voxel is *kept* when every camera that sees it finds it foreground (``MAX_MISSES`` = 0), and at least 2
-  cameras see it. Letting one camera miss it where at least three others agree (``MAX_MISSES`` = 1, the floor
-  grid's tolerant rule, :mod:`.floor`) was tried and rejected: plates shot earlier leave clutter in several
+- a voxel is *kept* when every camera that sees it finds it foreground, and at least 2 cameras see it. Letting
+  one camera miss it where at least three others agree (the floor grid's tolerant rule, :mod:`.floor`) was tried
+  and rejected: plates shot earlier leave clutter in several
   cameras at once, and two cameras whose masks are mostly clutter then agree with any third about almost the
   whole cylinder. Measured on Pose2Sim's single-person demo (docs/real-recordings.md, section 1: cam01 and cam02
   mostly clutter), person-frames with >= 3 / 4 usable views: 88 / 17 % with one miss allowed, 95 / 71 % with
@@ -49,22 +49,10 @@ from .views import BODY_HEIGHT_M, BODY_RADIUS_M
 #: metres: side of the carving's cubes (at the working resolution a 1.75 m person is ~160 px tall, so a voxel
 #: is ~4-5 px)
 VOXEL_M = 0.05
-#: cameras that see a voxel and may miss it while it is kept, where at least three others agree (module docstring:
-#: 0, measured better than 1)
-MAX_MISSES = 0
 #: pixels added to the support's dilation beyond a voxel's footprint (rounding of the centres' pixels)
 SLACK_PX = 2
 #: columns per side of the lazily projected tiles
 TILE = 8
-
-
-def need_views(n_seen: np.ndarray) -> np.ndarray:
-    """(...,) int: cameras that must find a voxel foreground when ``n_seen`` (...,) cameras see it (module
-    docstring): ``n`` (with ``MAX_MISSES``: ``n`` up to 3, ``n - MAX_MISSES`` beyond), and more than any camera
-    count (never kept) below 2."""
-    n = np.asarray(n_seen, np.int16)
-    out = np.where(n <= 3, n, np.maximum(3, n - MAX_MISSES)) if MAX_MISSES else n
-    return np.where(n < 2, 255, out).astype(np.int16)
 
 
 def footprint_px(cam, centre_xy, voxel: float = VOXEL_M) -> int:
@@ -150,7 +138,7 @@ class PersonHulls:
         flat = np.where(seen, y * cam.width + x, cam.width * cam.height)
         return flat.astype(np.int32)
 
-    def _box(self, xy) -> tuple[slice, slice, np.ndarray]:
+    def _box(self, xy) -> tuple:
         """Rows, columns of the voxel columns around floor point ``xy`` (2,) and the (rows, cols) bool mask of those
         within the radius (the tiles they need are projected)."""
         x, y = float(xy[0]), float(xy[1])
@@ -173,28 +161,38 @@ class PersonHulls:
 
     # -- per step ---------------------------------------------------------------------------------------------
     def prepare(self, people_xy) -> list:
-        """The boxes (rows, cols, inside) of the people at floor points ``people_xy`` (P, 2), their tiles projected
-        (call before :meth:`evidence` runs in threads; the other methods take these boxes)."""
-        return [self._box(xy) for xy in np.asarray(people_xy, float).reshape(-1, 2)]
+        """The boxes of the people at floor points ``people_xy`` (P, 2), their tiles projected (call before
+        :meth:`evidence` runs in threads; the other methods take these boxes). A box is (rows, cols, inside,
+        where): the voxel columns' row and column slices, the (rows, cols) bool mask of those within the radius,
+        and the (rows * cols * nz,) positions of the box's voxels in the room grid (flattened)."""
+        out = []
+        ny, nx, nz = self.index[0].shape if self.index else (0, 0, 0)
+        for xy in np.asarray(people_xy, float).reshape(-1, 2):
+            rs, cs, inside = self._box(xy)
+            r = np.arange(rs.start, rs.stop)[:, None, None]
+            c = np.arange(cs.start, cs.stop)[None, :, None]
+            where = ((r * nx + c) * nz + np.arange(nz)[None, None, :]).reshape(-1)
+            out.append((rs, cs, inside, where))
+        return out
 
     def _roi(self, k: int, boxes, pad: int, shape) -> tuple[int, int, int, int]:
         """x0, y0, x1, y1 px (exclusive, clipped to ``shape`` (H, W)): camera ``k``'s pixels of every voxel of
         ``boxes``, ``pad`` px around them."""
         h, w = shape
         x0, y0, x1, y1 = w, h, 0, 0
-        for rs, cs, _ in boxes:
+        for rs, cs, _, _ in boxes:
             tb = self.tile_box[k][rs.start // TILE : (rs.stop - 1) // TILE + 1, cs.start // TILE : (cs.stop - 1) // TILE + 1]
             if tb.size:
                 x0, y0 = min(x0, int(tb[..., 0].min())), min(y0, int(tb[..., 1].min()))
                 x1, y1 = max(x1, int(tb[..., 2].max())), max(y1, int(tb[..., 3].max()))
         return max(0, x0 - pad), max(0, y0 - pad), min(w, x1 + pad), min(h, y1 + pad)
 
-    def evidence(self, k: int, mask: np.ndarray | None, boxes) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """Camera ``k``'s (foreground, seen) (rows, cols, nz) uint8 arrays for each of :meth:`prepare`'s ``boxes``,
-        from its (H, W) mask (non-zero = foreground; None or empty: the camera says nothing, None returned). Only
-        the boxes' pixels are dilated. Thread-safe for distinct ``k``."""
+    def evidence(self, k: int, mask: np.ndarray | None, boxes) -> bool:
+        """Take camera ``k``'s (H, W) mask (non-zero = foreground) for :meth:`keep`: dilated by its footprint over the
+        pixels of :meth:`prepare`'s ``boxes``. False (the camera says nothing) for None or an empty mask.
+        Thread-safe for distinct ``k``."""
         if mask is None or not mask.any():
-            return None
+            return False
         r = int(self.footprint[k])
         h, w = mask.shape
         if self._fg[k] is None or self._fg[k].size != h * w + 1:
@@ -205,29 +203,27 @@ class PersonHulls:
             dil = cv2.dilate((mask[ey0:ey1, ex0:ex1] > 0).view(np.uint8), np.ones((2 * r + 1, 2 * r + 1), np.uint8))
             # pixels outside this step's boxes keep older values: no voxel of these boxes reads them
             self._fg[k][:-1].reshape(h, w)[y0:y1, x0:x1] = dil[y0 - ey0 : y1 - ey0, x0 - ex0 : x1 - ex0]
-        sentinel = h * w
-        out = []
-        for rs, cs, _ in boxes:
-            idx = self.index[k][rs, cs]
-            out.append((np.take(self._fg[k], idx), (idx != sentinel).view(np.uint8)))
-        return out
+        return True
 
-    def keep(self, evidence: list, boxes) -> list[np.ndarray]:
-        """Per box: the (rows, cols, nz) bool kept voxels (module docstring), from every camera's :meth:`evidence`
-        (None: a camera that says nothing)."""
+    def keep(self, live, boxes) -> list[np.ndarray]:
+        """Per box: the (rows, cols, nz) bool kept voxels (module docstring), from the cameras ``live`` (K,) bool
+        whose :meth:`evidence` was taken this step. Camera after camera, only the voxels no camera has rejected
+        yet are looked up (a person fills a few per cent of their cylinder)."""
+        cams = [k for k, ok in enumerate(live) if ok]
         out = []
-        for p, (_, _, inside) in enumerate(boxes):
-            fg = seen = None
-            for ev in evidence:
-                if ev is None:
-                    continue
-                f, s = ev[p]
-                fg = f.astype(np.int16) if fg is None else fg + f
-                seen = s.astype(np.int16) if seen is None else seen + s
-            if fg is None:
-                out.append(np.zeros(inside.shape + (len(self.zs),), bool))
-                continue
-            out.append((fg >= need_views(seen)) & inside[..., None])
+        for rs, cs, inside, where in boxes:
+            nz = len(self.zs)
+            alive = np.flatnonzero(np.repeat(inside.reshape(-1), nz))  # positions in the box
+            seen = np.zeros(len(alive), np.uint8)
+            for k in cams:
+                idx = self.index[k].reshape(-1)[where[alive]]
+                sentinel = self._fg[k].size - 1
+                sees = idx != sentinel
+                ok = ~sees | self._fg[k][idx].view(bool)
+                alive, seen = alive[ok], seen[ok] + sees[ok]
+            kept = np.zeros(inside.shape + (nz,), bool)
+            kept.reshape(-1)[alive[seen >= 2]] = True
+            out.append(kept)
         return out
 
     def support(self, k: int, kept: list[np.ndarray], boxes, shape: tuple[int, int]) -> np.ndarray:
@@ -235,7 +231,7 @@ class PersonHulls:
         plus :data:`SLACK_PX` (``shape`` = (H, W) of the camera's masks)."""
         h, w = shape
         img = np.zeros(h * w + 1, np.uint8)
-        for keep, (rs, cs, _) in zip(kept, boxes):
+        for keep, (rs, cs, _, _) in zip(kept, boxes):
             img[self.index[k][rs, cs][keep]] = 1
         img = img[:-1].reshape(h, w)
         r = int(self.footprint[k]) + SLACK_PX
@@ -250,8 +246,8 @@ class PersonHulls:
         cameras' (H, W) masks (None: no mask); None for a camera without a mask, and for every camera when fewer
         than 2 masks have foreground (nothing to compare)."""
         boxes = self.prepare(people_xy)
-        ev = [self.evidence(k, m, boxes) for k, m in enumerate(masks)]
-        if sum(e is not None for e in ev) < 2:
+        live = [self.evidence(k, m, boxes) for k, m in enumerate(masks)]
+        if sum(live) < 2:
             return [None] * len(masks)
-        kept = self.keep(ev, boxes)
+        kept = self.keep(live, boxes)
         return [None if m is None else self.support(k, kept, boxes, m.shape) for k, m in enumerate(masks)]

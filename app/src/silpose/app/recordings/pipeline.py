@@ -585,9 +585,9 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     kept = boxes = None
     if hulls is not None and len(where):
         boxes = hulls.prepare(where)  # and the tiles the threads read
-        ev = list(mapper(lambda k: hulls.evidence(k, masks[k], boxes), range(len(names))))
-        if sum(e is not None for e in ev) >= 2:  # one camera alone supports nothing
-            kept = hulls.keep(ev, boxes)
+        live = list(mapper(lambda k: hulls.evidence(k, masks[k], boxes), range(len(names))))
+        if sum(live) >= 2:  # one camera alone supports nothing
+            kept = hulls.keep(live, boxes)
 
     def views(k: int):
         sup = None
