@@ -104,26 +104,26 @@ class PersonHulls:
             return
         t += (r0 // TILE, c0 // TILE)
         ny, nx = len(self.ys), len(self.xs)
-        rows, cols, tile = [], [], []
-        for i, (tr, tc) in enumerate(t):
+        rows, cols, starts = [], [], []
+        nz = len(self.zs)
+        for tr, tc in t:
             rr, cc = np.meshgrid(np.arange(tr * TILE, min(ny, tr * TILE + TILE)),
                                  np.arange(tc * TILE, min(nx, tc * TILE + TILE)), indexing="ij")
+            starts.append(sum(len(r) for r in rows) * nz)  # each tile's voxels are one run of the points below
             rows.append(rr.ravel())
             cols.append(cc.ravel())
-            tile.append(np.full(rr.size, i))
-        rows, cols, tile = np.concatenate(rows), np.concatenate(cols), np.concatenate(tile)
-        nz = len(self.zs)
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
         pts = np.stack([np.repeat(self.xs[cols], nz), np.repeat(self.ys[rows], nz), np.tile(self.zs, len(rows))], -1)
-        of = np.repeat(tile, nz)
         for k, cam in enumerate(self.cameras):
+            w, h = cam.width, cam.height
             flat = self._flat_index(cam, pts)
             self.index[k][rows, cols] = flat.reshape(len(rows), nz)
-            seen = flat < cam.width * cam.height
-            x, y = flat % cam.width, flat // cam.width
-            for i, (tr, tc) in enumerate(t):
-                sel = seen & (of == i)
-                self.tile_box[k][tr, tc] = ((x[sel].min(), y[sel].min(), x[sel].max() + 1, y[sel].max() + 1)
-                                            if sel.any() else (cam.width, cam.height, 0, 0))
+            seen = flat < w * h
+            x, y = flat % w, flat // w
+            lo = np.stack([np.minimum.reduceat(np.where(seen, x, w), starts), np.minimum.reduceat(np.where(seen, y, h), starts)], -1)
+            hi = np.stack([np.maximum.reduceat(np.where(seen, x + 1, 0), starts),
+                           np.maximum.reduceat(np.where(seen, y + 1, 0), starts)], -1)
+            self.tile_box[k][t[:, 0], t[:, 1]] = np.concatenate([lo, hi], -1)
         self.ready[t[:, 0], t[:, 1]] = True
 
     @staticmethod
@@ -213,16 +213,17 @@ class PersonHulls:
         out = []
         for rs, cs, inside, where in boxes:
             nz = len(self.zs)
-            alive = np.flatnonzero(np.repeat(inside.reshape(-1), nz))  # positions in the box
+            local = np.flatnonzero(np.repeat(inside.reshape(-1), nz))  # positions in the box
+            alive = where[local]  # and in the room grid
             seen = np.zeros(len(alive), np.uint8)
             for k in cams:
-                idx = self.index[k].reshape(-1)[where[alive]]
+                idx = self.index[k].reshape(-1)[alive]
                 sentinel = self._fg[k].size - 1
                 sees = idx != sentinel
-                ok = ~sees | self._fg[k][idx].view(bool)
-                alive, seen = alive[ok], seen[ok] + sees[ok]
+                ok = self._fg[k][idx].view(bool) | ~sees
+                local, alive, seen = local[ok], alive[ok], seen[ok] + sees[ok]
             kept = np.zeros(inside.shape + (nz,), bool)
-            kept.reshape(-1)[alive[seen >= 2]] = True
+            kept.reshape(-1)[local[seen >= 2]] = True
             out.append(kept)
         return out
 
