@@ -60,7 +60,7 @@ def test_carving_matches_a_per_voxel_reference():
     hulls = PersonHulls(cams, rig.workspace.bounds, rig.workspace.center, voxel=0.1, radius=0.6, height=2.0)
     hulls.carve([np.ones_like(m) if m is not None else None for m in masks], [(0.8, 0.5)])  # an earlier step, elsewhere
     boxes = hulls.prepare([xy])
-    kept = hulls.keep([hulls.evidence(k, m, boxes) for k, m in enumerate(masks)], boxes)[0]
+    kept = hulls.in_box(hulls.keep([hulls.evidence(k, m, boxes) for k, m in enumerate(masks)], boxes)[0], boxes[0])
     assert kept.shape == hulls.centres(xy).shape[:3]
     ref = _reference_keep(hulls, cams, masks, xy)
     assert ref.sum() > 20 and ref.sum() < 0.5 * ref.size  # carved, not empty

@@ -206,34 +206,39 @@ class PersonHulls:
         return True
 
     def keep(self, live, boxes) -> list[np.ndarray]:
-        """Per box: the (rows, cols, nz) bool kept voxels (module docstring), from the cameras ``live`` (K,) bool
-        whose :meth:`evidence` was taken this step. Camera after camera, only the voxels no camera has rejected
-        yet are looked up (a person fills a few per cent of their cylinder)."""
+        """Per box: the kept voxels (module docstring) as (N,) positions in the room grid (flattened; :meth:`in_box`
+        makes them a (rows, cols, nz) bool array), from the cameras ``live`` (K,) bool whose :meth:`evidence` was
+        taken this step. Camera after camera, only the voxels no camera has rejected yet are looked up (a person
+        fills a few per cent of their cylinder)."""
         cams = [k for k, ok in enumerate(live) if ok]
         out = []
         for rs, cs, inside, where in boxes:
             nz = len(self.zs)
-            local = np.flatnonzero(np.repeat(inside.reshape(-1), nz))  # positions in the box
-            alive = where[local]  # and in the room grid
+            alive = where[np.repeat(inside.reshape(-1), nz)]  # the room-grid positions of the cylinder's voxels
             seen = np.zeros(len(alive), np.uint8)
             for k in cams:
                 idx = self.index[k].reshape(-1)[alive]
                 sentinel = self._fg[k].size - 1
                 sees = idx != sentinel
                 ok = self._fg[k][idx].view(bool) | ~sees
-                local, alive, seen = local[ok], alive[ok], seen[ok] + sees[ok]
-            kept = np.zeros(inside.shape + (nz,), bool)
-            kept.reshape(-1)[local[seen >= 2]] = True
-            out.append(kept)
+                alive, seen = alive[ok], seen[ok] + sees[ok]
+            out.append(alive[seen >= 2])
         return out
 
+    @staticmethod
+    def in_box(kept: np.ndarray, box) -> np.ndarray:
+        """(rows, cols, nz) bool: :meth:`keep`'s positions ``kept`` (N,) of one of :meth:`prepare`'s boxes, as the
+        box's voxels (as :meth:`centres`)."""
+        rs, cs, inside, where = box
+        return np.isin(where, kept).reshape(inside.shape + (-1,))
+
     def support(self, k: int, kept: list[np.ndarray], boxes, shape: tuple[int, int]) -> np.ndarray:
-        """(H, W) uint8 {0, 1}: the image in camera ``k`` of the kept voxels of every box, dilated by the footprint
-        plus :data:`SLACK_PX` (``shape`` = (H, W) of the camera's masks)."""
+        """(H, W) uint8 {0, 1}: the image in camera ``k`` of the kept voxels of every box (``kept``: :meth:`keep`'s
+        positions), dilated by the footprint plus :data:`SLACK_PX` (``shape`` = (H, W) of the camera's masks)."""
         h, w = shape
         img = np.zeros(h * w + 1, np.uint8)
-        for keep, (rs, cs, _, _) in zip(kept, boxes):
-            img[self.index[k][rs, cs][keep]] = 1
+        for keep in kept:
+            img[self.index[k].reshape(-1)[keep]] = 1
         img = img[:-1].reshape(h, w)
         r = int(self.footprint[k]) + SLACK_PX
         x0, y0, x1, y1 = self._roi(k, boxes, r, shape)
