@@ -585,7 +585,8 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     kept = boxes = None
     if hulls is not None and len(where):
         boxes = hulls.prepare(where)  # and the tiles the threads read
-        live = list(mapper(lambda k: hulls.evidence(k, masks[k], boxes), range(len(names))))
+        # in this thread: a dilation of the people's pixels per camera is less than a pool round trip under load
+        live = [hulls.evidence(k, masks[k], boxes) for k in range(len(names))]
         if sum(live) >= 2:  # one camera alone supports nothing
             kept = hulls.keep(live, boxes)
 
