@@ -15,12 +15,12 @@ Rows:
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
   1x single-threaded, 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
-  share against the 1x run, :func:`_overlay_shares`), 1x uncut (``carve=False``: views not cut to the people's
-  visual hulls, :mod:`silpose.app.recordings.hull`; the 1x row's ``steps_vs_uncut`` and ``cpu_vs_uncut`` are the
-  ratios against it); and (``colour``) the first ``colour_frames`` steps as colour videos
+  share against the 1x run, :func:`_overlay_shares`), 1x carved (``carve=True``: views cut to the people's visual
+  hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
+  are the ratios against the 1x run); and (``colour``) the first ``colour_frames`` steps as colour videos
   at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
   references in the same run (row ``reference``: decoding alone and OpenCV's MOG2 alone, CPU ms per step).
-- ``accuracy``: the 1x run (and the 1x uncut run) against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
+- ``accuracy``: the 1x run (and the 1x carved run) against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
 - ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
@@ -181,7 +181,7 @@ def peak_rss_bytes() -> int:
 
 
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,
-            background: str | None = None, work_person_px: int | None = None, carve: bool = True) -> dict:
+            background: str | None = None, work_person_px: int | None = None, carve: bool | None = None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -338,7 +338,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
                 ("1x single-threaded", lab / "masks", False, 0, None, {}),
                 ("1x with overlays", lab / "masks", True, threads, None, {}),
-                ("1x uncut", lab / "masks", False, threads, None, {"carve": False})]
+                ("1x carved", lab / "masks", False, threads, None, {"carve": True})]
         if wanted("colour"):
             videos, clips, big_model = _colour_recording(lab, tmp / "big", colour_scale, model, colour_frames)
             size = f"{colour_scale * 644}x{colour_scale * 486}"
@@ -350,7 +350,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
             rows.append({"name": "reference", "run": f"colour 4 x {size}: decode alone / MOG2 alone, 1 thread",
                          **ref.value})
-        first = uncut = None
+        first = carved = None
         for label, videos, overlays, thr, robust, extra in plan:
             if not (wanted(label) or (label.startswith("colour") and wanted("colour"))):
                 continue
@@ -358,19 +358,20 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             res = subproc.call(__name__, "measure", dict(model=extra.get("model", model), videos=str(videos), out=str(out),
                                                           overlays=overlays, threads=thr, robust=robust,
                                                           background=extra.get("background"),
-                                                          carve=extra.get("carve", True)))
+                                                          carve=extra.get("carve")))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})
             if label == "1x":
                 first = out
-            if label == "1x uncut":
-                uncut = out
+            if label == "1x carved":
+                carved = out
         _overlay_shares(rows)
         runs_by = {r["run"]: r for r in rows if r.get("name") == "run"}
-        if "1x" in runs_by and "1x uncut" in runs_by:
-            runs_by["1x"]["steps_vs_uncut"] = runs_by["1x"]["steps_per_s"] / runs_by["1x uncut"]["steps_per_s"]
-            runs_by["1x"]["cpu_vs_uncut"] = runs_by["1x"]["cpu_ms_per_step"] / runs_by["1x uncut"]["cpu_ms_per_step"]
+        if "1x" in runs_by and "1x carved" in runs_by:
+            c, one = runs_by["1x carved"], runs_by["1x"]
+            c["steps_vs_1x"] = c["steps_per_s"] / one["steps_per_s"]
+            c["cpu_vs_1x"] = c["cpu_ms_per_step"] / one["cpu_ms_per_step"]
         if wanted(f"{repeat}x") and wanted("1x"):
             big = next(r for r in rows if r["run"] == f"{repeat}x")
             one = next(r for r in rows if r["run"] == "1x")
@@ -381,7 +382,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             return rows
         truth = np.load(lab / "truth.npz")
         ref = score_reference(clean_reference(load_model(model), unpack_masks(truth)), truth["joints"])
-        for label, folder in (("recording (lossy mask videos)", first), ("recording, uncut", uncut)):
+        for label, folder in (("recording (lossy mask videos)", first), ("recording, carved", carved)):
             if folder is None:
                 continue
             sc = score_rows(read_rows(folder / "joints.parquet"), truth["joints"])

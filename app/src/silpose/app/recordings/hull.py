@@ -37,8 +37,8 @@ front; measured on the Pose2Sim rig, loaded machine: 0.4-1.9 s for the first per
 cameras, then nothing); per step and person, camera after camera, a lookup of the voxels no camera has rejected
 yet (~47,000 in the cylinder at first, a few thousand at the end), and per camera a dilation of the mask and of
 the support over the people's pixels and a second labelling. Measured with ``python -m benchmarks.run --only
-recordings`` (the lab recording, two walkers, four 644x486 mask videos, 150 steps, each carved run next to an
-uncut one in the same session, five sessions at load 2.5-12 while the code was made faster): CPU per step 1.24x
+recordings`` (the lab recording, two walkers, four 644x486 mask videos, 150 steps, carving forced on -- it is off by
+default for mask videos, ``RecordingOptions.carve`` -- each carved run next to an uncut one in the same session, five sessions at load 2.5-12 while the code was made faster): CPU per step 1.24x
 to 1.96x the uncut run's (last two: 23.2 vs 17.2 ms at load 6-8, 32.3 vs 22.3 ms at load 2.5-5), time steps/s
 0.34x to 0.91x (last two: 0.91x, 0.54x -- the carving's per-step work is serial, the cameras' is threaded, so the
 wall-time cost is largest on an idle machine); the same joints in every session (70 % of person-frames with >= 3

@@ -118,7 +118,9 @@ class RecordingOptions:
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
     (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). carve: cut each person's
-    views down to their visual hull before the views are judged (:mod:`.hull`). reader_threads:
+    views down to their visual hull before the views are judged (:mod:`.hull`); None = for colour videos only (the
+    clutter it cuts comes from background plates older than the recording; on the lab's mask videos it changed no
+    joint and cost 1.24-1.96x the CPU per step, benchmark ``recordings``). reader_threads:
     decode each camera in its own thread, frames ahead
     (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
     videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
@@ -145,7 +147,7 @@ class RecordingOptions:
     absorb_s: float = ABSORB_S
     reader_threads: bool | None = None
     overlay_dir: Path | None = None
-    carve: bool = True
+    carve: bool | None = None
 
 
 @dataclass
@@ -332,7 +334,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                for c, s in recording.sources.items()}
     grid = FloorGrid(work, workspace.bounds)
     hulls = (PersonHulls(work, ((grid.xs[0], grid.xs[-1]), (grid.ys[0], grid.ys[-1])), workspace.center)
-             if opt.carve else None)
+             if ((not opt.masks) if opt.carve is None else opt.carve) else None)
     silhouettes, start = make_silhouettes(opt, rig, sources, work)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
