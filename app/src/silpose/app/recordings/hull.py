@@ -24,7 +24,8 @@ rules already allow a person (:func:`~.views.body_box`) -- in cubes of :data:`VO
   (clothes the colour of the background) carves that part of the person from every view.
 
 Each camera's *support* is the image of the kept voxels of every person: their centres' pixels dilated by
-``r + SLACK_PX``. The pipeline intersects the camera's mask with its support before the blobs are labelled and
+``r + SLACK_PX``. The pipeline (for colour videos; mask videos with ``carve=True``, ``--carve``) intersects the
+camera's mask with its support before the blobs are labelled and
 the view rules (:func:`~.views.assign_views`) judge them: clutter with no support is cut off; a person really cut
 by the image border still touches it ("border"); two people whose hulls overlap in the image still share a blob
 ("merged"). The share of the person's original blob that was cut is reported per view (``view_cut``,
@@ -38,10 +39,10 @@ cameras, then nothing); per step and person, camera after camera, a lookup of th
 yet (~47,000 in the cylinder at first, a few thousand at the end), and per camera a dilation of the mask and of
 the support over the people's pixels and a second labelling. Measured with ``python -m benchmarks.run --only
 recordings`` (the lab recording, two walkers, four 644x486 mask videos, 150 steps, carving forced on -- it is off by
-default for mask videos, ``RecordingOptions.carve`` -- each carved run next to an uncut one in the same session, five sessions at load 2.5-12 while the code was made faster): CPU per step 1.24x
-to 1.96x the uncut run's (last two: 23.2 vs 17.2 ms at load 6-8, 32.3 vs 22.3 ms at load 2.5-5), time steps/s
-0.34x to 0.91x (last two: 0.91x, 0.54x -- the carving's per-step work is serial, the cameras' is threaded, so the
-wall-time cost is largest on an idle machine); the same joints in every session (70 % of person-frames with >= 3
+default for mask videos, ``RecordingOptions.carve`` -- each carved run next to an uncut one in the same session, six sessions at load 2.5-12 while the code was made faster): CPU per step 1.24x
+to 1.96x the uncut run's (last three: 23.2 vs 17.2 ms at load 6-8, 32.3 vs 22.3 ms at load 2.5-5, 30.2 vs 16.9 ms
+at load 3), time steps/s 0.34x to 0.91x (last three: 0.91x, 0.54x, 0.56x: 31.8 vs 56.3 -- the carving's per-step
+work is serial, the cameras' is threaded, so the wall-time cost is largest on an idle machine); the same joints in every session (70 % of person-frames with >= 3
 views, 9.09 cm world error, either way).
 """
 
