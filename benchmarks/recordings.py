@@ -15,10 +15,12 @@ Rows:
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
   1x single-threaded, 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
-  share against the 1x run, :func:`_overlay_shares`); and (``colour``) the first ``colour_frames`` steps as colour videos
+  share against the 1x run, :func:`_overlay_shares`), 1x carved (``carve=True``: views cut to the people's visual
+  hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
+  are the ratios against the 1x run); and (``colour``) the first ``colour_frames`` steps as colour videos
   at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
   references in the same run (row ``reference``: decoding alone and OpenCV's MOG2 alone, CPU ms per step).
-- ``accuracy``: the 1x run against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
+- ``accuracy``: the 1x run (and the 1x carved run) against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
 - ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
@@ -179,7 +181,7 @@ def peak_rss_bytes() -> int:
 
 
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,
-            background: str | None = None, work_person_px: int | None = None) -> dict:
+            background: str | None = None, work_person_px: int | None = None, carve: bool | None = None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -195,7 +197,7 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     cpu0, t0 = time.process_time(), time.perf_counter()
     extra = {} if work_person_px is None else {"work_person_px": work_person_px}
     s = run_recording(m, videos, out, RecordingOptions(masks=background is None, background=background, overlays=overlays,
-                                                       threads=threads, robust=robust, **extra))
+                                                       threads=threads, robust=robust, carve=carve, **extra))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
@@ -335,7 +337,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
         plan = [("1x", lab / "masks", False, threads, None, {}), (f"{repeat}x", tmp / "long", False, threads, None, {}),
                 (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
                 ("1x single-threaded", lab / "masks", False, 0, None, {}),
-                ("1x with overlays", lab / "masks", True, threads, None, {})]
+                ("1x with overlays", lab / "masks", True, threads, None, {}),
+                ("1x carved", lab / "masks", False, threads, None, {"carve": True})]
         if wanted("colour"):
             videos, clips, big_model = _colour_recording(lab, tmp / "big", colour_scale, model, colour_frames)
             size = f"{colour_scale * 644}x{colour_scale * 486}"
@@ -347,20 +350,28 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
             rows.append({"name": "reference", "run": f"colour 4 x {size}: decode alone / MOG2 alone, 1 thread",
                          **ref.value})
-        first = None
+        first = carved = None
         for label, videos, overlays, thr, robust, extra in plan:
             if not (wanted(label) or (label.startswith("colour") and wanted("colour"))):
                 continue
             out = tmp / f"out-{len(rows)}"
             res = subproc.call(__name__, "measure", dict(model=extra.get("model", model), videos=str(videos), out=str(out),
                                                           overlays=overlays, threads=thr, robust=robust,
-                                                          background=extra.get("background")))
+                                                          background=extra.get("background"),
+                                                          carve=extra.get("carve")))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})
             if label == "1x":
                 first = out
+            if label == "1x carved":
+                carved = out
         _overlay_shares(rows)
+        runs_by = {r["run"]: r for r in rows if r.get("name") == "run"}
+        if "1x" in runs_by and "1x carved" in runs_by:
+            c, one = runs_by["1x carved"], runs_by["1x"]
+            c["steps_vs_1x"] = c["steps_per_s"] / one["steps_per_s"]
+            c["cpu_vs_1x"] = c["cpu_ms_per_step"] / one["cpu_ms_per_step"]
         if wanted(f"{repeat}x") and wanted("1x"):
             big = next(r for r in rows if r["run"] == f"{repeat}x")
             one = next(r for r in rows if r["run"] == "1x")
@@ -370,14 +381,18 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
         if first is None:
             return rows
         truth = np.load(lab / "truth.npz")
-        sc = score_rows(read_rows(first / "joints.parquet"), truth["joints"])
         ref = score_reference(clean_reference(load_model(model), unpack_masks(truth)), truth["joints"])
-        rows.append({"name": "accuracy", "input": "recording (lossy mask videos)", "frames": n_frames,
-                     "persons": sc["persons"], "identity_switches": sc["identity_switches"],
-                     "person_frames": sc["person_frames"], "paired": sc["paired"], "with_joints": sc["with_joints"],
-                     "false_rows": sc["false_rows"],
-                     **{f"views_ge_{k}": v for k, v in sc["views_at_least"].items()},
-                     "root_cm": sc["root_error_cm"], "world_cm": sc["world_error_cm"], "relative_cm": sc["relative_error_cm"]})
+        for label, folder in (("recording (lossy mask videos)", first), ("recording, carved", carved)):
+            if folder is None:
+                continue
+            sc = score_rows(read_rows(folder / "joints.parquet"), truth["joints"])
+            rows.append({"name": "accuracy", "input": label, "frames": n_frames,
+                         "persons": sc["persons"], "identity_switches": sc["identity_switches"],
+                         "person_frames": sc["person_frames"], "paired": sc["paired"], "with_joints": sc["with_joints"],
+                         "false_rows": sc["false_rows"],
+                         **{f"views_ge_{k}": v for k, v in sc["views_at_least"].items()},
+                         "root_cm": sc["root_error_cm"], "world_cm": sc["world_error_cm"],
+                         "relative_cm": sc["relative_error_cm"]})
         rows.append({"name": "accuracy", "input": "clean per-person masks, every view", "frames": n_frames,
                      "with_joints": ref["with_joints"], "root_cm": ref["root_error_cm"], "world_cm": ref["world_error_cm"],
                      "relative_cm": ref["relative_error_cm"]})

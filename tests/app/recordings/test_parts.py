@@ -248,6 +248,7 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
     R, K, V, n = 3, 4, 4, 5
     rows = PersonRows(frame=np.arange(R), person=np.array([1, 2, 1]), status=np.array(["ok", "no usable view", "ok"], object),
                       floor=np.zeros((R, 2)), view_status=np.full((R, K), "ok", object), views_used=np.ones((R, K), bool),
+                      view_cut=np.zeros((R, K)),
                       log_marginal=np.array([1.0, np.nan, 2.0]), plausibility=np.array([40.0, np.nan, 0.5]),
                       hypothesis=np.array([1, 0, 2]), hypothesis_probability=np.array([0.9, np.nan, 0.3]),
                       joints=np.arange(R * 57.0).reshape(R, 19, 3),

@@ -296,7 +296,8 @@ def _flat(column) -> np.ndarray:
 
 
 def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_path):
-    """--videos --masks: robust inference is off unless asked for (RecordingOptions.robust None)."""
+    """--videos --masks: robust inference and the visual-hull cut are off unless asked for (RecordingOptions.robust,
+    .carve None)."""
     tables = {}
     for name, robust in (("default", None), ("plain", False), ("robust", True)):
         run_recording(tiny_model, two_cylinders, tmp_path / name,
@@ -308,6 +309,7 @@ def test_mask_videos_default_to_plain_inference(tiny_model, two_cylinders, tmp_p
     assert all(same)
     assert not np.array_equal(_flat(tables["robust"].column("joints")), _flat(tables["plain"].column("joints")),
                               equal_nan=True)
+    assert np.isnan(_flat(tables["default"].column("view_cut"))).all()  # nor are mask videos carved (.hull)
 
 
 def test_a_refused_recording_leaves_no_output_folder(tiny_model_file, tmp_path):

@@ -47,6 +47,7 @@ def infer(
     min_hits: Annotated[Optional[int], typer.Option("--min-hits", min=1, help="Several people: frames in a row someone must be found on the floor before they become a person with an id (default: 0.3 s of the recording's frame rate, 25 frames/s for image folders). 1 for a few moments far apart or a very short clip: a ghost between people may then get an id too, and ids across moments far apart mean nothing.")] = None,
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
+    carve: Annotated[Optional[bool], typer.Option(help="Several people: cut each person's views down to their visual hull (the part of each blob the other cameras support) before the views are judged, so clutter touching a person in one camera (a prop, a lamp, someone standing still) is cut off (column view_cut). Default: on for colour videos, off for --masks.")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
     max_people: Annotated[Optional[int], typer.Option("--max-people", min=1, help="Several people: at most N ids (the head count, if known). A new person beyond N takes the id of the lost person who looks most alike (stature, build, clothing colours), wherever they were lost. Default: no limit.")] = None,
 ) -> None:
@@ -113,7 +114,8 @@ def infer(
             options = RecordingOptions(masks=masks, background=background, background_frames=background_frames,
                                        offsets=offsets, overlays=shown, min_area=min_area,
                                        noise_variance=noise_variance, contours=save_contours, min_hits=min_hits,
-                                       robust=(not masks) if robust is None else robust, max_people=max_people or 0)
+                                       robust=(not masks) if robust is None else robust, max_people=max_people or 0,
+                                       carve=carve)
             source = frames if frames is not None else videos
             if one:
                 out = out or Path("joints.parquet")

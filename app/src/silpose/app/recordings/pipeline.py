@@ -7,8 +7,10 @@ except a few numbers per person and step for the floor plan):
    its connected components found (:mod:`.blobs`) -- per camera, in a thread pool (OpenCV releases the GIL);
 2. people are found on the floor by the occupancy grid of all masks (:mod:`.floor`) and linked into
    tracks (:mod:`.tracking`);
-3. per person and camera, the blob that is theirs alone, or the reason there is none (:mod:`.views`);
-   their contours (:func:`silpose.shared.contours.extract_contour` on the blob);
+3. each camera's mask cut down to the detected people's visual hulls (:mod:`.hull`: clutter that touches a
+   person in one camera has no support in the others); per person and camera, the blob of the cut mask that is
+   theirs alone, or the reason there is none (:mod:`.views`), and the share of their blob that was cut; their
+   contours (:func:`silpose.shared.contours.extract_contour` on the blob);
 then per chunk:
 4. the model infers every detected person's root-relative joints from their usable views, missing views
    marginalised (:func:`silpose.app.inference.infer_rows`, as for one person, :mod:`.one_person`); a person
@@ -52,6 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
 from threadpoolctl import threadpool_limits
 
@@ -66,6 +69,7 @@ from .appearance import PersonLooks, observe
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
+from .hull import PersonHulls
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
@@ -76,7 +80,7 @@ from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, backgr
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
 from .tracking import CONFIRM_S, Track, Tracker, tracker_for_fps
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
-                    assign_views, body_box, grounded)
+                    assign_views, body_box, grounded, person_labels)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 #: metres: floor detections this close to the floor grid's outer edge are not people in the room but someone
@@ -117,7 +121,10 @@ class RecordingOptions:
     track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
-    (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). reader_threads:
+    (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). carve: cut each person's
+    views down to their visual hull before the views are judged (:mod:`.hull`); None = for colour videos only (the
+    clutter it cuts comes from background plates older than the recording; on the lab's mask videos it changed no
+    joint and cost 1.24-1.96x the CPU per step, benchmark ``recordings``). reader_threads:
     decode each camera in its own thread, frames ahead
     (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
     videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
@@ -146,6 +153,7 @@ class RecordingOptions:
     absorb_s: float = ABSORB_S
     reader_threads: bool | None = None
     overlay_dir: Path | None = None
+    carve: bool | None = None
 
 
 @dataclass
@@ -286,6 +294,7 @@ class _Person:
     floor: np.ndarray  # (2,) or NaN
     status: list  # (K,) view statuses
     contours: np.ndarray  # (K, n, 2) px, NaN where not used
+    cut: np.ndarray  # (K,) share of the person's blob cut as unsupported by the other views (.hull), NaN: no blob
 
 
 def _default_threads(n_cameras: int) -> int:
@@ -332,6 +341,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
                for c, s in recording.sources.items()}
     grid = FloorGrid(work, workspace.bounds, search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
+    hulls = (PersonHulls(work, ((grid.xs[0], grid.xs[-1]), (grid.ys[0], grid.ys[-1])), workspace.center)
+             if ((not opt.masks) if opt.carve is None else opt.carve) else None)
     silhouettes, start = make_silhouettes(opt, rig, sources, work)
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if recording.n_steps >= 0 and total <= 0:
@@ -407,7 +418,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     if warn:
                         warn(msg)
                 found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
-                                            pool.map if pool else map, colour=not opt.masks)
+                                            pool.map if pool else map, hulls,
+                                            [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks)
                 people += found
                 detected += bool(len(where))
                 for c, cam in cams.items():
@@ -529,28 +541,41 @@ def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
 
 
 def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int,
-                  colour: bool = False) -> tuple[list, np.ndarray, list]:
+                  support: Callable[[], np.ndarray] | None = None, min_area: int = 1,
+                  colour: bool = False) -> tuple[list, np.ndarray, np.ndarray, list]:
     """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) in ``cam``'s px, NaN
-    where unused, looks (P,) :class:`~.appearance.Look` or None), from the masks at ``work``'s resolution
-    (``colour``: colour histograms from the frame). Runs in a worker thread (OpenCV's labelling and
-    contour tracing release the GIL)."""
+    where unused, cut shares (P,), looks (P,) :class:`~.appearance.Look` or None), from the masks at ``work``'s
+    resolution. ``support``: makes the camera's visual-hull support image (:meth:`.hull.PersonHulls.support`),
+    which the mask is cut down to before its blobs (of at least ``min_area`` px) are judged; the cut share is the
+    part of the person's blob it removed (NaN: no blob). ``colour``: colour histograms from the frame. Runs in a
+    worker thread (OpenCV's labelling and contour tracing release the GIL)."""
     P = len(positions)
     cont = np.full((P, n_pts, 2), np.nan)
+    cut = np.full(P, np.nan)
     looks: list = [None] * P
     if s is None:
-        return [VIEW_NO_VIDEO] * P, cont, looks
+        return [VIEW_NO_VIDEO] * P, cont, cut, looks
     if s.blobs is None or s.blobs.empty:
-        return [s.status or VIEW_EMPTY] * P, cont, looks
-    labels, status = assign_views(work, s.blobs, positions)
+        return [s.status or VIEW_EMPTY] * P, cont, cut, looks
+    blobs = s.blobs
+    if support is not None and P:
+        before = person_labels(work, blobs, positions)
+        blobs = find_blobs(cv2.bitwise_and(s.mask, support()), min_area)
+        after = person_labels(work, blobs, positions)
+        has = before > 0
+        cut[has] = 1.0 - blobs.area[after[has]] * (after[has] > 0) / s.blobs.area[before[has]]
+        if blobs.empty:
+            return [VIEW_NOT_SEEN] * P, cont, cut, looks
+    labels, status = assign_views(work, blobs, positions)
     for d in range(P):
         if status[d] == VIEW_OK:
-            pts = blob_contour(s.blobs, labels[d], n_pts)
+            pts = blob_contour(blobs, labels[d], n_pts)
             if pts is None:
                 status[d] = VIEW_EMPTY
             else:
                 cont[d] = to_rig_px(pts, cam, work)
-                looks[d] = observe(work, s.blobs, labels[d], positions[d], s.background if colour else None)
-    return status, cont, looks
+                looks[d] = observe(work, blobs, labels[d], positions[d], s.background if colour else None)
+    return status, cont, cut, looks
 
 
 def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapper=map) -> Callable:
@@ -577,8 +602,11 @@ def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapp
 
 
 def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
-                 mapper=map, colour: bool = False) -> tuple[list[_Person], np.ndarray]:
-    """Floor detection, tracking and (per camera, through ``mapper``) view assignment of one step.
+                 mapper=map, hulls: PersonHulls | None = None, min_areas=None,
+                 colour: bool = False) -> tuple[list[_Person], np.ndarray]:
+    """Floor detection, tracking, the people's visual hulls (``hulls``, :mod:`.hull`; None: views uncut) and
+    (per camera, through ``mapper``) view assignment of one step; ``min_areas`` (K,) px: blobs of the cut masks;
+    ``colour``: the people's looks include colour histograms (:mod:`.appearance`).
 
     Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
     no track takes are dropped before the views are assigned, so a ghost never makes a real person's blob
@@ -610,19 +638,33 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     taken = [d for _, d in links if d >= 0]
     where = det.positions[taken]
     near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
-    per_cam = list(mapper(lambda k: _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts, colour),
-                          range(len(names))))
+    kept = boxes = None
+    if hulls is not None and len(where):
+        boxes = hulls.prepare(where)  # and the tiles the threads read
+        # in this thread: a dilation of the people's pixels per camera is less than a pool round trip under load
+        live = [hulls.evidence(k, masks[k], boxes) for k in range(len(names))]
+        if sum(live) >= 2:  # one camera alone supports nothing
+            kept = hulls.keep(live, boxes)
+
+    def views(k: int):
+        sup = None
+        if kept is not None and masks[k] is not None:
+            sup = lambda: hulls.support(k, kept, boxes, masks[k].shape)  # noqa: E731
+        return _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts, sup,
+                             1 if min_areas is None else int(min_areas[k]), colour)
+
+    per_cam = list(mapper(views, range(len(names))))
     out = []
     for track, d in links:
         if d < 0:
             out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
-                               np.full((len(names), n_pts, 2), np.nan)))
+                               np.full((len(names), n_pts, 2), np.nan), np.full(len(names), np.nan)))
         else:
             i = taken.index(d)
             if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
-                tracker.learn(track, step, [lk[i] for _, _, lk in per_cam], lambda: PersonLooks(len(names)))
-            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _ in per_cam],
-                               np.stack([c[i] for _, c, _ in per_cam])))
+                tracker.learn(track, step, [lk[i] for _, _, _, lk in per_cam], lambda: PersonLooks(len(names)))
+            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _, _ in per_cam],
+                               np.stack([c[i] for _, c, _, _ in per_cam]), np.array([u[i] for _, _, u, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0
     return out, near
 
@@ -688,7 +730,8 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
     floor = np.stack([p.floor for p in people]) if R else np.zeros((0, 2))
     rows_out = PersonRows(
         frame=np.array([p.step for p in people], np.int64) + first_frame, person=np.zeros(R, np.int32),
-        status=status, floor=floor, view_status=view_status, views_used=used, log_marginal=logm,
+        status=status, floor=floor, view_status=view_status, views_used=used,
+        view_cut=np.stack([p.cut for p in people]) if R else np.zeros((0, K)), log_marginal=logm,
         plausibility=plaus, hypothesis=hyp_slot, hypothesis_probability=hyp_p, joints=joints,
         joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,
         root_calibration=transform.to_calibration(root), contours=contours)

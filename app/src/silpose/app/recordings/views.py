@@ -92,6 +92,15 @@ def _main_label(lab_row: np.ndarray) -> int:
     return min(counts, key=lambda v: (-counts[v], v)) if counts else 0
 
 
+def person_labels(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
+    """(P,) int: the usable blob most of each person's torso column falls on (0: none), people at floor points
+    ``xy`` (P, 2) -- each person's candidate blob (module docstring)."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    if blobs.empty or not len(xy):
+        return np.zeros(len(xy), int)
+    return np.array([_main_label(row) for row in _column_labels(cam, blobs, xy)], int)
+
+
 def grounded(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
     """(P,) bool: the blob under each person's torso ends at their feet in this camera (module docstring)."""
     xy = np.asarray(xy, float).reshape(-1, 2)

@@ -13,6 +13,9 @@ status              ``ok`` (joints inferred), ``implausible`` (joints inferred, 
 floor_x, floor_y    metres, silpose's frame: where the floor grid found the person (NaN: not detected)
 n_views, views      usable views and their camera names (comma-separated)
 view_status         per rig camera, why the view was or was not used (``silpose.app.recordings.views``)
+view_cut            per rig camera, the share (0-1) of the person's blob cut off as unsupported by the other
+                    views before the view was judged (``silpose.app.recordings.hull``; 0: nothing cut; NaN: no
+                    blob, or not carved)
 log_marginal        the model's log density of the observed views (NaN without joints)
 plausibility        that density as a percentile (0-100) of held-out training inputs with the same
                     views (``silpose.model.plausibility``; NaN when the model has no calibration)
@@ -66,7 +69,7 @@ class PersonRows:
     """Rows of R (person, step) pairs; arrays lead with R. K rig cameras, V modelled views, n contour points.
 
     frame (R,) int; person (R,) int; status (R,) str; floor (R, 2); view_status (R, K) str; views_used
-    (R, K) bool; log_marginal, plausibility (R,); hypothesis (R,) int; hypothesis_probability (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
+    (R, K) bool; view_cut (R, K) float; log_marginal, plausibility (R,); hypothesis (R,) int; hypothesis_probability (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
     root_calibration (R, 3); contours (R, V, n, 2).
     """
 
@@ -76,6 +79,7 @@ class PersonRows:
     floor: np.ndarray
     view_status: np.ndarray
     views_used: np.ndarray
+    view_cut: np.ndarray
     log_marginal: np.ndarray
     plausibility: np.ndarray
     hypothesis: np.ndarray
@@ -145,7 +149,8 @@ class RecordingWriter:
         fields = [
             ("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
             ("floor_x", pa.float32()), ("floor_y", pa.float32()), ("n_views", pa.int8()), ("views", pa.string()),
-            ("view_status", pa.list_(pa.string(), len(self.cameras))), ("log_marginal", pa.float64()),
+            ("view_status", pa.list_(pa.string(), len(self.cameras))),
+            ("view_cut", pa.list_(pa.float32(), len(self.cameras))), ("log_marginal", pa.float64()),
             ("plausibility", pa.float32()), ("hypothesis", pa.int8()), ("hypothesis_probability", pa.float32()),
             ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
         ]
@@ -184,7 +189,8 @@ class RecordingWriter:
         plaus = [pa.array(rows.plausibility.astype(np.float32)), pa.array(rows.hypothesis.astype(np.int8)),
                  pa.array(rows.hypothesis_probability.astype(np.float32))]
         table = pa.Table.from_arrays([
-            frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs, logm, *plaus,
+            frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs,
+            _fixed(rows.view_cut), logm, *plaus,
             _fixed(rows.joints), _fixed(rows.joints_calibration), _fixed(rows.joint_std), _fixed(rows.root),
             _fixed(rows.root_calibration),
         ] + ([_fixed(rows.contours)] if self.contours else []), schema=self.schema)
