@@ -228,7 +228,7 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     lead, n = p.shape[:-2], p.shape[-2]
     f = p.reshape(-1, n, 2)
     c = np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1) / n  # strided sums: fast
-    q = f - c[:, None, :]
+    q = (f.reshape(len(f), -1) - np.tile(c, (1, n))).reshape(f.shape)  # f - c per point, in long rows
     flat = q.reshape(q.shape[0], -1)
     s = np.sqrt(np.einsum("ij,ij->i", flat, flat) / n)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
@@ -240,8 +240,13 @@ def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray)
 
     q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px.
     """
+    q = np.asarray(q, dtype=np.float64)
     out = q * np.asarray(scale, dtype=np.float64)[..., None, None]
-    out += np.asarray(centroid, dtype=np.float64)[..., None, :]
+    n = out.shape[-2]
+    c = np.broadcast_to(np.asarray(centroid, dtype=np.float64), out.shape[:-2] + (2,))
+    # + c per point, in long rows: numpy's broadcast over a last axis of 2 runs in inner loops of 2 elements
+    rows = out.reshape(-1, 2 * n)
+    rows += np.tile(c.reshape(-1, 2), (1, n))
     return out
 
 

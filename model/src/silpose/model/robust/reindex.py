@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .observed_views import observed_views
+from .median import median_last
 
 __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "resample_by_index", "reindex_contours"]
 
@@ -105,14 +106,19 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
     """
     o = np.asarray(observed, dtype=np.float64)
     r = np.asarray(recon, dtype=np.float64)
-    n = o.shape[-2]
-    shifts = np.arange(-window, window + 1)
-    idx = (np.arange(n)[:, None] + shifts[None, :]) % n  # (n, 2w+1)
-    dx = o[:, :, None, 0] - r[:, idx, 0]  # (V, n, 2w+1), coordinates apart: no reductions over an axis of 2
-    dy = o[:, :, None, 1] - r[:, idx, 1]
-    dist = np.sqrt(dx * dx + dy * dy)
-    best = dist.argmin(axis=-1)
-    return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
+    ox, oy, rx, ry = o[..., 0], o[..., 1], r[..., 0], r[..., 1]  # coordinates apart: no reductions over an axis of 2
+    best_d = best_k = None
+    for k in range(-window, window + 1):  # reconstructed point i + k for every i; the first nearest kept (argmin)
+        dx = ox - np.roll(rx, -k, axis=-1)
+        dy = oy - np.roll(ry, -k, axis=-1)
+        dist = np.sqrt(dx * dx + dy * dy)
+        if best_d is None:
+            best_d, best_k = dist, np.full(dist.shape, k)
+        else:
+            closer = dist < best_d
+            best_d = np.where(closer, dist, best_d)
+            best_k[closer] = k
+    return best_k, best_d
 
 
 def _basis(n: int, harmonics: int) -> np.ndarray:
@@ -183,7 +189,7 @@ def fit_slides(offsets: np.ndarray, distances: np.ndarray, sigma_px: np.ndarray,
         rhs = (w2 * d[live]) @ A
         coef[live] = np.linalg.solve(G, rhs[..., None])[..., 0]
         resid = d - coef @ A.T
-        spread = 1.4826 * np.median(np.abs(resid), axis=1) + 0.5
+        spread = 1.4826 * median_last(np.abs(resid)) + 0.5
         w = prior * (np.abs(resid) < 3.0 * spread[:, None])
     coef[dead] = 0.0
     resid = d - coef @ A.T
