@@ -57,9 +57,10 @@ from .median import median_last
 
 __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "resample_by_index", "reindex_contours"]
 
-#: views per block of :func:`index_offsets` in :func:`reindex_contours` (a block holds n x (2w + 1) x 2 floats
-#: per view: 256 views of 200 points, w = 8, take 14 MB)
+#: views per block of :func:`fit_slides` in :func:`reindex_contours`
 _BLOCK_VIEWS = 256
+#: views per block of :func:`index_offsets` (one shift at a time: a few (views, n) arrays)
+_MATCH_VIEWS = 4096
 
 
 @dataclass(frozen=True)
@@ -225,13 +226,19 @@ def reindex_contours(contours_px: np.ndarray, recon_px: np.ndarray, present: np.
     n = ov.contours.shape[2]
     window = settings.window_points(n)
     gate = settings.min_chi2_per_point * n
+    # the matches of every view (element-wise per view: in large blocks), then the fits in blocks of _BLOCK_VIEWS
+    all_offsets = np.empty(ov.points.shape[:2], dtype=np.int64)
+    all_distances = np.empty(ov.points.shape[:2])
+    for start in range(0, ov.rows.size, _MATCH_VIEWS):
+        block = slice(start, start + _MATCH_VIEWS)
+        all_offsets[block], all_distances[block] = index_offsets(ov.points[block], ov.recon[block], window)
     for start in range(0, ov.rows.size, _BLOCK_VIEWS):
         block = slice(start, start + _BLOCK_VIEWS)
         scales = ov.scales[block]
         usable = np.flatnonzero(scales > 0)
         if usable.size == 0:
             continue
-        offsets, distances = index_offsets(ov.points[block][usable], ov.recon[block][usable], window)
+        offsets, distances = all_offsets[start + usable], all_distances[start + usable]
         slides, chi2 = fit_slides(offsets, distances, settings.sigma * scales[usable], int(settings.harmonics),
                                   settings.offset_floor * n)
         for u in np.flatnonzero(chi2 > gate):
