@@ -171,14 +171,17 @@ def _nearest_vertex(point: np.ndarray, polygon: np.ndarray, around: int) -> int:
 
 
 def _trim_view(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scale: float,
-               settings: ExcursionSettings) -> np.ndarray | None:
+               settings: ExcursionSettings, starts=None) -> np.ndarray | None:
     """The trimmed (n, 2) contour of one view, or None when it has no excursion (module doc); ``far`` (n,)
-    flags the points farther than the threshold from the reconstructed outline."""
+    flags the points farther than the threshold from the reconstructed outline; ``starts``: the first indices of
+    the only runs that can be excursions (:func:`_candidate_views`), None = every run."""
     n = len(pts)
     drop = np.zeros(n, dtype=bool)
     keep_between: dict[int, int] = {}  # first index of a trimmed run -> points its chord gets
     for run in excursion_runs(far):
         lo, hi = int(run[0]), int(run[-1])
+        if starts is not None and lo not in starts:
+            continue
         a, b = (lo - 1) % n, (hi + 1) % n
         arc = np.linalg.norm(np.diff(pts[np.r_[a, run, b]], axis=0), axis=1).sum()
         chord = float(np.linalg.norm(pts[b] - pts[a]))
@@ -213,16 +216,17 @@ def _trim_view(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scale: float,
 
 
 def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: np.ndarray,
-                     settings: ExcursionSettings) -> np.ndarray:
-    """Indices of the views (V, n, 2) that may have an excursion: every run of every view tested at once with
-    :func:`_trim_view`'s criteria, its arc from cumulative edge lengths (a margin of 1e-9 covers their rounding;
-    :func:`_trim_view` decides). Views whose far points cover the whole outline are candidates."""
+                     settings: ExcursionSettings) -> dict:
+    """The views (V, n, 2) that may have an excursion, {view index: first indices of its runs that may be one, or
+    None for every run}: every run of every view tested at once with :func:`_trim_view`'s criteria, its arc from
+    cumulative edge lengths (a margin of 1e-9 covers their rounding; :func:`_trim_view` decides). Views whose far
+    points cover the whole outline are candidates (None)."""
     v, n = far.shape
     whole = far.all(axis=1)
     start = far & ~np.roll(far, 1, axis=1) & ~whole[:, None]
     rv, s = np.nonzero(start)
     if rv.size == 0:
-        return np.flatnonzero(whole)
+        return {int(j): None for j in np.flatnonzero(whole)}
     # only the views with a run: their rows, u, in the arrays below (the same arithmetic per view as on all of them)
     used, u = np.unique(rv, return_inverse=True)
     u = u.reshape(-1)
@@ -247,7 +251,7 @@ def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: 
     # the loop tests first; the nearest reconstructed vertices only for the runs that pass them
     ok = (arc + tol > settings.ratio * chord) & (arc - chord + tol > settings.extra * scales[rv])
     sel = np.flatnonzero(ok)
-    rv, a, b, length = rv[sel], a[sel], b[sel], length[sel]
+    rv, s, a, b, length = rv[sel], s[sel], a[sel], b[sel], length[sel]
     near = (np.arange(-(n // 4), n // 4 + 1))[None, :]
 
     def nearest(i):  # _nearest_vertex of pts[rv, i] among rec[rv] within n // 4 of i
@@ -257,7 +261,11 @@ def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: 
 
     span = (nearest(b) - nearest(a)) % n
     ok = (span <= n // 2) & ((length + 1) - span >= 2)
-    return np.union1d(np.unique(rv[ok]), np.flatnonzero(whole))
+    out: dict = {}
+    for j, start in zip(rv[ok].tolist(), s[ok].tolist()):
+        out.setdefault(j, set()).add(start)
+    out.update({int(j): None for j in np.flatnonzero(whole)})
+    return dict(sorted(out.items()))
 
 
 def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
@@ -276,8 +284,8 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     if ov.rows.size == 0:
         return ov.contours, ov.changed
     far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
-    for j in _candidate_views(ov.points, ov.recon, far, ov.scales, settings):
-        trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings)
+    for j, starts in _candidate_views(ov.points, ov.recon, far, ov.scales, settings).items():
+        trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings, starts)
         if trimmed is not None:
             ov.set(j, trimmed)
     return ov.contours, ov.changed

@@ -73,7 +73,9 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
         # when the hypotheses need every component's mean), each component's frames in one product
         # (silpose.model.gated)
         only = None if want else (res.responsibilities if every else res.responsibilities[active]) > GATE_WEIGHT
-        part, part_comp = posterior.infer((inputs if every else inputs.take(active)).with_contours(pseudo),
+        step_inputs = (inputs.with_contours(pseudo) if every else  # the active frames' factors, not their contours
+                       Inputs(p_act, pseudo, inputs.centroid[active], inputs.scale[active]))
+        part, part_comp = posterior.infer(step_inputs,
                                           s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
                                           only=only)
         moved = largest_move(part.contours_px, rec)  # px
