@@ -25,7 +25,7 @@ def _contours(rng, shape, n=200):
 
 def test_view_scales_is_the_numpy_formula():
     rng = np.random.default_rng(0)
-    for v, n in ((300, 200), (7, 13), (3, 1)):
+    for v, n in ((300, 200), (70, 13), (7, 13), (3, 1), (0, 5)):  # the point-by-point sums and numpy's formula
         pts = _contours(rng, (v,), n)
         centred = pts - pts.mean(axis=1, keepdims=True)
         want = np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1))
@@ -34,9 +34,10 @@ def test_view_scales_is_the_numpy_formula():
 
 def test_index_offsets_is_the_gathered_argmin():
     rng = np.random.default_rng(1)
-    obs = np.round(_contours(rng, (40,)))  # integer pixels: many ties, the first nearest shift must win
-    rec = np.round(_contours(rng, (40,)))
-    for w in (1, 8):
+    obs = np.round(_contours(rng, (80,)))  # integer pixels: many ties, the first nearest shift must win
+    rec = np.round(_contours(rng, (80,)))
+    for w, v in ((1, 80), (8, 80), (8, 5)):  # one shift at a time, and all at once for a few views
+        obs, rec = obs[:v], rec[:v]
         shifts = np.arange(-w, w + 1)
         idx = (np.arange(200)[:, None] + shifts[None, :]) % 200
         dist = np.sqrt(np.sum((obs[:, :, None, :] - rec[:, idx, :]) ** 2, axis=-1))

@@ -14,6 +14,9 @@ import numpy as np
 
 __all__ = ["ObservedViews", "observed_views", "view_scales"]
 
+#: views from which :func:`view_scales` sums point by point (fewer: numpy's formula, one call per step)
+_LOOP_VIEWS = 64
+
 
 @dataclass
 class ObservedViews:
@@ -70,8 +73,9 @@ def view_scales(points: np.ndarray) -> np.ndarray:
     an axis of 2 (which dominated the repairs' cost on large batches).
     """
     v, n = points.shape[:2]
-    if v == 0 or n == 0:
-        return np.zeros(v) if n else np.full(v, np.nan)
+    if v < _LOOP_VIEWS or n == 0:  # few views: the numpy formula itself (the loop's 2n calls would cost more)
+        centred = points - points.mean(axis=1, keepdims=True)
+        return np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1)) if v else np.zeros(0)
     x, y = points[..., 0], points[..., 1]
     sx, sy = x[:, 0].copy(), y[:, 0].copy()
     for i in range(1, n):  # np.mean over axis 1 of (V, n, 2) adds the points in order, as here

@@ -61,6 +61,8 @@ __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "resam
 _BLOCK_VIEWS = 256
 #: views per block of :func:`index_offsets` (one shift at a time: a few (views, n) arrays)
 _MATCH_VIEWS = 4096
+#: views from which :func:`index_offsets` goes one shift at a time (fewer: all 2w + 1 shifts in one gather)
+_SHIFT_VIEWS = 64
 
 
 @dataclass(frozen=True)
@@ -107,6 +109,15 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
     """
     o = np.asarray(observed, dtype=np.float64)
     r = np.asarray(recon, dtype=np.float64)
+    n = o.shape[-2]
+    if len(o) < _SHIFT_VIEWS:  # few views: every candidate at once, (V, n, 2w + 1) (one call per step)
+        shifts = np.arange(-window, window + 1)
+        idx = (np.arange(n)[:, None] + shifts[None, :]) % n  # (n, 2w+1)
+        dx = o[:, :, None, 0] - r[:, idx, 0]
+        dy = o[:, :, None, 1] - r[:, idx, 1]
+        dist = np.sqrt(dx * dx + dy * dy)
+        best = dist.argmin(axis=-1)
+        return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
     ox, oy, rx, ry = o[..., 0], o[..., 1], r[..., 0], r[..., 1]  # coordinates apart: no reductions over an axis of 2
     best_d = best_k = None
     for k in range(-window, window + 1):  # reconstructed point i + k for every i; the first nearest kept (argmin)
