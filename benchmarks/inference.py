@@ -19,6 +19,15 @@ Targets: >= 20,000 frames/s batched and <= 2 ms per single frame on a 2-core mac
 floor, robust <= 30x (issue 23). Rows "M 200 q 40": a mixture of the motions preset's size (:func:`large_mixture`;
 target: a single frame <= 10 ms robust).
 Timings are noisy when other processes share the cores.
+
+Measured 2026-12-03 (full size, 2 shared cores; ``--only inference``): at load 1.2-1.8, plain batched 4 views 1.85x
+its floor (3 views 2.8x, 1 view 3.3x), single frame 0.72 ms, single frame M 200 plain 4.6 ms and robust 6.9 ms,
+robust batched 34.2 s = 31x the plain batched time; at load 6-7, plain 1.85x, robust 55.3 s = 45x plain, single
+frame M 200 robust 43.6 ms (plain 16.7 ms: both read the 105 MB observed-block matrix, memory-bound under load).
+Robust's ratio to its floor was 58x (load 6-7) and 58-133x (load 1.5: the floor timed after the robust row was
+0.26 s, after the plain rows 0.59 s); the same-run comparison with the previous code (20,000 frames, load 3):
+robust 70.0 -> 45.9 s, 48x -> 30x the plain time (``silpose.model.robust.loop`` doc: where the rest goes). The
+robust target (<= 30x the floor) is not met.
 """
 
 from __future__ import annotations

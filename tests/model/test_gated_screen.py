@@ -16,7 +16,7 @@ import silpose.model.conditioning as conditioning
 from silpose.model.checks import model_inputs
 from silpose.model.conditioning import Conditioner, MixtureParams
 from silpose.model.gated import condition_gated
-from silpose.model.robust.weights import median_last
+from silpose.model.robust.median import median_last
 from silpose.model.screen import SCREEN_MARGIN, Screen, ScreenMatrices
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes

@@ -228,7 +228,9 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     lead, n = p.shape[:-2], p.shape[-2]
     f = p.reshape(-1, n, 2)
     c = np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1) / n  # strided sums: fast
-    q = f - c[:, None, :]
+    q = np.empty_like(f)  # f - c per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
+    np.subtract(f[..., 0], c[:, 0, None], out=q[..., 0])
+    np.subtract(f[..., 1], c[:, 1, None], out=q[..., 1])
     flat = q.reshape(q.shape[0], -1)
     s = np.sqrt(np.einsum("ij,ij->i", flat, flat) / n)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
@@ -240,8 +242,11 @@ def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray)
 
     q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px.
     """
+    q = np.asarray(q, dtype=np.float64)
     out = q * np.asarray(scale, dtype=np.float64)[..., None, None]
-    out += np.asarray(centroid, dtype=np.float64)[..., None, :]
+    c = np.asarray(centroid, dtype=np.float64)
+    out[..., 0] += c[..., 0, None]  # per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
+    out[..., 1] += c[..., 1, None]
     return out
 
 

@@ -97,7 +97,8 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     """
     v, n = points.shape[:2]
     limit = np.asarray(limit, dtype=np.float64)[:, None]
-    maybe = np.linalg.norm(points - polygon, axis=-1) > limit
+    ex, ey = points[..., 0] - polygon[..., 0], points[..., 1] - polygon[..., 1]  # coordinates apart (module note)
+    maybe = np.sqrt(ex * ex + ey * ey) > limit
     far = np.zeros((v, n), dtype=bool)
     views, idx = np.nonzero(maybe)
     if views.size == 0:
@@ -111,19 +112,29 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
         d = _segment_distance(points[vv, ii][:, None, :], polygon[vv[:, None], j], polygon[vv[:, None], (j + 1) % n])
         far[vv, ii] = d.min(axis=1) > limit[vv, 0]
     views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
+    if views.size == 0:
+        return far
     offsets = np.arange(-w, w + 1)
-    edge_len = np.linalg.norm(np.roll(polygon, -1, axis=1) - polygon, axis=-1)  # (V, n) edge j -> j + 1
+    # edge j -> j + 1 of the views still in question (V', n)
+    used, slot = np.unique(views, return_inverse=True)
+    poly_u = polygon[used]
+    lx = np.roll(poly_u[..., 0], -1, axis=1) - poly_u[..., 0]
+    ly = np.roll(poly_u[..., 1], -1, axis=1) - poly_u[..., 1]
+    edge_len = np.sqrt(lx * lx + ly * ly)
+    slot = slot.reshape(-1)
     for s in range(0, views.size, 4096):
-        vv, ii = views[s:s + 4096], idx[s:s + 4096]
+        vv, ii, uu = views[s:s + 4096], idx[s:s + 4096], slot[s:s + 4096]
         j = (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 1) edges searched
         p = points[vv, ii][:, None, :]
         # a point of edge j is within half its length of one of its ends: edges whose nearer end is farther than
         # the limit plus half their length (with a margin for rounding) cannot bring the point within the limit
-        dv = np.sqrt(np.sum((polygon[vv[:, None], j] - p) ** 2, axis=-1))  # (P, 2w + 1) to each edge's start
+        gx = poly_u[uu[:, None], j, 0] - p[..., 0]
+        gy = poly_u[uu[:, None], j, 1] - p[..., 1]
+        dv = np.sqrt(gx * gx + gy * gy)  # (P, 2w + 1) to each edge's start
         nearer = np.minimum(dv, np.roll(dv, -1, axis=1))
         nearer[:, -1] = np.minimum(dv[:, -1], np.linalg.norm(polygon[vv, (j[:, -1] + 1) % n] - p[:, 0], axis=-1))
         lim = limit[vv]
-        check = nearer - 0.5 * edge_len[vv[:, None], j] <= lim * (1.0 + 1e-9) + 1e-12
+        check = nearer - 0.5 * edge_len[uu[:, None], j] <= lim * (1.0 + 1e-9) + 1e-12
         pi, ej = np.nonzero(check)
         if pi.size == 0:
             far[vv, ii] = True
@@ -160,14 +171,17 @@ def _nearest_vertex(point: np.ndarray, polygon: np.ndarray, around: int) -> int:
 
 
 def _trim_view(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scale: float,
-               settings: ExcursionSettings) -> np.ndarray | None:
+               settings: ExcursionSettings, starts=None) -> np.ndarray | None:
     """The trimmed (n, 2) contour of one view, or None when it has no excursion (module doc); ``far`` (n,)
-    flags the points farther than the threshold from the reconstructed outline."""
+    flags the points farther than the threshold from the reconstructed outline; ``starts``: the first indices of
+    the only runs that can be excursions (:func:`_candidate_views`), None = every run."""
     n = len(pts)
     drop = np.zeros(n, dtype=bool)
     keep_between: dict[int, int] = {}  # first index of a trimmed run -> points its chord gets
     for run in excursion_runs(far):
         lo, hi = int(run[0]), int(run[-1])
+        if starts is not None and lo not in starts:
+            continue
         a, b = (lo - 1) % n, (hi + 1) % n
         arc = np.linalg.norm(np.diff(pts[np.r_[a, run, b]], axis=0), axis=1).sum()
         chord = float(np.linalg.norm(pts[b] - pts[a]))
@@ -180,48 +194,64 @@ def _trim_view(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scale: float,
             keep_between[int(run[0])] = max(span_rec - 1, 0)
     if not drop.any() or (~drop).sum() <= n // 2:  # nothing found, or too much: leave the view alone
         return None
-    runs = {int(r[0]): r for r in excursion_runs(drop)}
-    seq: list[np.ndarray] = []
-    i = 0 if not drop[0] else int(np.flatnonzero(~drop)[0])
-    seen = 0
-    while seen < n:
-        if i in runs:  # an excursion: points on its chord instead, as many as the outline has there
-            run = runs[i]
-            a, b = pts[(run[0] - 1) % n], pts[(run[-1] + 1) % n]
-            m = keep_between[int(run[0])] + 1
-            seq.extend(a + t * (b - a) for t in np.arange(1, m) / m)
-            i, seen = (int(run[-1]) + 1) % n, seen + len(run)
-            continue
-        if not drop[i]:
-            seq.append(pts[i])
-        i, seen = (i + 1) % n, seen + 1
-    path = np.vstack([np.asarray(seq), seq[0]])
+    # the kept points in order from the first kept one, each trimmed run replaced by the points of its chord, as many
+    # as the outline has there (one piece per stretch: the runs of ``drop`` start after a kept point)
+    i0 = 0 if not drop[0] else int(np.flatnonzero(~drop)[0])
+    order = (np.arange(n) + i0) % n
+    pieces: list[np.ndarray] = []
+    at = 0
+    for r in excursion_runs(drop[order]):
+        lo, hi = int(r[0]), int(r[-1])
+        pieces.append(pts[order[at:lo]])
+        a, b = pts[(order[lo] - 1) % n], pts[(order[hi] + 1) % n]
+        m = keep_between[int(order[lo])] + 1
+        pieces.append(a + (np.arange(1, m) / m)[:, None] * (b - a))
+        at = hi + 1
+    pieces.append(pts[order[at:]])
+    seq = np.concatenate(pieces)
+    path = np.vstack([seq, seq[:1]])
     at = np.arange(n) * ((len(path) - 1) / n)  # index resampling of the closed sequence
     return np.stack([np.interp(at, np.arange(len(path)), path[:, 0]), np.interp(at, np.arange(len(path)), path[:, 1])],
                     axis=1)
 
 
 def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: np.ndarray,
-                     settings: ExcursionSettings) -> np.ndarray:
-    """Indices of the views (V, n, 2) that may have an excursion: every run of every view tested at once with
-    :func:`_trim_view`'s criteria, its arc from cumulative edge lengths (a margin of 1e-9 covers their rounding;
-    :func:`_trim_view` decides). Views whose far points cover the whole outline are candidates."""
+                     settings: ExcursionSettings) -> dict:
+    """The views (V, n, 2) that may have an excursion, {view index: first indices of its runs that may be one, or
+    None for every run}: every run of every view tested at once with :func:`_trim_view`'s criteria, its arc from
+    cumulative edge lengths (a margin of 1e-9 covers their rounding; :func:`_trim_view` decides). Views whose far
+    points cover the whole outline are candidates (None)."""
     v, n = far.shape
     whole = far.all(axis=1)
-    f3 = np.tile(far, 3)  # (V, 3n): runs starting in the middle copy end within it
     start = far & ~np.roll(far, 1, axis=1) & ~whole[:, None]
     rv, s = np.nonzero(start)
     if rv.size == 0:
-        return np.flatnonzero(whole)
-    pos = np.arange(3 * n)
-    next_out = np.minimum.accumulate(np.where(f3, 3 * n, pos[None, :])[:, ::-1], axis=1)[:, ::-1]
+        return {int(j): None for j in np.flatnonzero(whole)}
+    # only the views with a run: their rows, u, in the arrays below (the same arithmetic per view as on all of them)
+    used, u = np.unique(rv, return_inverse=True)
+    u = u.reshape(-1)
+    far_u, pts_u = far[used], pts[used]
+    # each run's length: to its view's next point that is not far (cyclic), from the sorted flat run ends
+    ends_v, ends_i = np.nonzero(far_u & ~np.roll(far_u, -1, axis=1))
+    flat_end = ends_v * n + ends_i
+    k = np.searchsorted(flat_end, u * n + s)
+    wraps = (k == flat_end.size) | (ends_v[np.minimum(k, flat_end.size - 1)] != u)
+    first_end = ends_i[np.searchsorted(flat_end, u * n)]  # the view's first run end (the wrapping run's)
+    last = np.where(wraps, first_end + n, ends_i[np.minimum(k, flat_end.size - 1)])
+    length = last + 1 - s  # points in the run
     s3 = s + n
-    length = next_out[rv, s3] - s3  # points in the run
     a, b = (s - 1) % n, (s + length) % n
-    edges = np.linalg.norm(np.roll(pts, -1, axis=1) - pts, axis=-1)  # (V, n) edge i -> i + 1
-    cum = np.concatenate([np.zeros((v, 1)), np.cumsum(np.tile(edges, 3), axis=1)], axis=1)
-    arc = cum[rv, s3 + length] - cum[rv, s3 - 1]  # edges a -> first, ..., last -> b
+    lx = np.roll(pts_u[..., 0], -1, axis=1) - pts_u[..., 0]
+    ly = np.roll(pts_u[..., 1], -1, axis=1) - pts_u[..., 1]
+    edges = np.sqrt(lx * lx + ly * ly)  # (U, n) edge i -> i + 1
+    cum = np.concatenate([np.zeros((used.size, 1)), np.cumsum(np.tile(edges, 3), axis=1)], axis=1)
+    arc = cum[u, s3 + length] - cum[u, s3 - 1]  # edges a -> first, ..., last -> b
     chord = np.linalg.norm(pts[rv, b] - pts[rv, a], axis=-1)
+    tol = 1e-9 * (arc + 1.0)
+    # the loop tests first; the nearest reconstructed vertices only for the runs that pass them
+    ok = (arc + tol > settings.ratio * chord) & (arc - chord + tol > settings.extra * scales[rv])
+    sel = np.flatnonzero(ok)
+    rv, s, a, b, length = rv[sel], s[sel], a[sel], b[sel], length[sel]
     near = (np.arange(-(n // 4), n // 4 + 1))[None, :]
 
     def nearest(i):  # _nearest_vertex of pts[rv, i] among rec[rv] within n // 4 of i
@@ -230,10 +260,12 @@ def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: 
                                                   axis=1)]
 
     span = (nearest(b) - nearest(a)) % n
-    tol = 1e-9 * (arc + 1.0)
-    ok = ((span <= n // 2) & ((length + 1) - span >= 2) & (arc + tol > settings.ratio * chord)
-          & (arc - chord + tol > settings.extra * scales[rv]))
-    return np.union1d(np.unique(rv[ok]), np.flatnonzero(whole))
+    ok = (span <= n // 2) & ((length + 1) - span >= 2)
+    out: dict = {}
+    for j, start in zip(rv[ok].tolist(), s[ok].tolist()):
+        out.setdefault(j, set()).add(start)
+    out.update({int(j): None for j in np.flatnonzero(whole)})
+    return dict(sorted(out.items()))
 
 
 def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
@@ -252,8 +284,8 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     if ov.rows.size == 0:
         return ov.contours, ov.changed
     far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
-    for j in _candidate_views(ov.points, ov.recon, far, ov.scales, settings):
-        trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings)
+    for j, starts in _candidate_views(ov.points, ov.recon, far, ov.scales, settings).items():
+        trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings, starts)
         if trimmed is not None:
             ov.set(j, trimmed)
     return ov.contours, ov.changed

@@ -12,7 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ObservedViews", "observed_views"]
+__all__ = ["ObservedViews", "observed_views", "view_scales"]
+
+#: views from which :func:`view_scales` sums point by point (fewer: numpy's formula, one call per step)
+_LOOP_VIEWS = 64
 
 
 @dataclass
@@ -55,7 +58,28 @@ def observed_views(contours_px: np.ndarray, recon_px: np.ndarray, present: np.nd
     present = np.asarray(present, dtype=bool)
     usable = present & np.isfinite(rec).all(axis=(2, 3)) & np.isfinite(c).all(axis=(2, 3))
     rows, views = np.nonzero(usable)
-    pts, polys = c[rows, views], rec[rows, views]
-    centred = pts - pts.mean(axis=1, keepdims=True)
-    scales = np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1)) if rows.size else np.zeros(0)
-    return ObservedViews(c.copy(), np.zeros(present.shape, dtype=bool), rows, views, pts, polys, scales)
+    if rows.size == usable.size:  # every view: views of the arrays, no copies
+        pts, polys = c.reshape(-1, *c.shape[2:]), rec.reshape(-1, *rec.shape[2:])
+    else:
+        pts, polys = c[rows, views], rec[rows, views]
+    return ObservedViews(c.copy(), np.zeros(present.shape, dtype=bool), rows, views, pts, polys, view_scales(pts))
+
+
+def view_scales(points: np.ndarray) -> np.ndarray:
+    """(V,) RMS distance of each view's points (V, n, 2) from their centroid, px (docs/conventions.md, "Contours").
+
+    The arithmetic of ``sqrt(mean(sum((p - p.mean(axis=1)) ** 2, axis=-1), axis=1))``, bit for bit: the centroid is
+    the same sequential sum over the points, the squares are summed per coordinate, without numpy's reductions over
+    an axis of 2 (which dominated the repairs' cost on large batches).
+    """
+    v, n = points.shape[:2]
+    if v < _LOOP_VIEWS or n == 0:  # few views: the numpy formula itself (the loop's 2n calls would cost more)
+        centred = points - points.mean(axis=1, keepdims=True)
+        return np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1)) if v else np.zeros(0)
+    x, y = points[..., 0], points[..., 1]
+    sx, sy = x[:, 0].copy(), y[:, 0].copy()
+    for i in range(1, n):  # np.mean over axis 1 of (V, n, 2) adds the points in order, as here
+        sx += x[:, i]
+        sy += y[:, i]
+    cx, cy = x - (sx / n)[:, None], y - (sy / n)[:, None]
+    return np.sqrt(np.mean(cx * cx + cy * cy, axis=1))

@@ -53,12 +53,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .observed_views import observed_views
+from .median import median_last
 
 __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "resample_by_index", "reindex_contours"]
 
-#: views per block of :func:`index_offsets` in :func:`reindex_contours` (a block holds n x (2w + 1) x 2 floats
-#: per view: 256 views of 200 points, w = 8, take 14 MB)
+#: views per block of :func:`fit_slides` in :func:`reindex_contours`
 _BLOCK_VIEWS = 256
+#: views per block of :func:`index_offsets` (one shift at a time: a few (views, n) arrays)
+_MATCH_VIEWS = 4096
+#: views from which :func:`index_offsets` goes one shift at a time (fewer: all 2w + 1 shifts in one gather)
+_SHIFT_VIEWS = 64
 
 
 @dataclass(frozen=True)
@@ -106,13 +110,27 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
     o = np.asarray(observed, dtype=np.float64)
     r = np.asarray(recon, dtype=np.float64)
     n = o.shape[-2]
-    shifts = np.arange(-window, window + 1)
-    idx = (np.arange(n)[:, None] + shifts[None, :]) % n  # (n, 2w+1)
-    dx = o[:, :, None, 0] - r[:, idx, 0]  # (V, n, 2w+1), coordinates apart: no reductions over an axis of 2
-    dy = o[:, :, None, 1] - r[:, idx, 1]
-    dist = np.sqrt(dx * dx + dy * dy)
-    best = dist.argmin(axis=-1)
-    return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
+    if len(o) < _SHIFT_VIEWS:  # few views: every candidate at once, (V, n, 2w + 1) (one call per step)
+        shifts = np.arange(-window, window + 1)
+        idx = (np.arange(n)[:, None] + shifts[None, :]) % n  # (n, 2w+1)
+        dx = o[:, :, None, 0] - r[:, idx, 0]
+        dy = o[:, :, None, 1] - r[:, idx, 1]
+        dist = np.sqrt(dx * dx + dy * dy)
+        best = dist.argmin(axis=-1)
+        return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
+    ox, oy, rx, ry = o[..., 0], o[..., 1], r[..., 0], r[..., 1]  # coordinates apart: no reductions over an axis of 2
+    best_d = best_k = None
+    for k in range(-window, window + 1):  # reconstructed point i + k for every i; the first nearest kept (argmin)
+        dx = ox - np.roll(rx, -k, axis=-1)
+        dy = oy - np.roll(ry, -k, axis=-1)
+        dist = np.sqrt(dx * dx + dy * dy)
+        if best_d is None:
+            best_d, best_k = dist, np.full(dist.shape, k)
+        else:
+            closer = dist < best_d
+            best_d = np.where(closer, dist, best_d)
+            best_k[closer] = k
+    return best_k, best_d
 
 
 def _basis(n: int, harmonics: int) -> np.ndarray:
@@ -183,7 +201,7 @@ def fit_slides(offsets: np.ndarray, distances: np.ndarray, sigma_px: np.ndarray,
         rhs = (w2 * d[live]) @ A
         coef[live] = np.linalg.solve(G, rhs[..., None])[..., 0]
         resid = d - coef @ A.T
-        spread = 1.4826 * np.median(np.abs(resid), axis=1) + 0.5
+        spread = 1.4826 * median_last(np.abs(resid)) + 0.5
         w = prior * (np.abs(resid) < 3.0 * spread[:, None])
     coef[dead] = 0.0
     resid = d - coef @ A.T
@@ -219,13 +237,19 @@ def reindex_contours(contours_px: np.ndarray, recon_px: np.ndarray, present: np.
     n = ov.contours.shape[2]
     window = settings.window_points(n)
     gate = settings.min_chi2_per_point * n
+    # the matches of every view (element-wise per view: in large blocks), then the fits in blocks of _BLOCK_VIEWS
+    all_offsets = np.empty(ov.points.shape[:2], dtype=np.int64)
+    all_distances = np.empty(ov.points.shape[:2])
+    for start in range(0, ov.rows.size, _MATCH_VIEWS):
+        block = slice(start, start + _MATCH_VIEWS)
+        all_offsets[block], all_distances[block] = index_offsets(ov.points[block], ov.recon[block], window)
     for start in range(0, ov.rows.size, _BLOCK_VIEWS):
         block = slice(start, start + _BLOCK_VIEWS)
         scales = ov.scales[block]
         usable = np.flatnonzero(scales > 0)
         if usable.size == 0:
             continue
-        offsets, distances = index_offsets(ov.points[block][usable], ov.recon[block][usable], window)
+        offsets, distances = all_offsets[start + usable], all_distances[start + usable]
         slides, chi2 = fit_slides(offsets, distances, settings.sigma * scales[usable], int(settings.harmonics),
                                   settings.offset_floor * n)
         for u in np.flatnonzero(chi2 > gate):

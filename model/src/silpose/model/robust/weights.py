@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .excursions import ExcursionSettings
+from .median import median_last
 from .reindex import ReindexSettings
 
 __all__ = ["RobustSettings", "NOISE_LEVELS", "frame_noise_variance", "point_weights", "snap_correspondences"]
@@ -114,10 +115,20 @@ def frame_noise_variance(observed_norm: np.ndarray, recon_norm: np.ndarray, pres
     observed_norm, recon_norm: (N, K, n, 2) normalised observed contours and their reconstruction;
     present: (N, K) bool; s2: the model's noise variance (the lowest level).
     """
-    r = np.linalg.norm(np.asarray(observed_norm) - np.asarray(recon_norm), axis=-1)  # (N, K, n)
-    r = np.where(np.asarray(present, dtype=bool)[..., None], r, np.nan).reshape(len(r), -1)
+    o, c = np.asarray(observed_norm), np.asarray(recon_norm)
+    dx, dy = o[..., 0] - c[..., 0], o[..., 1] - c[..., 1]  # coordinates apart: no reductions over an axis of 2
+    r = np.sqrt(dx * dx + dy * dy).reshape(len(o), -1)  # (N, K n)
+    present = np.asarray(present, dtype=bool)
+    full = present.all(axis=1)
+    med = np.full(len(r), np.nan)
+    if full.any():  # np.nanmedian of a row without NaN is its np.median (median_last, bit for bit)
+        med[full] = median_last(r if full.all() else r[full])
+    redo = ~full | np.isnan(med)  # absent views (NaN) or NaN residuals: np.nanmedian itself
+    if redo.any():
+        rr = np.where(np.repeat(present[redo], o.shape[2], axis=1), r[redo], np.nan)
+        med[redo] = np.nanmedian(rr, axis=1)
     with np.errstate(invalid="ignore"):
-        sigma2 = (1.4826 * np.nanmedian(r, axis=1)) ** 2 / 2.0
+        sigma2 = (1.4826 * med) ** 2 / 2.0
     levels = float(s2) * NOISE_LEVELS if s2 > 0 else NOISE_LEVELS * 1e-3
     want = np.log(np.maximum(np.nan_to_num(noise_scale * sigma2, nan=levels[0]), levels[0]))
     return levels[np.argmin(np.abs(want[:, None] - np.log(levels)[None, :]), axis=1)]
@@ -135,23 +146,6 @@ def point_weights(residual_px: np.ndarray, threshold: float = 3.0, scale_floor_p
         z = r / (threshold * np.maximum(s, 1e-12))
         u = np.where(z < 1.0, (1.0 - z * z) ** 2, 0.0)
     return np.where(np.isfinite(u), u, 0.0)
-
-
-def median_last(values: np.ndarray) -> np.ndarray:
-    """``np.median(values, axis=-1)`` (NaN where a row holds NaN), bit for bit, by one partition: the same middle
-    element(s) and the same mean of the two for even n, without np.median's generic reduction machinery (it
-    dominated a single frame's reweighting pass)."""
-    v = np.asarray(values, dtype=np.float64)
-    n = v.shape[-1]
-    if n == 0:
-        return np.full(v.shape[:-1], np.nan)
-    k = n // 2
-    if n % 2:
-        med = np.partition(v, k, axis=-1)[..., k]
-    else:
-        part = np.partition(v, (k - 1, k), axis=-1)
-        med = (part[..., k - 1] + part[..., k]) / 2.0
-    return np.where(np.isnan(v).any(axis=-1), np.nan, med)
 
 
 def snap_correspondences(observed_px: np.ndarray, recon_px: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
