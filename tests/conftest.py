@@ -3,19 +3,30 @@
 import pytest
 
 
-@pytest.fixture
-def local_ray(monkeypatch):
-    """A local Ray instance with 2 CPUs for the test (skipped when ray is not installed)."""
+def pytest_collection_modifyitems(config, items):
+    """The tests that use a local Ray instance run last, one after the other, so they share one instance
+    (starting Ray costs ~8 s on 2 cores; see ``local_ray``). Their order among themselves is kept."""
+    ray_tests = [it for it in items if "local_ray" in getattr(it, "fixturenames", ())]
+    if ray_tests:
+        items[:] = [it for it in items if "local_ray" not in getattr(it, "fixturenames", ())] + ray_tests
+
+
+@pytest.fixture(scope="session")
+def local_ray():
+    """A local Ray instance with 2 CPUs, shared by the session's Ray tests (run last, together:
+    ``pytest_collection_modifyitems``); skipped when ray is not installed. silpose's Ray executors use a
+    running instance when there is one (``ray.is_initialized``)."""
     # Under `uv run pytest`, Ray would start every worker with `uv run` (a re-synced environment per
     # worker; see silpose.datagen.executor.run_ray and silpose.model.streaming.start_ray).
-    monkeypatch.setenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
-    ray = pytest.importorskip("ray")
-    from ray._private import ray_constants
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
+        ray = pytest.importorskip("ray")
+        from ray._private import ray_constants
 
-    monkeypatch.setattr(ray_constants, "RAY_ENABLE_UV_RUN_RUNTIME_ENV", False)  # if ray was imported earlier
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
+        mp.setattr(ray_constants, "RAY_ENABLE_UV_RUN_RUNTIME_ENV", False)  # if ray was imported earlier
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        yield ray
+        ray.shutdown()
 
 
 def _write_v1_shard(path, records: list[dict], metadata: dict) -> None:
