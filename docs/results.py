@@ -227,30 +227,41 @@ def group_section(reports: dict[str, dict | None]) -> list[str]:
     return out
 
 
+def curve_table(path: Path) -> list[str]:
+    """One ``learning_curve.json`` (``python -m silpose.eval.learning_curve``) as an N x M table of the
+    error with every view / one view (cm); [] when it cannot be read or has no rows."""
+    try:
+        rows = json.loads(path.read_text(encoding="utf-8")).get("rows", [])
+    except (OSError, ValueError):
+        return []
+    if not rows:
+        return []
+    ms = sorted({r["n_components"] for r in rows})
+    ns = sorted({r["n_samples"] for r in rows})
+    out = ["| training samples \\ components | " + " | ".join(str(m) for m in ms) + " |", "|---|" + "---|" * len(ms)]
+    for n in ns:
+        cells = []
+        for m in ms:
+            r = next((r for r in rows if r["n_samples"] == n and r["n_components"] == m), None)
+            cells.append("–" if r is None else f"{r['pose_all_views_cm']:.2f} / {r['pose_1_view_cm']:.2f}")
+        out.append(f"| {n:,} | " + " | ".join(cells) + " |")
+    return out
+
+
 def learning_curve_section(reports_dir: Path) -> list[str]:
-    """Every ``<reports>/<name>/learning_curve.json`` (``python -m silpose.eval.learning_curve``) as a table."""
+    """Every ``<reports>/<name>/learning_curve.json`` as a table, with its settings."""
     out = []
     for path in sorted(reports_dir.glob("*/learning_curve.json")):
-        try:
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
+        table = curve_table(path)
+        if not table:
             continue
-        rows = data.get("rows", [])
-        if not rows:
-            continue
-        ms = sorted({r["n_components"] for r in rows})
-        ns = sorted({r["n_samples"] for r in rows})
-        st = data.get("settings", {})
-        out += [f"### `{path.parent.name}` (data `{st.get('data', '?')}`, q {rows[0].get('n_latent', '?')}, "
-                f"{rows[0].get('n_test', '?')} test samples): every view / one view, cm", "",
-                "| N \\ M | " + " | ".join(str(m) for m in ms) + " |", "|---|" + "---|" * len(ms)]
-        for n in ns:
-            cells = []
-            for m in ms:
-                r = next((r for r in rows if r["n_samples"] == n and r["n_components"] == m), None)
-                cells.append("–" if r is None else f"{r['pose_all_views_cm']:.2f} / {r['pose_1_view_cm']:.2f}")
-            out.append(f"| {n} | " + " | ".join(cells) + " |")
-        out.append("")
+        data = json.loads(path.read_text(encoding="utf-8"))
+        st, first = data.get("settings", {}), data["rows"][0]
+        out += [f"### `{path.parent.name}` (data `{st.get('data', '?')}`, q {first.get('n_latent', '?')}, "
+                f"{first.get('n_test', '?')} test samples): every view / one view, cm", ""] + table
+        fits = ", ".join(f"N {r['n_samples']:,} M {r['n_components']}: {r['fit_s']:.0f} s"
+                         for r in data["rows"])
+        out += ["", f"Fit times (streaming EM, wall, shared machine): {fits}.", ""]
     return out
 
 
@@ -304,6 +315,9 @@ def main(argv=None) -> None:
     readme = args.readme.read_text(encoding="utf-8")
     readme = replace_block(readme, "results", results_table(reports, README_ROWS))
     readme = replace_block(readme, "formats", formats_table())
+    curve = curve_table(args.reports / "motions" / "learning_curve.json")
+    readme = replace_block(readme, "curve", "\n".join(curve) if curve else
+                           "(not measured: `python -m silpose.eval.learning_curve data/motions` writes it)")
     write_text_atomic(args.readme, readme)
     print(f"wrote {args.out} and the tables of {args.readme}")
 

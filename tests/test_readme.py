@@ -64,3 +64,23 @@ def test_results_come_from_the_report(tmp_path):
     block = readme.read_text().split("<!-- results:start -->")[1].split("<!-- results:end -->")[0]
     assert "| 4.12 / 3.12 / 2.12 / 1.12 | not measured | 3 / – / – / 15 |" in block
     assert "| 27.9 | not measured | 29 |" in block
+
+
+def test_learning_curve_block_comes_from_the_motions_report(tmp_path):
+    mod = _results_module()
+    reports = tmp_path / "reports"
+    (reports / "motions").mkdir(parents=True)
+    rows = [{"n_samples": n, "n_components": m, "n_latent": 30, "pose_all_views_cm": n / 1000 + m / 100,
+             "pose_1_view_cm": 2 * (n / 1000 + m / 100), "fit_s": 1.0, "n_test": 7}
+            for n in (4000, 16000) for m in (15, 60) if (n, m) != (16000, 15)]
+    (reports / "motions" / "learning_curve.json").write_text(json.dumps({"settings": {}, "rows": rows}))
+    readme = tmp_path / "README.md"
+    shutil.copy(README, readme)
+    mod.main(["--reports", str(reports), "--out", str(tmp_path / "r.md"), "--readme", str(readme)])
+    block = readme.read_text().split("<!-- curve:start -->")[1].split("<!-- curve:end -->")[0]
+    assert "| 15 | 60 |" in block
+    assert "| 4,000 | 4.15 / 8.30 | 4.60 / 9.20 |" in block
+    assert "| 16,000 | – | 16.60 / 33.20 |" in block  # a point not measured
+    assert "N 16,000 M 60: 1 s" in (tmp_path / "r.md").read_text()
+    mod.main(["--reports", str(tmp_path / "none"), "--out", str(tmp_path / "r.md"), "--readme", str(readme)])
+    assert "not measured" in readme.read_text().split("<!-- curve:start -->")[1].split("<!-- curve:end -->")[0]
