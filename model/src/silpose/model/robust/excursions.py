@@ -93,7 +93,9 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     Only points farther than the limit from their index-corresponding vertex can be (the distance to the
     polygon is at most that); for those, the edges within ``n // 4`` indices are searched (an index shift of
     a quarter of the outline is beyond any excursion we trim; a point whose nearest edge is farther along
-    counts as far, which can only lengthen a run that is already one).
+    counts as far, which can only lengthen a run that is already one). The polygon's vertices and edge vectors
+    are laid out once as flat (V n,) arrays, so the edges a point is compared with are read by one ``np.take`` of
+    flat indices per quantity (:class:`_Edges`; the arithmetic of :func:`_segment_distance`, bit for bit).
     """
     v, n = points.shape[:2]
     limit = np.asarray(limit, dtype=np.float64)[:, None]
@@ -103,48 +105,68 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     views, idx = np.nonzero(maybe)
     if views.size == 0:
         return far
+    edges = _Edges(polygon)
+    px_all, py_all = points[..., 0].reshape(-1), points[..., 1].reshape(-1)
     w = max(n // 4, 1)
     # the edges next to the point first: one within the limit settles it (not far) without the others
     near = np.arange(-min(_NEAR_EDGES, w), min(_NEAR_EDGES, w) + 1)
     for s in range(0, views.size, 4096):
         vv, ii = views[s:s + 4096], idx[s:s + 4096]
-        j = (ii[:, None] + near[None, :]) % n
-        d = _segment_distance(points[vv, ii][:, None, :], polygon[vv[:, None], j], polygon[vv[:, None], (j + 1) % n])
+        at = vv * n + ii
+        flat = vv[:, None] * n + (ii[:, None] + near[None, :]) % n
+        d = edges.distance(px_all.take(at)[:, None], py_all.take(at)[:, None], flat)
         far[vv, ii] = d.min(axis=1) > limit[vv, 0]
     views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
     if views.size == 0:
         return far
-    offsets = np.arange(-w, w + 1)
-    # edge j -> j + 1 of the views still in question (V', n)
-    used, slot = np.unique(views, return_inverse=True)
-    poly_u = polygon[used]
-    lx = np.roll(poly_u[..., 0], -1, axis=1) - poly_u[..., 0]
-    ly = np.roll(poly_u[..., 1], -1, axis=1) - poly_u[..., 1]
-    edge_len = np.sqrt(lx * lx + ly * ly)
-    slot = slot.reshape(-1)
+    offsets = np.arange(-w, w + 2)  # the starts of edges -w .. w, and the end of edge w
     for s in range(0, views.size, 4096):
-        vv, ii, uu = views[s:s + 4096], idx[s:s + 4096], slot[s:s + 4096]
-        j = (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 1) edges searched
-        p = points[vv, ii][:, None, :]
+        vv, ii = views[s:s + 4096], idx[s:s + 4096]
+        flat = vv[:, None] * n + (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 2)
+        at = vv * n + ii
+        px, py = px_all.take(at)[:, None], py_all.take(at)[:, None]
         # a point of edge j is within half its length of one of its ends: edges whose nearer end is farther than
         # the limit plus half their length (with a margin for rounding) cannot bring the point within the limit
-        gx = poly_u[uu[:, None], j, 0] - p[..., 0]
-        gy = poly_u[uu[:, None], j, 1] - p[..., 1]
-        dv = np.sqrt(gx * gx + gy * gy)  # (P, 2w + 1) to each edge's start
-        nearer = np.minimum(dv, np.roll(dv, -1, axis=1))
-        nearer[:, -1] = np.minimum(dv[:, -1], np.linalg.norm(polygon[vv, (j[:, -1] + 1) % n] - p[:, 0], axis=-1))
+        gx = edges.x.take(flat) - px
+        gy = edges.y.take(flat) - py
+        dv = np.sqrt(gx * gx + gy * gy)  # (P, 2w + 2) to each edge's start (the last: edge w's end)
+        nearer = np.minimum(dv[:, :-1], dv[:, 1:])
+        flat = flat[:, :-1]
         lim = limit[vv]
-        check = nearer - 0.5 * edge_len[uu[:, None], j] <= lim * (1.0 + 1e-9) + 1e-12
+        check = nearer - 0.5 * edges.length.take(flat) <= lim * (1.0 + 1e-9) + 1e-12
         pi, ej = np.nonzero(check)
         if pi.size == 0:
             far[vv, ii] = True
             continue
-        jj = j[pi, ej]
-        d = _segment_distance(p[pi, 0], polygon[vv[pi], jj], polygon[vv[pi], (jj + 1) % n])
+        d = edges.distance(px[pi, 0], py[pi, 0], flat[pi, ej])
         within = np.zeros(vv.size, dtype=bool)
         within[pi[d <= lim[pi, 0]]] = True
         far[vv, ii] = ~within
     return far
+
+
+class _Edges:
+    """The edges j -> j + 1 of V closed polygons (V, n, 2) as flat (V n,) arrays: start ``x``, ``y``, vector ``ex``,
+    ``ey``, squared length ``e2`` (floored at 1e-12 as in :func:`_segment_distance`) and ``length``."""
+
+    def __init__(self, polygon: np.ndarray) -> None:
+        x, y = polygon[..., 0], polygon[..., 1]
+        self.x, self.y = x.reshape(-1), y.reshape(-1)
+        ex = np.roll(x, -1, axis=1) - x
+        ey = np.roll(y, -1, axis=1) - y
+        sq = ex * ex + ey * ey
+        self.ex, self.ey = ex.reshape(-1), ey.reshape(-1)
+        self.length = np.sqrt(sq).reshape(-1)
+        self.e2 = np.maximum(sq, 1e-12).reshape(-1)
+
+    def distance(self, px: np.ndarray, py: np.ndarray, flat: np.ndarray) -> np.ndarray:
+        """Distance of points (px, py) (broadcast against ``flat``) to the edges of flat indices ``flat``: the
+        arithmetic of :func:`_segment_distance`."""
+        abx, aby = self.ex.take(flat), self.ey.take(flat)
+        apx, apy = px - self.x.take(flat), py - self.y.take(flat)
+        t = np.clip((apx * abx + apy * aby) / self.e2.take(flat), 0.0, 1.0)
+        dx, dy = apx - t * abx, apy - t * aby
+        return np.sqrt(dx * dx + dy * dy)
 
 
 def excursion_runs(flags: np.ndarray) -> list[np.ndarray]:
