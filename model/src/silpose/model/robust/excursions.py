@@ -39,12 +39,14 @@ import numpy as np
 
 from .observed_views import observed_views
 
-__all__ = ["ExcursionSettings", "point_to_polygon_distance", "excursion_runs", "trim_excursions"]
+__all__ = ["ExcursionSettings", "point_to_polygon_distance", "far_points", "excursion_runs", "trim_excursions"]
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
-#: edges either side of a point's own index that :func:`_far_points` tries before all within n // 4
-_NEAR_EDGES = 4
+#: edges either side of a point's own index that :func:`far_points` tries, stage by stage, before all within n // 4
+_STAGES = (4, 12)
+#: points per block of :func:`_near_any` (a block holds a few (points, edges) arrays)
+_POINTS = 4096
 
 
 @dataclass(frozen=True)
@@ -87,15 +89,16 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return np.sqrt(dx * dx + dy * dy)
 
 
-def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
+def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """(V, n) bool: points (V, n, 2) farther than ``limit`` (V,) px from the closed polygon (V, n, 2).
 
     Only points farther than the limit from their index-corresponding vertex can be (the distance to the
     polygon is at most that); for those, the edges within ``n // 4`` indices are searched (an index shift of
     a quarter of the outline is beyond any excursion we trim; a point whose nearest edge is farther along
-    counts as far, which can only lengthen a run that is already one). The polygon's vertices and edge vectors
-    are laid out once as flat (V n,) arrays, so the edges a point is compared with are read by one ``np.take`` of
-    flat indices per quantity (:class:`_Edges`; the arithmetic of :func:`_segment_distance`, bit for bit).
+    counts as far, which can only lengthen a run that is already one): a point is far when every one of those
+    edges is farther than the limit (:func:`_segment_distance`). The search widens in stages (:data:`_STAGES`
+    edges either side, then all within n // 4), each on the points the stage before left in question, and a
+    stage settles a point by a vertex first (:func:`_near_any`).
     """
     v, n = points.shape[:2]
     limit = np.asarray(limit, dtype=np.float64)[:, None]
@@ -103,70 +106,54 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     maybe = np.sqrt(ex * ex + ey * ey) > limit
     far = np.zeros((v, n), dtype=bool)
     views, idx = np.nonzero(maybe)
-    if views.size == 0:
-        return far
-    edges = _Edges(polygon)
-    px_all, py_all = points[..., 0].reshape(-1), points[..., 1].reshape(-1)
     w = max(n // 4, 1)
-    # the edges next to the point first: one within the limit settles it (not far) without the others
-    near = np.arange(-min(_NEAR_EDGES, w), min(_NEAR_EDGES, w) + 1)
-    for s in range(0, views.size, 4096):
-        vv, ii = views[s:s + 4096], idx[s:s + 4096]
-        at = vv * n + ii
-        flat = vv[:, None] * n + (ii[:, None] + near[None, :]) % n
-        d = edges.distance(px_all.take(at)[:, None], py_all.take(at)[:, None], flat)
-        far[vv, ii] = d.min(axis=1) > limit[vv, 0]
-    views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
-    if views.size == 0:
-        return far
-    offsets = np.arange(-w, w + 2)  # the starts of edges -w .. w, and the end of edge w
-    for s in range(0, views.size, 4096):
-        vv, ii = views[s:s + 4096], idx[s:s + 4096]
-        flat = vv[:, None] * n + (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 2)
-        at = vv * n + ii
-        px, py = px_all.take(at)[:, None], py_all.take(at)[:, None]
-        # a point of edge j is within half its length of one of its ends: edges whose nearer end is farther than
-        # the limit plus half their length (with a margin for rounding) cannot bring the point within the limit
-        gx = edges.x.take(flat) - px
-        gy = edges.y.take(flat) - py
-        dv = np.sqrt(gx * gx + gy * gy)  # (P, 2w + 2) to each edge's start (the last: edge w's end)
-        nearer = np.minimum(dv[:, :-1], dv[:, 1:])
-        flat = flat[:, :-1]
-        lim = limit[vv]
-        check = nearer - 0.5 * edges.length.take(flat) <= lim * (1.0 + 1e-9) + 1e-12
-        pi, ej = np.nonzero(check)
-        if pi.size == 0:
-            far[vv, ii] = True
-            continue
-        d = edges.distance(px[pi, 0], py[pi, 0], flat[pi, ej])
-        within = np.zeros(vv.size, dtype=bool)
-        within[pi[d <= lim[pi, 0]]] = True
-        far[vv, ii] = ~within
+    for reach in [min(r, w) for r in _STAGES if r < w] + [w]:
+        if views.size == 0:
+            break
+        offsets = np.arange(-reach, reach + 1)
+        within = np.zeros(views.size, dtype=bool)
+        for s in range(0, views.size, _POINTS):
+            sl = slice(s, s + _POINTS)
+            within[sl] = _near_any(points, polygon, limit[:, 0], views[sl], idx[sl], offsets)
+        views, idx = views[~within], idx[~within]  # still in question: the next stage's
+    far[views, idx] = True
     return far
 
 
-class _Edges:
-    """The edges j -> j + 1 of V closed polygons (V, n, 2) as flat (V n,) arrays: start ``x``, ``y``, vector ``ex``,
-    ``ey``, squared length ``e2`` (floored at 1e-12 as in :func:`_segment_distance`) and ``length``."""
+def _near_any(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray, vv: np.ndarray, ii: np.ndarray,
+              offsets: np.ndarray) -> np.ndarray:
+    """(P,) bool: point ``ii`` of view ``vv`` (P,) of ``points`` (V, n, 2) is within ``limit`` (V,) px of one of the
+    edges ``ii + offsets`` (cyclic) of ``polygon`` (V, n, 2) by :func:`_segment_distance`.
 
-    def __init__(self, polygon: np.ndarray) -> None:
-        x, y = polygon[..., 0], polygon[..., 1]
-        self.x, self.y = x.reshape(-1), y.reshape(-1)
-        ex = np.roll(x, -1, axis=1) - x
-        ey = np.roll(y, -1, axis=1) - y
-        sq = ex * ex + ey * ey
-        self.ex, self.ey = ex.reshape(-1), ey.reshape(-1)
-        self.length = np.sqrt(sq).reshape(-1)
-        self.e2 = np.maximum(sq, 1e-12).reshape(-1)
-
-    def distance(self, px: np.ndarray, py: np.ndarray, flat: np.ndarray) -> np.ndarray:
-        """Distance of points (px, py) (broadcast against ``flat``) to the edges of flat indices ``flat``: the
-        arithmetic of :func:`_segment_distance`."""
-        abx, aby = self.ex.take(flat), self.ey.take(flat)
-        apx, apy = px - self.x.take(flat), py - self.y.take(flat)
-        t = np.clip((apx * abx + apy * aby) / self.e2.take(flat), 0.0, 1.0)
-        dx, dy = apx - t * abx, apy - t * aby
-        return np.sqrt(dx * dx + dy * dy)
+    A vertex within ``limit (1 - 1e-9)`` settles it (an edge from that vertex is nearer, rounding aside: a margin far
+    above it); otherwise only the edges whose nearer end is within the limit plus half their length (a point of an
+    edge is within half its length of one of its ends; with a margin for rounding) are measured.
+    """
+    n = points.shape[1]
+    j = (ii[:, None] + np.r_[offsets, offsets[-1] + 1][None, :]) % n  # (P, E + 1) edge starts, then the last end
+    p = points[vv, ii]  # (P, 2)
+    vx = polygon[vv[:, None], j, 0]
+    vy = polygon[vv[:, None], j, 1]
+    gx, gy = vx - p[:, 0, None], vy - p[:, 1, None]
+    d2 = gx * gx + gy * gy  # (P, E + 1) squared distances to the vertices
+    lim = limit[vv]
+    inner = lim * (1.0 - 1e-9)
+    within = d2.min(axis=1) <= inner * inner
+    rest = np.flatnonzero(~within)
+    if rest.size == 0:
+        return within
+    dv = np.sqrt(d2[rest])
+    nearer = np.minimum(dv[:, :-1], dv[:, 1:])
+    ax, ay, bx, by = vx[rest, :-1], vy[rest, :-1], vx[rest, 1:], vy[rest, 1:]
+    lx, ly = bx - ax, by - ay
+    check = nearer - 0.5 * np.sqrt(lx * lx + ly * ly) <= lim[rest, None] * (1.0 + 1e-9) + 1e-12
+    pi, ej = np.nonzero(check)
+    if pi.size:
+        a = np.stack([ax[pi, ej], ay[pi, ej]], axis=-1)
+        b = np.stack([bx[pi, ej], by[pi, ej]], axis=-1)
+        d = _segment_distance(p[rest[pi]], a, b)
+        within[rest[pi[d <= lim[rest[pi]]]]] = True
+    return within
 
 
 def excursion_runs(flags: np.ndarray) -> list[np.ndarray]:
@@ -305,7 +292,7 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     ov = observed_views(contours_px, recon_px, present)
     if ov.rows.size == 0:
         return ov.contours, ov.changed
-    far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
+    far = far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
     for j, starts in _candidate_views(ov.points, ov.recon, far, ov.scales, settings).items():
         trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings, starts)
         if trimmed is not None:

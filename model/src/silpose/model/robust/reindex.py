@@ -61,7 +61,7 @@ __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "solve
 #: views per block of :func:`fit_slides` in :func:`reindex_contours`
 _BLOCK_VIEWS = 256
 #: views per block of :func:`index_offsets` (one shift at a time: a few (views, n) arrays that stay in cache)
-_MATCH_VIEWS = 512
+_MATCH_VIEWS = 256
 #: views from which :func:`index_offsets` goes one shift at a time (fewer: all 2w + 1 shifts in one gather)
 _SHIFT_VIEWS = 64
 
@@ -121,7 +121,9 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
         return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
     # coordinates apart (no reductions over an axis of 2), the reconstruction padded by ``window`` points either side
     # so that shift k is the slice [window + k, window + k + n) (np.roll's values without its copies), in blocks of
-    # _MATCH_VIEWS views that stay in cache; the first nearest shift is kept (argmin)
+    # _MATCH_VIEWS views that stay in cache; the first nearest shift is kept (argmin), compared by squared distance
+    # (the square root is monotonic: the same shift unless two squares 1 ulp apart round to one root), the root
+    # taken once at the end
     best_k = np.empty(o.shape[:2], dtype=np.int64)
     best_d = np.empty(o.shape[:2])
     for s in range(0, len(o), _MATCH_VIEWS):
@@ -130,7 +132,7 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
         rx = np.concatenate([r[s:s + b, n - window:, 0], r[s:s + b, :, 0], r[s:s + b, :window, 0]], axis=1)
         ry = np.concatenate([r[s:s + b, n - window:, 1], r[s:s + b, :, 1], r[s:s + b, :window, 1]], axis=1)
         bd, bk = best_d[s:s + b], best_k[s:s + b]
-        dx, dy, dist = np.empty((b, n)), np.empty((b, n)), np.empty((b, n))
+        dx, dy, d2 = np.empty((b, n)), np.empty((b, n)), np.empty((b, n))
         closer = np.empty((b, n), dtype=bool)
         for k in range(-window, window + 1):
             at = slice(window + k, window + k + n)
@@ -138,14 +140,14 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
             np.subtract(oy, ry[:, at], out=dy)
             np.multiply(dx, dx, out=dx)
             np.multiply(dy, dy, out=dy)
-            np.add(dx, dy, out=dist)
-            np.sqrt(dist, out=dist)
+            np.add(dx, dy, out=d2)
             if k == -window:
-                bd[...], bk[...] = dist, k
+                bd[...], bk[...] = d2, k
             else:
-                np.less(dist, bd, out=closer)
-                np.copyto(bd, dist, where=closer)
-                bk[closer] = k
+                np.less(d2, bd, out=closer)
+                np.copyto(bd, d2, where=closer)
+                np.copyto(bk, k, where=closer)
+        np.sqrt(bd, out=bd)
     return best_k, best_d
 
 
