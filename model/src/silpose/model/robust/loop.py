@@ -19,9 +19,23 @@ loops of two elements) and (views, n, 2w + 1) gathers on large batches, with the
 frames, M 5, q 30, 4 views; 2 shared cores): robust batched inference 70.0 s before these changes and 45.9 s after
 in one run at load 3 (48x and 30x the plain batched time), 34 s at load 1.5; 58-133x the BLAS floor (the floor
 itself moved 2x within one run). Its outputs on the benchmark's frames and on 3,000 corrupted frames with missing
-views are bit-identical to before. Where the rest goes (CPU profile, 5,000 frames): the passes' conditioning,
+views are bit-identical to before. Where the rest went (CPU profile, 5,000 frames): the passes' conditioning,
 gathers and scatters ~45 %, re-indexing ~20 % (the per-view 7 x 7 solves and medians of its fits), excursion
 trimming ~20 %.
+
+Since (issue "A prior that holds every motion"): a batch runs in blocks of :data:`BLOCK_FRAMES` frames whose
+(frames, d) arrays stay in cache (robust time per frame had grown ~1.5x from 1,000 to 20,000 frames); the slide
+fits solve their 7 x 7 systems by one batched Cholesky factorisation (``reindex.solve_spd``: ``np.linalg.solve``
+took 14 us a system under OpenBLAS's threading, 0.3 us here); the slide matching reads shifted slices of a padded
+copy instead of ``np.roll`` copies and compares squared distances; the far-point search of the excursions widens in
+stages (4, 12, n / 4 edges), settling a point by a vertex first. Outputs equal the previous code's to rounding (300
+test rows of the default preset, clean, standard noise and "mask strong", every view and missing views: joints
+within 4e-11 mm, contours within 4e-12 px, the same views trimmed and re-indexed). Same-run figures
+(``benchmarks.run --only inference``, 2 shared cores): full size (20,000 frames), load 8-10, robust 97.3 s -> 44.6 s
+(75x -> 47x the BLAS floor); ``--quick`` (2,000 frames), two alternating pairs at load 7, 6.9 -> 3.6 s (66x -> 37x)
+and 3.1 -> 2.3 s (50x -> 42x). Where the rest goes (2,000 frames): the passes' conditioning ~30 %, excursion
+trimming ~25 % (the far-point search of outlines the random benchmark model draws wiggly), re-indexing ~20 %, the
+weights' medians ~8 %.
 """
 
 from __future__ import annotations
