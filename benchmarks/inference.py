@@ -28,6 +28,11 @@ Robust's ratio to its floor was 58x (load 6-7) and 58-133x (load 1.5: the floor 
 0.26 s, after the plain rows 0.59 s); the same-run comparison with the previous code (20,000 frames, load 3):
 robust 70.0 -> 45.9 s, 48x -> 30x the plain time (``silpose.model.robust.loop`` doc: where the rest goes). The
 robust target (<= 30x the floor) is not met.
+
+Measured 2026-12-03 after the robust blocks, batched slide solves and staged far-point search (same-run pairs with
+the previous code, ``silpose.model.robust.loop`` doc): full size at load 8-10, robust 97.3 -> 44.6 s, 75x -> 47x
+its floor; ``--quick`` at load 7, 66x -> 37x and 50x -> 42x; single frame robust M 50 unchanged within the noise
+(8.3 / 9.4 ms in the quieter pair). Still above 30x the floor at these loads.
 """
 
 from __future__ import annotations

@@ -36,17 +36,17 @@ import pyarrow as pa
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from silpose.model.augment import Roughness, training_rows
-from silpose.model.mixing import calibrate_mixing
-from silpose.model.persistence import is_model_file, save_model
-from silpose.model.selection import is_real_em, unit_weight_loglik, view_errors
-from silpose.model.selection import select as run_selection
-from silpose.model.shape_model import (
+from silpose.model.defaults import (
     DEFAULT_N_COMPONENTS,
     DEFAULT_N_LATENT,
     DEFAULT_NOISE_VARIANCE,
     DEFAULT_STRUCTURE_WEIGHT,
-    ShapeStructureModel,
 )
+from silpose.model.mixing import calibrate_mixing
+from silpose.model.persistence import is_model_file, save_model
+from silpose.model.selection import is_real_em, unit_weight_loglik, view_errors
+from silpose.model.selection import select as run_selection
+from silpose.model.shape_model import ShapeStructureModel
 
 #: Samples per component per latent dimension below which EM does not move from its k-means start
 #: (every row is far likelier under its own component; docs/conventions.md, "Model"). Measured on the

@@ -14,6 +14,9 @@ I/O (those live in ``silpose.app``). Modules, lowest first::
     result            InferenceResult: what infer returns, its row operations (take, put, merge, nan_like)
     posterior         Posterior: conditioning on the present views, its cache of Conditioners
     checks            input checks of the shape model
+    defaults          the shape model's default hyperparameters and how they were chosen
+    fitting           what the shape model's fit entry points share: checks, layout, the mixture to fit
+    inference_options what infer adds to a posterior: plausibility, mixing, hypotheses, untangling
     robust            robust inference: per-point weights, excursions, re-indexing, the loop
     streaming         DatasetShards: a dataset's Parquet shards as EM row blocks (locally or on Ray)
     shape_model       ShapeStructureModel: fit, fit_stream, infer (paper sections 3-4)

@@ -276,3 +276,22 @@ def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarr
         factor = estimate_stature(c[:, views], [rig[v] for v in views]) / REFERENCE_STATURE
         joints = root_relative(np.asarray(joints, dtype=np.float64)) / factor[:, None, None]
     return layout.build(norm, joints)
+
+
+#: rows per block of :func:`shape_vectors_in_blocks`
+SHAPE_VECTOR_BLOCK = 4096
+
+
+def shape_vectors_in_blocks(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray,
+                            rig=None) -> np.ndarray:
+    """:func:`shape_vectors` (N, d) built :data:`SHAPE_VECTOR_BLOCK` rows at a time (every step is row-wise), so the
+    float64 temporaries of the normalisation are bounded by a block whatever N (float32 contours are converted
+    block by block)."""
+    n = len(contours_px)
+    if n <= SHAPE_VECTOR_BLOCK:
+        return shape_vectors(layout, n_rig_views, contours_px, joints, rig)
+    out = np.empty((n, layout.dim))
+    for start in range(0, n, SHAPE_VECTOR_BLOCK):
+        sl = slice(start, start + SHAPE_VECTOR_BLOCK)
+        out[sl] = shape_vectors(layout, n_rig_views, contours_px[sl], joints[sl], rig)
+    return out

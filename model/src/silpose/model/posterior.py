@@ -139,7 +139,9 @@ class Posterior:
                 cmeans = np.empty((n, M, layout.structure_dim))
             for g, pattern in enumerate(patterns):
                 rows = np.flatnonzero(inverse == g)
-                x_obs = flat[rows][:, layout.observed_mask(pattern)[: layout.contour_dim]]
+                x_obs = flat[rows]  # every view observed: no column gather
+                if not pattern.all():
+                    x_obs = x_obs[:, layout.observed_mask(pattern)[: layout.contour_dim]]
                 post = condition(pattern, float(group_s2[g]), x_obs, rows)
                 mean[rows], best[rows], var[rows] = post.reconstruction, post.best_mean, post.variance
                 resp[rows], logm[rows] = post.responsibilities, post.log_marginal

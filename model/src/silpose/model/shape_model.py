@@ -30,56 +30,22 @@ from sklearn.exceptions import NotFittedError
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.skeleton import N_JOINTS
 
-from .checks import check_contours, check_views, model_inputs
-from .features import FeatureLayout, shape_vectors
-from .hypotheses import consensus_choice, top_hypotheses
-from .mixing import Mixing, agreeing_choice, mixed_joints, vote_agreement
-from .mppca import DEFAULT_INIT_ROWS, MPPCA, pool_mixtures
-from .plausibility import PlausibilityCalibration, convex_in_every_view
+from .checks import check_contours, model_inputs
+from .defaults import DEFAULT_N_COMPONENTS, DEFAULT_N_LATENT, DEFAULT_NOISE_VARIANCE, DEFAULT_STRUCTURE_WEIGHT
+from .features import FeatureLayout, shape_vectors_in_blocks
+from .fitting import (check_hyperparameters, hyperparameter_record, joints_array, model_layout, new_mixture,
+                      selected_shards, training_arrays)
+from .inference_options import complete_result, inference_plan
+from .mixing import Mixing
+from .mppca import DEFAULT_INIT_ROWS, pool_mixtures
+from .plausibility import PlausibilityCalibration
 from .posterior import Posterior
 from .result import InferenceResult
 from .robust import RobustSettings, robust_infer
-from .shards import split_global_rows
 from .streaming import DatasetShards
-from .untangle import untangle as untangle_contours
 
 __all__ = ["ShapeStructureModel", "InferenceResult", "ModelNotFittedError"]
 
-# Defaults. History: chosen 2026-11-22 by validation joint error on the `default` preset (M 20, q 40, w 30,
-# s2 0.03 in the stature joint frame; grids in git history). Re-measured 2026-11-30 (issue 12) after the
-# training walkers were dressed like the test's (silpose.datagen.subjects) with `silpose train --select`
-# (silpose.model.selection: score = mean of the validation joint error given all views and given one view,
-# ragged validation outlines; held-out log-likelihood; only fits whose EM moves) on the default preset's
-# 1,440 fit / 360 validation samples with --roughness 1, q 20/30/40 x M 5/10/15/20 x s2 0.01/0.03/0.1, w 30:
-#   EM moves only with >= ~5 samples per component per latent dimension; the best such fit is M 10, q 30,
-#   s2 0.03 (val 3.92 cm all views / 9.60 cm one view); frozen fits score better (M 15, q 40: 3.47 / 8.46)
-#   but are their k-means partition with one PCA per cluster.
-# On the paper preset (18,000 fitted samples) M 20, q 40 moves (14, 3.5, 1.5 nats in its first iterations;
-# held-out 2.58 cm, 2,789 nats/sample). Re-measured 2026-11-30 (session 6) on the paper preset's training split:
-# 18,000 fitted, 600 held-out walkers, one EM start, tol 0.1, mean pose error cm, 4 views, clean / the standard
-# test noise with robust inference / the earlier milder noise (1 px jitter, 3 patches of 16 points at 4 px):
-#   M x q   20x40 2.58/3.67/2.75   30x50 2.34/3.41/2.48   40x40 2.40/3.35/2.54   40x50 2.33/3.35/2.48
-#           40x60 2.31/3.30/2.46   60x40 2.35/3.18/2.46   60x50 2.28/3.19/2.40   80x40 2.29/3.12/2.41
-#           100x30 2.41/3.07/2.51
-# More components help most under noise; 80 x 40 and 60 x 50 sit at or below 6 samples per component per latent
-# dimension (the rule below). M 60, q 40 (held-out 2.38 cm all views, 6.22 one view, 2,957 nats/sample; 7.59 cm
-# one view and 2,790 nats at M 20) is the default since. On the default preset's 1,800 samples no larger fit
-# moves (M 20 q 30 freezes at its k-means start; 20x20, 30x15, 40x10 move but give 4.32-5.10 cm clean against
-# 3.68 for 10x30), so `silpose train` lowers M (to 10), then q, for smaller data
-# (silpose.app.training.supported_size: >= 6 samples per component per latent dimension), which gives M 10, q 30
-# on the default preset -- the selection's choice -- and M 60, q 40 on the paper preset. Since session 7 the
-# trainer counts the mirrored people of a mirror-symmetric rig (silpose.model.augment, `silpose train --mirror`):
-# the default preset's 1,800 fitted walkers and their 1,800 mirror images give M 15, q 40 (200 held-out walkers,
-# robust, seeds 0/1/2: clean 2.77/2.90/3.12 cm, standard noise 3.82/3.83/4.32 cm, against 3.68 and 4.55 for
-# M 10, q 30 without mirrors; 20x40, 15x50 and 25x30 with mirrors were within 0.1-0.3 cm of 15x40).
-# n_fits (ShapeStructureModel): single fits on small data carry about +-10 % of joint error from their k-means start
-# alone (default preset, 200 held-out walkers, 5 seeds, standard noise, robust inference: 4.53-5.49 cm); 5 fits
-# pooled gave 4.40, clean 3.27 against 3.40-3.92.
-DEFAULT_N_COMPONENTS = 60
-DEFAULT_N_LATENT = 40
-DEFAULT_STRUCTURE_WEIGHT = 30.0
-DEFAULT_NOISE_VARIANCE = 0.03
-_FEATURE_BLOCK = 4096  # rows per block of features()
 
 
 class ModelNotFittedError(NotFittedError, RuntimeError):
@@ -167,62 +133,13 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
     def hyperparameters(self) -> dict:
         """Hyperparameters as a JSON-friendly dict (no callback, verbose or rig): what model files, training
         reports and evaluation settings record. ``get_params()`` is scikit-learn's (every constructor argument)."""
-        return {
-            "n_components": int(self.n_components),
-            "n_latent": int(self.n_latent),
-            "structure_weight": float(self.structure_weight),
-            "views": None if self.views is None else [int(v) for v in self.views],
-            "noise_variance": float(self.noise_variance),
-            "joint_frame": self.joint_frame,
-            "noise_dof": bool(self.noise_dof),
-            "tol": float(self.tol),
-            "max_iter": int(self.max_iter),
-            "n_init": int(self.n_init),
-            "n_fits": int(self.n_fits),
-            "random_state": None if self.random_state is None else int(self.random_state),
-        }
-
-    def _check_hyperparameters(self) -> None:
-        if int(self.n_components) < 1:
-            raise ValueError(f"n_components must be >= 1, got {self.n_components}")
-        if int(self.n_latent) < 1:
-            raise ValueError(f"n_latent must be >= 1, got {self.n_latent}")
-        if int(self.n_fits) < 1:
-            raise ValueError(f"n_fits must be >= 1, got {self.n_fits}")
-        if not np.isfinite(self.noise_variance) or self.noise_variance < 0:
-            raise ValueError(f"noise_variance must be finite and >= 0, got {self.noise_variance}")
-        if self.joint_frame not in (None, "metres", "stature"):
-            raise ValueError(f"joint_frame must be 'metres', 'stature' or None, got {self.joint_frame!r}")
-
-    def _resolve_joint_frame(self, rig) -> str:
-        """The joint frame a fit with ``rig`` uses (None -> 'stature' with a rig, else 'metres')."""
-        frame = self.joint_frame or ("stature" if rig is not None else "metres")
-        if frame == "stature" and rig is None:
-            raise ValueError("joint_frame 'stature' needs the camera rig: pass rig= to fit (or joint_frame='metres')")
-        return frame
-
-    def _make_mixture(self, init_params: dict | None = None, fit_index: int = 0) -> MPPCA:
-        seed = self.random_state
-        if fit_index and seed is not None:  # fit i of n_fits starts from seed + i
-            seed = int(seed) + int(fit_index)
-        return MPPCA(n_components=int(self.n_components), n_latent=int(self.n_latent), tol=float(self.tol),
-                     max_iter=int(self.max_iter), n_init=int(self.n_init), init_params=init_params,
-                     noise_dof=bool(self.noise_dof), random_state=seed, callback=self.callback, verbose=self.verbose)
+        return hyperparameter_record(self)
 
     def features(self, contours_px: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Shape vectors (N, d) for rig-indexed pixel contours (N, n_rig_views, n, 2) and joints (N, 19, 3).
 
-        Built in blocks of rows (every step is row-wise) so the float64 temporaries of the normalisation
-        are bounded by a block, whatever N."""
-        layout = self.fitted_layout()
-        n = len(contours_px)
-        if n <= _FEATURE_BLOCK:
-            return shape_vectors(layout, self.n_rig_views_, contours_px, joints, self.rig_)
-        out = np.empty((n, layout.dim))
-        for start in range(0, n, _FEATURE_BLOCK):
-            sl = slice(start, start + _FEATURE_BLOCK)
-            out[sl] = shape_vectors(layout, self.n_rig_views_, contours_px[sl], joints[sl], self.rig_)
-        return out
+        Built in blocks of rows (:func:`~silpose.model.features.shape_vectors_in_blocks`)."""
+        return shape_vectors_in_blocks(self.fitted_layout(), self.n_rig_views_, contours_px, joints, self.rig_)
 
     def fit(self, X: np.ndarray, y: np.ndarray, rig=None, *,
             init_params: dict | None = None) -> "ShapeStructureModel":
@@ -237,34 +154,20 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         Returns:
             self.
         """
-        self._check_hyperparameters()
+        check_hyperparameters(self)
         rig = self.rig if rig is None else rig
-        raw = np.asarray(X)
-        # float32 input is checked as is and converted block by block in features(), never as a whole
-        c = raw if raw.dtype == np.float32 and raw.ndim == 4 else check_contours(raw, "contours_px")
-        j = _joints_array(y, "joints")
+        c, j = training_arrays(X, y, rig)  # float32 contours stay float32 (converted block by block in features())
         self.flat_targets_ = np.ndim(y) == 2
-        if j.shape[0] != c.shape[0]:
-            raise ValueError(f"contours_px has {c.shape[0]} samples but joints has {j.shape[0]}")
-        if not np.all(np.isfinite(c)):
-            raise ValueError("contours_px contains NaN or inf")
-        if not np.all(np.isfinite(j)):
-            raise ValueError("joints contains NaN or inf")
-        n_rig = c.shape[1]
-        if rig is not None and len(rig) != n_rig:
-            raise ValueError(f"rig has {len(rig)} cameras but contours_px has {n_rig} views")
-        views = check_views(self.views, n_rig)
-        self.layout_ = FeatureLayout(views, c.shape[2], N_JOINTS, float(self.structure_weight),
-                                     self._resolve_joint_frame(rig))
-        self.n_rig_views_ = n_rig
+        self.layout_ = model_layout(self, c.shape[1], c.shape[2], rig)
+        self.n_rig_views_ = c.shape[1]
         self.rig_ = rig
         X = self.features(c, j)
-        del c, j, raw  # the inputs' copies are not needed during EM
+        del c, j  # the inputs' copies are not needed during EM
         t0 = time.perf_counter()
         if int(self.n_fits) == 1:
-            self.mixture_ = self._make_mixture(init_params).fit(X)
+            self.mixture_ = new_mixture(self, init_params).fit(X)
         else:  # n_fits EM fits from seeds random_state + i, pooled into one mixture (class docstring)
-            fits = [self._make_mixture(init_params, i).fit(X) for i in range(int(self.n_fits))]
+            fits = [new_mixture(self, init_params, i).fit(X) for i in range(int(self.n_fits))]
             self.mixture_ = pool_mixtures(fits, X)
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(X.shape[0])
@@ -286,7 +189,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         Every shard's vectors come from :func:`~silpose.model.features.shape_vectors`, as in :meth:`fit`;
         memory is bounded by one shard (see ``silpose.model.streaming``). Returns self.
         """
-        self._check_hyperparameters()
+        check_hyperparameters(self)
         source = DatasetShards.open(root, split, executor=executor, workers=workers)
         return self.fit_shards(source, rows=rows, init_rows=init_rows, init_params=init_params,
                                where=f"{root} split {split!r}")
@@ -296,25 +199,17 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         """Fit by streaming EM over a planned :class:`~silpose.model.streaming.DatasetShards` (from
         ``DatasetShards.open``); ``rows`` are global row indices over its shards, ``where`` names the
         data in errors. See :meth:`fit_stream`. Returns self."""
-        self._check_hyperparameters()
+        check_hyperparameters(self)
         if int(self.n_fits) != 1:
             raise ValueError(f"n_fits = {self.n_fits}: pooled fits need the in-memory fit (fit), not the streaming one")
         n_rig = source.n_rig_views
-        views = check_views(self.views, n_rig)
-        layout = FeatureLayout(views, source.n_points, N_JOINTS, float(self.structure_weight),
-                               self._resolve_joint_frame(source.rig))
-        source = source.with_layout(layout)
-        if rows is not None:
-            idx = np.unique(np.asarray(rows, dtype=np.int64))
-            total = sum(source.shard_rows())
-            if idx.size == 0 or idx[0] < 0 or idx[-1] >= total:
-                raise ValueError(f"rows must be non-empty indices in 0..{total - 1} ({where})")
-            source = source.select(split_global_rows(idx, source.shard_rows()))
+        layout = model_layout(self, n_rig, source.n_points, source.rig)
+        source = selected_shards(source.with_layout(layout), rows, where)
         self.layout_ = layout
         self.n_rig_views_ = n_rig
         self.rig_ = source.rig
         t0 = time.perf_counter()
-        self.mixture_ = self._make_mixture(init_params).fit_stream(
+        self.mixture_ = new_mixture(self, init_params).fit_stream(
             source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(self.mixture_.n_fit_samples_)
@@ -345,7 +240,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         """Negative mean joint error, cm (higher is better): ``-mean pose_error_cm(predict(X), y)`` (the paper's
         error, ``silpose.shared.metrics``), weighted by ``sample_weight`` (N,) when given."""
         pred = self.predict(X).reshape(-1, N_JOINTS, 3)
-        err = pose_error_cm(pred, _joints_array(y, "y"))
+        err = pose_error_cm(pred, joints_array(y, "y"))
         return -float(np.average(err, weights=sample_weight))
 
     def calibrate_plausibility(self, contours_px: np.ndarray, *, n_draws: int | None = None,
@@ -412,35 +307,16 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         s2 = float(s2)
         if int(hypotheses) < 0:
             raise ValueError(f"hypotheses must be >= 0, got {hypotheses}")
-        settings = RobustSettings() if robust is True else (robust or None)
+        settings, mix, want = inference_plan(self, robust, mixing, hypotheses)
         inputs = model_inputs(self.fitted_layout(), self.n_rig_views_, contours_px, views_present, input_views,
                               centroid, scale)
         posterior = self.posterior()
-        mix = getattr(self, "mixing_", None) if mixing is None or mixing is True else (mixing or None)
-        want = hypotheses > 0 or mix is not None  # component means (hypotheses) come from the last pass only
         if settings is None:
             res, comp = posterior.infer(inputs, s2, components=want)
         else:
             res, comp = robust_infer(posterior, inputs, s2, settings, want)
-        cal = getattr(self, "plausibility_", None)
-        if cal is not None and cal.applies_to(s2):
-            res.plausibility = cal.percentile(res.log_marginal, inputs.present)
-            # a likelihood percentile cannot flag a smooth blob: convex silhouettes are flagged too
-            res.implausible = cal.implausible(res.plausibility) | convex_in_every_view(inputs.contours, inputs.present)
-        if mix is not None:  # calibrated weights of the posterior mean (silpose.model.mixing)
-            agree = vote_agreement(comp, posterior.pair_headings(inputs, s2)) if mix.needs_votes else None
-            res.joints = mixed_joints(comp, res.responsibilities, mix.temperature(inputs.present.sum(axis=1)), agree,
-                                      mix.vote_weight)
-        if hypotheses > 0:
-            hyp = top_hypotheses(comp, res.responsibilities, int(hypotheses))
-            if consensus and hyp.k > 1:  # votes from the observed input, not the robust pseudo-observations
-                hyp.chosen = consensus_choice(hyp, posterior.pair_headings(inputs, s2))
-            elif mix is not None:  # the hypothesis facing the calibrated answer's way (silpose.model.mixing)
-                hyp.chosen = agreeing_choice(hyp, res.joints)
-            res.hypotheses = hyp
-        if untangle:
-            res.contours_norm, res.contours_px = untangle_contours(res.contours_norm, res.contours_px)
-        return res
+        return complete_result(res, comp, posterior, inputs, s2, calibration=getattr(self, "plausibility_", None),
+                               mix=mix, hypotheses=int(hypotheses), consensus=consensus, untangle=untangle)
 
     def empty_result(self, n: int, noise_variance: float | None = None, *, hypotheses: int = 0,
                      robust: bool | RobustSettings = False, **_ignored) -> InferenceResult:
@@ -465,12 +341,3 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             self._posterior = post
         return post
 
-
-def _joints_array(y, name: str) -> np.ndarray:
-    """Joints as float64 (N, 19, 3) from (N, 19, 3) or flattened (N, 57); ValueError naming ``name`` otherwise."""
-    j = np.asarray(y, dtype=np.float64)
-    if j.ndim == 2 and j.shape[1] == 3 * N_JOINTS:
-        j = j.reshape(len(j), N_JOINTS, 3)
-    if j.ndim != 3 or j.shape[1:] != (N_JOINTS, 3):
-        raise ValueError(f"{name} must have shape (N, {N_JOINTS}, 3) or (N, {3 * N_JOINTS}), got {j.shape}")
-    return j

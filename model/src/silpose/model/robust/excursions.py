@@ -39,12 +39,14 @@ import numpy as np
 
 from .observed_views import observed_views
 
-__all__ = ["ExcursionSettings", "point_to_polygon_distance", "excursion_runs", "trim_excursions"]
+__all__ = ["ExcursionSettings", "point_to_polygon_distance", "far_points", "excursion_runs", "trim_excursions"]
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
-#: edges either side of a point's own index that :func:`_far_points` tries before all within n // 4
-_NEAR_EDGES = 4
+#: edges either side of a point's own index that :func:`far_points` tries, stage by stage, before all within n // 4
+_STAGES = (4, 12)
+#: points per block of :func:`_near_any` (a block holds a few (points, edges) arrays)
+_POINTS = 4096
 
 
 @dataclass(frozen=True)
@@ -87,13 +89,16 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return np.sqrt(dx * dx + dy * dy)
 
 
-def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
+def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """(V, n) bool: points (V, n, 2) farther than ``limit`` (V,) px from the closed polygon (V, n, 2).
 
     Only points farther than the limit from their index-corresponding vertex can be (the distance to the
     polygon is at most that); for those, the edges within ``n // 4`` indices are searched (an index shift of
     a quarter of the outline is beyond any excursion we trim; a point whose nearest edge is farther along
-    counts as far, which can only lengthen a run that is already one).
+    counts as far, which can only lengthen a run that is already one): a point is far when every one of those
+    edges is farther than the limit (:func:`_segment_distance`). The search widens in stages (:data:`_STAGES`
+    edges either side, then all within n // 4), each on the points the stage before left in question, and a
+    stage settles a point by a vertex first (:func:`_near_any`).
     """
     v, n = points.shape[:2]
     limit = np.asarray(limit, dtype=np.float64)[:, None]
@@ -101,50 +106,54 @@ def _far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> n
     maybe = np.sqrt(ex * ex + ey * ey) > limit
     far = np.zeros((v, n), dtype=bool)
     views, idx = np.nonzero(maybe)
-    if views.size == 0:
-        return far
     w = max(n // 4, 1)
-    # the edges next to the point first: one within the limit settles it (not far) without the others
-    near = np.arange(-min(_NEAR_EDGES, w), min(_NEAR_EDGES, w) + 1)
-    for s in range(0, views.size, 4096):
-        vv, ii = views[s:s + 4096], idx[s:s + 4096]
-        j = (ii[:, None] + near[None, :]) % n
-        d = _segment_distance(points[vv, ii][:, None, :], polygon[vv[:, None], j], polygon[vv[:, None], (j + 1) % n])
-        far[vv, ii] = d.min(axis=1) > limit[vv, 0]
-    views, idx = views[far[views, idx]], idx[far[views, idx]]  # unsettled: every edge within n // 4
-    if views.size == 0:
-        return far
-    offsets = np.arange(-w, w + 1)
-    # edge j -> j + 1 of the views still in question (V', n)
-    used, slot = np.unique(views, return_inverse=True)
-    poly_u = polygon[used]
-    lx = np.roll(poly_u[..., 0], -1, axis=1) - poly_u[..., 0]
-    ly = np.roll(poly_u[..., 1], -1, axis=1) - poly_u[..., 1]
-    edge_len = np.sqrt(lx * lx + ly * ly)
-    slot = slot.reshape(-1)
-    for s in range(0, views.size, 4096):
-        vv, ii, uu = views[s:s + 4096], idx[s:s + 4096], slot[s:s + 4096]
-        j = (ii[:, None] + offsets[None, :]) % n  # (P, 2w + 1) edges searched
-        p = points[vv, ii][:, None, :]
-        # a point of edge j is within half its length of one of its ends: edges whose nearer end is farther than
-        # the limit plus half their length (with a margin for rounding) cannot bring the point within the limit
-        gx = poly_u[uu[:, None], j, 0] - p[..., 0]
-        gy = poly_u[uu[:, None], j, 1] - p[..., 1]
-        dv = np.sqrt(gx * gx + gy * gy)  # (P, 2w + 1) to each edge's start
-        nearer = np.minimum(dv, np.roll(dv, -1, axis=1))
-        nearer[:, -1] = np.minimum(dv[:, -1], np.linalg.norm(polygon[vv, (j[:, -1] + 1) % n] - p[:, 0], axis=-1))
-        lim = limit[vv]
-        check = nearer - 0.5 * edge_len[uu[:, None], j] <= lim * (1.0 + 1e-9) + 1e-12
-        pi, ej = np.nonzero(check)
-        if pi.size == 0:
-            far[vv, ii] = True
-            continue
-        jj = j[pi, ej]
-        d = _segment_distance(p[pi, 0], polygon[vv[pi], jj], polygon[vv[pi], (jj + 1) % n])
-        within = np.zeros(vv.size, dtype=bool)
-        within[pi[d <= lim[pi, 0]]] = True
-        far[vv, ii] = ~within
+    for reach in [min(r, w) for r in _STAGES if r < w] + [w]:
+        if views.size == 0:
+            break
+        offsets = np.arange(-reach, reach + 1)
+        within = np.zeros(views.size, dtype=bool)
+        for s in range(0, views.size, _POINTS):
+            sl = slice(s, s + _POINTS)
+            within[sl] = _near_any(points, polygon, limit[:, 0], views[sl], idx[sl], offsets)
+        views, idx = views[~within], idx[~within]  # still in question: the next stage's
+    far[views, idx] = True
     return far
+
+
+def _near_any(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray, vv: np.ndarray, ii: np.ndarray,
+              offsets: np.ndarray) -> np.ndarray:
+    """(P,) bool: point ``ii`` of view ``vv`` (P,) of ``points`` (V, n, 2) is within ``limit`` (V,) px of one of the
+    edges ``ii + offsets`` (cyclic) of ``polygon`` (V, n, 2) by :func:`_segment_distance`.
+
+    A vertex within ``limit (1 - 1e-9)`` settles it (an edge from that vertex is nearer, rounding aside: a margin far
+    above it); otherwise only the edges whose nearer end is within the limit plus half their length (a point of an
+    edge is within half its length of one of its ends; with a margin for rounding) are measured.
+    """
+    n = points.shape[1]
+    j = (ii[:, None] + np.r_[offsets, offsets[-1] + 1][None, :]) % n  # (P, E + 1) edge starts, then the last end
+    p = points[vv, ii]  # (P, 2)
+    vx = polygon[vv[:, None], j, 0]
+    vy = polygon[vv[:, None], j, 1]
+    gx, gy = vx - p[:, 0, None], vy - p[:, 1, None]
+    d2 = gx * gx + gy * gy  # (P, E + 1) squared distances to the vertices
+    lim = limit[vv]
+    inner = lim * (1.0 - 1e-9)
+    within = d2.min(axis=1) <= inner * inner
+    rest = np.flatnonzero(~within)
+    if rest.size == 0:
+        return within
+    dv = np.sqrt(d2[rest])
+    nearer = np.minimum(dv[:, :-1], dv[:, 1:])
+    ax, ay, bx, by = vx[rest, :-1], vy[rest, :-1], vx[rest, 1:], vy[rest, 1:]
+    lx, ly = bx - ax, by - ay
+    check = nearer - 0.5 * np.sqrt(lx * lx + ly * ly) <= lim[rest, None] * (1.0 + 1e-9) + 1e-12
+    pi, ej = np.nonzero(check)
+    if pi.size:
+        a = np.stack([ax[pi, ej], ay[pi, ej]], axis=-1)
+        b = np.stack([bx[pi, ej], by[pi, ej]], axis=-1)
+        d = _segment_distance(p[rest[pi]], a, b)
+        within[rest[pi[d <= lim[rest[pi]]]]] = True
+    return within
 
 
 def excursion_runs(flags: np.ndarray) -> list[np.ndarray]:
@@ -283,7 +292,7 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
     ov = observed_views(contours_px, recon_px, present)
     if ov.rows.size == 0:
         return ov.contours, ov.changed
-    far = _far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
+    far = far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
     for j, starts in _candidate_views(ov.points, ov.recon, far, ov.scales, settings).items():
         trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings, starts)
         if trimmed is not None:

@@ -19,9 +19,23 @@ loops of two elements) and (views, n, 2w + 1) gathers on large batches, with the
 frames, M 5, q 30, 4 views; 2 shared cores): robust batched inference 70.0 s before these changes and 45.9 s after
 in one run at load 3 (48x and 30x the plain batched time), 34 s at load 1.5; 58-133x the BLAS floor (the floor
 itself moved 2x within one run). Its outputs on the benchmark's frames and on 3,000 corrupted frames with missing
-views are bit-identical to before. Where the rest goes (CPU profile, 5,000 frames): the passes' conditioning,
+views are bit-identical to before. Where the rest went (CPU profile, 5,000 frames): the passes' conditioning,
 gathers and scatters ~45 %, re-indexing ~20 % (the per-view 7 x 7 solves and medians of its fits), excursion
 trimming ~20 %.
+
+Since (issue "A prior that holds every motion"): a batch runs in blocks of :data:`BLOCK_FRAMES` frames whose
+(frames, d) arrays stay in cache (robust time per frame had grown ~1.5x from 1,000 to 20,000 frames); the slide
+fits solve their 7 x 7 systems by one batched Cholesky factorisation (``reindex.solve_spd``: ``np.linalg.solve``
+took 14 us a system under OpenBLAS's threading, 0.3 us here); the slide matching reads shifted slices of a padded
+copy instead of ``np.roll`` copies and compares squared distances; the far-point search of the excursions widens in
+stages (4, 12, n / 4 edges), settling a point by a vertex first. Outputs equal the previous code's to rounding (300
+test rows of the default preset, clean, standard noise and "mask strong", every view and missing views: joints
+within 4e-11 mm, contours within 4e-12 px, the same views trimmed and re-indexed). Same-run figures
+(``benchmarks.run --only inference``, 2 shared cores): full size (20,000 frames), load 8-10, robust 97.3 s -> 44.6 s
+(75x -> 47x the BLAS floor); ``--quick`` (2,000 frames), two alternating pairs at load 7, 6.9 -> 3.6 s (66x -> 37x)
+and 3.1 -> 2.3 s (50x -> 42x). Where the rest goes (2,000 frames): the passes' conditioning ~30 %, excursion
+trimming ~25 % (the far-point search of outlines the random benchmark model draws wiggly), re-indexing ~20 %, the
+weights' medians ~8 %.
 """
 
 from __future__ import annotations
@@ -37,7 +51,8 @@ from .excursions import trim_excursions
 from .reindex import reindex_contours
 from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 
-__all__ = ["SETTLED_PX", "largest_move", "pseudo_observation", "robust_passes", "robust_infer"]
+__all__ = ["SETTLED_PX", "BLOCK_FRAMES", "largest_move", "pseudo_observation", "robust_passes", "robust_infer",
+           "robust_block"]
 
 #: px: a frame whose reconstruction moved less than this in a reweighting pass has settled; later passes leave
 #: it alone (each would move it less again: the passes converge to the weighted conditioning's fixed point)
@@ -45,6 +60,9 @@ SETTLED_PX = 1e-2
 #: a reweighting pass evaluates for each frame only the components whose posterior weight exceeded this (GATE_NATS
 #: below the best) for it in the pass before; the others count as 0 (their means and weights < e^-30)
 GATE_WEIGHT = float(np.exp(-GATE_NATS))
+#: frames per block of :func:`robust_infer`: a block's (frames, d) float64 arrays (13 MB at d 1657) fit the shared
+#: 32 MB cache of the benchmark machine, and its Python overhead (~30 ms a block) stays small
+BLOCK_FRAMES = 1024
 
 
 def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
@@ -131,7 +149,22 @@ def robust_infer(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
                  want: bool) -> tuple[InferenceResult, np.ndarray | None]:
     """Robust inference of a batch (module doc): :func:`robust_passes`, then the excursions trimmed and the
     slides undone, each changed frame inferred again. Sets ``excursions_trimmed``, ``reindexed`` and
-    ``robust_input_px``; ``log_marginal`` stays that of the input as observed."""
+    ``robust_input_px``; ``log_marginal`` stays that of the input as observed.
+
+    A batch of more than :data:`BLOCK_FRAMES` frames is inferred in consecutive blocks of that many (a frame's
+    answer depends on its own input only), so that the passes' (frames, d) arrays stay in the processor's cache."""
+    n = len(inputs.present)
+    if n <= BLOCK_FRAMES:
+        return robust_block(posterior, inputs, s2, settings, want)
+    blocks = [np.arange(s, min(s + BLOCK_FRAMES, n)) for s in range(0, n, BLOCK_FRAMES)]
+    parts = [robust_block(posterior, inputs.take(slice(b[0], b[-1] + 1)), s2, settings, want) for b in blocks]
+    res = InferenceResult.merge([r for r, _ in parts], blocks, n)
+    return res, (np.concatenate([c for _, c in parts]) if want else None)
+
+
+def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
+                 want: bool) -> tuple[InferenceResult, np.ndarray | None]:
+    """:func:`robust_infer` of one block of frames, at once."""
     res, comp = robust_passes(posterior, inputs, s2, settings, want)
     observed_lm = res.log_marginal.copy()  # put() below writes into res's arrays
     present = inputs.present

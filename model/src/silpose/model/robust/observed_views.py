@@ -77,9 +77,10 @@ def view_scales(points: np.ndarray) -> np.ndarray:
         centred = points - points.mean(axis=1, keepdims=True)
         return np.sqrt(np.mean(np.sum(centred ** 2, axis=-1), axis=1)) if v else np.zeros(0)
     x, y = points[..., 0], points[..., 1]
-    sx, sy = x[:, 0].copy(), y[:, 0].copy()
+    xt, yt = np.ascontiguousarray(x.T), np.ascontiguousarray(y.T)  # (n, V): each point's row read contiguously
+    sx, sy = xt[0].copy(), yt[0].copy()
     for i in range(1, n):  # np.mean over axis 1 of (V, n, 2) adds the points in order, as here
-        sx += x[:, i]
-        sy += y[:, i]
+        sx += xt[i]
+        sy += yt[i]
     cx, cy = x - (sx / n)[:, None], y - (sy / n)[:, None]
     return np.sqrt(np.mean(cx * cx + cy * cy, axis=1))

@@ -1,0 +1,98 @@
+"""The shortcuts of robust inference's repairs and blocks give the straightforward computation's results.
+
+Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
+the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
+every edge in its index window, and robust inference of a batch in blocks with the same batch at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from silpose.model.robust import RobustSettings
+from silpose.model.robust import loop
+from silpose.model.robust.excursions import far_points
+from silpose.model.robust.reindex import solve_spd
+from silpose.model.shape_model import ShapeStructureModel
+from silpose.model.synthetic import make_linear_shapes
+
+
+def test_batched_cholesky_solve_is_the_lapack_solve():
+    rng = np.random.default_rng(0)
+    for v, p in ((300, 7), (5, 1), (40, 3)):
+        x = rng.normal(size=(v, p, 3 * p))
+        G = x @ x.transpose(0, 2, 1) + 1e-3 * np.eye(p)  # symmetric positive definite, some poorly conditioned
+        b = rng.normal(size=(v, p))
+        want = np.linalg.solve(G, b[..., None])[..., 0]
+        np.testing.assert_allclose(solve_spd(G, b), want, rtol=1e-9, atol=1e-12)
+
+
+def _brute_far(points, polygon, limit):
+    """(V, n) far flags by the definition: farther than the limit from the index-corresponding vertex, and from
+    every edge j -> j + 1 with j within n // 4 of the point's index (each distance computed on its own)."""
+    v, n = points.shape[:2]
+    w = max(n // 4, 1)
+    far = np.zeros((v, n), bool)
+    for a in range(v):
+        for i in range(n):
+            p = points[a, i]
+            if np.linalg.norm(p - polygon[a, i]) <= limit[a]:
+                continue
+            best = np.inf
+            for j in range(i - w, i + w + 1):
+                s, e = polygon[a, j % n], polygon[a, (j + 1) % n]
+                t = np.clip(np.dot(p - s, e - s) / max(np.dot(e - s, e - s), 1e-12), 0.0, 1.0)
+                best = min(best, np.linalg.norm(p - (s + t * (e - s))))
+            far[a, i] = best > limit[a]
+    return far
+
+
+def test_staged_far_point_search_is_the_definition():
+    rng = np.random.default_rng(1)
+    v, n = 8, 80
+    t = 2 * np.pi * np.arange(n) / n
+    outline = np.stack([30 * np.cos(t), 50 * np.sin(t)], -1) + 100
+    polygon = outline + rng.normal(0, 0.5, size=(v, n, 2))
+    # observed points slid along the outline by 0 .. 15 points (the stages: 4, 12, then n // 4 = 20 edges), jittered,
+    # and a stretch pushed out (points far from every edge)
+    slides = (0, 2, 5, 9, 13, 15, 3, 14)
+    points = np.stack([np.roll(outline, s, axis=0) for s in slides]) + rng.normal(0, 1.0, (v, n, 2))
+    points[::3, 10:25] += np.array([14.0, -9.0])
+    points[1, 40] = polygon[1, 40]  # on its own vertex
+    points[2, 5:7] = polygon[2, 30:32]  # on vertices beyond the window
+    limit = rng.uniform(2.0, 6.0, v)
+    want = _brute_far(points, polygon, limit)
+    got = far_points(points, polygon, limit)
+    assert 0 < want.sum() < want.size and np.array_equal(got, want)
+
+
+@pytest.fixture(scope="module")
+def small_model():
+    train = make_linear_shapes(300, n_views=3, n_points=24, seed=5)
+    test = make_linear_shapes(330, n_views=3, n_points=24, seed=5)
+    model = ShapeStructureModel(n_components=3, n_latent=5, structure_weight=2.0, noise_variance=1e-3, n_init=1,
+                                random_state=0, joint_frame="metres").fit(train.contours, train.joints)
+    return model, test.contours[300:].astype(np.float64)
+
+
+def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkeypatch):
+    model, contours = small_model
+    bad = contours.copy()
+    bad[::4, 1, 3:8] += np.array([25.0, -15.0])
+    present = np.ones(bad.shape[:2], bool)
+    present[::5, 2] = False
+    bad[::5, 2] = np.nan
+    settings = RobustSettings(window=2)
+    whole = model.infer(bad, present, robust=settings, hypotheses=2)
+    monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: blocks of 7, 7, 7, 7 and 2
+    blocks = model.infer(bad, present, robust=settings, hypotheses=2)
+    for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
+                 "log_marginal_robust", "noise_variance", "robust_input_px"):
+        # equal to rounding: BLAS may block a product's rows differently for another batch size (seen: 5e-12)
+        np.testing.assert_allclose(getattr(blocks, name), getattr(whole, name), rtol=1e-9, atol=1e-10,
+                                   err_msg=name)
+    for name in ("excursions_trimmed", "reindexed", "views_present"):
+        assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
+    np.testing.assert_allclose(blocks.hypotheses.joints, whole.hypotheses.joints, rtol=1e-9, atol=1e-10)
+    assert np.array_equal(blocks.hypotheses.component, whole.hypotheses.component)
