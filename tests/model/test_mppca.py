@@ -230,3 +230,25 @@ def test_pooled_mixture_is_the_average_of_the_fits_densities(mixture_data):
     assert is_real_em(pooled, 0.1) == all(is_real_em(f, 0.1) for f in fits)
     with pytest.raises(ValueError, match="differ in latent dimension"):
         pool_mixtures([fits[0], MPPCA(2, 3, n_init=1, random_state=0, max_iter=5).fit(X)])
+
+
+def test_pass_level_density_factors_equal_the_dense_density():
+    """The E-step's per-component constants are computed once per parameter set (``Params.density_factors``);
+    the log densities they give equal scipy's dense multivariate normal, and a shifted parameter set keeps
+    them (they depend on W and s2 only)."""
+    from silpose.model import _em
+
+    rng = np.random.default_rng(3)
+    m, d, q = 3, 12, 2
+    params = _em.Params(np.full(m, 1 / m), rng.normal(size=(m, d)), rng.normal(size=(m, d, q)),
+                        rng.uniform(0.1, 0.5, m))
+    X = rng.normal(size=(40, d)) + params.means[0]
+    sqn, XW, Xmu = _ppca.e_step_products(X, params.means, params.components)
+    got = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
+                                       params.noise_variance, params.density_factors())
+    for i in range(m):
+        cov = params.components[i] @ params.components[i].T + params.noise_variance[i] * np.eye(d)
+        ref = np.log(params.weights[i]) + multivariate_normal(params.means[i], cov).logpdf(X)
+        np.testing.assert_allclose(got[:, i], ref, rtol=1e-10, atol=1e-8)
+    shifted = params.shifted(np.ones(d))
+    assert shifted.density_factors() is params.density_factors()

@@ -21,7 +21,7 @@ Functions here are module-level and take only picklable arguments, so Ray can ru
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterable
 
 import numpy as np
@@ -38,10 +38,18 @@ class Params:
     means: np.ndarray
     components: np.ndarray
     noise_variance: np.ndarray
+    factors: list | None = field(default=None, repr=False, compare=False)  # density_factors() once computed
 
     def shifted(self, offset: np.ndarray) -> "Params":
         """The same mixture in coordinates x - offset (means minus offset)."""
-        return Params(self.weights, self.means - offset, self.components, self.noise_variance)
+        return Params(self.weights, self.means - offset, self.components, self.noise_variance, self.factors)
+
+    def density_factors(self) -> list[tuple[np.ndarray, float]]:
+        """Per component :func:`silpose.model._ppca.density_factors` (L^-T, log|C_i|), computed on first use and
+        kept: every block of a pass uses the same ones."""
+        if self.factors is None:
+            self.factors = [_ppca.density_factors(W, float(s2)) for W, s2 in zip(self.components, self.noise_variance)]
+        return self.factors
 
 
 @dataclass
@@ -98,7 +106,7 @@ def shard_stats(X: np.ndarray, params: Params) -> ShardStats:
     """
     sqn, XW, Xmu = _ppca.e_step_products(X, params.means, params.components)
     ll = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
-                                      params.noise_variance)
+                                      params.noise_variance, params.density_factors())
     log_norm = logsumexp(ll, axis=1)
     resp = np.exp(ll - log_norm[:, None], out=ll)  # E-step posteriors, in place of ll
     r, G, sq = _ppca.m_step_sums(X, sqn, resp, XW)
@@ -167,7 +175,8 @@ def gate_candidates(X: np.ndarray, params: Params, k: int) -> np.ndarray:
         sqn = np.einsum("ij,ij->i", B, B)
         _, XW, Xmu = _ppca.e_step_products(B.astype(np.float32), means32, comps32, with_sqn=False)
         ll = _ppca.log_prob_from_products(sqn, XW.astype(np.float64), Xmu.astype(np.float64), params.weights,
-                                          params.means, params.components, params.noise_variance)
+                                          params.means, params.components, params.noise_variance,
+                                          params.density_factors())
         out[start:start + B.shape[0]] = np.argpartition(-ll, k - 1, axis=1)[:, :k]
     return out
 
@@ -197,7 +206,7 @@ def shard_stats_sparse(X: np.ndarray, candidates, params: Params, cfg: SparseESt
         z = E.astype(np.float32) @ comps32[i]
         Z[pairs] = z
         ll[pairs] = log_w[i] + _ppca.log_density_terms(sq_e, z.astype(np.float64), params.components[i],
-                                                        float(params.noise_variance[i]))
+                                                        float(params.noise_variance[i]), params.density_factors()[i])
     ll = ll.reshape(n, k)
     best = ll.max(axis=1, keepdims=True)
     ll[ll < best - cfg.threshold] = -np.inf
