@@ -2,9 +2,9 @@
 
 ``python -m silpose.eval.learning_curve DATA [--n 5000 20000 ...] [--m 20 50 100 200] [--q 30] [--out DIR]``
 
-For every (N, M) a ``ShapeStructureModel(M, q)`` is fitted out of core (``fit_stream`` on N rows of the
-train split: the first N of one seeded permutation, so the sets are nested; the sparse E-step from M 64
-on, ``silpose.model.mppca``) and scored on
+For every (N, M) a ``ShapeStructureModel(M, q)`` is fitted on N rows of the train split (the first N of
+one seeded permutation, so the sets are nested; the sparse E-step from M 64 on, ``silpose.model.mppca``):
+in memory, or out of core with ``--streaming`` (``fit_stream``), and scored on
 the test split (for the ``motions`` preset: clips of subjects training never saw) with the standard
 test noise (:data:`silpose.eval.noise.STANDARD_NOISE`), given every view and each view alone: mean
 root-relative joint error, cm (``silpose.shared.metrics.pose_error_cm``, posterior mean). Points where
@@ -43,15 +43,21 @@ COLUMNS = ("n_samples", "n_components", "n_latent", "pose_all_views_cm", "pose_1
 
 
 def curve_point(data: Path, joints: np.ndarray, noisy: np.ndarray, n: int, m: int, q: int, *, seed: int = 0,
-                max_iter: int = 60, tol: float = 1e-3, structure_weight: float = 30.0) -> dict:
+                max_iter: int = 60, tol: float = 1e-3, structure_weight: float = 30.0, train=None) -> dict:
     """Fit one (N, M) model on ``n`` training rows (:func:`training_rows`) and score it on the noisy test
-    contours (N_test, K, n, 2) px against the test joints (N_test, 19, 3) m."""
+    contours (N_test, K, n, 2) px against the test joints (N_test, 19, 3) m. ``train``: the train split in
+    memory (a ``DatasetSplit`` with contours and joints): the fit is in memory; None: out of core
+    (``fit_stream``, which builds every shard's shape vectors again in each EM pass)."""
     model = ShapeStructureModel(n_components=m, n_latent=q, structure_weight=structure_weight, n_init=1,
                                 max_iter=max_iter, tol=tol, random_state=seed, noise_dof=True)
+    rows = training_rows(data, n, seed)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model.fit_stream(data, "train", rows=training_rows(data, n, seed))
+        if train is None:
+            model.fit_stream(data, "train", rows=rows)
+        else:
+            model.fit(train.contours[rows], train.joints[rows], rig=train.rig)
     fit_s = time.perf_counter() - t0
     K = noisy.shape[1]
     all_views = float(pose_error_cm(model.infer(noisy).joints, joints).mean())
@@ -97,6 +103,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tol", type=float, default=1e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=None, help="output folder (default reports/<data name>/)")
+    ap.add_argument("--streaming", action="store_true",
+                    help="fit out of core (fit_stream) instead of loading the train split's contours into memory")
     args = ap.parse_args(argv)
     out = args.out or Path("reports") / args.data.name
     test = load_split(args.data, "test")
@@ -104,7 +112,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     test_joints = np.asarray(test.joints, np.float64)[: args.n_test]
     noisy = apply_noise(STANDARD_NOISE, contours, np.asarray(test.sample_id)[: args.n_test], args.seed)
 
+    train = None if args.streaming else load_split(args.data, "train", columns=["joints", "contours"])
     settings = {"data": str(args.data), "n": args.n, "m": args.m, "q": args.q, "max_iter": args.max_iter,
+                "fit": "streaming" if args.streaming else "in memory",
                 "tol": args.tol, "seed": args.seed, "noise": STANDARD_NOISE.to_dict(),
                 "error": "mean root-relative joint error (cm) of the posterior mean on the test split"}
     rows: list[dict] = []
@@ -113,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if n < m:
                 continue
             row = curve_point(args.data, test_joints, noisy, n, m, args.q, seed=args.seed, max_iter=args.max_iter,
-                              tol=args.tol)
+                              tol=args.tol, train=train)
             rows.append(row)
             print(json.dumps(row), flush=True)
             write_curve(out, settings, rows)
