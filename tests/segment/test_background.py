@@ -238,3 +238,20 @@ def test_mixed_edge_pixels_are_dropped_where_the_person_covers_less_than_half():
     assert masks[0.5]["edges"][coverage > 0.99].all()  # ... never one the figure covers whole
     with pytest.raises(ValueError, match="edge_coverage"):
         BackgroundModel(edge_coverage=1.5).fit(background)
+
+
+def test_add_sums_equals_int64_sums_across_uint32_chunks(monkeypatch):
+    """The uint32 / uint16 running sums of partial_fit equal int64 sums, also at 255 (the largest square) and
+    when the frames are split into several partial sums."""
+    from silpose.segment import background
+
+    rng = np.random.default_rng(2)
+    frames = rng.integers(0, 256, (7, 5, 6, 3), dtype=np.uint8)
+    frames[:, 0] = 255
+    ref = frames.astype(np.int64)
+    for chunk in (background.SUM_FRAMES, 2):
+        monkeypatch.setattr(background, "SUM_FRAMES", chunk)
+        s1, s2 = np.full(frames.shape[1:], 3, np.int64), np.full(frames.shape[1:], 5, np.int64)
+        background.add_sums(frames, s1, s2)
+        np.testing.assert_array_equal(s1, 3 + ref.sum(axis=0))
+        np.testing.assert_array_equal(s2, 5 + (ref * ref).sum(axis=0))

@@ -22,7 +22,9 @@ then per chunk:
 Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count), and BLAS
 is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
 threads competing with the camera threads cost more than they give (measured on this 2-core machine
-under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1).
+under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1); so are OpenCV's own
+parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's decoding threads
+(:data:`~.sources.DECODER_PARAMS`): the cameras already run in threads of their own.
 
 Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
 detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
@@ -388,6 +390,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     detected = 0  # steps with someone on the floor (tracked or not): says why nobody was found
     gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
+    cv_threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # the same for OpenCV's own parallel loops (module docstring)
     try:
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
                                 {c.name: (c.width, c.height) for c in work}, fps, first_frame,
@@ -461,6 +465,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         raise
     finally:
         blas.restore_original_limits()
+        cv2.setNumThreads(cv_threads)
         if pool:
             pool.shutdown()
         for c in cams.values():
