@@ -255,3 +255,19 @@ def test_add_sums_equals_int64_sums_across_uint32_chunks(monkeypatch):
         background.add_sums(frames, s1, s2)
         np.testing.assert_array_equal(s1, 3 + ref.sum(axis=0))
         np.testing.assert_array_equal(s2, 5 + (ref * ref).sum(axis=0))
+
+
+@pytest.mark.parametrize("colour", [True, False])
+def test_frame_gain_is_the_median_ratio_over_the_bright_grid(colour):
+    """frame_gain (reference values cached, medians over contiguous rows) equals its definition computed
+    directly: the median over every 4th row and column, where the background is brighter than 16, of frame /
+    background -- per channel for colour."""
+    rng = np.random.default_rng(3)
+    shape = (4, 41, 37, 3) if colour else (4, 41, 37)
+    frames = rng.integers(0, 256, shape, dtype=np.uint8)
+    model = BackgroundModel(gain=True).fit(frames)
+    frame = rng.integers(0, 256, shape[1:], dtype=np.uint8)
+    ref = (model.colour_mean_ if colour else model.mean_)[::4, ::4].astype(np.float32)
+    ok = (ref > 16).all(axis=-1) if colour else ref > 16
+    want = np.median(frame[::4, ::4].astype(np.float32)[ok] / ref[ok], axis=0)
+    np.testing.assert_array_equal(model.frame_gain(frame), want.astype(np.float32))

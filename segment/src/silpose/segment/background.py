@@ -360,6 +360,7 @@ class BackgroundModel:
         grid = ref[::_GAIN_STEP, ::_GAIN_STEP]
         self._gain_ref = grid.astype(np.float32)
         self._gain_ok = (grid > _GAIN_MIN_LEVEL) if grid.ndim == 2 else (grid > _GAIN_MIN_LEVEL).all(axis=-1)
+        self._gain_ref_ok = self._gain_ref[self._gain_ok]  # (N,) or (N, 3): frame_gain's denominators
 
     def _check_params(self) -> None:
         def fail(name, value, rule):
@@ -470,13 +471,19 @@ class BackgroundModel:
         """The gain of one frame (H, W) or (H, W, 3) uint8 with respect to the background: a scalar for
         graylevel frames, (3,) per channel for colour ones when the background is colour (module docstring)."""
         self._check_fitted()
-        f = np.asarray(frame)[::_GAIN_STEP, ::_GAIN_STEP].astype(np.float32)
+        f = np.asarray(frame)[::_GAIN_STEP, ::_GAIN_STEP]
         ref = self._gain_ref
         if f.ndim == 3 and ref.ndim == 2:
-            f = f @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
+            f = f.astype(np.float32) @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
         elif f.ndim == 2 and ref.ndim == 3:
             ref = ref @ np.array([0.114, 0.587, 0.299], np.float32)
-        ratio = f[self._gain_ok] / ref[self._gain_ok]
+        else:  # the frame of the background's kind: the grid's reference values taken once (_prepare)
+            ratio = f[self._gain_ok].astype(np.float32) / self._gain_ref_ok
+            if not len(ratio):
+                return np.ones(ratio.shape[1:], np.float32)
+            # per channel, over contiguous rows: the same medians as over the (N, C) columns, in a third of the time
+            return np.median(np.ascontiguousarray(ratio.T), axis=-1).astype(np.float32)
+        ratio = f[self._gain_ok].astype(np.float32) / ref[self._gain_ok]
         if not len(ratio):
             return np.ones(ratio.shape[1:], np.float32)
         return np.median(ratio, axis=0).astype(np.float32)

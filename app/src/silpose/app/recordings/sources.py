@@ -259,7 +259,7 @@ def _probe(camera: str, path: Path) -> CameraSource:
         if img is None:
             raise RecordingError(f"{images[0]}: cannot read this image (corrupt or not an image)")
         return CameraSource(camera, path, 0.0, len(images), img.shape[1], img.shape[0], images=images)
-    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG, DECODER_PARAMS)
     try:
         if not cap.isOpened():
             raise RecordingError(f"{path}: OpenCV (FFmpeg) cannot open this video (corrupt, or not a video)")
