@@ -19,7 +19,8 @@ Rows:
   hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
   are the ratios against the 1x run); and (``colour``) the first ``colour_frames`` steps as colour videos
   at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
-  references in the same run (row ``reference``: decoding alone and OpenCV's MOG2 alone, CPU ms per step).
+  references in the same run (row ``reference``, :func:`decode_reference`: decoding alone, OpenCV's MOG2 alone,
+  and the pipeline's shrinking to the working size and segmentation alone, CPU ms per step).
 - ``accuracy``: the 1x run (and the 1x carved run) against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
   person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
   inferred from clean per-person masks.
@@ -129,27 +130,51 @@ def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: in
     return videos, clips, str(out)
 
 
-def decode_reference(videos: str, clips: str, n_background: int = 20) -> dict:
-    """Child side: the references of a colour run, timed on the same videos: decoding alone (every camera, one
-    thread, as the pipeline's reader threads do it), and OpenCV's MOG2 (shadow detection, learnt on the
-    empty-room clips, learning rate 0) on every decoded full-size frame. Seconds per time step."""
+def decode_reference(videos: str, clips: str, n_background: int = 20, model: str | None = None) -> dict:
+    """Child side: the references of a colour run, timed on the same videos, one thread (``time.thread_time``):
+    decoding alone (every camera; FFmpeg held to the calling thread as in the pipeline's readers,
+    :data:`silpose.app.recordings.sources.DECODER_PARAMS`, so that the figure holds all of the decoding's CPU --
+    with FFmpeg's own threads a thread's clock misses theirs), and OpenCV's MOG2 (shadow detection, learnt on the
+    empty-room clips, learning rate 0) on every decoded full-size frame; with ``model`` (its rig sets each camera's
+    working size, :mod:`silpose.app.recordings.resolution`) also the pipeline's own per-frame stages there:
+    shrinking the frame to the working size (``shrink``) and segmenting it with the pipeline's
+    :class:`~silpose.segment.BackgroundModel` learnt from the shrunk clips (``segment``). CPU ms per time step."""
     import time
 
     import cv2
+    import numpy as np
+
+    from silpose.app.recordings.resolution import shrink, work_size
+    from silpose.app.recordings.silhouettes import SEGMENT_DEFAULTS
+    from silpose.app.recordings.sources import DECODER_PARAMS
+    from silpose.segment import BackgroundModel
 
     cv2.setNumThreads(1)
-    decode = mog = 0.0
+    rig = None
+    if model:
+        from silpose.model.persistence import load_model  # scikit-learn: seconds to import on a loaded machine
+
+        rig = load_model(model).rig_
+    decode = mog = resize = seg = 0.0
     steps = 0
     for video in sorted(Path(videos).glob("*.mp4")):
+        size = None
+        if rig is not None:
+            cam = rig[list(rig.names).index(video.stem)]
+            size = work_size(cam, rig.workspace.center)
         sub = cv2.createBackgroundSubtractorMOG2(history=n_background, varThreshold=16, detectShadows=True)
-        cap = cv2.VideoCapture(str(Path(clips) / video.name))
+        cap = cv2.VideoCapture(str(Path(clips) / video.name), cv2.CAP_FFMPEG, DECODER_PARAMS)
+        small = []
         while True:
             ok, img = cap.read()
             if not ok:
                 break
             sub.apply(img)
+            if size is not None:
+                small.append(shrink(img, size))
         cap.release()
-        cap = cv2.VideoCapture(str(video))
+        bg = BackgroundModel(**SEGMENT_DEFAULTS).fit(np.stack(small)) if small else None
+        cap = cv2.VideoCapture(str(video), cv2.CAP_FFMPEG, DECODER_PARAMS)
         n = 0
         while True:
             t0 = time.thread_time()
@@ -160,10 +185,20 @@ def decode_reference(videos: str, clips: str, n_background: int = 20) -> dict:
             t0 = time.thread_time()
             sub.apply(img, learningRate=0)
             mog += time.thread_time() - t0
+            if bg is not None:
+                t0 = time.thread_time()
+                frame = shrink(img, size)
+                t1 = time.thread_time()
+                bg.segment(frame)
+                resize += t1 - t0
+                seg += time.thread_time() - t1
             n += 1
         cap.release()
         steps = max(steps, n)
-    return {"steps": steps, "decode_cpu_ms_per_step": 1000 * decode / steps, "mog2_cpu_ms_per_step": 1000 * mog / steps}
+    out = {"steps": steps, "decode_cpu_ms_per_step": 1000 * decode / steps, "mog2_cpu_ms_per_step": 1000 * mog / steps}
+    if rig is not None:
+        out.update(shrink_cpu_ms_per_step=1000 * resize / steps, segment_cpu_ms_per_step=1000 * seg / steps)
+    return out
 
 
 def peak_rss_bytes() -> int:
@@ -345,10 +380,10 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             plan += [(f"colour 4 x {size}", videos, False, threads, None, {"background": str(clips), "model": big_model}),
                      (f"colour 4 x {size} with overlays", videos, True, threads, None,
                       {"background": str(clips), "model": big_model})]
-            ref = subproc.call(__name__, "decode_reference", dict(videos=str(videos), clips=str(clips)))
+            ref = subproc.call(__name__, "decode_reference", dict(videos=str(videos), clips=str(clips), model=big_model))
             if ref.error:
                 raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
-            rows.append({"name": "reference", "run": f"colour 4 x {size}: decode alone / MOG2 alone, 1 thread",
+            rows.append({"name": "reference", "run": f"colour 4 x {size}: decode / MOG2 / shrink + segment alone, 1 thread",
                          **ref.value})
         first = carved = None
         for label, videos, overlays, thr, robust, extra in plan:

@@ -78,3 +78,22 @@ def test_overlay_shares_compare_each_overlay_run_with_its_plain_run():
     _overlay_shares(rows)
     assert abs(rows[1]["overlay_share_wall"] - 0.5) < 1e-12 and abs(rows[1]["overlay_share_cpu"] - 0.6) < 1e-12
     assert "overlay_share_wall" not in rows[0] and "overlay_share_wall" not in rows[2]  # no plain run to compare
+
+
+def test_decode_reference_times_every_frame_of_every_camera(tmp_path):
+    import cv2
+
+    from benchmarks.recordings import decode_reference
+
+    rng = np.random.default_rng(0)
+    for folder, n in (("videos", 3), ("clips", 4)):
+        (tmp_path / folder).mkdir()
+        for cam in ("cam0", "cam1"):
+            w = cv2.VideoWriter(str(tmp_path / folder / f"{cam}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), 25, (64, 48))
+            for _ in range(n):
+                w.write(rng.integers(0, 256, (48, 64, 3), dtype=np.uint8))
+            w.release()
+    ref = decode_reference(str(tmp_path / "videos"), str(tmp_path / "clips"), n_background=4)
+    assert ref["steps"] == 3
+    assert ref["decode_cpu_ms_per_step"] > 0 and ref["mog2_cpu_ms_per_step"] > 0
+    assert "segment_cpu_ms_per_step" not in ref  # no model: no working size

@@ -238,3 +238,36 @@ def test_mixed_edge_pixels_are_dropped_where_the_person_covers_less_than_half():
     assert masks[0.5]["edges"][coverage > 0.99].all()  # ... never one the figure covers whole
     with pytest.raises(ValueError, match="edge_coverage"):
         BackgroundModel(edge_coverage=1.5).fit(background)
+
+
+def test_add_sums_equals_int64_sums_across_uint32_chunks(monkeypatch):
+    """The uint32 / uint16 running sums of partial_fit equal int64 sums, also at 255 (the largest square) and
+    when the frames are split into several partial sums."""
+    from silpose.segment import background
+
+    rng = np.random.default_rng(2)
+    frames = rng.integers(0, 256, (7, 5, 6, 3), dtype=np.uint8)
+    frames[:, 0] = 255
+    ref = frames.astype(np.int64)
+    for chunk in (background.SUM_FRAMES, 2):
+        monkeypatch.setattr(background, "SUM_FRAMES", chunk)
+        s1, s2 = np.full(frames.shape[1:], 3, np.int64), np.full(frames.shape[1:], 5, np.int64)
+        background.add_sums(frames, s1, s2)
+        np.testing.assert_array_equal(s1, 3 + ref.sum(axis=0))
+        np.testing.assert_array_equal(s2, 5 + (ref * ref).sum(axis=0))
+
+
+@pytest.mark.parametrize("colour", [True, False])
+def test_frame_gain_is_the_median_ratio_over_the_bright_grid(colour):
+    """frame_gain (reference values cached, medians over contiguous rows) equals its definition computed
+    directly: the median over every 4th row and column, where the background is brighter than 16, of frame /
+    background -- per channel for colour."""
+    rng = np.random.default_rng(3)
+    shape = (4, 41, 37, 3) if colour else (4, 41, 37)
+    frames = rng.integers(0, 256, shape, dtype=np.uint8)
+    model = BackgroundModel(gain=True).fit(frames)
+    frame = rng.integers(0, 256, shape[1:], dtype=np.uint8)
+    ref = (model.colour_mean_ if colour else model.mean_)[::4, ::4].astype(np.float32)
+    ok = (ref > 16).all(axis=-1) if colour else ref > 16
+    want = np.median(frame[::4, ::4].astype(np.float32)[ok] / ref[ok], axis=0)
+    np.testing.assert_array_equal(model.frame_gain(frame), want.astype(np.float32))

@@ -74,10 +74,27 @@ STAGES = ("candidates", "shadow_rejected", "edges", "median", "morphology", "fin
 
 _SUM3 = np.ones((1, 3), np.float32)  # cv2.transform matrix: sum of the 3 channels
 _CROSS3 = np.ones((3, 3), np.uint8)  # 8-neighbourhood of the edge rule
-_BATCH_CHUNK = 64  # frames per vectorised chunk in partial_fit / segment_batch (bounds the temporaries)
-_MAX_CHUNK_VALUES = 8_000_000  # int64 values per partial_fit chunk (64 MB; its square products as many again)
+_BATCH_CHUNK = 64  # frames per vectorised chunk in segment_batch (bounds the temporaries)
+#: frames per uint32 partial sum of squares in partial_fit (65,000 x 255^2 < 2^32)
+SUM_FRAMES = 65_000
 _GAIN_STEP = 4  # every 4th row and column are the pixels the gain is measured on
 _GAIN_MIN_LEVEL = 16.0  # graylevels: darker background pixels say little about the gain
+
+
+def add_sums(frames: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> None:
+    """Add the per-pixel sums of ``frames`` (N, H, W[, C]) uint8 and of their squares to the int64 running sums
+    ``s1``, ``s2`` (H, W[, C]), exactly: uint32 partial sums over at most :data:`SUM_FRAMES` frames (a square is
+    at most 255^2 = 65025, so 65,000 of them fit in 32 bits), each square taken in uint16. About 30x faster than
+    int64 copies of the frames and an int64 ``einsum`` (0.02 s instead of 0.64 s for 20 692x522 colour frames)."""
+    for start in range(0, frames.shape[0], SUM_FRAMES):
+        chunk = frames[start : start + SUM_FRAMES]
+        s1 += chunk.sum(axis=0, dtype=np.uint32)
+        acc = np.zeros(frames.shape[1:], np.uint32)
+        sq = np.empty(frames.shape[1:], np.uint16)
+        for f in chunk:
+            np.multiply(f, f, out=sq, dtype=np.uint16)
+            acc += sq
+        s2 += acc
 
 
 class BackgroundModel:
@@ -251,17 +268,9 @@ class BackgroundModel:
                 f"frames: {'colour' if is_colour else 'graylevel'} frames after {first} ones; with colour=True "
                 f"the background must be all colour or all graylevel"
             )
-        if self._c1 is not None:  # int64 chunks of at most _MAX_CHUNK_VALUES values (a full-HD frame is 6 M)
-            step = max(1, min(_BATCH_CHUNK // 4, _MAX_CHUNK_VALUES // int(np.prod(stack.shape[1:]))))
-            for start in range(0, stack.shape[0], step):
-                c = stack[start : start + step].astype(np.int64)
-                self._c1 += c.sum(axis=0)
-                self._c2 += np.einsum("nhwc,nhwc->hwc", c, c)
-        step = max(1, min(_BATCH_CHUNK, _MAX_CHUNK_VALUES // int(np.prod(gray.shape[1:]))))
-        for start in range(0, gray.shape[0], step):  # bounded int64 temporaries
-            g = gray[start : start + step].astype(np.int64)
-            self._s1 += g.sum(axis=0)
-            self._s2 += np.einsum("nhw,nhw->hw", g, g)
+        if self._c1 is not None:
+            add_sums(stack, self._c1, self._c2)
+        add_sums(gray, self._s1, self._s2)
         self.n_frames_seen_ += gray.shape[0]
         if self.n_frames_seen_ >= 2:
             self._finalise()
@@ -351,6 +360,7 @@ class BackgroundModel:
         grid = ref[::_GAIN_STEP, ::_GAIN_STEP]
         self._gain_ref = grid.astype(np.float32)
         self._gain_ok = (grid > _GAIN_MIN_LEVEL) if grid.ndim == 2 else (grid > _GAIN_MIN_LEVEL).all(axis=-1)
+        self._gain_ref_ok = self._gain_ref[self._gain_ok]  # (N,) or (N, 3): frame_gain's denominators
 
     def _check_params(self) -> None:
         def fail(name, value, rule):
@@ -461,13 +471,19 @@ class BackgroundModel:
         """The gain of one frame (H, W) or (H, W, 3) uint8 with respect to the background: a scalar for
         graylevel frames, (3,) per channel for colour ones when the background is colour (module docstring)."""
         self._check_fitted()
-        f = np.asarray(frame)[::_GAIN_STEP, ::_GAIN_STEP].astype(np.float32)
+        f = np.asarray(frame)[::_GAIN_STEP, ::_GAIN_STEP]
         ref = self._gain_ref
         if f.ndim == 3 and ref.ndim == 2:
-            f = f @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
+            f = f.astype(np.float32) @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
         elif f.ndim == 2 and ref.ndim == 3:
             ref = ref @ np.array([0.114, 0.587, 0.299], np.float32)
-        ratio = f[self._gain_ok] / ref[self._gain_ok]
+        else:  # the frame of the background's kind: the grid's reference values taken once (_prepare)
+            ratio = f[self._gain_ok].astype(np.float32) / self._gain_ref_ok
+            if not len(ratio):
+                return np.ones(ratio.shape[1:], np.float32)
+            # per channel, over contiguous rows: the same medians as over the (N, C) columns, in a third of the time
+            return np.median(np.ascontiguousarray(ratio.T), axis=-1).astype(np.float32)
+        ratio = f[self._gain_ok].astype(np.float32) / ref[self._gain_ok]
         if not len(ratio):
             return np.ones(ratio.shape[1:], np.float32)
         return np.median(ratio, axis=0).astype(np.float32)

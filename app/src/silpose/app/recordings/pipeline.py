@@ -19,10 +19,15 @@ then per chunk:
    are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
 
-Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count), and BLAS
+Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count) -- except the view
+stage (3) of mask videos without carving, which runs in the run's thread: it is small numpy calls that hold the
+GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 steps, six alternating runs at
+load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool) -- and BLAS
 is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
 threads competing with the camera threads cost more than they give (measured on this 2-core machine
-under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1).
+under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1); so are OpenCV's own
+parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's decoding threads
+(:data:`~.sources.DECODER_PARAMS`): the cameras already run in threads of their own.
 
 Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
 detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
@@ -384,10 +389,14 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
     stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
+    # mask videos without carving: the view stage in this thread (module docstring, "Threads")
+    views_map = pool.map if pool and (not opt.masks or hulls is not None) else map
     step = 0
     detected = 0  # steps with someone on the floor (tracked or not): says why nobody was found
     gone: set[str] = set()  # cameras whose video ended
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
+    cv_threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # the same for OpenCV's own parallel loops (module docstring)
     try:
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
                                 {c.name: (c.width, c.height) for c in work}, fps, first_frame,
@@ -418,7 +427,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     if warn:
                         warn(msg)
                 found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
-                                            pool.map if pool else map, hulls,
+                                            views_map, hulls,
                                             [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks)
                 people += found
                 detected += bool(len(where))
@@ -461,6 +470,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         raise
     finally:
         blas.restore_original_limits()
+        cv2.setNumThreads(cv_threads)
         if pool:
             pool.shutdown()
         for c in cams.values():

@@ -24,6 +24,8 @@ Masks are (H, W) uint8 in {0, 1}; :class:`MaskBinariser` and :class:`ColourSegme
 from __future__ import annotations
 
 import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -120,7 +122,19 @@ def background_from_clips(folder: Path, rig, cameras, params: dict | None = None
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "
                              f"{folder / (absent[0] + '.mp4')})")
     sources = {c: at_size(clips.sources[c], (sizes or {}).get(c)) for c in cameras}
-    return ColourSegmenter({c: _fit_stream(sources[c], MAX_BACKGROUND_FRAMES, params or {}) for c in cameras})
+    return ColourSegmenter(_fit_all(sources, MAX_BACKGROUND_FRAMES, params or {}))
+
+
+def _fit_all(sources: dict[str, CameraSource], n: int, params: dict) -> dict[str, BackgroundModel]:
+    """{camera: :func:`_fit_stream` of its source}, the cameras in a thread each (at most the CPU count): decoding,
+    resizing and summing release the GIL, so the cameras' backgrounds are learnt side by side; the models are those
+    of one camera after the other (each thread fits its own)."""
+    workers = max(1, min(len(sources), os.cpu_count() or 1))
+    if workers == 1:
+        return {c: _fit_stream(s, n, params) for c, s in sources.items()}
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        fitted = list(pool.map(lambda s: _fit_stream(s, n, params), sources.values()))
+    return dict(zip(sources, fitted))
 
 
 def at_size(source: CameraSource, size: tuple[int, int] | None) -> CameraSource:
@@ -135,7 +149,7 @@ def background_from_first_frames(sources: dict[str, CameraSource], n: int, param
     """Background models learnt from the first ``n`` (>= 2) frames of each camera's video."""
     if n < 2:
         raise RecordingError(f"--background-frames: a background needs at least 2 frames, got {n}")
-    return ColourSegmenter({c: _fit_stream(s, n, params or {}) for c, s in sources.items()})
+    return ColourSegmenter(_fit_all(sources, n, params or {}))
 
 
 def background_from_recording(sources: dict[str, CameraSource], params: dict | None = None,
