@@ -261,7 +261,7 @@ def learning_curve_section(reports_dir: Path) -> list[str]:
                 f"{first.get('n_test', '?')} test samples): every view / one view, cm", ""] + table
         fits = ", ".join(f"N {r['n_samples']:,} M {r['n_components']}: {r['fit_s']:.0f} s"
                          for r in data["rows"])
-        out += ["", f"Fit times (streaming EM, wall, shared machine): {fits}.", ""]
+        out += ["", f"Fit times (EM {st.get('fit', 'streaming')}, wall, shared machine): {fits}.", ""]
     return out
 
 
