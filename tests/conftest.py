@@ -3,10 +3,15 @@
 import pytest
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the xdist_group marks
 def pytest_collection_modifyitems(config, items):
     """The tests that use a local Ray instance run last, one after the other, so they share one instance
-    (starting Ray costs ~8 s on 2 cores; see ``local_ray``). Their order among themselves is kept."""
+    (starting Ray costs ~8 s on 2 cores; see ``local_ray``). Their order among themselves is kept. Under
+    pytest-xdist (``just test`` runs ``-n 2 --dist loadgroup``) they form one group: one worker runs them all,
+    so one Ray instance starts."""
     ray_tests = [it for it in items if "local_ray" in getattr(it, "fixturenames", ())]
+    for it in ray_tests:
+        it.add_marker(pytest.mark.xdist_group("ray"))
     if ray_tests:
         items[:] = [it for it in items if "local_ray" not in getattr(it, "fixturenames", ())] + ray_tests
 
