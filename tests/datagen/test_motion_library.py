@@ -19,7 +19,7 @@ from silpose.datagen.motion.config import MotionConfigError, motion_from_dict
 from silpose.datagen.motion.library import (BUNDLED, CMU_ACKNOWLEDGEMENT, FRAMES_NAME, MANIFEST_NAME, PARENTS, ROLES,
                                             LibraryClip, LibraryError, derive, load_library, reconstruct, resample_chain,
                                             write_library)
-from silpose.datagen.motion.mix import MIX_FIELDS, MixedMotion, prepare_library
+from silpose.datagen.motion.mix import MIX_FIELDS, PART_FIELDS, MixedMotion, prepare_library
 from silpose.datagen.motion.retarget import retarget_frame
 from silpose.datagen.scene import draw_scene
 from silpose.datagen.subjects import sample_subject
@@ -276,6 +276,7 @@ test = 6
 source = "library"
 procedural_walk = 0.2
 mirror = true
+part_mix = 0.5
 [motion.weights]
 bend = 3.0
 leap = 3.0
@@ -300,7 +301,10 @@ def test_rendered_motions_dataset_validates_and_indexes_its_clip_list(tmp_path):
         assert clips[0]["id"] == "procedural-walk" and {"id", "group", "split", "licence"} <= set(clips[1])
         gait = load_split(tmp_path / "ds", split, columns=["gait"]).gait
         idx = np.asarray(gait["clip"], int)
-        assert set(gait) == set(MIX_FIELDS) and np.all((idx >= 0) & (idx < len(clips)))
+        assert set(gait) == set(MIX_FIELDS + PART_FIELDS) and np.all((idx >= 0) & (idx < len(clips)))
+        legs = np.asarray(gait["legs_clip"], int)
+        assert np.any(legs > 0) if split == "train" else np.all(legs == -1)  # part mixing: training only
+        assert all(clips[i]["split"] == "train" for i in legs if i > 0)
         assert all(clips[i]["split"] == split for i in idx if i)  # held-out subjects' clips only in test
         if split == "test":
             assert not np.any(idx == 0)

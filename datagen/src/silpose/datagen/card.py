@@ -190,7 +190,10 @@ def _library_section(motion: dict, loaded: dict) -> str:
         "and the walk's parameters (0 for a clip frame, except `heading`, `x`, `y`). A group is drawn with "
         f"probability proportional to its weight ({weights}; groups {', '.join(motion.get('groups') or ['all'])}), "
         f"then one of its frames uniformly. Mirror augmentation: {'on' if motion.get('mirror') else 'off'}. "
-        f"Library frames sha256 `{str(lib.get('frames_sha256', ''))[:16]}`, {lib.get('fps', '?')} fps.\n",
+        + (f"Part mixing: {float(motion['part_mix']):g} of the train split's library frames take their hips and legs "
+           "from a second train frame (`legs_clip`, `legs_frame`, `legs_mirror`; `legs_clip` -1: the frame's own legs). "
+           if float(motion.get("part_mix") or 0) > 0 else "")
+        + f"Library frames sha256 `{str(lib.get('frames_sha256', ''))[:16]}`, {lib.get('fps', '?')} fps.\n",
         *summary, "", *rows, "",
         *([f"**Acknowledgement.** {lib['acknowledgement']}\n"] if lib.get("acknowledgement") else []),
     ])

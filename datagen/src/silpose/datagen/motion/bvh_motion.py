@@ -89,7 +89,11 @@ class BvhMotion:
     def pose(self, subject: dict[str, float], params: dict[str, float]) -> Pose:
         """The retargeted pose of ``subject`` for ``params`` (module docstring)."""
         clip = self.clips[int(params["clip"])]
-        pts = clip.points(int(params["frame"]), bool(params["mirror"]))
+        return self.placed(subject, clip.points(int(params["frame"]), bool(params["mirror"])), params)
+
+    def placed(self, subject: dict[str, float], pts: dict[str, np.ndarray], params: dict[str, float]) -> Pose:
+        """The pose of role positions ``pts`` (:func:`retarget.clip_points`) retargeted onto
+        ``subject``, turned to ``params["heading"]``, at ``params["x"], params["y"]``, feet on the floor."""
         J, G, _ = retarget_frame(pts, subject)
         root = np.eye(4)
         root[:3, :3] = euler_matrix((0.0, 0.0, float(params["heading"])))

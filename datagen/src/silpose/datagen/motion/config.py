@@ -39,6 +39,12 @@ The motion library instead (no BVH import at generation time; :mod:`.library`, :
     weights = { walk = 1.0, dance = 2.0 }   # per-group share of the library draws (default 1 each)
     procedural_walk = 0.2          # share of samples posed by the procedural walk instead
     mirror = true
+    part_mix = 0.3                 # share of training library frames whose legs come from another frame
+
+``part_mix`` (augmentation, training samples only; default 0): the hips and legs of that share of
+the training split's library frames come from a second training frame, turned about the vertical
+to the first frame's hip line (:func:`.retarget.combine_legs`), so the training poses hold
+upper- and lower-body combinations that no clip has.
 """
 
 from __future__ import annotations
@@ -53,7 +59,7 @@ SOURCES = ("procedural", "bvh", "library")
 #: Metres per unit of the CMU BVH conversions (1/0.45 inch).
 CMU_SCALE = 0.0254 / 0.45
 _KEYS = {"source", "bvh", "scale", "joint_map", "stride", "frames", "mirror", "weight", "licence", "note", "clip"}
-_LIBRARY_KEYS = {"source", "library", "groups", "weights", "procedural_walk", "mirror"}
+_LIBRARY_KEYS = {"source", "library", "groups", "weights", "procedural_walk", "mirror", "part_mix"}
 _CLIP_KEYS = {"file", "scale", "joint_map", "stride", "frames", "weight", "licence", "note"}
 
 
@@ -96,6 +102,7 @@ class MotionConfig:
     groups: tuple[str, ...] = ()
     weights: dict = field(default_factory=dict)
     walk_share: float = 0.0
+    part_mix: float = 0.0
 
     @property
     def is_bvh(self) -> bool:
@@ -124,14 +131,21 @@ def _library_from_dict(raw: dict, base: Path, msrc: str) -> MotionConfig:
     if not isinstance(weights, dict) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0 for v in weights.values()):
         raise MotionConfigError(f"{msrc}: field 'weights' must be a table of group = weight >= 0, got {weights!r}")
-    share = raw.get("procedural_walk", 0.0)
-    if not isinstance(share, (int, float)) or isinstance(share, bool) or not 0.0 <= share <= 1.0:
-        raise MotionConfigError(f"{msrc}: field 'procedural_walk' must be a number in [0, 1], got {share!r}")
+    share, part_mix = (_share(raw, key, msrc) for key in ("procedural_walk", "part_mix"))
     mirror = raw.get("mirror", False)
     if not isinstance(mirror, bool):
         raise MotionConfigError(f"{msrc}: field 'mirror' must be true or false, got {mirror!r}")
     return MotionConfig(source="library", mirror=mirror, base=base, library=lib, groups=tuple(groups),
-                        weights={str(k): float(v) for k, v in weights.items()}, walk_share=float(share))
+                        weights={str(k): float(v) for k, v in weights.items()}, walk_share=share,
+                        part_mix=part_mix)
+
+
+def _share(raw: dict, key: str, msrc: str) -> float:
+    """``raw[key]`` (default 0) checked to be a number in [0, 1]."""
+    value = raw.get(key, 0.0)
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not 0.0 <= value <= 1.0:
+        raise MotionConfigError(f"{msrc}: field {key!r} must be a number in [0, 1], got {value!r}")
+    return float(value)
 
 
 def _num(d: dict, key: str, src: str, default, lo: float, kind=float):

@@ -20,6 +20,13 @@ one of that group's frames uniformly (every clip of g carries the per-frame weig
 (:class:`bvh_motion.BvhMotion`). The ``gait`` fields are :data:`MIX_FIELDS`: ``clip``, ``frame``
 (BVH frame of the clip; 0 for the walk), ``mirror`` and the walk's :data:`walk.GAIT_FIELDS` (0 for a
 library frame, except ``heading``, ``x``, ``y``).
+
+Part mixing (``part_mix`` > 0, training split only): after those draws, a library frame draws one
+more uniform number; below ``part_mix`` a second frame (clip, frame, mirror coin; its heading and
+position are drawn and unused) gives the hips and legs (:func:`retarget.combine_legs`) if the mix can
+stand on its feet (:func:`retarget.above_feet`; up to :data:`LEGS_TRIES` frames are drawn), recorded in
+:data:`PART_FIELDS` (``legs_clip`` -1 for a frame whose legs are its own). With ``part_mix`` 0 the
+fields and draws are those above, so the test split and older datasets are unchanged.
 """
 
 from __future__ import annotations
@@ -35,10 +42,15 @@ from ..walk import GAIT_FIELDS, sample_gait
 from .bvh_motion import BvhMotion
 from .config import MotionConfig
 from .library import Library, LibraryClip, LibraryError, load_library
+from .retarget import above_feet, combine_legs
 from .source import Pose, WalkMotion
 
 #: The per-sample motion parameters of a library dataset (the ``gait`` column's fields).
 MIX_FIELDS: tuple[str, ...] = ("clip", "frame", "mirror") + GAIT_FIELDS
+#: The second frame's fields of a part-mixed dataset (``[motion] part_mix`` > 0).
+PART_FIELDS: tuple[str, ...] = ("legs_clip", "legs_frame", "legs_mirror")
+#: Second frames drawn for a part-mixed sample until one stands (:func:`retarget.above_feet`); then its own legs.
+LEGS_TRIES = 5
 WALK_ENTRY = {"name": "procedural-walk", "id": "procedural-walk", "group": "walk", "split": "train+test",
               "licence": "silpose (MIT), procedural", "subject": "-", "description": "silpose's procedural walk cycle",
               "frames": 0, "weight": 0.0}
@@ -79,7 +91,8 @@ class PreparedLibrary:
     def metadata(self) -> dict:
         """The ``motion`` entry of the dataset config (metadata, manifest, card)."""
         m = self.config
-        return {"source": "library", "fields": list(MIX_FIELDS), "mirror": m.mirror,
+        fields = MIX_FIELDS + (PART_FIELDS if m.part_mix > 0 else ())
+        return {"source": "library", "fields": list(fields), "mirror": m.mirror, "part_mix": m.part_mix,
                 "procedural_walk": m.walk_share, "groups": list(m.groups), "weights": dict(m.weights),
                 "library": {"path": m.library, "frames_sha256": self.library.sha256(),
                             "acknowledgement": self.library.manifest.get("acknowledgement", ""),
@@ -89,7 +102,7 @@ class PreparedLibrary:
     def worker(self) -> dict:
         """The ``motion`` entry of the render workers' config."""
         return {"source": "library", "library": str(self.library.folder), "mirror": self.config.mirror,
-                "procedural_walk": self.config.walk_share,
+                "procedural_walk": self.config.walk_share, "part_mix": self.config.part_mix,
                 "clips": [{"row": int(r), **{k: c[k] for k in ("split", "weight")}}
                           for r, c in zip(self.rows, self.clip_list()[1:])]}
 
@@ -119,11 +132,14 @@ def prepare_library(motion: MotionConfig) -> PreparedLibrary:
 class MixedMotion:
     """Library clips of one split mixed with the procedural walk (module docstring)."""
 
-    fields = MIX_FIELDS
     stream = MOTION_STREAM
 
     def __init__(self, clips: list[LibraryClip], indices: list[int], walk_share: float, mirror: bool = False,
-                 workspace: Workspace = DEFAULT_WORKSPACE):
+                 workspace: Workspace = DEFAULT_WORKSPACE, part_mix: float = 0.0, legs_fields: bool = False):
+        """``part_mix``: share of library frames whose legs come from a second frame;
+        ``legs_fields``: record :data:`PART_FIELDS` (a part-mixed dataset's test split too)."""
+        self.part_mix = float(part_mix) if clips else 0.0
+        self.fields = MIX_FIELDS + (PART_FIELDS if legs_fields or self.part_mix > 0 else ())
         self.walk = WalkMotion(workspace)
         self.walk_share = float(walk_share) if clips else 1.0
         self.indices = list(indices)
@@ -140,22 +156,40 @@ class MixedMotion:
             if c["split"] == split and float(c["weight"]) > 0:
                 clips.append(LibraryClip(lib, int(c["row"]), float(c["weight"])))
                 indices.append(i)
-        share = float(motion.get("procedural_walk", 0.0)) if split == "train" else 0.0
-        return cls(clips, indices, share, bool(motion.get("mirror", False)), workspace)
+        train = split == "train"
+        share = float(motion.get("procedural_walk", 0.0)) if train else 0.0
+        part_mix = float(motion.get("part_mix", 0.0))
+        return cls(clips, indices, share, bool(motion.get("mirror", False)), workspace,
+                   part_mix=part_mix if train else 0.0, legs_fields=part_mix > 0)
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
         """A walk pose or a library frame, heading and floor position (module docstring)."""
+        own_legs = {"legs_clip": -1.0, "legs_frame": 0.0, "legs_mirror": 0.0} if PART_FIELDS[0] in self.fields else {}
         if self.bvh is None or rng.random() < self.walk_share:
-            return {"clip": 0.0, "frame": 0.0, "mirror": 0.0, **sample_gait(rng, self.workspace)}
+            return {"clip": 0.0, "frame": 0.0, "mirror": 0.0, **sample_gait(rng, self.workspace), **own_legs}
         p = self.bvh.draw(rng)
         out = {"clip": float(self.indices[int(p["clip"])]), "frame": p["frame"], "mirror": p["mirror"],
-               **{k: 0.0 for k in GAIT_FIELDS}}
+               **{k: 0.0 for k in GAIT_FIELDS}, **own_legs}
         out.update(heading=p["heading"], x=p["x"], y=p["y"])
+        if self.part_mix > 0 and rng.random() < self.part_mix:
+            upper = self.bvh.clips[int(p["clip"])].points(int(p["frame"]), bool(p["mirror"]))
+            for _ in range(LEGS_TRIES):
+                q = self.bvh.draw(rng)
+                lower = self.bvh.clips[int(q["clip"])].points(int(q["frame"]), bool(q["mirror"]))
+                if above_feet(combine_legs(upper, lower)):
+                    out.update(legs_clip=float(self.indices[int(q["clip"])]), legs_frame=q["frame"],
+                               legs_mirror=q["mirror"])
+                    break
         return out
 
     def pose(self, subject: dict[str, float], params: dict[str, float]) -> Pose:
-        """The walk's or the retargeted clip frame's pose of ``subject``."""
+        """The walk's or the retargeted clip frame's (or the two part-mixed frames') pose of ``subject``."""
         c = int(params["clip"])
         if c == 0:
             return self.walk.pose(subject, {k: params[k] for k in GAIT_FIELDS})
-        return self.bvh.pose(subject, {**params, "clip": float(self.local[c])})
+        legs = int(params.get("legs_clip", -1))
+        if legs < 0:
+            return self.bvh.pose(subject, {**params, "clip": float(self.local[c])})
+        upper = self.bvh.clips[self.local[c]].points(int(params["frame"]), bool(params["mirror"]))
+        lower = self.bvh.clips[self.local[legs]].points(int(params["legs_frame"]), bool(params["legs_mirror"]))
+        return self.bvh.placed(subject, combine_legs(upper, lower), params)

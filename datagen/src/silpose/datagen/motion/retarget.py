@@ -131,6 +131,42 @@ def clip_points(heads: np.ndarray, tails: np.ndarray, jmap: ResolvedMap, mirror:
     return pts
 
 
+#: The roles a leg swap takes from the second frame (:func:`combine_legs`).
+LEG_ROLES: tuple[str, ...] = tuple(f"{s}_{j}" for s in "lr" for j in ("hip", "knee", "ankle", "toe"))
+
+
+def combine_legs(upper: dict[str, np.ndarray], lower: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Role positions (:func:`clip_points`) with the hips and legs of ``lower`` and everything else
+    of ``upper`` (part-mixing augmentation, ``[motion] part_mix``).
+
+    ``lower``'s leg roles (:data:`LEG_ROLES`) are taken relative to its pelvis, turned about the
+    vertical by the difference of the two frames' hip-line headings (:func:`heading_of`) and put at
+    ``upper``'s pelvis: ``p = pelvis_u + Rz(yaw_u - yaw_l) (p_l - pelvis_l)``. So the legs keep
+    their own shape and tilt, and face where the upper body's hips faced; ``upper``'s leg roles
+    (its toes too, when ``lower`` has none) are dropped.
+    """
+    yaw_u = heading_of(upper["l_hip"] - upper["r_hip"])
+    yaw_l = heading_of(lower["l_hip"] - lower["r_hip"])
+    turn = euler_matrix((0.0, 0.0, yaw_u - yaw_l))
+    out = {k: v for k, v in upper.items() if k not in LEG_ROLES}
+    for role in LEG_ROLES:
+        if role in lower:
+            out[role] = upper["pelvis"] + turn @ (lower[role] - lower["pelvis"])
+    return out
+
+
+#: The roles a pose stands on (the floor touches the lowest of them).
+FOOT_ROLES: tuple[str, ...] = ("l_ankle", "r_ankle", "l_toe", "r_toe")
+
+
+def above_feet(pts: dict[str, np.ndarray], margin: float = 0.02) -> bool:
+    """Whether no role of ``pts`` (:func:`clip_points`, metres, z up) but the feet is more than
+    ``margin`` metres below the lowest foot role: a pose that can stand with its feet on the floor."""
+    feet = min(float(pts[r][2]) for r in FOOT_ROLES if r in pts)
+    rest = min(float(v[2]) for k, v in pts.items() if k not in FOOT_ROLES and np.ndim(v) == 1)
+    return rest >= feet - margin
+
+
 def retarget_frame(pts: dict[str, np.ndarray], subject: dict[str, float]) -> tuple[np.ndarray, np.ndarray, float]:
     """Retarget one clip frame (:func:`clip_points`) onto ``subject`` (module docstring).
 
