@@ -6,7 +6,8 @@
 
 Modules: :mod:`.background` (the model), :mod:`.validate` (input checks,
 :class:`SegmentError`), :mod:`.ncc` (local normalised correlation with box
-filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.cleanup` (median,
+filters), :mod:`.chroma` (colour shadow growth from the NCC's seeds), :mod:`.align` (registering a plate to the
+recording it is the background of), :mod:`.cleanup` (median,
 open/close, largest blob), :mod:`.synthetic` (scenes with known masks). A library on arrays:
 reading image folders, videos and frames folders is ``silpose.app.inputs``. The throughput
 benchmark is ``benchmarks/segmentation.py`` at the repository root.
@@ -14,5 +15,6 @@ benchmark is ``benchmarks/segmentation.py`` at the repository root.
 
 from .validate import SegmentError
 from .background import STAGES, BackgroundModel
+from .align import plate_alignment, plate_mismatch_std, warp_plate
 
-__all__ = ["STAGES", "BackgroundModel", "SegmentError"]
+__all__ = ["STAGES", "BackgroundModel", "SegmentError", "plate_alignment", "plate_mismatch_std", "warp_plate"]

@@ -38,7 +38,7 @@ def infer(
     frames: Annotated[Optional[Path], typer.Option("--frames", help="A frames folder of one person: --videos DIR --people 1.")] = None,
     people: Annotated[Optional[int], typer.Option("--people", help="1: one person: each view's largest blob, no floor tracking, joints root-relative in one file. Default: several people, found on the floor, tracked and placed in the room.")] = None,
     masks: Annotated[bool, typer.Option("--masks", help="The videos are foreground masks (lossy codecs are fine).")] = False,
-    background: Annotated[Optional[Path], typer.Option("--background", help="Colour videos: a folder of empty-room clips, one per camera, named like the videos (a frames folder's background/ by default); or 'median': the recording's own per-pixel median (nobody stands still).")] = None,
+    background: Annotated[Optional[Path], typer.Option("--background", help="Colour videos: a folder of empty-room clips, one per camera, named like the videos (a frames folder's background/ by default; each clip is registered to its video first, for a camera nudged since); or 'median': the recording's own per-pixel median (nobody stands still).")] = None,
     background_frames: Annotated[Optional[int], typer.Option("--background-frames", min=2, help="Colour videos: learn each camera's background from its first N frames (the empty room).")] = None,
     offsets: Annotated[Optional[str], typer.Option("--offsets", help="Per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
     overlays: Annotated[Optional[Overlays], typer.Option("--overlays", help="Overlays of every frame: one PNG per frame (the cameras tiled) or one mp4 per camera (default: mp4 for several people, none for one).")] = None,

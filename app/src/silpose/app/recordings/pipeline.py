@@ -134,6 +134,8 @@ class RecordingOptions:
     (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
     videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
     47 and 92 without -- a mask frame decodes in ~1 ms, and the extra threads only contend for the cores).
+    align_plates: register each empty-room clip to the recording's own view of the room before its background
+    is learnt (:mod:`silpose.segment.align`: a camera nudged or a video rescaled since the plate).
     """
 
     masks: bool = False
@@ -158,6 +160,7 @@ class RecordingOptions:
     absorb_s: float = ABSORB_S
     reader_threads: bool | None = None
     overlay_dir: Path | None = None
+    align_plates: bool = True
     carve: bool | None = None
 
 
@@ -543,7 +546,8 @@ def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
         silhouettes = background_from_recording(sources, opt.segment_params)
     elif opt.background is not None:
         silhouettes = background_from_clips(Path(opt.background), rig, list(sources), opt.segment_params,
-                                            {c.name: (c.width, c.height) for c in work})
+                                            {c.name: (c.width, c.height) for c in work},
+                                            sources if opt.align_plates else None)
     else:
         silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
         start = int(opt.background_frames)

@@ -31,7 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from silpose.segment import BackgroundModel, SegmentError
+from silpose.segment import BackgroundModel, SegmentError, plate_alignment, plate_mismatch_std, warp_plate
 
 from ..errors import RecordingError
 from .sources import CameraReader, CameraSource, open_recording
@@ -44,6 +44,8 @@ MASK_MEDIAN = 3
 MAX_BACKGROUND_FRAMES = 300
 #: frames spread over a recording whose per-pixel median is its background (``--background median``)
 MEDIAN_FRAMES = 41
+#: frames spread over a recording whose per-pixel median its empty-room clips are registered to (:func:`room_view`)
+ROOM_FRAMES = 9
 #: the value of ``--background`` that asks for the recording's own median
 MEDIAN = "median"
 #: BackgroundModel arguments of the recordings pipeline (the caller's ``segment_params`` override them)
@@ -84,11 +86,17 @@ class ColourSegmenter:
             raise RecordingError(f"camera {camera!r}: {exc}") from None
 
 
-def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> BackgroundModel:
-    """A BackgroundModel fitted on the first ``n`` frames of ``source`` (streamed in chunks)."""
+def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
+                room: CameraSource | None = None) -> BackgroundModel:
+    """A BackgroundModel fitted on the first ``n`` frames of ``source`` (streamed in chunks); with ``room`` (the
+    recording this is the background of), the frames are first registered to the recording's own view of the room
+    (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
+    and the model's ``min_std`` is raised to the spread of the plate's differences from that view
+    (:func:`silpose.segment.plate_mismatch_std`)."""
     model = BackgroundModel(**{**SEGMENT_DEFAULTS, **params})
     reader = CameraReader(source, grey=False)
     seen = 0
+    warp = None
     try:
         while seen < n:
             frames = []
@@ -99,6 +107,14 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> 
                 frames.append(img)
             if not frames:
                 break
+            if room is not None and seen == 0:
+                view = room_view(room)
+                if view is not None and view.shape == frames[0].shape:
+                    warp = plate_alignment(frames[0], view)
+                    aligned = frames[0] if warp is None else warp_plate(frames[0], warp)
+                    model.min_std = max(model.min_std, plate_mismatch_std(aligned, view))
+            if warp is not None:
+                frames = [warp_plate(f, warp) for f in frames]
             model.partial_fit(np.stack(frames))
             seen += len(frames)
     except SegmentError as exc:
@@ -107,33 +123,62 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32) -> 
         reader.close()
     if seen < 2:
         raise RecordingError(f"{source.path}: a background needs at least 2 frames, found {seen}")
+    model.plate_warp = warp
     return model
 
 
+def spread_frames(source: CameraSource, n: int) -> list[np.ndarray]:
+    """Up to ``n`` colour frames spread evenly over ``source`` (fewer when it is shorter)."""
+    total = source.n_frames - source.skip if source.n_frames > 0 else n * 10
+    picks = sorted(set(np.linspace(0, max(total - 1, 0), min(n, max(total, 1))).round().astype(int).tolist()))
+    reader = CameraReader(source, grey=False)
+    frames = []
+    try:
+        for i in picks:
+            reader.seek(i)
+            img = reader.read()
+            if img is not None:
+                frames.append(img)
+    finally:
+        reader.close()
+    return frames
+
+
+def room_view(source: CameraSource, n: int = ROOM_FRAMES) -> np.ndarray | None:
+    """The recording's own view of the room: the per-pixel median of ``n`` frames spread over it (people who
+    move are not in it), uint8; None with fewer than 3 frames."""
+    frames = spread_frames(source, n)
+    return np.median(np.stack(frames), axis=0).astype(np.uint8) if len(frames) >= 3 else None
+
+
 def background_from_clips(folder: Path, rig, cameras, params: dict | None = None,
-                          sizes: dict[str, tuple[int, int]] | None = None) -> ColourSegmenter:
+                          sizes: dict[str, tuple[int, int]] | None = None,
+                          recording: dict[str, CameraSource] | None = None) -> ColourSegmenter:
     """Background models of ``cameras`` learnt from the empty-room clips in ``folder`` (same layout and
     names as the videos folder: ``<camera>.mp4``, ``<camera>/`` frames, or ``<camera>/background.avi`` in a
     camera folder holding several videos), at each camera's working size ``sizes`` (width, height; None:
-    the rig camera's size)."""
+    the rig camera's size); with ``recording`` ({camera: source} at the same sizes), each clip is registered to
+    its recording first (:mod:`silpose.segment.align`)."""
     clips = open_recording(folder, rig, role="background")
     absent = [c for c in cameras if c not in clips.sources]
     if absent:
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "
                              f"{folder / (absent[0] + '.mp4')})")
     sources = {c: at_size(clips.sources[c], (sizes or {}).get(c)) for c in cameras}
-    return ColourSegmenter(_fit_all(sources, MAX_BACKGROUND_FRAMES, params or {}))
+    return ColourSegmenter(_fit_all(sources, MAX_BACKGROUND_FRAMES, params or {}, recording))
 
 
-def _fit_all(sources: dict[str, CameraSource], n: int, params: dict) -> dict[str, BackgroundModel]:
+def _fit_all(sources: dict[str, CameraSource], n: int, params: dict,
+             rooms: dict[str, CameraSource] | None = None) -> dict[str, BackgroundModel]:
     """{camera: :func:`_fit_stream` of its source}, the cameras in a thread each (at most the CPU count): decoding,
     resizing and summing release the GIL, so the cameras' backgrounds are learnt side by side; the models are those
     of one camera after the other (each thread fits its own)."""
     workers = max(1, min(len(sources), os.cpu_count() or 1))
+    fit = lambda c: _fit_stream(sources[c], n, params, room=(rooms or {}).get(c))  # noqa: E731
     if workers == 1:
-        return {c: _fit_stream(s, n, params) for c, s in sources.items()}
+        return {c: fit(c) for c in sources}
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        fitted = list(pool.map(lambda s: _fit_stream(s, n, params), sources.values()))
+        fitted = list(pool.map(fit, sources))
     return dict(zip(sources, fitted))
 
 
@@ -159,18 +204,7 @@ def background_from_recording(sources: dict[str, CameraSource], params: dict | N
     for more than half of the recording is."""
     models = {}
     for c, src in sources.items():
-        total = src.n_frames - src.skip if src.n_frames > 0 else n * 10
-        picks = sorted(set(np.linspace(0, max(total - 1, 0), min(n, max(total, 1))).round().astype(int).tolist()))
-        reader = CameraReader(src, grey=False)
-        frames = []
-        try:
-            for i in picks:
-                reader.seek(i)
-                img = reader.read()
-                if img is not None:
-                    frames.append(img)
-        finally:
-            reader.close()
+        frames = spread_frames(src, n)
         if len(frames) < 3:
             raise RecordingError(f"{src.path}: a background from the recording needs at least 3 frames, found {len(frames)}")
         try:
