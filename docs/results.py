@@ -265,6 +265,26 @@ def learning_curve_section(reports_dir: Path) -> list[str]:
     return out
 
 
+def coverage_section(reports_dir: Path) -> list[str]:
+    """Every ``<reports>/<name>/coverage.json`` (``python -m silpose.eval.coverage``): the error of the nearest
+    training pose, overall and per activity group."""
+    out = []
+    for path in sorted(reports_dir.glob("*/coverage.json")):
+        try:
+            c = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        groups = c.get("groups") or {}
+        out += [f"`{path.parent.name}`: the nearest of {c['n_train']:,} training poses to each of {c['n_test']} test "
+                f"poses is {c['mean_cm']:.2f} cm off on average (median {c['median_cm']:.2f}): no answer drawn from "
+                "the training poses does better.", ""]
+        if groups:
+            out += ["| group | " + " | ".join(groups) + " |", "|---|" + "---|" * len(groups),
+                    "| nearest training pose, cm | " + " | ".join(f"{g['mean_cm']:.2f}" for g in groups.values()) + " |",
+                    ""]
+    return out
+
+
 def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     measured = [n for n, h in reports.items() if h]
     parts = [
@@ -286,6 +306,9 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     groups = group_section(reports)
     if groups:
         parts += ["## Motions: per activity group", ""] + groups
+    cover = coverage_section(bench.parent.parent)
+    if cover:
+        parts += ["## Pose coverage: the nearest training pose (an oracle)", ""] + cover
     curve = learning_curve_section(bench.parent.parent)
     if curve:
         parts += ["## Learning curve (posterior mean, standard noise)", ""] + curve

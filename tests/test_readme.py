@@ -84,3 +84,18 @@ def test_learning_curve_block_comes_from_the_motions_report(tmp_path):
     assert "N 16,000 M 60: 1 s" in (tmp_path / "r.md").read_text()
     mod.main(["--reports", str(tmp_path / "none"), "--out", str(tmp_path / "r.md"), "--readme", str(readme)])
     assert "not measured" in readme.read_text().split("<!-- curve:start -->")[1].split("<!-- curve:end -->")[0]
+
+
+def test_coverage_section_comes_from_each_presets_coverage_report(tmp_path):
+    mod = _results_module()
+    reports = tmp_path / "reports"
+    (reports / "motions").mkdir(parents=True)
+    cov = {"mean_cm": 10.584, "median_cm": 9.35, "n_train": 48000, "n_test": 400,
+           "groups": {"walk": {"mean_cm": 7.591, "n": 16}, "bend": {"mean_cm": 13.716, "n": 107}}}
+    (reports / "motions" / "coverage.json").write_text(json.dumps(cov))
+    readme = tmp_path / "README.md"
+    shutil.copy(README, readme)
+    mod.main(["--reports", str(reports), "--out", str(tmp_path / "r.md"), "--readme", str(readme)])
+    text = (tmp_path / "r.md").read_text()
+    assert "nearest of 48,000 training poses to each of 400 test poses is 10.58 cm off" in text
+    assert "| group | walk | bend |" in text and "| nearest training pose, cm | 7.59 | 13.72 |" in text
