@@ -45,18 +45,20 @@ def nearest_pose(test: np.ndarray, train: np.ndarray) -> tuple[np.ndarray, np.nd
     return idx, err
 
 
-def coverage(dataset: str | Path) -> dict:
-    """Nearest-training-pose error (cm) of ``dataset``'s test split: ``mean_cm``, ``median_cm``, ``n_train``,
-    ``n_test`` and, when the test poses come from grouped clips, ``groups`` {group: {mean_cm, n}}."""
+def coverage(dataset: str | Path, test_dataset: str | Path | None = None) -> dict:
+    """Nearest-training-pose error (cm) of the test split (of ``test_dataset``, default ``dataset``) against
+    ``dataset``'s train split: ``mean_cm``, ``median_cm``, ``n_train``, ``n_test`` and, when the test poses come
+    from grouped clips, ``groups`` {group: {mean_cm, n}}."""
+    test_dataset = dataset if test_dataset is None else test_dataset
     tr = load_split(Path(dataset), "train", columns=["joints"]).joints
-    te = load_split(Path(dataset), "test", columns=["joints"])
+    te = load_split(Path(test_dataset), "test", columns=["joints"])
     rel_tr = root_relative(tr)
     rel_te = root_relative(te.joints)
     idx, _ = nearest_pose(rel_te, rel_tr)
     err = pose_error_cm(rel_tr[idx], rel_te)  # in float64
     out = {"mean_cm": float(err.mean()), "median_cm": float(np.median(err)), "n_train": int(len(tr)),
            "n_test": int(len(rel_te))}
-    groups = sample_groups(dataset)
+    groups = sample_groups(test_dataset)
     if groups:
         g = np.array([groups.get(int(s), "?") for s in te.sample_id])
         out["groups"] = {n: {"mean_cm": float(err[g == n].mean()), "n": int((g == n).sum())}

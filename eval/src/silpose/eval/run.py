@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 from silpose.model.augment import Roughness, training_rows
 from silpose.model.persistence import load_model
 from silpose.model.selection import validation_split
-from silpose.shared.atomic import atomic_path, write_text_atomic
+from silpose.shared.atomic import atomic_path, write_json_atomic, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
 from silpose.shared.rig_symmetry import RigMirror
@@ -32,6 +32,7 @@ from . import e5_figures, e6_figures, plots
 from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
+from .coverage import coverage
 from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
@@ -241,6 +242,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}", groups)
     if groups:
         written["groups"] = write_group_report(ev.frame(), groups, out_dir, title or f"silpose evaluation — {Path(data_dir).name}")
+        written["coverage"] = write_json_atomic(Path(out_dir) / "coverage.json", coverage(data_dir, test_dir))
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
