@@ -215,6 +215,11 @@ class FeatureLayout:
         return cls.from_dict(d, source)
 
 
+#: contours per chunk of :func:`normalise_contours` and :func:`denormalise_contours`: a chunk's arrays (0.8 MB at
+#: n 200) stay in a core's cache between the steps (on (1024, 4, 200, 2) batches ~1.5x faster than whole-array steps)
+CHUNK_CONTOURS = 512
+
+
 def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The normalisation of ``silpose.shared.contours.normalise`` in float64, arranged for batches.
 
@@ -222,31 +227,56 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     s = 0 for a degenerate contour. points (..., n, 2) px -> (q (..., n, 2), c (..., 2), s (...,)).
     Same definition as the shared function; its sums run in another order (strided row sums, one
     dot product per contour), which is ~10x faster on (N, K, 200, 2) batches and agrees to ~1e-15
-    relative. Every model file was fitted through this arithmetic, so the model keeps it.
+    relative. Every model file was fitted through this arithmetic, so the model keeps it. Contours are
+    normalised :data:`CHUNK_CONTOURS` at a time (each on its own: the same values).
     """
     p = np.asarray(points, dtype=np.float64)
     lead, n = p.shape[:-2], p.shape[-2]
     f = p.reshape(-1, n, 2)
-    c = np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1) / n  # strided sums: fast
-    q = np.empty_like(f)  # f - c per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
+    q = np.empty_like(f)
+    c = np.empty((len(f), 2))
+    s = np.empty(len(f))
+    for a in range(0, len(f), CHUNK_CONTOURS):
+        b = min(a + CHUNK_CONTOURS, len(f))
+        _normalise_chunk(f[a:b], q[a:b], c[a:b], s[a:b])
+    return q.reshape(p.shape), c.reshape(*lead, 2), s.reshape(lead)
+
+
+def _normalise_chunk(f: np.ndarray, q: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:
+    """:func:`normalise_contours` of contours f (m, n, 2) into q (m, n, 2), c (m, 2), s (m,)."""
+    n = f.shape[1]
+    np.divide(np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1), n, out=c)  # strided sums: fast
+    # f - c per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
     np.subtract(f[..., 0], c[:, 0, None], out=q[..., 0])
     np.subtract(f[..., 1], c[:, 1, None], out=q[..., 1])
     flat = q.reshape(q.shape[0], -1)
-    s = np.sqrt(np.einsum("ij,ij->i", flat, flat) / n)
+    np.sqrt(np.einsum("ij,ij->i", flat, flat) / n, out=s)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
-    return q.reshape(p.shape), c.reshape(*lead, 2), s.reshape(lead)
 
 
 def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64.
 
-    q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px.
+    q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px. :data:`CHUNK_CONTOURS` contours at a
+    time where the shapes allow (the same values).
     """
     q = np.asarray(q, dtype=np.float64)
-    out = q * np.asarray(scale, dtype=np.float64)[..., None, None]
     c = np.asarray(centroid, dtype=np.float64)
-    out[..., 0] += c[..., 0, None]  # per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
-    out[..., 1] += c[..., 1, None]
+    sc = np.asarray(scale, dtype=np.float64)
+    if q.ndim < 2 or c.shape != q.shape[:-2] + (2,) or sc.shape != q.shape[:-2]:  # broadcasting: whole arrays
+        out = q * sc[..., None, None]
+        out[..., 0] += c[..., 0, None]  # per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
+        out[..., 1] += c[..., 1, None]
+        return out
+    n = q.shape[-2]
+    out = np.empty(q.shape)
+    qf, cf, sf, of = q.reshape(-1, n, 2), c.reshape(-1, 2), sc.reshape(-1), out.reshape(-1, n, 2)
+    for a in range(0, len(qf), CHUNK_CONTOURS):
+        b = min(a + CHUNK_CONTOURS, len(qf))
+        o = of[a:b]
+        np.multiply(qf[a:b], sf[a:b, None, None], out=o)
+        o[..., 0] += cf[a:b, 0, None]
+        o[..., 1] += cf[a:b, 1, None]
     return out
 
 
