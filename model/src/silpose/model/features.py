@@ -233,7 +233,7 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     p = np.asarray(points, dtype=np.float64)
     lead, n = p.shape[:-2], p.shape[-2]
     f = p.reshape(-1, n, 2)
-    q = np.empty_like(f)
+    q = np.empty(f.shape)
     c = np.empty((len(f), 2))
     s = np.empty(len(f))
     for a in range(0, len(f), CHUNK_CONTOURS):
@@ -246,9 +246,14 @@ def _normalise_chunk(f: np.ndarray, q: np.ndarray, c: np.ndarray, s: np.ndarray)
     """:func:`normalise_contours` of contours f (m, n, 2) into q (m, n, 2), c (m, 2), s (m,)."""
     n = f.shape[1]
     np.divide(np.stack([f[:, :, 0].sum(axis=1), f[:, :, 1].sum(axis=1)], axis=-1), n, out=c)  # strided sums: fast
-    # f - c per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
-    np.subtract(f[..., 0], c[:, 0, None], out=q[..., 0])
-    np.subtract(f[..., 1], c[:, 1, None], out=q[..., 1])
+    # f - c: each point's (x, y) as one complex number (the same two subtractions; numpy's broadcast over a last axis
+    # of 2 runs in inner loops of 2)
+    fc = f.view(np.complex128) if f.flags.c_contiguous else None
+    if fc is not None:
+        np.subtract(fc, c.view(np.complex128)[:, None], out=q.view(np.complex128))
+    else:
+        np.subtract(f[..., 0], c[:, 0, None], out=q[..., 0])
+        np.subtract(f[..., 1], c[:, 1, None], out=q[..., 1])
     flat = q.reshape(q.shape[0], -1)
     np.sqrt(np.einsum("ij,ij->i", flat, flat) / n, out=s)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
@@ -257,27 +262,31 @@ def _normalise_chunk(f: np.ndarray, q: np.ndarray, c: np.ndarray, s: np.ndarray)
 def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64.
 
-    q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px. :data:`CHUNK_CONTOURS` contours at a
-    time where the shapes allow (the same values).
+    q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px. With matching shapes, about
+    :data:`CHUNK_CONTOURS` contours at a time along the first axis (the same values; ``q`` may be a strided view,
+    e.g. of the reconstructions' part of the shape vectors, and is not copied).
     """
     q = np.asarray(q, dtype=np.float64)
     c = np.asarray(centroid, dtype=np.float64)
     sc = np.asarray(scale, dtype=np.float64)
-    if q.ndim < 2 or c.shape != q.shape[:-2] + (2,) or sc.shape != q.shape[:-2]:  # broadcasting: whole arrays
-        out = q * sc[..., None, None]
-        out[..., 0] += c[..., 0, None]  # per coordinate: numpy's broadcast over a last axis of 2 runs in inner loops of 2
-        out[..., 1] += c[..., 1, None]
+    if q.ndim >= 3 and c.shape == q.shape[:-2] + (2,) and sc.shape == q.shape[:-2]:
+        step = max(1, CHUNK_CONTOURS // max(1, int(np.prod(q.shape[1:-2]))))
+        out = np.empty(q.shape)
+        for a in range(0, len(q), step):
+            _denormalise_into(q[a:a + step], c[a:a + step], sc[a:a + step], out[a:a + step])
         return out
-    n = q.shape[-2]
-    out = np.empty(q.shape)
-    qf, cf, sf, of = q.reshape(-1, n, 2), c.reshape(-1, 2), sc.reshape(-1), out.reshape(-1, n, 2)
-    for a in range(0, len(qf), CHUNK_CONTOURS):
-        b = min(a + CHUNK_CONTOURS, len(qf))
-        o = of[a:b]
-        np.multiply(qf[a:b], sf[a:b, None, None], out=o)
-        o[..., 0] += cf[a:b, 0, None]
-        o[..., 1] += cf[a:b, 1, None]
+    out = q * sc[..., None, None]
+    out[..., 0] += c[..., 0, None]
+    out[..., 1] += c[..., 1, None]
     return out
+
+
+def _denormalise_into(q: np.ndarray, c: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+    """``out = s q + c`` for q (..., n, 2), c (..., 2), s (...,) of one shape (:func:`denormalise_contours`)."""
+    np.multiply(q, s[..., None, None], out=out)
+    # + c: each point's (x, y) as one complex number (the same two additions; numpy's broadcast over a last axis of 2
+    # runs in inner loops of 2)
+    out.view(np.complex128)[..., 0] += np.ascontiguousarray(c).view(np.complex128)
 
 
 def shape_vectors(layout: FeatureLayout, n_rig_views: int, contours_px: np.ndarray, joints: np.ndarray,
