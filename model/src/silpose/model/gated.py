@@ -33,9 +33,9 @@ def condition_gated(cond: Conditioner, X_obs: np.ndarray, mask: np.ndarray) -> B
     component means or covariances. Raises ValueError for a wrong shape, a row without components, NaN or inf.
 
     Each component's rows are read as one slice where they are consecutive (no gathered copy), its ``a P_i`` and
-    ``a . mu_a,i`` come from one product with its q + 1 columns of ``cond.A``, and a row with one component in its
-    set gets ``mu_i + x_hat_i W_i^T`` written directly (its responsibility is exactly 1: the same values as the sum
-    over the set)."""
+    ``a . mu_a,i`` come from one product with its q + 1 columns of ``cond.A``, and when every row has one component
+    in its set, a row gets ``mu_i + x_hat_i W_i^T`` written directly (its responsibility is exactly 1: the same values
+    as the sum over the set)."""
     X = np.asarray(X_obs, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != cond.d_a:
         X = cond.checked_rows(X_obs)
@@ -77,38 +77,26 @@ def condition_gated(cond: Conditioner, X_obs: np.ndarray, mask: np.ndarray) -> B
         row = int(np.flatnonzero(~np.isfinite(logm))[0])
         raise ValueError(f"condition: the log density of row {row} is not finite (X_obs values too large)")
     keep = rel > -GATE_NATS  # the pairs that enter the means
-    # the output: sum_i r_i mu_i for the components in use, then each component's r_i x_hat_i W_i^T on its rows; a
-    # row with one component: mu_i + x_hat_i W_i^T at once (r_i = 1 exactly, the other terms 0)
-    single = count == 1
-    mean = np.empty((n, B.shape[1]))
-    multi = np.flatnonzero(~single)
-    if multi.size:
-        mean[multi] = r[multi][:, used] @ B[m * q + used]
+    # the output: sum_i r_i mu_i for the components in use, then each component's r_i x_hat_i W_i^T on its rows; when
+    # every row has one component: mu_i + x_hat_i W_i^T at once (r_i = 1 exactly, the other terms 0)
+    single = bool((count == 1).all())
+    mean = np.empty((n, B.shape[1])) if single else r[:, used] @ B[m * q + used]
     pairs = []
     for i, rows, xh in zip(used, rows_of, xh_of):
         k = keep[rows, i]
         if not k.any():
             continue
-        idx = np.arange(n)[rows]
-        rr, xk = (rows, xh) if k.all() else (idx[k], xh[k])
+        rr, xk = (rows, xh) if k.all() else (np.arange(n)[rows][k], xh[k])
         ri = r[rr, i]
-        one = single[rr]
-        if one.all():
-            if isinstance(rr, slice):
-                np.matmul(xk, B[i * q:(i + 1) * q], out=mean[rr])
-                mean[rr] += B[m * q + i]
-            else:
-                out = xk @ B[i * q:(i + 1) * q]
-                out += B[m * q + i]
-                mean[rr] = out
+        if single and isinstance(rr, slice):
+            np.matmul(xk, B[i * q:(i + 1) * q], out=mean[rr])
+            mean[rr] += B[m * q + i]
+        elif single:
+            out = xk @ B[i * q:(i + 1) * q]
+            out += B[m * q + i]
+            mean[rr] = out
         else:
-            rr_a = np.arange(n)[rr]
-            if one.any():
-                out = xk[one] @ B[i * q:(i + 1) * q]
-                out += B[m * q + i]
-                mean[rr_a[one]] = out
-            several = ~one
-            mean[rr_a[several]] += (xk[several] * ri[several, None]) @ B[i * q:(i + 1) * q]
+            mean[rr] += (xk * ri[:, None]) @ B[i * q:(i + 1) * q]
         pairs.append((i, rr, xk, ri))
     # detail dims: the best component's mean and the law of total variance over the pairs in use
     mdet = mean[:, cond.detail_pos]
@@ -121,7 +109,10 @@ def condition_gated(cond: Conditioner, X_obs: np.ndarray, mask: np.ndarray) -> B
         dev = cm - mdet[rr]
         var[rr] += ri[:, None] * dev * dev
         sel = best_i[rr] == i
-        best[np.arange(n)[rr][sel]] = cm[sel]
+        if isinstance(rr, slice):
+            best[rr][sel] = cm[sel]  # best[rr] is a view
+        else:
+            best[rr[sel]] = cm[sel]
     return BatchPosterior(mean if cond.reconstruct else None, None if cond.reconstruct else mean, best, var, r,
                           logm, cond.missing, cond.detail)
 
