@@ -33,6 +33,17 @@ Measured 2026-12-03 after the robust blocks, batched slide solves and staged far
 the previous code, ``silpose.model.robust.loop`` doc): full size at load 8-10, robust 97.3 -> 44.6 s, 75x -> 47x
 its floor; ``--quick`` at load 7, 66x -> 37x and 50x -> 42x; single frame robust M 50 unchanged within the noise
 (8.3 / 9.4 ms in the quieter pair). Still above 30x the floor at these loads.
+
+Measured 2026-12-03 after the second round of exact rewrites (``silpose.model.robust.loop`` doc: chunks of 128 frames,
+passes sorted by group, fused gated products, medians by sort), base (main 334cd2c) and new code alternating, each
+in its own process, at load 9-15 on the 2 shared cores: robust batched, 2,000 frames, best of 3, three pairs: 5.30 ->
+3.30 s, 5.93 -> 4.39 s, 5.93 -> 4.75 s wall (2.68 -> 1.57, 2.81 -> 2.17, 2.85 -> 2.33 CPU s), over the floor timed
+after each, 71x -> 33x, 53x -> 41x, 46x -> 37x; full size (20,000 frames, one run each), two pairs: 68.4 -> 57.8 s
+(57x -> 49x) and 61.6 -> 57.4 s (54x -> 53x; the floor moved 1.15 -> 1.07 s), CPU 30.1 -> 26.0 and 28.3 -> 26.3 s.
+``--quick`` through ``benchmarks.run`` (three alternating pairs, load 9-13): robust 10.2 / 3.19 / 2.71 s base,
+6.48 / 3.14 / 2.79 s new (the floor itself 0.07-0.32 s); single frame M 50 robust 64 / 33 / 19 ms base, 18 / 9.7 /
+32 ms new (CPU per call in alternating processes: 8.5-11.4 ms base, 8.1-8.7 ms new); plain batched 1.5-2.0x its
+floor in both. The robust target (<= 30x the floor) is still not met at these loads.
 """
 
 from __future__ import annotations

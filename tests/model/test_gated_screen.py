@@ -128,3 +128,28 @@ def test_median_last_is_numpys_median():
         v[0, ..., 0] = np.nan
         v[-1] = np.round(v[-1], 1)  # ties
         np.testing.assert_array_equal(median_last(v), np.median(v, axis=-1))
+
+
+def test_gated_rows_read_as_slices_and_single_components_equal_each_rows_own_conditioning():
+    """Runs of consecutive rows with one component (read as slices, written as mu_i + x_hat W_i^T) and scattered
+    rows with one or several, against each row conditioned on its own component set (``Conditioner.__call__``)."""
+    rng = np.random.default_rng(7)
+    p = _mixture(rng, spread=20.0)
+    obs = np.arange(11)
+    which = [0, 0, 0, 3, 3, 5, 0, 2, 2, 1]
+    X = p.means_[which][:, obs] + rng.normal(size=(len(which), obs.size))
+    mask = np.zeros((len(which), 6), dtype=bool)
+    mask[np.arange(len(which)), which] = True
+    mask[6, [0, 4]] = True  # a row with two components amid component 0's rows
+    mask[9] = True  # a row with every component
+    for noise in (0.2, rng.uniform(0.0, 0.5, obs.size)):
+        cond = Conditioner(p, obs, noise, detail=np.arange(12, 16), reconstruct=True)
+        got = condition_gated(cond, X, mask)
+        for r in range(len(which)):
+            want = cond(X[r:r + 1], components=np.flatnonzero(mask[r]))
+            for key in ("reconstruction", "best_mean", "variance", "responsibilities"):
+                np.testing.assert_allclose(getattr(got, key)[r], getattr(want, key)[0], rtol=1e-9, atol=1e-10,
+                                           err_msg=f"{key} row {r}")
+            np.testing.assert_allclose(got.log_marginal[r], want.log_marginal[0], rtol=1e-12)
+        single = mask.sum(axis=1) == 1
+        assert np.all(got.responsibilities[single][mask[single]] == 1.0)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from silpose.model import features
 from silpose.model.features import denormalise_contours, normalise_contours
 from silpose.model.robust.excursions import ExcursionSettings, trim_excursions
 from silpose.model.robust.loop import SETTLED_PX, largest_move, pseudo_observation
@@ -79,6 +80,24 @@ def test_normalisation_per_coordinate_is_the_broadcast_form():
     out = denormalise_contours(q, c, s)
     assert np.array_equal(out, q * s[..., None, None] + c[..., None, :], equal_nan=True)
     assert np.array_equal(denormalise_contours(q[0, 0], c[0, 0], s[0, 0]), q[0, 0] * s[0, 0] + c[0, 0])
+
+
+def test_normalisation_in_chunks_and_of_strided_views(monkeypatch):
+    """Chunks of contours (the last one short) and the centroid as complex numbers give the whole-array
+    broadcast forms; the reconstruction is denormalised from a strided view of (N, d) shape vectors."""
+    rng = np.random.default_rng(8)
+    pts = _contours(rng, (23, 3))
+    pts[4, 2, 9] = np.nan
+    want_q, want_c, want_s = normalise_contours(pts)
+    vectors = np.concatenate([want_q.reshape(23, -1), rng.normal(size=(23, 57))], axis=1)
+    rec = vectors[:, :3 * 200 * 2].reshape(23, 3, 200, 2)  # strided: rows of 1,257 values
+    monkeypatch.setattr(features, "CHUNK_CONTOURS", 5)  # 69 contours: 13 chunks of 5 and one of 4
+    q, c, s = normalise_contours(pts)
+    for got, want in ((q, want_q), (c, want_c), (s, want_s)):
+        assert np.array_equal(got, want, equal_nan=True)
+    assert np.array_equal(normalise_contours(pts[:, ::2])[0], want_q[:, ::2], equal_nan=True)  # a strided input
+    out = denormalise_contours(rec, c, s)
+    assert np.array_equal(out, rec * s[..., None, None] + c[..., None, :], equal_nan=True)
 
 
 def test_frame_noise_variance_is_the_nanmedian_form():

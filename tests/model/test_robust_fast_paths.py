@@ -96,3 +96,40 @@ def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkey
         assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
     np.testing.assert_allclose(blocks.hypotheses.joints, whole.hypotheses.joints, rtol=1e-9, atol=1e-10)
     assert np.array_equal(blocks.hypotheses.component, whole.hypotheses.component)
+
+
+def test_reweighting_passes_sorted_by_group_and_in_chunks_equal_the_plain_order(small_model, monkeypatch):
+    """The reweighting passes on frames sorted by (views, noise level, component) and their point-wise steps in
+    chunks of frames give the results of the passes in the caller's order on whole arrays."""
+    model, contours = small_model
+    bad = contours.copy()
+    bad[::3, 0, 2:9] += np.array([18.0, 11.0])
+    present = np.ones(bad.shape[:2], bool)
+    present[1::4, 1] = False
+    bad[1::4, 1] = np.nan
+    settings = RobustSettings(excursion_passes=0, reindex_passes=0)
+    sorted_chunks = model.infer(bad, present, robust=settings)
+    assert loop.pass_order(sorted_chunks.responsibilities, present, sorted_chunks.noise_variance) is not None
+    monkeypatch.setattr(loop, "CHUNK_FRAMES", 4)
+    chunks = model.infer(bad, present, robust=settings)
+    monkeypatch.setattr(loop, "pass_order", lambda *args: None)
+    plain = model.infer(bad, present, robust=settings)
+    for name in ("joints", "contours_px", "robust_weights", "responsibilities", "log_marginal_robust",
+                 "noise_variance"):
+        assert np.array_equal(getattr(chunks, name), getattr(sorted_chunks, name), equal_nan=True), name  # same order
+        # another order of the rows: BLAS may round a row's products differently
+        np.testing.assert_allclose(getattr(sorted_chunks, name), getattr(plain, name), rtol=1e-9, atol=1e-10,
+                                   err_msg=name)
+
+
+def test_pass_order_makes_groups_consecutive():
+    rng = np.random.default_rng(9)
+    present = rng.random((40, 3)) > 0.3
+    s2 = rng.choice([1e-3, 1e-2], size=40)
+    resp = rng.dirichlet(np.ones(4), size=40)
+    order = loop.pass_order(resp, present, s2)
+    key = np.stack([present[order] @ np.array([1, 2, 4]), s2[order], resp[order].argmax(axis=1)], axis=1)
+    starts = np.flatnonzero(np.r_[True, (key[1:] != key[:-1]).any(axis=1)])  # each group one run
+    assert len(starts) == len({tuple(k) for k in key}) and np.array_equal(np.sort(order), np.arange(40))
+    assert loop.pass_order(resp[order], present[order], s2[order]) is None  # already in order
+    assert loop.pass_order(resp[:1], present[:1], s2[:1]) is None

@@ -27,8 +27,9 @@ scalar noise this is docs/conventions.md, "Model": tau^2 = sigma^2 + s^2, M_a = 
 Missing dims are dropped from every product (marginalised), never zero-filled.
 
 Evaluation. All q x q factorisations are done once per (pattern, noise) in :class:`Conditioner`.
-A batch then costs two large matrix products per chunk of rows, ``A (N, d_a) @ [P_1 .. P_M  mu_a..]``
-with ``P_i = D_i^-1 W_a K_i^-1`` (so ``x_hat_i = a P_i - mu_a P_i``) and ``[r_i x_hat_i]_i @
+A batch then costs two large matrix products per chunk of rows, ``A (N, d_a) @ [P_1 mu_a,1 .. P_M mu_a,M]``
+(each component's q + 1 columns side by side, so that one component's are one sub-matrix) with
+``P_i = D_i^-1 W_a K_i^-1`` (so ``x_hat_i = a P_i - mu_a P_i``) and ``[r_i x_hat_i]_i @
 [W_1^T .. W_M^T]``, with ``e^T D^-1 e`` expanded as ``a^T D^-1 a - 2 a^T D^-1 mu_a + mu_a^T D^-1
 mu_a`` from the first product and ``u^T K^-1 u = x_hat^T K x_hat``: O(N (d_a + d) q M) at BLAS-3
 speed, no (N, M, d) intermediate.
@@ -210,8 +211,9 @@ class Conditioner:
             D_dims = sig2[:, None] + noise[None, :]  # (M, d_a)
             self.invD_dims = 1.0 / D_dims
             self.invD = None
-        # Per component: P_i = D_i^-1 W_a K_i^-1  (d_a, q), so x_hat = (a - mu_a) @ P_i.
-        A = np.empty((obs.size, m * q + m))
+        # Per component: P_i = D_i^-1 W_a K_i^-1  (d_a, q), so x_hat = (a - mu_a) @ P_i; A holds [P_i mu_a,i] side by
+        # side, (d_a, M (q + 1)) (the column block of component i: :meth:`columns`)
+        A = np.empty((obs.size, m * (q + 1)))
         self.K = np.empty((m, q, q))
         self.c = np.empty((m, q))  # mu_a @ P_i
         self.log_norm = np.empty(m)  # log pi - 1/2 (d_a log 2 pi + log|D| + log|K|)
@@ -227,7 +229,7 @@ class Conditioner:
                 P = Wa[i] @ Kinv * self.invD[i]
             else:
                 P = (Wa[i] * self.invD_dims[i][:, None]) @ Kinv
-            A[:, i * q : (i + 1) * q] = P
+            A[:, i * (q + 1) : i * (q + 1) + q] = P
             self.K[i] = K
             self.c[i] = mu_a[i] @ P
             with np.errstate(divide="ignore"):
@@ -238,10 +240,10 @@ class Conditioner:
                 gauss_norm = obs.size * _LOG_2PI + np.log(D_dims[i]).sum()
             self.log_norm[i] = lw - 0.5 * (gauss_norm + 2.0 * np.log(np.diag(L)).sum())
         if self.invD_dims is None:  # a^T mu_a (times D^-1 later) and ||mu_a||^2
-            A[:, m * q :] = mu_a.T
+            A[:, q :: q + 1] = mu_a.T
             self.mu_sq = np.einsum("ij,ij->i", mu_a, mu_a)
         else:  # a^T D^-1 mu_a and mu_a^T D^-1 mu_a
-            A[:, m * q :] = (mu_a * self.invD_dims).T
+            A[:, q :: q + 1] = (mu_a * self.invD_dims).T
             self.mu_sq = np.einsum("ij,ij->i", mu_a * self.invD_dims, mu_a)
         self.A = A
         # the dims whose mixture mean is returned, and where the detail dims sit among them
@@ -279,6 +281,12 @@ class Conditioner:
         Wo = p.components_ if out_dims is None else p.components_[:, out, :]
         return np.concatenate([Wo.transpose(0, 2, 1).reshape(m * q, out.size),
                                p.means_ if out_dims is None else p.means_[:, out]])
+
+    def columns(self, components) -> np.ndarray:
+        """Columns of :attr:`A` of ``components`` (k,) indices: each one's q columns of P_i, then its mu_a,i column
+        ((k (q + 1),), in the order given)."""
+        idx = np.asarray(components, dtype=np.intp).reshape(-1)
+        return (idx[:, None] * (self.q + 1) + np.arange(self.q + 1)[None, :]).reshape(-1)
 
     @property
     def nbytes(self) -> int:
@@ -338,15 +346,15 @@ class Conditioner:
             sl = slice(s, min(s + chunk, n))
             x = X[sl]
             b = x.shape[0]
-            Pm = x @ sub.A  # (b, Mq + M): a @ P_i for every i, then a . mu_a,i (D^-1-weighted)
+            Pm = (x @ sub.A).reshape(b, m, q + 1)  # a @ P_i and a . mu_a,i (D^-1-weighted) for every i
             # x_hat (M, b, q), contiguous per component for the batched products below
-            xh = np.ascontiguousarray(Pm[:, : m * q].reshape(b, m, q).transpose(1, 0, 2)) - sub.c[:, None, :]
+            xh = np.ascontiguousarray(Pm[:, :, :q].transpose(1, 0, 2)) - sub.c[:, None, :]
             if self.invD_dims is None:
                 xx = np.einsum("ij,ij->i", x, x)
-                e2 = xx[:, None] - 2.0 * Pm[:, m * q :] + sub.mu_sq[None, :]  # ||a - mu_a,i||^2  (b, M)
+                e2 = xx[:, None] - 2.0 * Pm[:, :, q] + sub.mu_sq[None, :]  # ||a - mu_a,i||^2  (b, M)
                 maha = e2 * sub.invD[None, :]
             else:
-                maha = (x * x) @ sub.invD_dims.T - 2.0 * Pm[:, m * q :] + sub.mu_sq[None, :]  # e^T D^-1 e
+                maha = (x * x) @ sub.invD_dims.T - 2.0 * Pm[:, :, q] + sub.mu_sq[None, :]  # e^T D^-1 e
             quad = np.sum(np.matmul(xh, sub.K) * xh, axis=2).T  # u^T K^-1 u = x_hat^T K x_hat  (b, M)
             logp = sub.log_norm[None, :] - 0.5 * (maha - quad)
             top = logp.max(axis=1, keepdims=True)  # log-sum-exp, stable
@@ -407,9 +415,8 @@ class _Subset:
         if idx.size == 0 or idx.min() < 0 or idx.max() >= m or np.unique(idx).size != idx.size:
             raise ValueError(f"condition: components must be distinct indices in [0, {m}), got {idx}")
         self.idx, self.m = idx, idx.size
-        cols = np.concatenate([(idx[:, None] * q + np.arange(q)[None, :]).reshape(-1), m * q + idx])
-        self.A = np.ascontiguousarray(cond.A[:, cols])
-        self.B = cond.B[cols]
+        self.A = np.ascontiguousarray(cond.A[:, cond.columns(idx)])
+        self.B = cond.B[np.concatenate([(idx[:, None] * q + np.arange(q)[None, :]).reshape(-1), m * q + idx])]
         self.invD = None if cond.invD is None else cond.invD[idx]
         self.invD_dims = None if cond.invD_dims is None else cond.invD_dims[idx]
         self.WdT = self.WdT[idx]

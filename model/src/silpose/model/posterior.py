@@ -20,7 +20,7 @@ import numpy as np
 
 from .checks import Inputs
 from .conditioning import Conditioner
-from .gated import condition_gated
+from .gated import condition_gated, rows_where
 from .screen import Screen, ScreenMatrices
 from .features import FeatureLayout, denormalise_contours, normalise_contours
 from .hypotheses import heading
@@ -138,7 +138,7 @@ class Posterior:
             if components:
                 cmeans = np.empty((n, M, layout.structure_dim))
             for g, pattern in enumerate(patterns):
-                rows = np.flatnonzero(inverse == g)
+                rows = rows_where(inverse == g)  # a slice when consecutive (robust passes sort their frames so)
                 x_obs = flat[rows]  # every view observed: no column gather
                 if not pattern.all():
                     x_obs = x_obs[:, layout.observed_mask(pattern)[: layout.contour_dim]]
@@ -179,6 +179,8 @@ class Posterior:
             x = flat if rows_p.size == len(flat) else flat[rows_p]
             hit = screen[key] = (rows_p, Screen(self.screen_matrices(pattern), x if obs.all() else x[:, obs]))
         rows_p, sc = hit
+        if isinstance(rows, slice):
+            rows = np.arange(len(flat))[rows]
         if rows is None and rows_p.size == len(flat):
             return sc.candidates(cond)
         return sc.candidates(cond, np.searchsorted(rows_p, np.arange(len(flat)) if rows is None else rows))
