@@ -22,7 +22,11 @@ then per chunk:
 Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count) -- except the view
 stage (3) of mask videos without carving, which runs in the run's thread: it is small numpy calls that hold the
 GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 steps, six alternating runs at
-load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool) -- and BLAS
+load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool); there, each camera's next
+step is started in the pool as soon as the current one is handed over (:mod:`.lookahead`), so the decoding and
+labelling of step t + 1 overlap the floor and view stages of step t, with the same results (lab recording played
+3x, 180 steps, three alternating runs at load 10-12: 26.0-31.1 steps/s and 16.1-19.2 CPU ms per step, 23.2-26.8
+and 18.9-20.9 before) -- and BLAS
 is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
 threads competing with the camera threads cost more than they give (measured on this 2-core machine
 under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1); so are OpenCV's own
@@ -75,6 +79,7 @@ from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
 from .hull import PersonHulls
+from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
@@ -165,7 +170,9 @@ class RecordingOptions:
 class RecordingSummary:
     """What a run did. files: written paths; counts: rows per status; views_hist: person-frames on the floor
     by number of usable views (index = views); camera_status: {camera: {status: frames}}; timings: seconds per
-    stage; n_steps, n_persons, warnings."""
+    stage (``cameras`` ... ``overlays``, the run's thread), ``setup`` (before the first step: opening the videos,
+    learning backgrounds), ``finish`` (after the last step: closing the files, the floor plan) and ``total``;
+    n_steps, n_persons, warnings."""
 
     out: Path
     files: list[Path]
@@ -181,6 +188,13 @@ class RecordingSummary:
     def steps_per_second(self) -> float:
         total = self.timings.get("total", 0.0)
         return self.n_steps / total if total > 0 else float("nan")
+
+    @property
+    def steady_steps_per_second(self) -> float:
+        """Time steps per second between the first step and the last (``total`` without ``setup`` and
+        ``finish``): the rate a long recording approaches."""
+        t = self.timings.get("total", 0.0) - self.timings.get("setup", 0.0) - self.timings.get("finish", 0.0)
+        return self.n_steps / t if t > 0 else float("nan")
 
     def text(self) -> str:
         on_floor = sum(self.views_hist)
@@ -388,9 +402,11 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     threads = _default_threads(len(cams)) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
-    stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     # mask videos without carving: the view stage in this thread (module docstring, "Threads")
     views_map = pool.map if pool and (not opt.masks or hulls is not None) else map
+    # and then each camera's next step runs ahead in the pool while this thread handles the current one
+    # (.lookahead; not with a background that learns between steps, absorb)
+    stepper = StepAhead([c.step for c in cam_list], pool, ahead=views_map is map and absorb == 0)
     step = 0
     detected = 0  # steps with someone on the floor (tracked or not): says why nobody was found
     gone: set[str] = set()  # cameras whose video ended
@@ -401,6 +417,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
                                 {c.name: (c.width, c.height) for c in work}, fps, first_frame,
                                 frame_names[start:] if frame_names is not None else None)
+        timings["setup"] = time.perf_counter() - t_start
+        t_loop_end = None
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -410,7 +428,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     done = True
                     break
                 t0 = time.perf_counter()
-                seen = dict(zip(cams, stepper()))
+                seen = dict(zip(cams, stepper.next(more=total < 0 or step + 1 < total)))
                 timings["cameras"] += time.perf_counter() - t0
                 ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
                 if ended and frame_names is not None and start + step < len(frame_names):  # a frames folder's contract
@@ -455,7 +473,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             t0 = time.perf_counter()
             pending = _emit(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
             timings["write"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
+        t0 = t_loop_end = time.perf_counter()
         _emit(pending, writer, step, views_hist, floor_tracks, final=True)
         writer.close()
         files = [out / "joints.parquet", out / "joints.csv"]
@@ -472,6 +490,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         blas.restore_original_limits()
         cv2.setNumThreads(cv_threads)
         if pool:
+            stepper.drain()
             pool.shutdown()
         for c in cams.values():
             c.reader.close()
@@ -493,6 +512,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
                                  f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
     timings["total"] = time.perf_counter() - t_start
+    timings["finish"] = time.perf_counter() - t_loop_end
     summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
     write_json_atomic(out / "summary.json", {
         "frames": step, "persons": n_persons, "rows": writer.counts, "views_hist": views_hist,
