@@ -8,11 +8,13 @@ otherwise took turns. Each camera's steps still run one after the other (the nex
 current one has finished), so every camera reads its frames in order and the results are those of the plain
 loop, step for step.
 
-The pipeline asks for it only where nothing the run's thread does between two steps changes what a camera's
-step computes (mask videos: no background that learns, :meth:`~.pipeline._Camera.settle`) and where the pool is
-not needed by the run's thread meanwhile (views judged in the run's thread). ``more`` tells :meth:`StepAhead.next`
-whether another step will be asked for, so no frame is read beyond the run's last step (``--max-steps``: the
-cameras' frame counts, and so their end-of-run diagnoses, stay those of the plain loop).
+Between two steps the run's thread may change what a camera's next step computes: with colour videos, static
+clutter becomes background (:meth:`~.pipeline._Camera.settle`). The pipeline then first waits for that camera's
+step started ahead (:meth:`StepAhead.wait`: the background model never changes under a segmentation) and, when it
+is handed over, segments its frame again against the new background (:meth:`~.pipeline._Camera.resegment`) --
+rare (clutter that stays two seconds), and what the plain loop would have computed. ``more`` tells
+:meth:`StepAhead.next` whether another step will be asked for, so no frame is read beyond the run's last step
+(``--max-steps``); the cameras' tallies for their end-of-run diagnoses are taken as the steps are handed over.
 """
 
 from __future__ import annotations
@@ -44,6 +46,12 @@ class StepAhead:
         if self.ahead and more:
             self._pending = self._submit()
         return out
+
+    def wait(self, k: int) -> None:
+        """Wait until camera ``k``'s step started ahead (if any) has finished (its error, if any, comes with
+        :meth:`next`)."""
+        if self._pending:
+            self._pending[k].exception()
 
     def drain(self) -> None:
         """Wait for a step started ahead and never asked for (a run that stopped early); its errors are dropped."""
