@@ -4,15 +4,11 @@ Top view in silpose's frame (metres, x right, y up the page): the workspace (das
 centres and viewing directions, named), each person's floor positions joined in time order in the person's
 colour (the placed root, or the floor grid's position in frames without joints), a circle where the track
 starts and the id where it ends, and, for a rig with a calibration frame, that frame's origin and x / y axes
-(where the lab's own coordinates start). matplotlib is imported when the plot is drawn (Agg), or ahead of that by
-:func:`preload` in a thread of its own while the recording runs: a cold import of pyplot took 2 CPU s and 4 s of
-wall time on the loaded 2-core machine, most of the 8.5 s a 100-step run of 4 colour videos spent after its last
-step.
+(where the lab's own coordinates start). matplotlib is imported when the plot is drawn (Agg).
 """
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -22,36 +18,15 @@ from silpose.shared.atomic import write_figure_atomic
 from .overlay_video import person_colour
 
 
-def _import_matplotlib() -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot  # noqa: F401
-    from PIL import PngImagePlugin  # noqa: F401  (the PNG writer savefig loads)
-
-
-def preload() -> threading.Thread:
-    """Import what :func:`write_floorplan` needs in a daemon thread (module docstring); an import that fails
-    there fails again, with its message, when the plot is drawn."""
-
-    def run() -> None:
-        try:
-            _import_matplotlib()
-        except Exception:  # noqa: BLE001 - write_floorplan imports again and reports it
-            pass
-
-    thread = threading.Thread(target=run, name="floorplan-imports", daemon=True)
-    thread.start()
-    return thread
-
-
 def write_floorplan(path: Path, tracks: dict[int, np.ndarray], rig, transform, workspace, title: str) -> Path:
     """Draw and save the floor plan.
 
     tracks: {person: (T, 3) array of (frame, x, y)}, metres; rig: cameras; transform, workspace: the room
     (``Rig.transform``, ``Rig.workspace``).
     """
-    _import_matplotlib()
+    import matplotlib
+
+    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 6.4))

@@ -79,7 +79,7 @@ from ..inference import TOP_K, InferOptions, infer_rows
 from .appearance import PersonLooks, observe
 from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid, capture_bounds
-from .floorplan import preload, write_floorplan
+from .floorplan import write_floorplan
 from .hull import PersonHulls
 from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
@@ -370,7 +370,6 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     names = list(rig.names)
     transform, workspace = rig.transform, rig.workspace
     recording = open_recording(videos, rig, parse_offsets(opt.offsets, names))
-    preload()  # the floor plan's imports, while the recording runs (.floorplan)
     warnings = list(recording.warnings)
     for w in warnings:
         if warn:
