@@ -25,8 +25,8 @@ GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 s
 load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool); there, each camera's next
 step is started in the pool as soon as the current one is handed over (:mod:`.lookahead`), so the decoding and
 labelling of step t + 1 overlap the floor and view stages of step t, with the same results (lab recording played
-3x, 180 steps, three alternating runs at load 10-12: 26.0-31.1 steps/s and 16.1-19.2 CPU ms per step, 23.2-26.8
-and 18.9-20.9 before). Colour videos do the same in a pool of their own (their view stage uses the first): a step
+3x, 180 steps, nine alternating pairs at load 5-12: faster in 7 of them, median ratio 1.14, mean 35.1 vs 31.2
+steps/s, 18.2 vs 19.6 CPU ms per step; the wall figures swing by 2x with the other jobs). Colour videos do the same in a pool of their own (their view stage uses the first): a step
 segmented ahead is segmented again when static clutter became background in between (4 x 1932x1458, 60 steps,
 load 12-14: 2.92 steps/s and 166 CPU ms per step, 2.58 and 189 before; the same joints.csv) -- and BLAS
 is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
