@@ -9,7 +9,9 @@ plays the mask videos ``repeat`` times, forwards then backwards (so the walkers 
 Rows:
 
 - ``run``: one per measured run, each in its own Python subprocess: steps, wall seconds and time steps
-  per second, CPU seconds per step (all threads; the machine is shared, so wall time is the noisier
+  per second, the steady rate between the first step and the last (``steady_steps_per_s``: without the run's
+  ``setup_s`` -- opening the videos, learning backgrounds -- and ``finish_s`` -- closing the files, the floor
+  plan; what a long recording approaches), CPU seconds per step (all threads; the machine is shared, so wall time is the noisier
   figure), per-stage shares, the process's baseline RSS (after imports and the model) and peak RSS
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
@@ -236,9 +238,11 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
-    stages = {k: v for k, v in s.timings.items() if k != "total"}
+    stages = {k: v for k, v in s.timings.items() if k not in ("total", "setup", "finish")}
     busy = sum(stages.values()) or 1.0
     return {"steps": s.n_steps, "persons": s.n_persons, "wall_s": wall, "steps_per_s": s.n_steps / wall,
+            "steady_steps_per_s": s.steady_steps_per_second, "setup_s": s.timings.get("setup", float("nan")),
+            "finish_s": s.timings.get("finish", float("nan")),
             "cpu_ms_per_step": 1000 * cpu / s.n_steps, "steps_per_cpu_s": s.n_steps / cpu,
             **{f"share_{k}": v / busy for k, v in stages.items()},
             "baseline_mb": baseline * mb, "peak_mb": peak * mb, "run_mb": (peak - baseline) * mb}

@@ -299,6 +299,39 @@ def test_grounded_tells_a_person_from_a_point_behind_them(rig, tools):
     assert grounded(cam, find_blobs(np.zeros_like(m), 50), person[None]).tolist() == [False]
 
 
+
+def _whole_map_peaks(grid, occupancy, min_score):
+    """The peaks FloorGrid.detect looks for, computed on the whole map (the reference of its search box)."""
+    smooth = cv2.GaussianBlur(occupancy.astype(np.float32), (0, 0), 2.0)
+    peak = (smooth >= cv2.dilate(smooth, np.ones((5, 5), np.uint8))) & (smooth >= min_score)
+    rows, cols = np.nonzero(peak)
+    return smooth, {(float(grid.xs[c]), float(grid.ys[r])) for r, c in zip(rows, cols)}
+
+
+def test_floor_grid_searches_only_around_occupied_cells_and_finds_the_whole_maps_peaks(rig):
+    """FloorGrid.detect smooths and searches the box around the non-zero cells: the same peaks (each detection
+    starts at one, and its score is the smoothed value there) as on the whole map, for blobs at the map's edges,
+    scattered cells and an empty map."""
+    grid = FloorGrid(list(rig), DEFAULT_WORKSPACE.bounds)
+    rng = np.random.default_rng(3)
+    ny, nx = grid.X.shape
+    for trial in range(12):
+        occ = np.zeros((ny, nx), np.float32)
+        for _ in range(trial % 4):  # people-sized patches anywhere, corners included
+            i, j = rng.integers(0, ny), rng.integers(0, nx)
+            occ[max(0, i - 4): i + 5, max(0, j - 4): j + 5] = rng.uniform(0.6, 1.0)
+        if trial >= 8:
+            occ[rng.random(occ.shape) < 0.01] = 1.0
+        for min_score in (0.7, 0.2):
+            smooth, peaks = _whole_map_peaks(grid, occ, min_score)
+            det = grid.detect(occ, min_score, separation=0.0 if trial % 2 else 0.5)
+            assert len(det.positions) <= len(peaks)
+            for s in det.scores:
+                assert np.any(np.isclose(smooth, s, rtol=0, atol=0)), s
+            if trial % 2:  # no separation: one detection per peak
+                assert len(det.positions) == len(peaks)
+    assert len(grid.detect(np.zeros((ny, nx), np.float32)).positions) == 0
+
 def test_tracker_starts_and_confirms_tracks_only_from_allowed_detections():
     tr = Tracker(min_hits=2)
     p = np.array([[0.0, 0.0]])

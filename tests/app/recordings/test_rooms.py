@@ -165,3 +165,26 @@ def test_a_room_keeps_three_usable_views(half_model, tools, tmp_path, kind):
     if kind == "lamp":  # the lamp is cut off the walker's blob in cam0 and cam1 (view_cut), nothing in cam2, cam3
         cut = np.nanmedian(np.array(t.column("view_cut").to_pylist(), float)[found], axis=0)
         assert cut[0] > 0.05 and cut[1] > 0.05 and cut[2] < 0.02 and cut[3] < 0.02, cut
+
+
+def test_steps_ahead_give_the_plain_loops_joints_when_clutter_becomes_background(half_model, tools, tmp_path,
+                                                                                 monkeypatch):
+    """Colour videos with camera threads step each camera ahead (silpose.app.recordings.lookahead); where static
+    clutter became background after a step had been segmented ahead, that step is segmented again: the joints are
+    those of the run without threads, value for value."""
+    from silpose.app.recordings import pipeline
+
+    monkeypatch.setitem(globals(), "N_FRAMES", 14)  # a short clip; the prop becomes background after 0.5 s
+    videos, empty = _room(tmp_path, half_model.rig_, tools, "prop")
+    redone = []
+    plain_resegment = pipeline._Camera.resegment
+    monkeypatch.setattr(pipeline._Camera, "resegment", lambda self, seen: redone.append(1) or plain_resegment(self, seen))
+    tables = []
+    for threads in (0, 2):
+        run_recording(half_model, videos, tmp_path / f"out{threads}",
+                      RecordingOptions(background=empty, overlays=False, threads=threads, absorb_s=0.5))
+        tables.append(pq.read_table(tmp_path / f"out{threads}" / "joints.parquet"))
+    assert redone  # the prop became background while a step was ahead
+    assert tables[0].num_rows == tables[1].num_rows > 0
+    for col in ("frame", "person", "status", "joints", "view_status"):
+        assert tables[0].column(col).to_pylist() == tables[1].column(col).to_pylist(), col

@@ -49,6 +49,9 @@ COLUMN_HEIGHTS = (0.9, 1.0, 1.1, 1.2, 1.3)
 CELL_M = 0.05
 #: metres of floor searched around the workspace
 MARGIN_M = 0.5
+#: cells around an occupancy map's non-zero cells that :meth:`FloorGrid.detect` smooths and searches: twice the
+#: reach of its Gaussian (sigma 2 cells, OpenCV's kernel of 17 cells) and its 5 x 5 peak test, with a cell to spare
+SEARCH_MARGIN_CELLS = 20
 
 
 def person_reach(cam, person_height: float = PERSON_HEIGHT_M, fraction: float = MIN_PERSON_FRACTION) -> float:
@@ -194,10 +197,25 @@ class FloorGrid:
         return Detections(np.concatenate([a.positions, b.positions[far]]), np.concatenate([a.scores, b.scores[far]]))
 
     def detect(self, occupancy: np.ndarray, min_score: float = 0.7, separation: float = 0.5) -> Detections:
-        """People in an occupancy map (module docstring)."""
-        smooth = cv2.GaussianBlur(occupancy.astype(np.float32), (0, 0), 2.0)
-        peak = (smooth >= cv2.dilate(smooth, np.ones((5, 5), np.uint8))) & (smooth >= min_score)
+        """People in an occupancy map (module docstring).
+
+        The map is smoothed and searched for peaks only on the box of its non-zero cells grown by
+        :data:`SEARCH_MARGIN_CELLS` (a few people cover a few per cent of the floor searched): beyond the
+        Gaussian's reach (8 cells) the smoothed map is 0, below any ``min_score``, and the box's own border
+        reflects only zeros onto cells within reach, so the peaks are those of the whole map."""
+        occ = occupancy.astype(np.float32)
+        rows, cols = np.flatnonzero(occ.any(axis=1)), np.flatnonzero(occ.any(axis=0))
+        if not rows.size:
+            return Detections(np.zeros((0, 2)), np.zeros(0))
+        m = SEARCH_MARGIN_CELLS
+        y0, x0 = max(rows[0] - m, 0), max(cols[0] - m, 0)
+        box = np.s_[y0: rows[-1] + m + 1, x0: cols[-1] + m + 1]
+        smooth = np.zeros(occ.shape, np.float32)
+        smooth[box] = cv2.GaussianBlur(np.ascontiguousarray(occ[box]), (0, 0), 2.0)
+        part = smooth[box]
+        peak = (part >= cv2.dilate(part, np.ones((5, 5), np.uint8))) & (part >= min_score)
         rows, cols = np.nonzero(peak)
+        rows, cols = rows + y0, cols + x0
         order = np.argsort(-smooth[rows, cols], kind="stable")
         kept: list[np.ndarray] = []
         scores = []

@@ -22,7 +22,13 @@ then per chunk:
 Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count) -- except the view
 stage (3) of mask videos without carving, which runs in the run's thread: it is small numpy calls that hold the
 GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 steps, six alternating runs at
-load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool) -- and BLAS
+load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool); there, each camera's next
+step is started in the pool as soon as the current one is handed over (:mod:`.lookahead`), so the decoding and
+labelling of step t + 1 overlap the floor and view stages of step t, with the same results (lab recording played
+3x, 180 steps, nine alternating pairs at load 5-12: faster in 7 of them, median ratio 1.14, mean 35.1 vs 31.2
+steps/s, 18.2 vs 19.6 CPU ms per step; the wall figures swing by 2x with the other jobs). Colour videos do the same in a pool of their own (their view stage uses the first): a step
+segmented ahead is segmented again when static clutter became background in between (4 x 1932x1458, 60 steps,
+load 12-14: 2.92 steps/s and 166 CPU ms per step, 2.58 and 189 before; the same joints.csv) -- and BLAS
 is held to one thread during the run: the model's batches here are small (a chunk's people), and BLAS
 threads competing with the camera threads cost more than they give (measured on this 2-core machine
 under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1); so are OpenCV's own
@@ -75,6 +81,7 @@ from .blobs import Blobs, blob_contour, find_blobs
 from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
 from .hull import PersonHulls
+from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
@@ -168,7 +175,9 @@ class RecordingOptions:
 class RecordingSummary:
     """What a run did. files: written paths; counts: rows per status; views_hist: person-frames on the floor
     by number of usable views (index = views); camera_status: {camera: {status: frames}}; timings: seconds per
-    stage; n_steps, n_persons, warnings."""
+    stage (``cameras`` ... ``overlays``, the run's thread), ``setup`` (before the first step: opening the videos,
+    learning backgrounds), ``finish`` (after the last step: closing the files, the floor plan) and ``total``;
+    n_steps, n_persons, warnings."""
 
     out: Path
     files: list[Path]
@@ -184,6 +193,13 @@ class RecordingSummary:
     def steps_per_second(self) -> float:
         total = self.timings.get("total", 0.0)
         return self.n_steps / total if total > 0 else float("nan")
+
+    @property
+    def steady_steps_per_second(self) -> float:
+        """Time steps per second between the first step and the last (``total`` without ``setup`` and
+        ``finish``): the rate a long recording approaches."""
+        t = self.timings.get("total", 0.0) - self.timings.get("setup", 0.0) - self.timings.get("finish", 0.0)
+        return self.n_steps / t if t > 0 else float("nan")
 
     def text(self) -> str:
         on_floor = sum(self.views_hist)
@@ -205,6 +221,7 @@ class _Seen:
     blobs: Blobs | None
     status: str | None
     mask: np.ndarray | None = None
+    peak: int = 0  # the frame's highest grey level when its mask came out empty (the diagnosis's hint)
 
 
 def _shown(source) -> str:
@@ -227,30 +244,47 @@ class _Camera:
         self.ended = False
         self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
         self.brightest_empty = 0  # the highest grey level of a frame whose mask came out empty
+        self.quiesce: Callable[[], None] | None = None  # waits for this camera's step started ahead (.lookahead)
 
     def step(self) -> _Seen:
+        """The next frame's mask and blobs (a worker thread; :meth:`tally` counts it, in the run's thread)."""
         if self.ended:
             return _Seen(None, None, VIEW_ENDED)
         img = self.reader.read()
         if img is None:
             self.ended = True
             return _Seen(None, None, VIEW_ENDED)
+        return self._segment(img)
+
+    def _segment(self, img: np.ndarray) -> _Seen:
         mask = self.silhouettes(self.reader.source.camera, img)
         blobs = find_blobs(mask, self.min_area)
-        self.frames += 1
-        if blobs.empty:
-            self.empty += 1
-            self.brightest_empty = max(self.brightest_empty, int(img.max()))
-        elif 2 * int(blobs.area[1:].sum()) > mask.size:
-            self.crowded += 1
-        return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask)
+        return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask,
+                     int(img.max()) if blobs.empty else 0)
 
-    def settle(self, seen: _Seen, people_xy: np.ndarray) -> None:
+    def resegment(self, seen: _Seen) -> _Seen:
+        """``seen`` segmented again from its frame (colour videos: a step started ahead, before :meth:`settle` made
+        some of the background new)."""
+        return seen if seen.status == VIEW_ENDED or not self.keep_frame else self._segment(seen.background)
+
+    def tally(self, seen: _Seen) -> None:
+        """Count a step's mask for :meth:`diagnosis`."""
+        if seen.blobs is None:
+            return
+        self.frames += 1
+        if seen.blobs.empty:
+            self.empty += 1
+            self.brightest_empty = max(self.brightest_empty, seen.peak)
+        elif 2 * int(seen.blobs.area[1:].sum()) > seen.mask.size:
+            self.crowded += 1
+
+    def settle(self, seen: _Seen, people_xy: np.ndarray) -> bool:
         """Foreground outside every detected person's body box (:func:`~.views.body_box`, at floor points
-        ``people_xy`` (P, 2)) for ``absorb_frames`` frames in a row becomes background (colour videos only)."""
+        ``people_xy`` (P, 2)) for ``absorb_frames`` frames in a row becomes background (colour videos only).
+        Returns True if some did (a next step segmented already is then out of date)."""
         models = getattr(self.silhouettes, "models", None)
         if self.absorb_frames <= 0 or models is None or seen.mask is None or seen.background is None:
-            return
+            return False
         fg = seen.mask.astype(bool)
         loose = fg.copy()
         if len(people_xy):
@@ -271,9 +305,13 @@ class _Camera:
         np.add(self.age, 1, out=self.age, where=loose, casting="unsafe")
         ready = loose & (self.age >= self.absorb_frames)  # never where a person may be now (their colours)
         if int(ready.sum()) >= self.min_area:
+            if self.quiesce is not None:  # never change the model under a step that is segmenting ahead
+                self.quiesce()
             models[self.reader.source.camera].absorb(seen.background, ready)
             self.absorbed += int(ready.sum())
             self.age[ready] = 0
+            return True
+        return False
 
     def diagnosis(self, masks: bool) -> str | None:
         """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
@@ -391,9 +429,15 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     threads = _default_threads(len(cams)) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
-    stepper = (lambda: list(pool.map(_Camera.step, cam_list))) if pool else (lambda: [c.step() for c in cam_list])
     # mask videos without carving: the view stage in this thread (module docstring, "Threads")
     views_map = pool.map if pool and (not opt.masks or hulls is not None) else map
+    # each camera's next step runs ahead while this thread handles the current one (.lookahead): in the pool, or in
+    # a pool of its own when the view stage needs the pool meanwhile (colour videos, carving)
+    step_pool = ThreadPoolExecutor(max_workers=threads) if pool and views_map is not map else pool
+    stepper = StepAhead([c.step for c in cam_list], step_pool, ahead=True)
+    for k, c in enumerate(cam_list):  # a background about to learn waits for the camera's step started ahead
+        c.quiesce = (lambda k=k: stepper.wait(k)) if stepper.ahead else None
+    stale: set[str] = set()  # cameras whose step started ahead was segmented before their background learnt
     step = 0
     detected = 0  # steps with someone on the floor (tracked or not): says why nobody was found
     gone: set[str] = set()  # cameras whose video ended
@@ -404,6 +448,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
                                 {c.name: (c.width, c.height) for c in work}, fps, first_frame,
                                 frame_names[start:] if frame_names is not None else None)
+        timings["setup"] = time.perf_counter() - t_start
+        t_loop_end = None
         done = False
         while not done:
             seen_chunk: list[dict[str, _Seen]] = []
@@ -413,7 +459,12 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     done = True
                     break
                 t0 = time.perf_counter()
-                seen = dict(zip(cams, stepper()))
+                seen = dict(zip(cams, stepper.next(more=total < 0 or step + 1 < total)))
+                for c in stale:  # what the plain loop would have segmented (.lookahead)
+                    seen[c] = cams[c].resegment(seen[c])
+                stale.clear()
+                for c, cam in cams.items():
+                    cam.tally(seen[c])
                 timings["cameras"] += time.perf_counter() - t0
                 ended = [c for c, s in seen.items() if s.status == VIEW_ENDED and c not in gone]
                 if ended and frame_names is not None and start + step < len(frame_names):  # a frames folder's contract
@@ -435,8 +486,8 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                 people += found
                 detected += bool(len(where))
                 for c, cam in cams.items():
-                    if seen[c].status is None:
-                        cam.settle(seen[c], where)
+                    if seen[c].status is None and cam.settle(seen[c], where) and stepper.ahead:
+                        stale.add(c)
                 seen_chunk.append(seen)
                 for c in names:
                     s = seen.get(c)
@@ -458,7 +509,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
             t0 = time.perf_counter()
             pending = _emit(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
             timings["write"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
+        t0 = t_loop_end = time.perf_counter()
         _emit(pending, writer, step, views_hist, floor_tracks, final=True)
         writer.close()
         files = [out / "joints.parquet", out / "joints.csv"]
@@ -475,7 +526,9 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         blas.restore_original_limits()
         cv2.setNumThreads(cv_threads)
         if pool:
+            stepper.drain()
             pool.shutdown()
+            step_pool.shutdown()
         for c in cams.values():
             c.reader.close()
     for c in cams.values():
@@ -496,6 +549,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
                                  f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
     timings["total"] = time.perf_counter() - t_start
+    timings["finish"] = time.perf_counter() - t_loop_end
     summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
     write_json_atomic(out / "summary.json", {
         "frames": step, "persons": n_persons, "rows": writer.counts, "views_hist": views_hist,
