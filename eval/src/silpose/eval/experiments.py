@@ -48,7 +48,7 @@ from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.stature import REFERENCE_STATURE, estimate_stature
 from silpose.shared.contours import normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
-from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
+from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, BASELINE_ROWS_STREAM, derive_rng, draw_subset
 
 from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor
 from .e6_inference import run_e6
@@ -94,6 +94,12 @@ class EvalConfig:
         knn_neighbors: k of the kNN baseline.
         mlp: the MLP baseline's settings; mlp_noisy_copies: noisy copies of each training walker it is
             trained on (besides the clean one; the test noise model ``noise``, other seeds).
+        baseline_rows: training samples the ridge and MLP baselines see at most (None = all): beyond it
+            they see this many, drawn uniformly by ``silpose.shared.seeds.draw_subset`` with the keys
+            ``(seed, BASELINE_ROWS_STREAM)``, so their memory and time stay bounded (the MLP trains on
+            ``(1 + mlp_noisy_copies) x baseline_rows`` rows). kNN and chance see every training sample (kNN
+            holds one float32 copy of its views' rows). At 43,200 motions samples the cap changed the
+            baselines' errors by less than the test set's noise (docs/training-at-scale.md).
         experiments: which of "E1".."E6" to run.
     """
 
@@ -105,6 +111,7 @@ class EvalConfig:
     knn_neighbors: int = 5
     mlp: MLPSettings = field(default_factory=MLPSettings)
     mlp_noisy_copies: int = 2
+    baseline_rows: int | None = 20_000
     experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6")
 
     def to_dict(self) -> dict:
@@ -117,6 +124,7 @@ class EvalConfig:
             "knn_neighbors": self.knn_neighbors,
             "mlp": {**asdict(self.mlp), "hidden": list(self.mlp.hidden)},
             "mlp_noisy_copies": self.mlp_noisy_copies,
+            "baseline_rows": self.baseline_rows,
             "experiments": list(self.experiments),
         }
 
@@ -302,16 +310,32 @@ class Evaluation:
             self._train_norm = normalise(self.data.train_contours)[0]
         return self._train_norm
 
+    def baseline_rows(self) -> np.ndarray:
+        """Sorted indices of the training samples the ridge and MLP baselines see (``config.baseline_rows``);
+        the count and the cap go to ``extra["baseline_rows"]``."""
+        if not hasattr(self, "_baseline_rows"):
+            n, cap = len(self.data.train_joints), self.config.baseline_rows
+            self._baseline_rows = draw_subset(n, cap, self.config.seed, BASELINE_ROWS_STREAM)
+            self.extra["baseline_rows"] = {"cap": cap, "rows": int(len(self._baseline_rows)), "of": int(n)}
+            if len(self._baseline_rows) < n:
+                self.notes.append(f"ridge and MLP baselines: {len(self._baseline_rows)} of the {n} training samples "
+                                  f"(baseline_rows cap, seeded draw)")
+        return self._baseline_rows
+
     def regressor(self, kind: str, views: Sequence[int]):
-        """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached), or the
-        MLP baseline bound to the subset."""
+        """kNN (every training sample) or ridge (``baseline_rows``) regressor for a view subset, fitted on the
+        clean training contours (cached), or the MLP baseline bound to the subset."""
         key = (kind, tuple(views))
         if kind == "mlp":
             return _BoundViews(self.mlp_baseline(), tuple(views))
         if key not in self._regressors:
+            rows = np.arange(len(self.data.train_joints)) if kind == "knn" else self.baseline_rows()
+            every = len(rows) == len(self.data.train_joints)
+            norm = self.train_normalised() if every else self.train_normalised()[rows]
+            px = self.data.train_contours if every else self.data.train_contours[rows]
+            joints = self.data.train_joints if every else self.data.train_joints[rows]
             reg = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
-                self.train_normalised(), self.data.train_joints, size=self._size(self.data.train_contours, views)
-            )
+                norm, joints, size=self._size(px, views))
             self._timing(kind)["fit_s"] += reg.fit_time_s_
             self._regressors[key] = reg
         return self._regressors[key]
@@ -321,38 +345,47 @@ class Evaluation:
         return table.setdefault(kind, {"fit_s": 0.0, "predict_s": 0.0, "frames": 0})
 
     def mlp_baseline(self) -> ViewDropoutMLP:
-        """The MLP baseline (fitted on first use): the training walkers, clean and ``mlp_noisy_copies`` times
-        with the test noise model (noise seeds and view subsets from ``BASELINE_AUGMENT_STREAM``), each
-        row given a random view subset (its size uniform in 1..K); validation split by walker."""
+        """The MLP baseline (fitted on first use): the training walkers of ``baseline_rows``, clean and
+        ``mlp_noisy_copies`` times with the test noise model (noise seeds and view subsets from
+        ``BASELINE_AUGMENT_STREAM``), each row given a random view subset (its size uniform in 1..K); validation
+        split by walker. The rows are normalised copy by copy into one float32 array (no float64 copy of
+        all the rows)."""
         if not hasattr(self, "_mlp"):
             d, cfg = self.data, self.config
             t0 = time.perf_counter()
-            n, K = len(d.train_joints), d.n_views
-            ids = np.arange(n)  # noise seeds (the noise stream's seed differs from the test noise's)
-            groups = np.arange(n) if d.train_groups is None else np.asarray(d.train_groups)
+            rows = self.baseline_rows()
+            train_px = d.train_contours if len(rows) == len(d.train_joints) else d.train_contours[rows]
+            n, K = len(rows), d.n_views
+            ids = rows  # noise seeds (the noise stream's seed differs from the test noise's)
+            groups = rows if d.train_groups is None else np.asarray(d.train_groups)[rows]
             rng = derive_rng(cfg.seed, BASELINE_AUGMENT_STREAM)
-            copies = [d.train_contours]
-            for c in range(cfg.mlp_noisy_copies):
-                noise_seed = int(rng.integers(2**31 - 1))
-                copies.append(apply_noise(cfg.noise, d.train_contours, ids, noise_seed, masks=None)
-                              if not cfg.noise.needs_masks else d.train_contours)
-            px = np.concatenate(copies)
-            reps = len(copies)
-            present = np.zeros((len(px), K), bool)
-            sizes = rng.integers(1, K + 1, size=len(px))
+            seeds = [int(rng.integers(2**31 - 1)) for _ in range(cfg.mlp_noisy_copies)]
+            reps = 1 + cfg.mlp_noisy_copies
+            present = np.zeros((reps * n, K), bool)
+            sizes = rng.integers(1, K + 1, size=reps * n)
             for r, k in enumerate(sizes):
                 present[r, rng.choice(K, size=k, replace=False)] = True
-            size = None
-            if self._size(d.train_contours[:1], (0,)) is not None:  # per-stature joints: size from the given views
-                size = np.empty(len(px))
-                for pattern in np.unique(present, axis=0):
-                    rows = np.flatnonzero((present == pattern).all(axis=1))
-                    size[rows] = self._size(px[rows], tuple(np.flatnonzero(pattern)))
-            self._mlp = ViewDropoutMLP(cfg.mlp).fit(normalise(px)[0], present, np.concatenate([d.train_joints] * reps),
+            stature = self._size(train_px[:1], (0,)) is not None  # per-stature joints: size from the given views
+            size = np.empty(reps * n) if stature else None
+            norm = np.empty((reps * n,) + train_px.shape[1:], np.float32)
+            for c in range(reps):
+                px = train_px if c == 0 or cfg.noise.needs_masks else apply_noise(cfg.noise, train_px, ids, seeds[c - 1],
+                                                                                   masks=None)
+                block = slice(c * n, (c + 1) * n)
+                norm[block] = normalise(px)[0]
+                if stature:
+                    p = present[block]
+                    for pattern in np.unique(p, axis=0):
+                        sel = np.flatnonzero((p == pattern).all(axis=1))
+                        size[c * n + sel] = self._size(px[sel], tuple(np.flatnonzero(pattern)))
+                del px
+            joints = d.train_joints if len(rows) == len(d.train_joints) else d.train_joints[rows]
+            self._mlp = ViewDropoutMLP(cfg.mlp).fit(norm, present, np.concatenate([joints] * reps),
                                                     np.tile(groups, reps), size=size)
+            del norm
             self._timing("mlp")["fit_s"] += time.perf_counter() - t0
             self.extra.setdefault("mlp_baseline", {}).update(
-                rows=int(len(px)), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
+                rows=int(reps * n), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
                 best_epoch=int(self._mlp.estimator_.best_epoch_),
                 val_rmse_m=float(self._mlp.estimator_.val_rmse_), net_fit_s=float(self._mlp.fit_time_s_))
         return self._mlp
