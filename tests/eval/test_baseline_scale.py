@@ -113,3 +113,29 @@ def test_mlp_in_place_scaling_equals_the_copying_fit():
     for a, b in zip(got.net_.coefs_, ref.net_.coefs_):
         np.testing.assert_array_equal(a, b)
     assert np.array_equal(x, masked_features(c, present))  # fit_mlp left the caller's array alone
+
+
+def test_evaluation_mlp_is_the_view_dropout_mlp_on_the_capped_rows():
+    """The eval builds the MLP's float32 rows in place, copy by copy; the network equals ViewDropoutMLP.fit on the
+    same capped samples, noisy copies and view subsets assembled the plain way."""
+    from silpose.eval.noise import NoiseSpec, apply_noise
+    from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
+
+    ev = _evaluation(90, cap=40)
+    ev.config.noise = NoiseSpec(label="jitter", jitter_px=1.0)
+    ev.config.mlp = MLPSettings(hidden=(16,), max_epochs=3, patience=3, batch_size=16)
+    got = ev.mlp_baseline().estimator_
+    rows, d, K = ev.baseline_rows(), ev.data, ev.data.n_views
+    rng = derive_rng(ev.config.seed, BASELINE_AUGMENT_STREAM)
+    seeds = [int(rng.integers(2**31 - 1)) for _ in range(ev.config.mlp_noisy_copies)]
+    px = [d.train_contours[rows]] + [apply_noise(ev.config.noise, d.train_contours[rows], rows, s) for s in seeds]
+    px = np.concatenate(px)
+    present = np.zeros((len(px), K), bool)
+    for r, k in enumerate(rng.integers(1, K + 1, size=len(px))):
+        present[r, rng.choice(K, size=k, replace=False)] = True
+    reps = len(px) // len(rows)
+    ref = ViewDropoutMLP(ev.config.mlp).fit(normalise(px)[0], present, np.concatenate([d.train_joints[rows]] * reps),
+                                            np.tile(d.train_groups[rows], reps)).estimator_
+    assert ev.extra["mlp_baseline"]["rows"] == 3 * 40
+    for a, b in zip(got.net_.coefs_, ref.net_.coefs_):
+        np.testing.assert_array_equal(a, b)

@@ -87,13 +87,16 @@ class ChanceBaseline:
 
 
 def _features(contours_norm: np.ndarray, views: Sequence[int]) -> np.ndarray:
-    """(N, |views| n 2) float32: the views' contours of (N, K, n, 2), copied view by view (no float64 temporary)."""
+    """(N, |views| n 2) float32: the views' contours of (N, K, n, 2), copied view by view (no float64 temporary);
+    float32 contours with every view in order are returned as a reshaped view, not a copy."""
     c = np.asarray(contours_norm)
     if c.ndim != 4 or c.shape[-1] != 2:
         raise ValueError(f"contours_norm must have shape (N, K, n, 2), got {c.shape}")
     bad = [v for v in views if not 0 <= v < c.shape[1]]
     if bad:
         raise ValueError(f"views {bad} not in the input's {c.shape[1]} views")
+    if c.dtype == np.float32 and list(views) == list(range(c.shape[1])) and c.flags.c_contiguous:
+        return c.reshape(len(c), -1)  # every view: a view of the caller's rows, no copy
     out = np.empty((len(c), len(views)) + c.shape[2:], np.float32)
     for j, v in enumerate(views):
         out[:, j] = c[:, v]
@@ -240,16 +243,24 @@ class ViewDropoutMLP:
             size: np.ndarray | None = None) -> "ViewDropoutMLP":
         """contours_norm (N, K, n, 2), present (N, K) bool (the views each row is given), joints (N, 19, 3)
         metres, groups (N,) walker of each row, size optional (N,) stature factors (targets divided by it)."""
+        groups = np.asarray(groups)
+        tr, va = group_split(groups, self.settings.validation_fraction, self.settings.random_state)
+        order = np.concatenate([tr, va])  # the rows as fit_mlp orders them, so it scales x in place
+        self.fit_features(masked_features(contours_norm, present, rows=order), np.asarray(joints)[order], groups[order],
+                          None if size is None else np.asarray(size)[order])
+        self.estimator_.train_rows_, self.estimator_.val_rows_ = tr, va  # in the caller's row numbers
+        return self
+
+    def fit_features(self, x: np.ndarray, joints: np.ndarray, groups: np.ndarray,
+                     size: np.ndarray | None = None) -> "ViewDropoutMLP":
+        """Fit on rows already built by :func:`masked_features`: x (N, K n 2 + K) float32, OVERWRITTEN (scaled in
+        place when its rows come training rows first, as ``group_split(groups, ...)`` orders them; else copied);
+        joints (N, 19, 3) metres, groups (N,), size optional (N,). Returns self."""
         t0 = time.perf_counter()
         y = root_relative(np.asarray(joints, dtype=np.float64))
         if size is not None:
             y = y / np.asarray(size, dtype=np.float64)[:, None, None]
-        groups = np.asarray(groups)
-        tr, va = group_split(groups, self.settings.validation_fraction, self.settings.random_state)
-        order = np.concatenate([tr, va])  # the rows as fit_mlp orders them, so it scales x in place
-        x = masked_features(contours_norm, present, rows=order)
-        self.estimator_ = fit_mlp(x, y.reshape(len(y), -1)[order], groups[order], self.settings, overwrite_x=True)
-        self.estimator_.train_rows_, self.estimator_.val_rows_ = tr, va  # in the caller's row numbers
+        self.estimator_ = fit_mlp(x, y.reshape(len(y), -1), np.asarray(groups), self.settings, overwrite_x=True)
         self.n_rows_ = int(len(y))
         self.fit_time_s_ = time.perf_counter() - t0
         return self
@@ -303,7 +314,7 @@ class ViewSubsetRegressor:
         elif self.kind == "mlp":
             if groups is None:
                 raise ValueError("the MLP baseline needs groups (the walker of each training row)")
-            self.estimator_ = fit_mlp(x, y, groups, self.mlp, overwrite_x=True)
+            self.estimator_ = fit_mlp(x, y, groups, self.mlp, overwrite_x=not np.shares_memory(x, contours_norm))
             self.fit_time_s_ = time.perf_counter() - t0
             return self
         else:

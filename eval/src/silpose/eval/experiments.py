@@ -50,7 +50,7 @@ from silpose.shared.contours import normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
 from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, BASELINE_ROWS_STREAM, derive_rng, draw_subset
 
-from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor
+from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor, group_split, masked_features
 from .e6_inference import run_e6
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
@@ -71,6 +71,9 @@ DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
 )
 
 Progress = Callable[[str, int, int], None]  # (task description, completed, total)
+
+#: rows per block of :meth:`Evaluation.train_normalised`.
+_NORM_BLOCK = 4096
 
 #: The regression baselines, in table order.
 REGRESSORS = ("knn", "ridge", "mlp")
@@ -304,10 +307,14 @@ class Evaluation:
         return max(1, int(round(int(self.model.n_latent) / len(self.model.layout_.views))))
 
     def train_normalised(self) -> np.ndarray:
-        """(N_train, K, n, 2) the training contours normalised (``silpose.shared.contours.normalise``; computed
-        once: the baselines and E6's nearest neighbours share it)."""
+        """(N_train, K, n, 2) float32: the training contours normalised (``silpose.shared.contours.normalise``, in
+        float64, then rounded; computed once, in blocks of rows: the baselines, whose rows are float32, and E6's
+        nearest neighbours share it)."""
         if not hasattr(self, "_train_norm"):
-            self._train_norm = normalise(self.data.train_contours)[0]
+            c = self.data.train_contours
+            self._train_norm = np.empty(c.shape, np.float32)
+            for i in range(0, len(c), _NORM_BLOCK):
+                self._train_norm[i:i + _NORM_BLOCK] = normalise(c[i:i + _NORM_BLOCK])[0]
         return self._train_norm
 
     def baseline_rows(self) -> np.ndarray:
@@ -348,8 +355,8 @@ class Evaluation:
         """The MLP baseline (fitted on first use): the training walkers of ``baseline_rows``, clean and
         ``mlp_noisy_copies`` times with the test noise model (noise seeds and view subsets from
         ``BASELINE_AUGMENT_STREAM``), each row given a random view subset (its size uniform in 1..K); validation
-        split by walker. The rows are normalised copy by copy into one float32 array (no float64 copy of
-        all the rows)."""
+        split by walker. The rows are normalised copy by copy straight into the network's float32 input array,
+        training rows first (no float64 copy of all the rows, no second copy)."""
         if not hasattr(self, "_mlp"):
             d, cfg = self.data, self.config
             t0 = time.perf_counter()
@@ -367,12 +374,17 @@ class Evaluation:
                 present[r, rng.choice(K, size=k, replace=False)] = True
             stature = self._size(train_px[:1], (0,)) is not None  # per-stature joints: size from the given views
             size = np.empty(reps * n) if stature else None
-            norm = np.empty((reps * n,) + train_px.shape[1:], np.float32)
+            all_groups = np.tile(groups, reps)
+            tr, va = group_split(all_groups, cfg.mlp.validation_fraction, cfg.mlp.random_state)
+            order = np.concatenate([tr, va])  # the network's row order: training rows first (scaled in place)
+            where = np.empty_like(order)
+            where[order] = np.arange(len(order))
+            x = np.empty((reps * n, int(np.prod(train_px.shape[1:])) + K), np.float32)
             for c in range(reps):
                 px = train_px if c == 0 or cfg.noise.needs_masks else apply_noise(cfg.noise, train_px, ids, seeds[c - 1],
                                                                                    masks=None)
                 block = slice(c * n, (c + 1) * n)
-                norm[block] = normalise(px)[0]
+                x[where[block]] = masked_features(normalise(px)[0], present[block])
                 if stature:
                     p = present[block]
                     for pattern in np.unique(p, axis=0):
@@ -380,9 +392,9 @@ class Evaluation:
                         size[c * n + sel] = self._size(px[sel], tuple(np.flatnonzero(pattern)))
                 del px
             joints = d.train_joints if len(rows) == len(d.train_joints) else d.train_joints[rows]
-            self._mlp = ViewDropoutMLP(cfg.mlp).fit(norm, present, np.concatenate([joints] * reps),
-                                                    np.tile(groups, reps), size=size)
-            del norm
+            self._mlp = ViewDropoutMLP(cfg.mlp).fit_features(x, np.concatenate([joints] * reps)[order], all_groups[order],
+                                                             size=None if size is None else size[order])
+            del x
             self._timing("mlp")["fit_s"] += time.perf_counter() - t0
             self.extra.setdefault("mlp_baseline", {}).update(
                 rows=int(reps * n), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
