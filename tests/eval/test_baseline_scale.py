@@ -10,6 +10,7 @@ import sklearn
 from sklearn.linear_model import Ridge, RidgeCV
 
 from silpose.eval.baselines import RIDGE_ALPHAS, MLPSettings, ViewDropoutMLP, fit_mlp, masked_features
+from silpose.eval import experiments
 from silpose.eval.experiments import EvalConfig, EvalData, Evaluation
 from silpose.eval.ridge import BlockRidgeCV
 from silpose.shared.contours import normalise
@@ -115,12 +116,13 @@ def test_mlp_in_place_scaling_equals_the_copying_fit():
     assert np.array_equal(x, masked_features(c, present))  # fit_mlp left the caller's array alone
 
 
-def test_evaluation_mlp_is_the_view_dropout_mlp_on_the_capped_rows():
+def test_evaluation_mlp_is_the_view_dropout_mlp_on_the_capped_rows(monkeypatch):
     """The eval builds the MLP's float32 rows in place, copy by copy; the network equals ViewDropoutMLP.fit on the
     same capped samples, noisy copies and view subsets assembled the plain way."""
     from silpose.eval.noise import NoiseSpec, apply_noise
     from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
 
+    monkeypatch.setattr(experiments, "_NORM_BLOCK", 16)  # several blocks of rows per copy
     ev = _evaluation(90, cap=40)
     ev.config.noise = NoiseSpec(label="jitter", jitter_px=1.0)
     ev.config.mlp = MLPSettings(hidden=(16,), max_epochs=3, patience=3, batch_size=16)

@@ -361,9 +361,7 @@ class Evaluation:
             d, cfg = self.data, self.config
             t0 = time.perf_counter()
             rows = self.baseline_rows()
-            train_px = d.train_contours if len(rows) == len(d.train_joints) else d.train_contours[rows]
             n, K = len(rows), d.n_views
-            ids = rows  # noise seeds (the noise stream's seed differs from the test noise's)
             groups = rows if d.train_groups is None else np.asarray(d.train_groups)[rows]
             rng = derive_rng(cfg.seed, BASELINE_AUGMENT_STREAM)
             seeds = [int(rng.integers(2**31 - 1)) for _ in range(cfg.mlp_noisy_copies)]
@@ -372,27 +370,30 @@ class Evaluation:
             sizes = rng.integers(1, K + 1, size=reps * n)
             for r, k in enumerate(sizes):
                 present[r, rng.choice(K, size=k, replace=False)] = True
-            stature = self._size(train_px[:1], (0,)) is not None  # per-stature joints: size from the given views
+            stature = self._size(d.train_contours[:1], (0,)) is not None  # per-stature joints: size from the given views
             size = np.empty(reps * n) if stature else None
             all_groups = np.tile(groups, reps)
             tr, va = group_split(all_groups, cfg.mlp.validation_fraction, cfg.mlp.random_state)
             order = np.concatenate([tr, va])  # the network's row order: training rows first (scaled in place)
             where = np.empty_like(order)
             where[order] = np.arange(len(order))
-            x = np.empty((reps * n, int(np.prod(train_px.shape[1:])) + K), np.float32)
-            for c in range(reps):
-                px = train_px if c == 0 or cfg.noise.needs_masks else apply_noise(cfg.noise, train_px, ids, seeds[c - 1],
-                                                                                   masks=None)
-                block = slice(c * n, (c + 1) * n)
-                x[where[block]] = masked_features(normalise(px)[0], present[block])
-                if stature:
-                    p = present[block]
-                    for pattern in np.unique(p, axis=0):
-                        sel = np.flatnonzero((p == pattern).all(axis=1))
-                        size[c * n + sel] = self._size(px[sel], tuple(np.flatnonzero(pattern)))
-                del px
-            joints = d.train_joints if len(rows) == len(d.train_joints) else d.train_joints[rows]
-            self._mlp = ViewDropoutMLP(cfg.mlp).fit_features(x, np.concatenate([joints] * reps)[order], all_groups[order],
+            x = np.empty((reps * n, int(np.prod(d.train_contours.shape[1:])) + K), np.float32)
+            for c in range(reps):  # copy c, in blocks of rows (the noise is per sample id: blocks change nothing)
+                for lo in range(0, n, _NORM_BLOCK):
+                    ids = rows[lo:lo + _NORM_BLOCK]  # sample ids: the noise seeds (the noise stream's seed differs)
+                    px = d.train_contours[ids]
+                    if c and not cfg.noise.needs_masks:
+                        px = apply_noise(cfg.noise, px, ids, seeds[c - 1], masks=None)
+                    block = np.arange(c * n + lo, c * n + lo + len(ids))
+                    x[where[block]] = masked_features(normalise(px)[0], present[block])
+                    if stature:
+                        p = present[block]
+                        for pattern in np.unique(p, axis=0):
+                            sel = np.flatnonzero((p == pattern).all(axis=1))
+                            size[block[sel]] = self._size(px[sel], tuple(np.flatnonzero(pattern)))
+                    del px
+            joints = np.concatenate([d.train_joints[rows]] * reps)
+            self._mlp = ViewDropoutMLP(cfg.mlp).fit_features(x, joints[order], all_groups[order],
                                                              size=None if size is None else size[order])
             del x
             self._timing("mlp")["fit_s"] += time.perf_counter() - t0
