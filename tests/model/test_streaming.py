@@ -167,9 +167,10 @@ def test_feature_cache_gives_the_uncached_fit_and_builds_each_shard_once(dataset
 
 
 def test_feature_cache_rejects_a_foreign_file(dataset, tmp_path):
-    src = streaming.DatasetShards.open(dataset, "train")
+    """A cache file of the wrong shape is an error naming the file, not data."""
     from silpose.model.fitting import model_layout
 
+    src = streaming.DatasetShards.open(dataset, "train")
     layout = model_layout(_model(), src.n_rig_views, src.n_points, src.rig)
     np.save(tmp_path / "shard-00000.npy", np.zeros((3, 2)))
     with pytest.raises(streaming.StreamingError, match=r"shard-00000.npy: cached features .* expected \(rows, "):
