@@ -252,3 +252,29 @@ def test_pass_level_density_factors_equal_the_dense_density():
         np.testing.assert_allclose(got[:, i], ref, rtol=1e-10, atol=1e-8)
     shifted = params.shifted(np.ones(d))
     assert shifted.density_factors() is params.density_factors()
+
+
+def test_one_blas_thread_limits_blas_and_restores_it():
+    """EM's log densities run on one BLAS thread (silpose.model._ppca.one_blas_thread); the previous limit comes back,
+    and the E-step under it gives the unlimited values to rounding."""
+    from threadpoolctl import threadpool_info
+
+    from silpose.model import _em
+
+    def blas_threads():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    before = blas_threads()
+    with _ppca.one_blas_thread():
+        assert blas_threads() and set(blas_threads()) == {1}
+    assert blas_threads() == before
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(300, 40))
+    params = _em.Params(np.full(5, 0.2), rng.normal(size=(5, 40)), rng.normal(size=(5, 40, 6)) * 0.3, np.full(5, 0.7))
+    sqn, XW, Xmu = _ppca.e_step_products(X, params.means, params.components)
+    ref = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
+                                       params.noise_variance)
+    stats = _em.shard_stats(X, params)
+    from scipy.special import logsumexp
+
+    assert stats.loglik == pytest.approx(float(logsumexp(ref, axis=1).sum()), rel=1e-12)

@@ -120,7 +120,7 @@ def test_streaming_holds_one_shard_of_features(dataset, start_params, monkeypatc
 
     monkeypatch.setattr(streaming, "load_shard_features", spy)
     monkeypatch.setattr("silpose.shared.dataset.load_split", no_load_split)
-    _model(max_iter=3).fit_stream(dataset, "train", init_params=start_params)
+    _model(max_iter=3).fit_stream(dataset, "train", init_params=start_params, cache=False)
     # passes: moments, first E-step, 3 iterations, the log-likelihood under the dof-corrected noise
     # variances (noise_dof, the default) -> 6 passes x 4 shards
     assert len(calls) == 6 * len(SHARD_ROWS)
@@ -129,10 +129,52 @@ def test_streaming_holds_one_shard_of_features(dataset, start_params, monkeypatc
 
     calls.clear()
     live.clear()
-    _model(max_iter=2, n_init=1).fit_stream(dataset, "train", init_rows=12)
+    _model(max_iter=2, n_init=1).fit_stream(dataset, "train", init_rows=12, cache=False)
     assert max(rows_alive for _, rows_alive, _ in calls) <= 12  # only the init subsample outlives its read
     assert sum(rows for _, _, rows in calls[len(SHARD_ROWS):2 * len(SHARD_ROWS)]) == 12  # the subsample pass
     assert max(rows for _, _, rows in calls) <= max(SHARD_ROWS)
+
+
+def test_feature_cache_gives_the_uncached_fit_and_builds_each_shard_once(dataset, monkeypatch):
+    """The cached streaming fit equals the uncached one bit for bit (rows subset, k-means start: every pass
+    kind); each shard's vectors are built once, later passes read the cache, and its folder is gone after."""
+    import tempfile
+    from pathlib import Path
+
+    rows = np.sort(np.random.default_rng(5).choice(sum(SHARD_ROWS), size=80, replace=False))
+    ref = _model(max_iter=4).fit_stream(dataset, "train", rows=rows, init_rows=30, cache=False)
+    built, folders = [], []
+    original_build, original_mkdtemp = streaming.load_shard_features, tempfile.mkdtemp
+
+    def count_builds(path, rows, layout, n_rig_views):
+        built.append(path)
+        return original_build(path, rows, layout, n_rig_views)
+
+    def record_folder(*a, **k):
+        folders.append(original_mkdtemp(*a, **k))
+        return folders[-1]
+
+    monkeypatch.setattr(streaming, "load_shard_features", count_builds)
+    monkeypatch.setattr(tempfile, "mkdtemp", record_folder)
+    got = _model(max_iter=4).fit_stream(dataset, "train", rows=rows, init_rows=30)
+    a, b = ref.mixture_, got.mixture_
+    assert a.lower_bounds_ == b.lower_bounds_ and len(a.lower_bounds_) == 4
+    for name in ("weights_", "means_", "components_", "noise_variance_"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert sorted(built) == sorted(set(built)) and len(built) == len(SHARD_ROWS)  # one build per shard
+    assert len(folders) == 1 and Path(folders[0]).name.startswith("silpose-features-")
+    assert not Path(folders[0]).exists()  # removed after the fit
+
+
+def test_feature_cache_rejects_a_foreign_file(dataset, tmp_path):
+    """A cache file of the wrong shape is an error naming the file, not data."""
+    from silpose.model.fitting import model_layout
+
+    src = streaming.DatasetShards.open(dataset, "train")
+    layout = model_layout(_model(), src.n_rig_views, src.n_points, src.rig)
+    np.save(tmp_path / "shard-00000.npy", np.zeros((3, 2)))
+    with pytest.raises(streaming.StreamingError, match=r"shard-00000.npy: cached features .* expected \(rows, "):
+        streaming.cached_shard_features(str(tmp_path), 0, src.paths[0], None, layout, src.n_rig_views)
 
 
 def test_model_imports_without_ray_and_says_so_when_asked_for_it(dataset):

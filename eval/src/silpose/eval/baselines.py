@@ -7,9 +7,10 @@
   (metres) on the observed views' NORMALISED contours (each view ``(n, 2)`` flattened x0, y0, x1,
   ..., views concatenated in rig order) — the same inputs the MPPCA sees. One regressor is fitted
   per view subset on the clean training contours; at test time it gets exactly the noisy contours
-  of that subset. kNN: ``sklearn.neighbors.KNeighborsRegressor`` (k = 5, distance-weighted);
-  ridge: ``sklearn.linear_model.RidgeCV`` with the penalty chosen by efficient leave-one-out over
-  ``alphas`` on the training data only.
+  of that subset. kNN: ``sklearn.neighbors.KNeighborsRegressor`` (k = 5, distance-weighted) on float32
+  rows (one copy of the subset's training contours); ridge: :class:`silpose.eval.ridge.BlockRidgeCV`, what
+  ``sklearn.linear_model.RidgeCV`` fits (the penalty chosen by exact leave-one-out over ``alphas`` on the
+  training data only) from normal equations accumulated in row blocks.
   When the MPPCA models joints per stature (``silpose.model.stature``), the regressors get the same
   information: they regress the joints divided by each walker's measured ``stature / 1.75 m`` and
   multiply their prediction by the stature measured from the observed views (``size=``).
@@ -22,7 +23,8 @@
   noisy and mirrored copies never straddle it. Training stops when the validation error has not
   improved for ``patience`` epochs; the best epoch's weights are kept. ONE network serves every view
   subset (a per-subset network, as kNN and ridge have, would cost 15 fits for 4 views): its input is
-  every rig view's normalised contour, zero for an absent view, plus one presence flag per view, and
+  every rig view's normalised contour, zero for an absent view, plus one presence flag per view (float32,
+  built once in training-rows-first order and scaled in place, so the fit holds one copy of its rows), and
   each training row is given a random subset (its size uniform in 1..K), so for a subset it sees the
   same contours the kNN of that subset sees. ``ViewSubsetRegressor(kind="mlp")`` fits one network
   for one subset instead.
@@ -38,13 +40,14 @@ import warnings
 from dataclasses import dataclass
 
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.linear_model import RidgeCV
 from sklearn.model_selection import GroupShuffleSplit
 from sklearn.neighbors import KNeighborsRegressor
 from sklearn.neural_network import MLPRegressor
 
 from silpose.shared.seeds import CHANCE_STREAM, derive_rng
 from silpose.shared.skeleton import root_relative
+
+from .ridge import BlockRidgeCV
 
 __all__ = ["ChanceBaseline", "ViewSubsetRegressor", "RIDGE_ALPHAS", "MLPSettings", "GlobalScaledMLP", "fit_mlp",
            "group_split", "masked_features", "ViewDropoutMLP"]
@@ -84,13 +87,20 @@ class ChanceBaseline:
 
 
 def _features(contours_norm: np.ndarray, views: Sequence[int]) -> np.ndarray:
-    c = np.asarray(contours_norm, dtype=np.float64)
+    """(N, |views| n 2) float32: the views' contours of (N, K, n, 2), copied view by view (no float64 temporary);
+    float32 contours with every view in order are returned as a reshaped view, not a copy."""
+    c = np.asarray(contours_norm)
     if c.ndim != 4 or c.shape[-1] != 2:
         raise ValueError(f"contours_norm must have shape (N, K, n, 2), got {c.shape}")
     bad = [v for v in views if not 0 <= v < c.shape[1]]
     if bad:
         raise ValueError(f"views {bad} not in the input's {c.shape[1]} views")
-    return c[:, list(views)].reshape(len(c), -1)
+    if c.dtype == np.float32 and list(views) == list(range(c.shape[1])) and c.flags.c_contiguous:
+        return c.reshape(len(c), -1)  # every view: a view of the caller's rows, no copy
+    out = np.empty((len(c), len(views)) + c.shape[2:], np.float32)
+    for j, v in enumerate(views):
+        out[:, j] = c[:, v]
+    return out.reshape(len(c), -1)
 
 
 @dataclass(frozen=True)
@@ -132,23 +142,33 @@ class GlobalScaledMLP:
         return self.y_mean_ + self.y_scale_ * self.net_.predict(z).astype(np.float64)
 
 
-def fit_mlp(x: np.ndarray, y: np.ndarray, groups: np.ndarray, settings: MLPSettings = MLPSettings()) -> GlobalScaledMLP:
+def fit_mlp(x: np.ndarray, y: np.ndarray, groups: np.ndarray, settings: MLPSettings = MLPSettings(), *,
+            overwrite_x: bool = False) -> GlobalScaledMLP:
     """Fit the MLP baseline on rows x (N, p), targets y (N, t), walkers ``groups`` (N,): one epoch per
-    ``partial_fit`` (float32), early stopping on the group-held-out validation rows. See the module doc."""
+    ``partial_fit`` (float32), early stopping on the group-held-out validation rows. See the module doc.
+
+    The network's inputs are one float32 array, training rows first (a view, no copy per epoch), scaled in
+    place: a copy of x, or x itself when ``overwrite_x`` and x is float32 with its training rows first
+    (then x is overwritten)."""
     t0 = time.perf_counter()
-    x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     if x.ndim != 2 or y.ndim != 2 or len(x) != len(y) or len(groups) != len(x):
         raise ValueError(f"fit_mlp: x (N, p), y (N, t), groups (N,) expected, got {x.shape}, {y.shape}, {np.shape(groups)}")
     out = GlobalScaledMLP()
     out.train_rows_, out.val_rows_ = group_split(groups, settings.validation_fraction, settings.random_state)
     tr, va = out.train_rows_, out.val_rows_
-    out.x_mean_ = x[tr].mean(axis=0)
-    out.x_scale_ = float(np.sqrt(np.mean((x[tr] - out.x_mean_) ** 2))) or 1.0  # ONE factor for every feature
+    order = np.concatenate([tr, va])
+    n_tr = len(tr)
+    in_order = bool(np.array_equal(order, np.arange(len(x))))
+    zx = x if overwrite_x and in_order and x.dtype == np.float32 else np.asarray(x, np.float32)[order]
+    out.x_mean_, out.x_scale_ = _global_scaling(zx[:n_tr])  # ONE factor for every feature
+    for i in range(0, len(zx), _SCALE_BLOCK):
+        zx[i:i + _SCALE_BLOCK] -= out.x_mean_.astype(np.float32)
+        zx[i:i + _SCALE_BLOCK] /= np.float32(out.x_scale_)
     out.y_mean_ = y[tr].mean(axis=0)
     out.y_scale_ = float(np.sqrt(np.mean((y[tr] - out.y_mean_) ** 2))) or 1.0
-    zx = ((x - out.x_mean_) / out.x_scale_).astype(np.float32)
-    zy = ((y - out.y_mean_) / out.y_scale_).astype(np.float32)
+    zy = ((y[order] - out.y_mean_) / out.y_scale_).astype(np.float32)
+    zx_tr, zy_tr, zx_va, zy_va = zx[:n_tr], zy[:n_tr], zx[n_tr:], zy[n_tr:]
     net = MLPRegressor(hidden_layer_sizes=settings.hidden, alpha=settings.alpha, batch_size=settings.batch_size,
                        learning_rate_init=settings.learning_rate, random_state=settings.random_state, shuffle=True)
     best, best_err, since = None, np.inf, 0
@@ -156,8 +176,8 @@ def fit_mlp(x: np.ndarray, y: np.ndarray, groups: np.ndarray, settings: MLPSetti
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         for epoch in range(1, settings.max_epochs + 1):
-            net.partial_fit(zx[tr], zy[tr])
-            err = float(np.sqrt(np.mean((net.predict(zx[va]) - zy[va]) ** 2)))
+            net.partial_fit(zx_tr, zy_tr)
+            err = float(np.sqrt(np.mean((net.predict(zx_va) - zy_va) ** 2)))
             if err < best_err:
                 best_err, since, out.best_epoch_ = err, 0, epoch
                 best = ([w.copy() for w in net.coefs_], [b.copy() for b in net.intercepts_])
@@ -172,15 +192,41 @@ def fit_mlp(x: np.ndarray, y: np.ndarray, groups: np.ndarray, settings: MLPSetti
     return out
 
 
-def masked_features(contours_norm: np.ndarray, present: np.ndarray) -> np.ndarray:
-    """(N, K n 2 + K): every view's normalised contour (N, K, n, 2), zeros where ``present`` (N, K) is
-    False, then the K presence flags (0/1)."""
-    c = np.asarray(contours_norm, dtype=np.float64)
+#: rows per block of the in-place input scaling and the float64 sums of :func:`_global_scaling`.
+_SCALE_BLOCK = 8192
+
+
+def _global_scaling(x: np.ndarray) -> tuple[np.ndarray, float]:
+    """Per-feature mean (p,) float64 and ONE scale (the root mean square of x - mean over all entries) of
+    x (N, p), summed in float64 block by block (no float64 copy of x); scale 1 when x is constant."""
+    n = len(x)
+    mean = np.zeros(x.shape[1])
+    for i in range(0, n, _SCALE_BLOCK):
+        mean += x[i:i + _SCALE_BLOCK].sum(axis=0, dtype=np.float64)
+    mean /= n
+    ss = 0.0
+    for i in range(0, n, _SCALE_BLOCK):
+        dev = x[i:i + _SCALE_BLOCK] - mean
+        ss += float(np.einsum("ij,ij->", dev, dev))
+    return mean, float(np.sqrt(ss / (n * x.shape[1]))) or 1.0
+
+
+def masked_features(contours_norm: np.ndarray, present: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """(N, K n 2 + K) float32: every view's normalised contour (N, K, n, 2), zeros where ``present`` (N, K) is
+    False, then the K presence flags (0/1). ``rows``: only these rows, in this order (one gather, no other copy)."""
+    c = np.asarray(contours_norm)
     p = np.asarray(present, dtype=bool)
     if c.ndim != 4 or p.shape != c.shape[:2]:
         raise ValueError(f"contours_norm (N, K, n, 2) and present (N, K) expected, got {c.shape} and {p.shape}")
-    x = np.where(p[:, :, None, None], c, 0.0).reshape(len(c), -1)
-    return np.concatenate([x, p.astype(np.float64)], axis=1)
+    idx = np.arange(len(c)) if rows is None else np.asarray(rows, dtype=np.intp)
+    K, width = c.shape[1], int(np.prod(c.shape[1:]))
+    out = np.empty((len(idx), width + K), np.float32)
+    for i in range(0, len(idx), _SCALE_BLOCK):
+        r = idx[i:i + _SCALE_BLOCK]
+        pr = p[r]
+        out[i:i + len(r), :width] = np.where(pr[:, :, None, None], c[r], 0.0).reshape(len(r), width)
+        out[i:i + len(r), width:] = pr
+    return out
 
 
 class ViewDropoutMLP:
@@ -197,11 +243,24 @@ class ViewDropoutMLP:
             size: np.ndarray | None = None) -> "ViewDropoutMLP":
         """contours_norm (N, K, n, 2), present (N, K) bool (the views each row is given), joints (N, 19, 3)
         metres, groups (N,) walker of each row, size optional (N,) stature factors (targets divided by it)."""
+        groups = np.asarray(groups)
+        tr, va = group_split(groups, self.settings.validation_fraction, self.settings.random_state)
+        order = np.concatenate([tr, va])  # the rows as fit_mlp orders them, so it scales x in place
+        self.fit_features(masked_features(contours_norm, present, rows=order), np.asarray(joints)[order], groups[order],
+                          None if size is None else np.asarray(size)[order])
+        self.estimator_.train_rows_, self.estimator_.val_rows_ = tr, va  # in the caller's row numbers
+        return self
+
+    def fit_features(self, x: np.ndarray, joints: np.ndarray, groups: np.ndarray,
+                     size: np.ndarray | None = None) -> "ViewDropoutMLP":
+        """Fit on rows already built by :func:`masked_features`: x (N, K n 2 + K) float32, OVERWRITTEN (scaled in
+        place when its rows come training rows first, as ``group_split(groups, ...)`` orders them; else copied);
+        joints (N, 19, 3) metres, groups (N,), size optional (N,). Returns self."""
         t0 = time.perf_counter()
         y = root_relative(np.asarray(joints, dtype=np.float64))
         if size is not None:
             y = y / np.asarray(size, dtype=np.float64)[:, None, None]
-        self.estimator_ = fit_mlp(masked_features(contours_norm, present), y.reshape(len(y), -1), groups, self.settings)
+        self.estimator_ = fit_mlp(x, y.reshape(len(y), -1), np.asarray(groups), self.settings, overwrite_x=True)
         self.n_rows_ = int(len(y))
         self.fit_time_s_ = time.perf_counter() - t0
         return self
@@ -222,7 +281,7 @@ class ViewSubsetRegressor:
         kind: "knn", "ridge" or "mlp".
         views: rig view indices used as input (sorted).
         n_neighbors: k for "knn".
-        alphas: penalties for "ridge" (RidgeCV).
+        alphas: penalties for "ridge" (:class:`~silpose.eval.ridge.BlockRidgeCV`).
         mlp: settings for "mlp" (:class:`MLPSettings`).
 
     Fitted attributes: ``estimator_`` (the sklearn estimator, or a :class:`GlobalScaledMLP`),
@@ -251,11 +310,11 @@ class ViewSubsetRegressor:
         if self.kind == "knn":
             est = KNeighborsRegressor(n_neighbors=min(self.n_neighbors, len(x)), weights="distance")
         elif self.kind == "ridge":
-            est = RidgeCV(alphas=self.alphas)
+            est = BlockRidgeCV(alphas=self.alphas)
         elif self.kind == "mlp":
             if groups is None:
                 raise ValueError("the MLP baseline needs groups (the walker of each training row)")
-            self.estimator_ = fit_mlp(x, y, groups, self.mlp)
+            self.estimator_ = fit_mlp(x, y, groups, self.mlp, overwrite_x=not np.shares_memory(x, contours_norm))
             self.fit_time_s_ = time.perf_counter() - t0
             return self
         else:

@@ -28,6 +28,8 @@ def evaluate(
     n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 6)."),
     patch_length: Optional[int] = typer.Option(None, help="Standard test noise: points per patch (default 30)."),
     quick_sweep: bool = typer.Option(False, help="E3 with 4 settings (clean, jitter 2px, patches 8px, mask strong)."),
+    baseline_rows: int = typer.Option(20_000, min=0, help="Training samples the ridge and MLP baselines see at most, "
+                                      "drawn by a fixed seed (0 = all; the MLP trains on 3 copies of each)."),
     frames: Optional[Path] = typer.Option(None, help="Frames dataset for the camera-frames evaluation (default: <data>/frames if it exists)."),
     no_frames: bool = typer.Option(False, "--no-frames", help="Skip the camera-frames evaluation."),
     test_data: Optional[List[Path]] = typer.Option(None, "--test-data", help="Evaluate on this dataset's test split "
@@ -79,7 +81,8 @@ def evaluate(
     sweep = DEFAULT_SWEEP
     if quick_sweep:
         sweep = tuple(s for s in DEFAULT_SWEEP if s.label in ("clean", "jitter 2px", "patches 8px", "mask strong"))
-    config = EvalConfig(n_test=n_test, seed=seed, noise=noise, sweep=sweep, experiments=exps)
+    config = EvalConfig(n_test=n_test, seed=seed, noise=noise, sweep=sweep, experiments=exps,
+                        baseline_rows=baseline_rows or None)
 
     progress = Progress(TextColumn("[bold]{task.description:<42}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                         TimeElapsedColumn(), console=console, transient=False)

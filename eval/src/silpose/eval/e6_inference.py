@@ -159,7 +159,7 @@ def missing_view_vs_nn(ev) -> list[dict]:
         return []
     noisy = ev.noisy(ev.config.noise)
     train_norm = ev.train_normalised()
-    test_norm = normalise(noisy)[0]
+    test_norm = normalise(noisy)[0].astype(train_norm.dtype)  # one dtype: no float64 copy of the training rows
     out = []
     for k in range(K):
         obs = [v for v in range(K) if v != k]

@@ -48,9 +48,9 @@ from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.stature import REFERENCE_STATURE, estimate_stature
 from silpose.shared.contours import normalise
 from silpose.shared.metrics import chamfer_errors, pose_error_cm, pose_error_procrustes_cm
-from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, derive_rng
+from silpose.shared.seeds import BASELINE_AUGMENT_STREAM, BASELINE_ROWS_STREAM, derive_rng, draw_subset
 
-from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor
+from .baselines import ChanceBaseline, MLPSettings, ViewDropoutMLP, ViewSubsetRegressor, group_split, masked_features
 from .e6_inference import run_e6
 from .noise import STANDARD_NOISE, NoiseSpec, apply_noise
 
@@ -71,6 +71,9 @@ DEFAULT_SWEEP: tuple[NoiseSpec, ...] = (
 )
 
 Progress = Callable[[str, int, int], None]  # (task description, completed, total)
+
+#: rows per block of :meth:`Evaluation.train_normalised`.
+_NORM_BLOCK = 4096
 
 #: The regression baselines, in table order.
 REGRESSORS = ("knn", "ridge", "mlp")
@@ -94,6 +97,12 @@ class EvalConfig:
         knn_neighbors: k of the kNN baseline.
         mlp: the MLP baseline's settings; mlp_noisy_copies: noisy copies of each training walker it is
             trained on (besides the clean one; the test noise model ``noise``, other seeds).
+        baseline_rows: training samples the ridge and MLP baselines see at most (None = all): beyond it
+            they see this many, drawn uniformly by ``silpose.shared.seeds.draw_subset`` with the keys
+            ``(seed, BASELINE_ROWS_STREAM)``, so their memory and time stay bounded (the MLP trains on
+            ``(1 + mlp_noisy_copies) x baseline_rows`` rows). kNN and chance see every training sample (kNN
+            holds one float32 copy of its views' rows). At 43,200 motions samples the cap changed the
+            baselines' errors by less than the test set's noise (docs/training-at-scale.md).
         experiments: which of "E1".."E6" to run.
     """
 
@@ -105,6 +114,7 @@ class EvalConfig:
     knn_neighbors: int = 5
     mlp: MLPSettings = field(default_factory=MLPSettings)
     mlp_noisy_copies: int = 2
+    baseline_rows: int | None = 20_000
     experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6")
 
     def to_dict(self) -> dict:
@@ -117,6 +127,7 @@ class EvalConfig:
             "knn_neighbors": self.knn_neighbors,
             "mlp": {**asdict(self.mlp), "hidden": list(self.mlp.hidden)},
             "mlp_noisy_copies": self.mlp_noisy_copies,
+            "baseline_rows": self.baseline_rows,
             "experiments": list(self.experiments),
         }
 
@@ -296,22 +307,42 @@ class Evaluation:
         return max(1, int(round(int(self.model.n_latent) / len(self.model.layout_.views))))
 
     def train_normalised(self) -> np.ndarray:
-        """(N_train, K, n, 2) the training contours normalised (``silpose.shared.contours.normalise``; computed
-        once: the baselines and E6's nearest neighbours share it)."""
+        """(N_train, K, n, 2) float32: the training contours normalised (``silpose.shared.contours.normalise``, in
+        float64, then rounded; computed once, in blocks of rows: the baselines, whose rows are float32, and E6's
+        nearest neighbours share it)."""
         if not hasattr(self, "_train_norm"):
-            self._train_norm = normalise(self.data.train_contours)[0]
+            c = self.data.train_contours
+            self._train_norm = np.empty(c.shape, np.float32)
+            for i in range(0, len(c), _NORM_BLOCK):
+                self._train_norm[i:i + _NORM_BLOCK] = normalise(c[i:i + _NORM_BLOCK])[0]
         return self._train_norm
 
+    def baseline_rows(self) -> np.ndarray:
+        """Sorted indices of the training samples the ridge and MLP baselines see (``config.baseline_rows``);
+        the count and the cap go to ``extra["baseline_rows"]``."""
+        if not hasattr(self, "_baseline_rows"):
+            n, cap = len(self.data.train_joints), self.config.baseline_rows
+            self._baseline_rows = draw_subset(n, cap, self.config.seed, BASELINE_ROWS_STREAM)
+            self.extra["baseline_rows"] = {"cap": cap, "rows": int(len(self._baseline_rows)), "of": int(n)}
+            if len(self._baseline_rows) < n:
+                self.notes.append(f"ridge and MLP baselines: {len(self._baseline_rows)} of the {n} training samples "
+                                  f"(baseline_rows cap, seeded draw)")
+        return self._baseline_rows
+
     def regressor(self, kind: str, views: Sequence[int]):
-        """kNN / ridge regressor for a view subset, fitted on the clean training contours (cached), or the
-        MLP baseline bound to the subset."""
+        """kNN (every training sample) or ridge (``baseline_rows``) regressor for a view subset, fitted on the
+        clean training contours (cached), or the MLP baseline bound to the subset."""
         key = (kind, tuple(views))
         if kind == "mlp":
             return _BoundViews(self.mlp_baseline(), tuple(views))
         if key not in self._regressors:
+            rows = np.arange(len(self.data.train_joints)) if kind == "knn" else self.baseline_rows()
+            every = len(rows) == len(self.data.train_joints)
+            norm = self.train_normalised() if every else self.train_normalised()[rows]
+            px = self.data.train_contours if every else self.data.train_contours[rows]
+            joints = self.data.train_joints if every else self.data.train_joints[rows]
             reg = ViewSubsetRegressor(kind, views, n_neighbors=self.config.knn_neighbors).fit(
-                self.train_normalised(), self.data.train_joints, size=self._size(self.data.train_contours, views)
-            )
+                norm, joints, size=self._size(px, views))
             self._timing(kind)["fit_s"] += reg.fit_time_s_
             self._regressors[key] = reg
         return self._regressors[key]
@@ -321,38 +352,53 @@ class Evaluation:
         return table.setdefault(kind, {"fit_s": 0.0, "predict_s": 0.0, "frames": 0})
 
     def mlp_baseline(self) -> ViewDropoutMLP:
-        """The MLP baseline (fitted on first use): the training walkers, clean and ``mlp_noisy_copies`` times
-        with the test noise model (noise seeds and view subsets from ``BASELINE_AUGMENT_STREAM``), each
-        row given a random view subset (its size uniform in 1..K); validation split by walker."""
+        """The MLP baseline (fitted on first use): the training walkers of ``baseline_rows``, clean and
+        ``mlp_noisy_copies`` times with the test noise model (noise seeds and view subsets from
+        ``BASELINE_AUGMENT_STREAM``), each row given a random view subset (its size uniform in 1..K); validation
+        split by walker. The rows are normalised copy by copy straight into the network's float32 input array,
+        training rows first (no float64 copy of all the rows, no second copy)."""
         if not hasattr(self, "_mlp"):
             d, cfg = self.data, self.config
             t0 = time.perf_counter()
-            n, K = len(d.train_joints), d.n_views
-            ids = np.arange(n)  # noise seeds (the noise stream's seed differs from the test noise's)
-            groups = np.arange(n) if d.train_groups is None else np.asarray(d.train_groups)
+            rows = self.baseline_rows()
+            n, K = len(rows), d.n_views
+            groups = rows if d.train_groups is None else np.asarray(d.train_groups)[rows]
             rng = derive_rng(cfg.seed, BASELINE_AUGMENT_STREAM)
-            copies = [d.train_contours]
-            for c in range(cfg.mlp_noisy_copies):
-                noise_seed = int(rng.integers(2**31 - 1))
-                copies.append(apply_noise(cfg.noise, d.train_contours, ids, noise_seed, masks=None)
-                              if not cfg.noise.needs_masks else d.train_contours)
-            px = np.concatenate(copies)
-            reps = len(copies)
-            present = np.zeros((len(px), K), bool)
-            sizes = rng.integers(1, K + 1, size=len(px))
+            seeds = [int(rng.integers(2**31 - 1)) for _ in range(cfg.mlp_noisy_copies)]
+            reps = 1 + cfg.mlp_noisy_copies
+            present = np.zeros((reps * n, K), bool)
+            sizes = rng.integers(1, K + 1, size=reps * n)
             for r, k in enumerate(sizes):
                 present[r, rng.choice(K, size=k, replace=False)] = True
-            size = None
-            if self._size(d.train_contours[:1], (0,)) is not None:  # per-stature joints: size from the given views
-                size = np.empty(len(px))
-                for pattern in np.unique(present, axis=0):
-                    rows = np.flatnonzero((present == pattern).all(axis=1))
-                    size[rows] = self._size(px[rows], tuple(np.flatnonzero(pattern)))
-            self._mlp = ViewDropoutMLP(cfg.mlp).fit(normalise(px)[0], present, np.concatenate([d.train_joints] * reps),
-                                                    np.tile(groups, reps), size=size)
+            stature = self._size(d.train_contours[:1], (0,)) is not None  # per-stature joints: size from the given views
+            size = np.empty(reps * n) if stature else None
+            all_groups = np.tile(groups, reps)
+            tr, va = group_split(all_groups, cfg.mlp.validation_fraction, cfg.mlp.random_state)
+            order = np.concatenate([tr, va])  # the network's row order: training rows first (scaled in place)
+            where = np.empty_like(order)
+            where[order] = np.arange(len(order))
+            x = np.empty((reps * n, int(np.prod(d.train_contours.shape[1:])) + K), np.float32)
+            for c in range(reps):  # copy c, in blocks of rows (the noise is per sample id: blocks change nothing)
+                for lo in range(0, n, _NORM_BLOCK):
+                    ids = rows[lo:lo + _NORM_BLOCK]  # sample ids: the noise seeds (the noise stream's seed differs)
+                    px = d.train_contours[ids]
+                    if c and not cfg.noise.needs_masks:
+                        px = apply_noise(cfg.noise, px, ids, seeds[c - 1], masks=None)
+                    block = np.arange(c * n + lo, c * n + lo + len(ids))
+                    x[where[block]] = masked_features(normalise(px)[0], present[block])
+                    if stature:
+                        p = present[block]
+                        for pattern in np.unique(p, axis=0):
+                            sel = np.flatnonzero((p == pattern).all(axis=1))
+                            size[block[sel]] = self._size(px[sel], tuple(np.flatnonzero(pattern)))
+                    del px
+            joints = np.concatenate([d.train_joints[rows]] * reps)
+            self._mlp = ViewDropoutMLP(cfg.mlp).fit_features(x, joints[order], all_groups[order],
+                                                             size=None if size is None else size[order])
+            del x
             self._timing("mlp")["fit_s"] += time.perf_counter() - t0
             self.extra.setdefault("mlp_baseline", {}).update(
-                rows=int(len(px)), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
+                rows=int(reps * n), walkers=int(len(np.unique(groups))), epochs=int(self._mlp.estimator_.n_epochs_),
                 best_epoch=int(self._mlp.estimator_.best_epoch_),
                 val_rmse_m=float(self._mlp.estimator_.val_rmse_), net_fit_s=float(self._mlp.fit_time_s_))
         return self._mlp

@@ -47,7 +47,8 @@ def curve_point(data: Path, joints: np.ndarray, noisy: np.ndarray, n: int, m: in
     """Fit one (N, M) model on ``n`` training rows (:func:`training_rows`) and score it on the noisy test
     contours (N_test, K, n, 2) px against the test joints (N_test, 19, 3) m. ``train``: the train split in
     memory (a ``DatasetSplit`` with contours and joints): the fit is in memory; None: out of core
-    (``fit_stream``, which builds every shard's shape vectors again in each EM pass)."""
+    (``fit_stream``, which builds every shard's shape vectors once and reads them back from a temporary
+    file in later EM passes, ``silpose.model.streaming``)."""
     model = ShapeStructureModel(n_components=m, n_latent=q, structure_weight=structure_weight, n_init=1,
                                 max_iter=max_iter, tol=tol, random_state=seed, noise_dof=True)
     rows = training_rows(data, n, seed)

@@ -271,8 +271,9 @@ def _e4_md(df, timing: dict | None = None) -> list[str]:
             if len(g):
                 rows.append([BASELINE_NAMES[m], str(n), fmt_stats(stats(g["pose_cm"])), ""])
     out = ["## E4 — chance and baselines", "",
-           "kNN (k=5, distance-weighted) and ridge (RidgeCV) regress root-relative joints on the observed views' "
-           "normalised contours; one fitted per view subset on the clean training data; same noisy inputs as E2. "
+           "kNN (k=5, distance-weighted) and ridge (penalty by leave-one-out, as RidgeCV) regress root-relative joints "
+           "on the observed views' normalised contours; one fitted per view subset on the clean training data (ridge "
+           "and the MLP on at most `baseline_rows` training samples, settings); same noisy inputs as E2. "
            "When the MPPCA models joints per measured stature, so do they (joints / (stature / 1.75 m), "
            "prediction times the stature measured from the observed views). The MLP (scikit-learn MLPRegressor, "
            "hidden layers 512, 512) is ONE network for every view subset (absent views zeroed, presence flags), "

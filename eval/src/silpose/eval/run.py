@@ -154,6 +154,7 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
                       "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,
                       "baseline_timing": ev.extra.get("baseline_timing", {}),
                       "mlp_baseline": ev.extra.get("mlp_baseline", {}),
+                      "baseline_rows": ev.extra.get("baseline_rows", {}),
                       **({"by_group": group_headline(df, groups)} if groups else {})})
     write_text_atomic(out / "headline.json", json.dumps(head, indent=2))
     written["headline"] = out / "headline.json"

@@ -105,8 +105,10 @@ def shard_stats(X: np.ndarray, params: Params) -> ShardStats:
     responsibilities R_ni (T&B eq. 21); one product X^T [R_i X W_i, R] gives the M-step sums.
     """
     sqn, XW, Xmu = _ppca.e_step_products(X, params.means, params.components)
-    ll = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
-                                      params.noise_variance, params.density_factors())
+    factors = params.density_factors()
+    with _ppca.one_blas_thread():  # M small (rows, q) x (q, q) products
+        ll = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
+                                          params.noise_variance, factors)
     log_norm = logsumexp(ll, axis=1)
     resp = np.exp(ll - log_norm[:, None], out=ll)  # E-step posteriors, in place of ll
     r, G, sq = _ppca.m_step_sums(X, sqn, resp, XW)
@@ -174,9 +176,10 @@ def gate_candidates(X: np.ndarray, params: Params, k: int) -> np.ndarray:
         B = X[start:start + _GATE_ROWS]
         sqn = np.einsum("ij,ij->i", B, B)
         _, XW, Xmu = _ppca.e_step_products(B.astype(np.float32), means32, comps32, with_sqn=False)
-        ll = _ppca.log_prob_from_products(sqn, XW.astype(np.float64), Xmu.astype(np.float64), params.weights,
-                                          params.means, params.components, params.noise_variance,
-                                          params.density_factors())
+        factors = params.density_factors()
+        with _ppca.one_blas_thread():  # M small (rows, q) x (q, q) products
+            ll = _ppca.log_prob_from_products(sqn, XW.astype(np.float64), Xmu.astype(np.float64), params.weights,
+                                              params.means, params.components, params.noise_variance, factors)
         out[start:start + B.shape[0]] = np.argpartition(-ll, k - 1, axis=1)[:, :k]
     return out
 

@@ -21,6 +21,7 @@ and y the joints, ``predict(X)`` the joints, ``score(X, y)`` the negative mean j
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 from typing import Callable, Sequence
 
 import numpy as np
@@ -175,7 +176,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
 
     def fit_stream(self, root, split: str = "train", *, rows=None, executor: str = "local",
                    workers: int | None = None, init_rows: int | None = None,
-                   init_params: dict | None = None) -> "ShapeStructureModel":
+                   init_params: dict | None = None, cache: bool = True) -> "ShapeStructureModel":
         """Fit the prior out of core: EM streams over the Parquet shards of ``root``/``split``.
 
         Args:
@@ -186,19 +187,21 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
             workers: CPUs of the local Ray instance when this process starts one (None = all cores).
             init_rows: rows of the k-means + PPCA initialisation subsample (None = the MPPCA default).
             init_params: optional explicit MPPCA start (needs n_init = 1).
+            cache: with the local executor, build each shard's vectors once and read them back from a
+                temporary file in later EM passes (``DatasetShards.feature_cache``; the same fit, faster).
         Every shard's vectors come from :func:`~silpose.model.features.shape_vectors`, as in :meth:`fit`;
         memory is bounded by one shard (see ``silpose.model.streaming``). Returns self.
         """
         check_hyperparameters(self)
         source = DatasetShards.open(root, split, executor=executor, workers=workers)
         return self.fit_shards(source, rows=rows, init_rows=init_rows, init_params=init_params,
-                               where=f"{root} split {split!r}")
+                               where=f"{root} split {split!r}", cache=cache)
 
     def fit_shards(self, source: DatasetShards, *, rows=None, init_rows: int | None = None,
-                   init_params: dict | None = None, where: str = "dataset") -> "ShapeStructureModel":
+                   init_params: dict | None = None, where: str = "dataset", cache: bool = True) -> "ShapeStructureModel":
         """Fit by streaming EM over a planned :class:`~silpose.model.streaming.DatasetShards` (from
         ``DatasetShards.open``); ``rows`` are global row indices over its shards, ``where`` names the
-        data in errors. See :meth:`fit_stream`. Returns self."""
+        data in errors, ``cache`` as in :meth:`fit_stream`. Returns self."""
         check_hyperparameters(self)
         if int(self.n_fits) != 1:
             raise ValueError(f"n_fits = {self.n_fits}: pooled fits need the in-memory fit (fit), not the streaming one")
@@ -209,8 +212,9 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
         self.n_rig_views_ = n_rig
         self.rig_ = source.rig
         t0 = time.perf_counter()
-        self.mixture_ = new_mixture(self, init_params).fit_stream(
-            source, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
+        with source.feature_cache() if cache else nullcontext(source) as src:
+            self.mixture_ = new_mixture(self, init_params).fit_stream(
+                src, init_rows=DEFAULT_INIT_ROWS if init_rows is None else int(init_rows))
         self.fit_time_ = time.perf_counter() - t0
         self.n_train_ = int(self.mixture_.n_fit_samples_)
         return self

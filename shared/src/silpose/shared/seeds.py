@@ -17,6 +17,7 @@ below are part of the data format (changing one changes every dataset or report 
 | training roughness | ``seed, stream_code("roughness"), sample`` | model (``augment.roughen_contours``): ragged-outline augmentation of training sample ``sample`` (``silpose train --roughness``) |
 | eval garbage | ``seed, stream_code("garbage"), kind`` | eval (``garbage.garbage_masks``): the non-person inputs of the plausibility check, ``kind`` the index in ``GARBAGE_KINDS`` |
 | chance baseline | ``random_state, CHANCE_STREAM`` | eval (``baselines.ChanceBaseline``): random training poses |
+| baseline rows | ``seed, BASELINE_ROWS_STREAM`` | eval (``experiments.Evaluation.baseline_rows``, through :func:`draw_subset`): the training samples the ridge and MLP baselines see when the training split has more than ``EvalConfig.baseline_rows`` |
 | plausibility calibration | ``seed, stream_code("plausibility")`` | ``silpose.model.plausibility``: the observation-noise draws added to held-out inputs when ``silpose train`` calibrates a model's plausibility percentiles |
 | validation split | ``seed, VALIDATION_STREAM`` | ``silpose.model.selection.validation_split``: the train / validation permutation of model selection and the held-out part of ``silpose train`` |
 | synthetic model | ``seed, 0`` (parameters) and ``seed, 1`` (samples) | model.synthetic test data |
@@ -42,7 +43,9 @@ __all__ = [
     "CHANCE_STREAM",
     "VALIDATION_STREAM",
     "BASELINE_AUGMENT_STREAM",
+    "BASELINE_ROWS_STREAM",
     "derive_rng",
+    "draw_subset",
     "stream_code",
 ]
 
@@ -62,6 +65,8 @@ CHANCE_STREAM = 29
 VALIDATION_STREAM = 7919
 #: first key of the eval's MLP-baseline training augmentation (noise seeds, view subsets).
 BASELINE_AUGMENT_STREAM = 0x5EED_3A1F
+#: last key of the eval's draw of the training samples the capped baselines see.
+BASELINE_ROWS_STREAM = 0x5EED_CA9
 
 
 def derive_rng(*keys: int) -> np.random.Generator:
@@ -78,6 +83,17 @@ def derive_rng(*keys: int) -> np.random.Generator:
     if any(k < 0 for k in ints):
         raise ValueError(f"seed keys must be non-negative integers, got {ints}")
     return np.random.default_rng(np.random.SeedSequence(ints))
+
+
+def draw_subset(n: int, limit: int | None, *keys: int) -> np.ndarray:
+    """Sorted row indices (m,) int: all of ``range(n)`` when ``limit`` is None or >= n, else ``limit`` of them
+    drawn uniformly without replacement from ``derive_rng(*keys)`` (the same keys, the same rows)."""
+    n = int(n)
+    if limit is None or int(limit) >= n:
+        return np.arange(n)
+    if int(limit) < 1:
+        raise ValueError(f"draw_subset: limit must be >= 1 or None, got {limit}")
+    return np.sort(derive_rng(*keys).choice(n, size=int(limit), replace=False))
 
 
 def stream_code(name: str) -> int:

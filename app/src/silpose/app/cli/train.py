@@ -64,7 +64,8 @@ def train(
 
     By default the train split is loaded into memory. --streaming (or --executor ray) fits the
     same model by streaming EM over the Parquet shards (one shard's features in memory at a time;
-    on Ray, one task per shard); the k-means + PPCA start is then fitted on at most 5,000 rows
+    locally, each shard's features are built once and read back from a temporary file in later
+    passes; on Ray, one task per shard); the k-means + PPCA start is then fitted on at most 5,000 rows
     drawn across the shards (all rows if there are fewer, which gives the in-memory start).
     """
     from silpose.model.augment import Roughness
