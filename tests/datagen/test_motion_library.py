@@ -308,5 +308,8 @@ def test_rendered_motions_dataset_validates_and_indexes_its_clip_list(tmp_path):
         assert all(clips[i]["split"] == split for i in idx if i)  # held-out subjects' clips only in test
         if split == "test":
             assert not np.any(idx == 0)
+    from silpose.datagen.preview import write_preview
+
+    assert write_preview(tmp_path / "ds", tmp_path / "p.png", split="train").stat().st_size > 0  # part-mixed labels
     card = (tmp_path / "ds" / "README.md").read_text()
     assert CMU_ACKNOWLEDGEMENT in card and "| group | train clips | test clips |" in card

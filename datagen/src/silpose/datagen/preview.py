@@ -36,7 +36,8 @@ def pick_samples(root: Path, split: str, n_samples: int):
 
 
 def _clip_label(shard, i: int) -> str:
-    """``"\\n<clip> f<frame>"`` for a motion-capture sample (``m`` when mirrored), else ``""``."""
+    """``"\\n<clip> f<frame>"`` for a motion-capture sample (``m`` when mirrored; a second line for the legs of a
+    part-mixed one), else ``""``."""
     clips = (shard.metadata.get("config", {}).get("motion") or {}).get("clips")
     if not clips or "clip" not in shard.gait:
         return ""
@@ -46,7 +47,11 @@ def _clip_label(shard, i: int) -> str:
         if c == 0:
             return "\nprocedural walk"
         name = f"{clips[c]['group']}: {name}"
-    return f"\n{name[:22]} f{f}{' m' if shard.gait.get('mirror', [0] * (i + 1))[i] else ''}"
+    label = f"\n{name[:22]} f{f}{' m' if shard.gait.get('mirror', [0] * (i + 1))[i] else ''}"
+    legs = int(shard.gait["legs_clip"][i]) if "legs_clip" in shard.gait else -1
+    if 0 < legs < len(clips):  # part mixing: the legs of another frame
+        label += f"\nlegs {clips[legs]['name'][:16]} f{int(shard.gait['legs_frame'][i])}"
+    return label
 
 
 def write_preview(root: str | Path, out: str | Path | None = None, n_samples: int = 4, split: str | None = None) -> Path:
