@@ -9,7 +9,7 @@ import pytest
 
 from silpose.datagen.testing import write_synthetic_dataset
 from silpose.model import streaming
-from silpose.model.mppca import SPARSE_MIN_COMPONENTS, MPPCA
+from silpose.model.mppca import SPARSE_MIN_COMPONENTS, SPARSE_MIN_COMPONENTS_LARGE_N, SPARSE_MIN_ROWS, MPPCA
 from silpose.model.shape_model import ShapeStructureModel
 
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
@@ -76,6 +76,11 @@ def test_auto_e_step_is_exact_below_and_sparse_from_the_threshold():
     assert MPPCA(SPARSE_MIN_COMPONENTS - 1)._sparse_setup() is None
     assert MPPCA(SPARSE_MIN_COMPONENTS)._sparse_setup() is not None
     assert MPPCA(3, e_step="sparse", n_candidates=2)._sparse_setup().n_candidates == 2
+    # many rows: sparse from fewer components on, never below that
+    k = SPARSE_MIN_COMPONENTS_LARGE_N
+    assert MPPCA(k)._sparse_setup(SPARSE_MIN_ROWS) is not None and MPPCA(k)._sparse_setup(SPARSE_MIN_ROWS - 1) is None
+    assert MPPCA(k - 1)._sparse_setup(10 * SPARSE_MIN_ROWS) is None
+    assert MPPCA(k, e_step="exact")._sparse_setup(SPARSE_MIN_ROWS) is None
     with pytest.raises(ValueError, match="e_step"):
         MPPCA(3, 2, e_step="fast").fit(np.random.default_rng(0).standard_normal((20, 4)))
 
@@ -117,3 +122,11 @@ def test_sparse_ray_fit_equals_local_fit(dataset, local_ray):
     np.testing.assert_allclose(b.lower_bounds_, a.lower_bounds_, rtol=1e-9)
     np.testing.assert_allclose(b.means_, a.means_, rtol=1e-7, atol=1e-9 * np.abs(a.means_).max())
     np.testing.assert_allclose(b.components_, a.components_, rtol=1e-6, atol=1e-8 * np.abs(a.components_).max())
+
+
+def test_auto_e_step_of_a_fit_follows_its_row_count():
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((SPARSE_MIN_ROWS, 3))
+    kw = dict(n_init=1, max_iter=1, random_state=0)
+    assert MPPCA(SPARSE_MIN_COMPONENTS_LARGE_N, 1, **kw).fit(X).e_step_ == "sparse"
+    assert MPPCA(SPARSE_MIN_COMPONENTS_LARGE_N, 1, **kw).fit(X[:-1]).e_step_ == "exact"

@@ -28,7 +28,6 @@ from typing import Sequence
 
 import numpy as np
 
-from silpose.model.mppca import SPARSE_MIN_COMPONENTS
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.streaming import DatasetShards
 from silpose.shared.atomic import write_text_atomic
@@ -70,7 +69,7 @@ def curve_point(data: Path, joints: np.ndarray, noisy: np.ndarray, n: int, m: in
     mix = model.mixture_
     return {"n_samples": int(n), "n_components": int(m), "n_latent": int(q), "pose_all_views_cm": all_views,
             "pose_1_view_cm": float(np.mean(one)), "fit_s": fit_s, "n_iter": int(mix.n_iter_),
-            "converged": bool(mix.converged_), "e_step": "sparse" if m >= SPARSE_MIN_COMPONENTS else "exact",
+            "converged": bool(mix.converged_), "e_step": mix.e_step_,
             "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, "n_test": int(len(joints))}
 
 
