@@ -2,7 +2,8 @@
 
 Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
 the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
-every edge in its index window, and robust inference of a batch in blocks with the same batch at once.
+every edge in its index window (and, when only the runs that may be excursions are wanted, with the runs of that
+search filtered one by one), and robust inference of a batch in blocks with the same batch at once.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ import pytest
 
 from silpose.model.robust import RobustSettings
 from silpose.model.robust import loop
-from silpose.model.robust.excursions import far_points
+from silpose.model.robust import excursions
+from silpose.model.robust.excursions import excursion_runs, far_points, trim_excursions
 from silpose.model.robust.reindex import solve_spd
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
@@ -65,6 +67,78 @@ def test_staged_far_point_search_is_the_definition():
     want = _brute_far(points, polygon, limit)
     got = far_points(points, polygon, limit)
     assert 0 < want.sum() < want.size and np.array_equal(got, want)
+
+
+def _wiggly_outlines(rng, v, n):
+    """(points, polygon) (v, n, 2) px: jagged ellipses against their smooth reconstruction, slid a little, some with
+    loops that add points to the outline (spikes out and back: excursions) and bumps that move points in place (runs
+    of far points of every length, some wrapping past index 0)."""
+    t = 2 * np.pi * np.arange(n) / n
+    polygon = np.stack([30 * np.cos(t), 50 * np.sin(t)], -1) + 100 + rng.normal(0, 0.5, size=(v, n, 2))
+    points = np.empty((v, n, 2))
+    for a in range(v):
+        loops = [(int(rng.integers(0, n)), int(rng.integers(4, 20))) for _ in range(rng.integers(0, 3))]
+        m = n - sum(length for _, length in loops)  # points on the ellipse; the loops add the rest
+        u = 2 * np.pi * (np.arange(m) + rng.integers(0, 4)) / m
+        base = np.stack([30 * np.cos(u), 50 * np.sin(u)], -1) + 100
+        pieces, at = [], 0
+        for start, length in sorted(loops):
+            start = min(start * m // n, m - 1)
+            tip = base[start] + (base[start] - 100) / 40 * rng.uniform(8, 25)
+            up = np.linspace(0, 1, length // 2 + 2)[1:-1, None]
+            down = np.linspace(1, 0, length - length // 2 + 2)[1:-1, None]
+            pieces += [base[at:start + 1], base[start] + np.r_[up, down] * (tip - base[start])]
+            at = start + 1
+        points[a] = np.concatenate(pieces + [base[at:]])[:n] + rng.normal(0, rng.uniform(0.3, 2.0), (n, 2))
+        for _ in range(rng.integers(0, 3)):  # bumps in place: 1 to 40 points pushed out 3 to 25 px
+            start, length = rng.integers(0, n), rng.integers(1, 40)
+            idx = (start + np.arange(length)) % n
+            bump = np.sin(np.pi * (np.arange(length) + 1) / (length + 1))[:, None]
+            points[a, idx] += bump * rng.uniform(3, 25) * (points[a, idx] - 100) / 40
+    return points, polygon
+
+
+def test_far_points_of_possible_excursions_are_the_far_runs_that_pass_the_arc_test():
+    """With ``extra``, the far runs reported are exactly the far runs of the full search whose arc - chord exceeds
+    it (each run's arc summed on its own), and views that are far all round are kept whole."""
+    rng = np.random.default_rng(4)
+    v, n = 60, 100
+    points, polygon = _wiggly_outlines(rng, v, n)
+    points[0] = polygon[0] + 200.0  # far all round
+    limit = rng.uniform(2.0, 5.0, v)
+    extra = rng.uniform(4.0, 14.0, v)
+    full = far_points(points, polygon, limit)
+    got = far_points(points, polygon, limit, extra)
+    want = np.zeros_like(full)
+    kept = dropped = 0
+    for a in range(v):
+        for run in excursion_runs(full[a]):
+            if len(run) == n:
+                want[a] = True
+                continue
+            path = points[a, np.r_[(run[0] - 1) % n, run, (run[-1] + 1) % n]]
+            arc = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+            if arc - np.linalg.norm(path[-1] - path[0]) > extra[a]:
+                want[a, run] = True
+                kept += 1
+            else:
+                dropped += 1
+    assert kept > 20 and dropped > 20 and want[0].all()  # both kinds of run, many of them
+    assert np.array_equal(got, want)
+
+
+def test_trimming_with_the_pruned_search_equals_the_full_search(monkeypatch):
+    rng = np.random.default_rng(5)
+    points, polygon = _wiggly_outlines(rng, 80, 100)
+    present = np.ones((20, 4), bool)
+    present[::3, 1] = False
+    c, rec = points.reshape(20, 4, 100, 2), polygon.reshape(20, 4, 100, 2)
+    pruned, changed = trim_excursions(c, rec, present)
+    full_search = excursions.far_points
+    monkeypatch.setattr(excursions, "far_points", lambda p, q, limit, extra=None: full_search(p, q, limit))
+    full, full_changed = trim_excursions(c, rec, present)
+    assert 5 < changed.sum() < changed.size - 20
+    assert np.array_equal(changed, full_changed) and np.array_equal(pruned, full)
 
 
 @pytest.fixture(scope="module")
