@@ -8,6 +8,9 @@ search filtered one by one), and robust inference of a batch in blocks with the 
 
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -159,7 +162,7 @@ def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkey
     bad[::5, 2] = np.nan
     settings = RobustSettings(window=2)
     whole = model.infer(bad, present, robust=settings, hypotheses=2)
-    monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: blocks of 7, 7, 7, 7 and 2
+    monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: 5 blocks of 6
     blocks = model.infer(bad, present, robust=settings, hypotheses=2)
     for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
                  "log_marginal_robust", "noise_variance", "robust_input_px"):
@@ -170,6 +173,52 @@ def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkey
         assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
     np.testing.assert_allclose(blocks.hypotheses.joints, whole.hypotheses.joints, rtol=1e-9, atol=1e-10)
     assert np.array_equal(blocks.hypotheses.component, whole.hypotheses.component)
+
+
+def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, monkeypatch):
+    """A batch's blocks inferred on threads (silpose.model.threads.map_blocks, BLAS on one thread) give the answers of
+    the same blocks on the caller's thread, and more than one thread did run them."""
+    model, contours = small_model
+    bad = contours.copy()
+    bad[::4, 1, 3:8] += np.array([25.0, -15.0])
+    present = np.ones(bad.shape[:2], bool)
+    present[::5, 2] = False
+    bad[::5, 2] = np.nan
+    monkeypatch.setattr(loop, "BLOCK_FRAMES", 4)
+    monkeypatch.setattr(loop, "MIN_THREAD_FRAMES", 6)
+    monkeypatch.setattr(loop, "THREADS", 1)
+    one = model.infer(bad, present, robust=True)
+    seen = set()
+    block = loop.robust_block
+
+    def on_thread(*args):
+        seen.add(threading.get_ident())
+        time.sleep(0.01)  # each thread takes a block before the first is done
+        return block(*args)
+
+    monkeypatch.setattr(loop, "robust_block", on_thread)
+    monkeypatch.setattr(loop, "THREADS", 3)
+    bounds, threads = loop.block_bounds(30)  # 8 blocks of <= 4 frames, rounded up to 9 for 3 threads
+    assert threads == 3 and len(bounds) == 9 and {b - a for a, b in bounds} == {3, 4}
+    threaded = model.infer(bad, present, robust=True)
+    assert len(seen) > 1
+    for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
+                 "log_marginal_robust", "noise_variance", "robust_input_px"):
+        # BLAS on one thread may round a product differently (seen: 2e-16)
+        np.testing.assert_allclose(getattr(threaded, name), getattr(one, name), rtol=1e-9, atol=1e-10, err_msg=name)
+    for name in ("excursions_trimmed", "reindexed"):
+        assert np.array_equal(getattr(threaded, name), getattr(one, name)), name
+
+
+def test_block_bounds_cover_the_batch_in_equal_shares(monkeypatch):
+    monkeypatch.setattr(loop, "THREADS", 2)
+    for n in (0, 1, 511, 512, 1000, 1025, 2500, 20000):
+        bounds, threads = loop.block_bounds(n)
+        sizes = [b - a for a, b in bounds]
+        assert bounds[0][0] == 0 and bounds[-1][1] == n and all(b[1] == c[0] for b, c in zip(bounds, bounds[1:]))
+        assert max(sizes) <= max(loop.BLOCK_FRAMES, 1) and max(sizes) - min(sizes) <= 1
+        assert threads == (2 if n >= 2 * loop.MIN_THREAD_FRAMES else 1) and len(bounds) % threads == 0
+    assert loop.block_bounds(2000) == ([(0, 1000), (1000, 2000)], 2)
 
 
 def test_reweighting_passes_sorted_by_group_and_in_chunks_equal_the_plain_order(small_model, monkeypatch):
