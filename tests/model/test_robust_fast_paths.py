@@ -3,7 +3,8 @@
 Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
 the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
 every edge in its index window (and, when only the runs that may be excursions are wanted, with the runs of that
-search filtered one by one), and robust inference of a batch in blocks with the same batch at once.
+search filtered one by one), robust inference of a batch in blocks with the same batch at once, and (robust and
+plain) blocks on threads with one call on the caller's thread.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 from silpose.model.robust import RobustSettings
+from silpose.model import threads
 from silpose.model.robust import loop
 from silpose.model.robust import excursions
 from silpose.model.robust.excursions import excursion_runs, far_points, trim_excursions
@@ -185,8 +187,8 @@ def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, mon
     present[::5, 2] = False
     bad[::5, 2] = np.nan
     monkeypatch.setattr(loop, "BLOCK_FRAMES", 4)
-    monkeypatch.setattr(loop, "MIN_THREAD_FRAMES", 6)
-    monkeypatch.setattr(loop, "THREADS", 1)
+    monkeypatch.setattr(threads, "MIN_THREAD_FRAMES", 6)
+    monkeypatch.setattr(threads, "THREADS", 1)
     one = model.infer(bad, present, robust=True)
     seen = set()
     block = loop.robust_block
@@ -197,9 +199,9 @@ def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, mon
         return block(*args)
 
     monkeypatch.setattr(loop, "robust_block", on_thread)
-    monkeypatch.setattr(loop, "THREADS", 3)
-    bounds, threads = loop.block_bounds(30)  # 8 blocks of <= 4 frames, rounded up to 9 for 3 threads
-    assert threads == 3 and len(bounds) == 9 and {b - a for a, b in bounds} == {3, 4}
+    monkeypatch.setattr(threads, "THREADS", 3)
+    bounds, count = threads.block_bounds(30, loop.BLOCK_FRAMES)  # 8 blocks of <= 4 frames: 9 for 3 threads
+    assert count == 3 and len(bounds) == 9 and {b - a for a, b in bounds} == {3, 4}
     threaded = model.infer(bad, present, robust=True)
     assert len(seen) > 1
     for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
@@ -210,15 +212,42 @@ def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, mon
         assert np.array_equal(getattr(threaded, name), getattr(one, name)), name
 
 
+def test_plain_inference_in_blocks_on_threads_equals_one_call(small_model, monkeypatch):
+    """Plain inference of a large batch (Posterior.infer_batch: equal blocks on threads) gives one call's answers."""
+    model, contours = small_model
+    present = np.ones(contours.shape[:2], bool)
+    present[::4, 0] = False
+    monkeypatch.setattr(threads, "MIN_THREAD_FRAMES", 8)
+    monkeypatch.setattr(threads, "THREADS", 1)
+    one = model.infer(contours, present, hypotheses=2)
+    monkeypatch.setattr(threads, "THREADS", 3)
+    seen = set()
+    infer = model.posterior().infer
+
+    def on_thread(*args, **kwargs):
+        seen.add(threading.get_ident())
+        time.sleep(0.01)
+        return infer(*args, **kwargs)
+
+    monkeypatch.setattr(model.posterior(), "infer", on_thread)
+    blocks = model.infer(contours, present, hypotheses=2)
+    assert len(seen) > 1
+    for name in ("joints", "joints_best", "joint_std", "contours_px", "responsibilities", "log_marginal"):
+        np.testing.assert_allclose(getattr(blocks, name), getattr(one, name), rtol=1e-9, atol=1e-10, err_msg=name)
+    np.testing.assert_allclose(blocks.hypotheses.joints, one.hypotheses.joints, rtol=1e-9, atol=1e-10)
+
+
 def test_block_bounds_cover_the_batch_in_equal_shares(monkeypatch):
-    monkeypatch.setattr(loop, "THREADS", 2)
+    monkeypatch.setattr(threads, "THREADS", 2)
     for n in (0, 1, 511, 512, 1000, 1025, 2500, 20000):
-        bounds, threads = loop.block_bounds(n)
-        sizes = [b - a for a, b in bounds]
-        assert bounds[0][0] == 0 and bounds[-1][1] == n and all(b[1] == c[0] for b, c in zip(bounds, bounds[1:]))
-        assert max(sizes) <= max(loop.BLOCK_FRAMES, 1) and max(sizes) - min(sizes) <= 1
-        assert threads == (2 if n >= 2 * loop.MIN_THREAD_FRAMES else 1) and len(bounds) % threads == 0
-    assert loop.block_bounds(2000) == ([(0, 1000), (1000, 2000)], 2)
+        for most in (loop.BLOCK_FRAMES, None):
+            bounds, count = threads.block_bounds(n, most)
+            sizes = [b - a for a, b in bounds]
+            assert bounds[0][0] == 0 and bounds[-1][1] == n and all(b[1] == c[0] for b, c in zip(bounds, bounds[1:]))
+            assert (most is None or max(sizes) <= max(most, 1)) and max(sizes) - min(sizes) <= 1
+            assert count == (2 if n >= 2 * threads.MIN_THREAD_FRAMES else 1) and len(bounds) % count == 0
+            assert most is not None or len(bounds) == count  # no bound: one block per thread
+    assert threads.block_bounds(2000, loop.BLOCK_FRAMES) == ([(0, 1000), (1000, 2000)], 2)
 
 
 def test_reweighting_passes_sorted_by_group_and_in_chunks_equal_the_plain_order(small_model, monkeypatch):

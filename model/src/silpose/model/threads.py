@@ -14,12 +14,20 @@ previous one comes back at its end). Two users:
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Sequence, TypeVar
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["one_blas_thread", "map_blocks"]
+__all__ = ["THREADS", "MIN_THREAD_FRAMES", "one_blas_thread", "block_bounds", "map_blocks"]
+
+#: threads that infer the blocks of a large batch at once (:func:`map_blocks`); 1 = the blocks one after the other on
+#: the caller's thread
+THREADS = max(1, min(os.cpu_count() or 1, 8))
+#: frames a thread gets at least: a batch of fewer than twice this many runs on the caller's thread (a recording's
+#: chunks of a few people, single frames)
+MIN_THREAD_FRAMES = 256
 
 _BLAS: list = []  # the process's ThreadpoolController, made on first use (scanning the loaded libraries costs ~ms)
 
@@ -32,6 +40,17 @@ def one_blas_thread():
     if not _BLAS:
         _BLAS.append(ThreadpoolController())
     return _BLAS[0].limit(limits=1, user_api="blas")
+
+
+def block_bounds(n: int, max_block: int | None = None) -> tuple[list[tuple[int, int]], int]:
+    """The blocks of a batch of ``n`` frames, [(start, stop)], and the threads that infer them: the fewest blocks of at
+    most ``max_block`` frames (None: no bound) whose count is a multiple of the threads (each thread gets the same
+    share), their sizes equal to one frame; ``min(THREADS, n // MIN_THREAD_FRAMES)`` threads, at least 1."""
+    threads = max(1, min(int(THREADS), n // MIN_THREAD_FRAMES))
+    count = 1 if max_block is None else max(-(-n // int(max_block)), 1)
+    count = min(-(-count // threads) * threads, max(n, 1))
+    edges = [i * n // count for i in range(count + 1)]
+    return list(zip(edges[:-1], edges[1:])), threads
 
 
 def map_blocks(fn: Callable[[T], R], blocks: Sequence[T], threads: int) -> list[R]:

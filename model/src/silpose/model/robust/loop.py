@@ -54,8 +54,8 @@ at 49 against a gate of 120 -- but we found no cheap bound that proves a view un
 
 
 Since (issue "A prior that holds every motion", third round): the blocks of a batch of at least 2
-:data:`MIN_THREAD_FRAMES` frames run on up to :data:`THREADS` threads (``silpose.model.threads.map_blocks``; BLAS on
-one thread meanwhile), in equal shares (:func:`block_bounds`): the BLAS floor the benchmark compares with uses every
+``MIN_THREAD_FRAMES`` frames run on up to ``THREADS`` threads (``silpose.model.threads.map_blocks``; BLAS on one
+thread meanwhile), in equal shares (``threads.block_bounds``): the BLAS floor the benchmark compares with uses every
 core, and most of robust inference is numpy's array loops, which release the GIL. Answers equal the blocks' one after
 the other (1,200 default test rows, standard noise: bit-identical joints; benchmark frames within 2e-16 m). The
 excursions' far-point search leaves out the runs that cannot be excursions (``excursions.excursion_candidates``:
@@ -65,8 +65,6 @@ bit-identical). Same-process alternation, 2,000 benchmark frames, 5 pairs at loa
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from ..features import normalise_contours
@@ -74,12 +72,12 @@ from ..checks import Inputs
 from ..conditioning import GATE_NATS
 from ..posterior import Posterior
 from ..result import InferenceResult
-from ..threads import map_blocks
+from ..threads import block_bounds, map_blocks
 from .excursions import trim_excursions
 from .reindex import reindex_contours
 from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 
-__all__ = ["SETTLED_PX", "BLOCK_FRAMES", "CHUNK_FRAMES", "THREADS", "MIN_THREAD_FRAMES", "block_bounds", "largest_move", "pass_order", "pseudo_observation",
+__all__ = ["SETTLED_PX", "BLOCK_FRAMES", "CHUNK_FRAMES", "largest_move", "pass_order", "pseudo_observation",
            "reweighted_observation", "reweighted_passes", "robust_passes", "robust_infer", "robust_block"]
 
 #: px: a frame whose reconstruction moved less than this in a reweighting pass has settled; later passes leave
@@ -91,12 +89,6 @@ GATE_WEIGHT = float(np.exp(-GATE_NATS))
 #: frames per block of :func:`robust_infer`: a block's (frames, d) float64 arrays (13 MB at d 1657) fit the shared
 #: 32 MB cache of the benchmark machine, and its Python overhead (~30 ms a block) stays small
 BLOCK_FRAMES = 1024
-#: threads that infer the blocks of a large batch at once (``silpose.model.threads.map_blocks``: BLAS on one thread
-#: meanwhile); 1 = the blocks one after the other on the caller's thread
-THREADS = max(1, min(os.cpu_count() or 1, 8))
-#: frames a thread gets at least: a batch of fewer than twice this many runs on the caller's thread (a recording's
-#: chunks of a few people, single frames)
-MIN_THREAD_FRAMES = 256
 #: frames per chunk of a pass's point-wise steps (:func:`reweighted_observation`, :func:`largest_move`): a chunk's
 #: (frames, K, n, 2) arrays (0.8 MB for 4 views of 200 points) stay in a core's 2 MB cache between the steps
 CHUNK_FRAMES = 128
@@ -250,26 +242,14 @@ def robust_infer(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
 
     A batch of more than :data:`BLOCK_FRAMES` frames is inferred in consecutive blocks of at most that many (a frame's
     answer depends on its own input only), so that the passes' (frames, d) arrays stay in the processor's cache; the
-    blocks of a batch of at least 2 :data:`MIN_THREAD_FRAMES` frames run on up to :data:`THREADS` threads
-    (:func:`block_bounds`)."""
+    blocks of a large batch run on threads of their own (``silpose.model.threads``: ``block_bounds``, ``map_blocks``)."""
     n = len(inputs.present)
-    bounds, threads = block_bounds(n)
+    bounds, threads = block_bounds(n, BLOCK_FRAMES)
     if len(bounds) == 1:
         return robust_block(posterior, inputs, s2, settings, want)
     parts = map_blocks(lambda b: robust_block(posterior, inputs.take(slice(*b)), s2, settings, want), bounds, threads)
     res = InferenceResult.merge([r for r, _ in parts], [np.arange(*b) for b in bounds], n)
     return res, (np.concatenate([c for _, c in parts]) if want else None)
-
-
-def block_bounds(n: int) -> tuple[list[tuple[int, int]], int]:
-    """The blocks of a batch of ``n`` frames, [(start, stop)], and the threads that infer them (:func:`robust_infer`):
-    the fewest blocks of at most :data:`BLOCK_FRAMES` frames whose count is a multiple of the threads (each thread gets
-    the same share), their sizes equal to one frame; ``min(THREADS, n // MIN_THREAD_FRAMES)`` threads, at least 1."""
-    threads = max(1, min(int(THREADS), n // MIN_THREAD_FRAMES))
-    count = max(-(-n // BLOCK_FRAMES), 1)
-    count = min(-(-count // threads) * threads, max(n, 1))
-    edges = [i * n // count for i in range(count + 1)]
-    return list(zip(edges[:-1], edges[1:])), threads
 
 
 def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
