@@ -20,7 +20,8 @@ from silpose.model import threads
 from silpose.model.robust import loop
 from silpose.model.robust import excursions
 from silpose.model.robust.excursions import excursion_runs, far_points, trim_excursions
-from silpose.model.robust.reindex import solve_spd
+from silpose.model.robust.observed_views import view_scales
+from silpose.model.robust.reindex import reindex_contours, solve_spd
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
 
@@ -144,6 +145,25 @@ def test_trimming_with_the_pruned_search_equals_the_full_search(monkeypatch):
     full, full_changed = trim_excursions(c, rec, present)
     assert 5 < changed.sum() < changed.size - 20
     assert np.array_equal(changed, full_changed) and np.array_equal(pruned, full)
+
+
+def test_repairs_with_known_view_scales_equal_the_repairs_that_compute_them():
+    """Robust inference keeps the observed views' scales from one repair to the next (they depend on the observed
+    points only): given them, trimming and re-indexing give what they give computing them (absent views: NaN)."""
+    rng = np.random.default_rng(6)
+    points, polygon = _wiggly_outlines(rng, 80, 100)
+    present = np.ones((20, 4), bool)
+    present[::3, 1] = False
+    c, rec = points.reshape(20, 4, 100, 2), polygon.reshape(20, 4, 100, 2)
+    c[~present] = np.nan
+    with np.errstate(invalid="ignore"):
+        scales = view_scales(c.reshape(-1, 100, 2)).reshape(20, 4)
+    assert np.isnan(scales[~present]).all() and np.isfinite(scales[present]).all()
+    for step in (trim_excursions, reindex_contours):
+        out, changed = step(c, rec, present)
+        known, known_changed = step(c, rec, present, scales=scales)
+        assert changed.any() and np.array_equal(changed, known_changed)
+        assert np.array_equal(out, known, equal_nan=True)
 
 
 @pytest.fixture(scope="module")

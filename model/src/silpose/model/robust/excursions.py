@@ -361,7 +361,8 @@ def run_arcs(pts: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
-                    settings: ExcursionSettings = ExcursionSettings()) -> tuple[np.ndarray, np.ndarray]:
+                    settings: ExcursionSettings = ExcursionSettings(),
+                    scales: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Replace the excursions of observed contours by their chords (module doc).
 
     Args:
@@ -369,10 +370,12 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
         recon_px: (N, K, n, 2) their reconstructions, px.
         present: (N, K) bool, observed views.
         settings: thresholds.
+        scales: (N, K) px, the observed contours' normalisation scales when known
+            (:func:`~silpose.model.robust.observed_views.observed_views`).
     Returns:
         (contours (N, K, n, 2) float64 with the excursions trimmed, changed (N, K) bool).
     """
-    ov = observed_views(contours_px, recon_px, present)
+    ov = observed_views(contours_px, recon_px, present, scales)
     if ov.rows.size == 0:
         return ov.contours, ov.changed
     # (V, n): the far points that may belong to an excursion (the others cannot change the answer)

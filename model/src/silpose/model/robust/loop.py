@@ -74,6 +74,7 @@ from ..posterior import Posterior
 from ..result import InferenceResult
 from ..threads import block_bounds, map_blocks
 from .excursions import trim_excursions
+from .observed_views import view_scales
 from .reindex import reindex_contours
 from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 
@@ -261,6 +262,10 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
     trimmed = np.zeros(present.shape, dtype=bool)
     reindexed = np.zeros(present.shape, dtype=bool)
     work = inputs.contours
+    # each observed view's normalisation scale, for every repair (they depend on the observed points only): computed
+    # once, and again for the views a repair changes
+    with np.errstate(invalid="ignore", over="ignore"):
+        scales = view_scales(np.asarray(work, dtype=np.float64).reshape(-1, *work.shape[2:])).reshape(present.shape)
     # shadows, blobs, holes (silpose.model.robust.excursions), then slides along the outline (.reindex)
     steps = ([(trim_excursions, settings.excursions, trimmed)] * int(settings.excursion_passes)
              + [(reindex_contours, settings.reindex, reindexed)] * int(settings.reindex_passes))
@@ -274,9 +279,9 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
         look = unseen[step]
         unseen[step] = np.zeros(0, dtype=np.intp)
         if look is None:
-            new, changed = step(work, res.contours_px, present, step_settings)
+            new, changed = step(work, res.contours_px, present, step_settings, scales)
         else:
-            new_l, changed_l = step(work[look], res.contours_px[look], present[look], step_settings)
+            new_l, changed_l = step(work[look], res.contours_px[look], present[look], step_settings, scales[look])
             new, changed = work.copy(), np.zeros(present.shape, dtype=bool)
             new[look], changed[look] = new_l, changed_l
         rows = np.flatnonzero(changed.any(axis=1))
@@ -284,6 +289,8 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
             settled.add(step)
             continue
         work = np.where(changed[..., None, None], new, work)
+        with np.errstate(invalid="ignore", over="ignore"):
+            scales[changed] = view_scales(work[changed])
         done |= changed
         again, again_comp = robust_passes(posterior, inputs.with_contours(work).take(rows), s2, settings, want)
         res.put(rows, again)
