@@ -175,13 +175,19 @@ def small_model():
     return model, test.contours[300:].astype(np.float64)
 
 
-def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkeypatch):
-    model, contours = small_model
+def _corrupted(contours):
+    """(contours with a stretch of view 1 pushed out in every 4th frame, view 2 absent (NaN) in every 5th; present)."""
     bad = contours.copy()
     bad[::4, 1, 3:8] += np.array([25.0, -15.0])
     present = np.ones(bad.shape[:2], bool)
     present[::5, 2] = False
     bad[::5, 2] = np.nan
+    return bad, present
+
+
+def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkeypatch):
+    model, contours = small_model
+    bad, present = _corrupted(contours)
     settings = RobustSettings(window=2)
     whole = model.infer(bad, present, robust=settings, hypotheses=2)
     monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: 5 blocks of 6
@@ -201,11 +207,7 @@ def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, mon
     """A batch's blocks inferred on threads (silpose.model.threads.map_blocks, BLAS on one thread) give the answers of
     the same blocks on the caller's thread, and more than one thread did run them."""
     model, contours = small_model
-    bad = contours.copy()
-    bad[::4, 1, 3:8] += np.array([25.0, -15.0])
-    present = np.ones(bad.shape[:2], bool)
-    present[::5, 2] = False
-    bad[::5, 2] = np.nan
+    bad, present = _corrupted(contours)
     monkeypatch.setattr(loop, "BLOCK_FRAMES", 4)
     monkeypatch.setattr(threads, "MIN_THREAD_FRAMES", 6)
     monkeypatch.setattr(threads, "THREADS", 1)
