@@ -3,8 +3,8 @@
 Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
 the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
 every edge in its index window (and, when only the runs that may be excursions are wanted, with the runs of that
-search filtered one by one), robust inference of a batch in blocks with the same batch at once, and (robust and
-plain) blocks on threads with one call on the caller's thread.
+search filtered one by one), robust inference of a batch in blocks with the same batch at once, and its blocks on
+threads with the blocks one after the other.
 """
 
 from __future__ import annotations
@@ -234,29 +234,28 @@ def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, mon
         assert np.array_equal(getattr(threaded, name), getattr(one, name)), name
 
 
-def test_plain_inference_in_blocks_on_threads_equals_one_call(small_model, monkeypatch):
-    """Plain inference of a large batch (Posterior.infer_batch: equal blocks on threads) gives one call's answers."""
-    model, contours = small_model
-    present = np.ones(contours.shape[:2], bool)
-    present[::4, 0] = False
-    monkeypatch.setattr(threads, "MIN_THREAD_FRAMES", 8)
-    monkeypatch.setattr(threads, "THREADS", 1)
-    one = model.infer(contours, present, hypotheses=2)
-    monkeypatch.setattr(threads, "THREADS", 3)
-    seen = set()
-    infer = model.posterior().infer
+def test_map_blocks_reuses_its_pool_and_maps_nested_blocks_in_place():
+    """Blocks run on the pool's threads (the same ones from call to call); a block that maps blocks again runs them
+    on its own thread (no waiting for a pool thread that is busy with it), and the answers keep the blocks' order."""
+    def inner(c):
+        time.sleep(0.005)
+        return c, threading.current_thread().name
 
-    def on_thread(*args, **kwargs):
-        seen.add(threading.get_ident())
-        time.sleep(0.01)
-        return infer(*args, **kwargs)
+    def outer(b):
+        return b, threading.current_thread().name, threads.map_blocks(inner, [0, 1, 2], 2)
 
-    monkeypatch.setattr(model.posterior(), "infer", on_thread)
-    blocks = model.infer(contours, present, hypotheses=2)
-    assert len(seen) > 1
-    for name in ("joints", "joints_best", "joint_std", "contours_px", "responsibilities", "log_marginal"):
-        np.testing.assert_allclose(getattr(blocks, name), getattr(one, name), rtol=1e-9, atol=1e-10, err_msg=name)
-    np.testing.assert_allclose(blocks.hypotheses.joints, one.hypotheses.joints, rtol=1e-9, atol=1e-10)
+    names, pools = set(), []
+    for _ in range(2):
+        got = threads.map_blocks(outer, list(range(6)), 2)
+        assert [b for b, _, _ in got] == list(range(6))
+        for _, name, nested in got:
+            assert name.startswith("silpose-block") and [c for c, _ in nested] == [0, 1, 2]
+            assert {n for _, n in nested} == {name}  # in place, on the block's own thread
+            names.add(name)
+        pools.append({t.name for t in threading.enumerate() if t.name.startswith("silpose-block")})
+    assert len(names) > 1 and names <= pools[0] == pools[1]  # the second call started no thread
+    assert threads.map_blocks(inner, [0, 1], 1) == [(0, threading.current_thread().name),
+                                                     (1, threading.current_thread().name)]
 
 
 def test_block_bounds_cover_the_batch_in_equal_shares(monkeypatch):

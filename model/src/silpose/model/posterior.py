@@ -29,7 +29,7 @@ from .hypotheses import heading
 from .plausibility import view_subsets
 from .result import InferenceResult
 from .stature import REFERENCE_STATURE, estimate_stature
-from .threads import block_bounds, map_blocks
+from .threads import prepare
 
 __all__ = ["Posterior"]
 
@@ -58,6 +58,7 @@ class Posterior:
         self._screens: dict = {}  # present-view pattern -> ScreenMatrices
         self._output = None  # the output matrix every reconstructing conditioner shares (Conditioner.output_matrix)
         self._lock = threading.Lock()  # the caches are shared by the threads of a batch (silpose.model.threads)
+        prepare()  # the BLAS controller those threads use, now rather than in a first large batch
 
     def __getstate__(self) -> dict:
         """For copies: the state without the lock (a copy gets a new one)."""
@@ -178,19 +179,6 @@ class Posterior:
                               contours_px=px, centroid=cen, scale=sc, views_present=present, responsibilities=resp,
                               log_marginal=logm, views=layout.views)
         return res, comp_joints
-
-    def infer_batch(self, inputs: Inputs, s2: float,
-                    components: bool = False) -> tuple[InferenceResult, np.ndarray | None]:
-        """:meth:`infer` of a batch at one noise level (``ShapeStructureModel.infer`` without robust passes); a large
-        batch in equal blocks on threads of their own (``silpose.model.threads``: ``block_bounds``, ``map_blocks``;
-        a frame's answer depends on its own input only, so the answers are those of one call to rounding)."""
-        n = len(inputs.present)
-        bounds, threads = block_bounds(n)
-        if threads <= 1:
-            return self.infer(inputs, s2, components=components)
-        parts = map_blocks(lambda b: self.infer(inputs.take(slice(*b)), s2, components=components), bounds, threads)
-        res = InferenceResult.merge([r for r, _ in parts], [np.arange(*b) for b in bounds], n)
-        return res, (np.concatenate([c for _, c in parts]) if components else None)
 
     def screened(self, screen: dict, pattern: np.ndarray, present: np.ndarray, flat: np.ndarray, rows,
                  cond: Conditioner) -> np.ndarray:

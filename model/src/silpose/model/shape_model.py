@@ -316,7 +316,7 @@ class ShapeStructureModel(RegressorMixin, BaseEstimator):
                               centroid, scale)
         posterior = self.posterior()
         if settings is None:
-            res, comp = posterior.infer_batch(inputs, s2, components=want)
+            res, comp = posterior.infer(inputs, s2, components=want)
         else:
             res, comp = robust_infer(posterior, inputs, s2, settings, want)
         return complete_result(res, comp, posterior, inputs, s2, calibration=getattr(self, "plausibility_", None),
