@@ -44,6 +44,14 @@ after each, 71x -> 33x, 53x -> 41x, 46x -> 37x; full size (20,000 frames, one ru
 6.48 / 3.14 / 2.79 s new (the floor itself 0.07-0.32 s); single frame M 50 robust 64 / 33 / 19 ms base, 18 / 9.7 /
 32 ms new (CPU per call in alternating processes: 8.5-11.4 ms base, 8.1-8.7 ms new); plain batched 1.5-2.0x its
 floor in both. The robust target (<= 30x the floor) is still not met at these loads.
+
+Measured 2026-12-03 after the third round (``silpose.model.robust.loop`` doc: blocks on threads, excursion candidates,
+view scales kept), ``--quick`` through ``benchmarks.run``, main and new code alternating, three pairs at load 5-6:
+robust batched 511 / 433 / 668 frames/s (56x / 39x / 36x its floor) on main, 514 / 487 / 653 frames/s (40x / 28x /
+30x) new; plain batched 2.6x / 2.1x / 2.0x and 1.6x / 1.8x / 1.9x; single frame robust M 50 q 40 19.5 / 18.7 / 10.4
+ms and 14.0 / 19.6 / 13.7 ms. The throughput did not change at this load (the other jobs left the process ~0.5 core
+with one thread or two); the ratios moved with the floor (0.07-0.15 s). At load 10-11, THREADS 1 vs 2 in one
+process: robust 4.93 -> 3.89 s median wall (45x -> 37x).
 """
 
 from __future__ import annotations

@@ -255,17 +255,18 @@ def test_pass_level_density_factors_equal_the_dense_density():
 
 
 def test_one_blas_thread_limits_blas_and_restores_it():
-    """EM's log densities run on one BLAS thread (silpose.model._ppca.one_blas_thread); the previous limit comes back,
+    """EM's log densities run on one BLAS thread (silpose.model.threads.one_blas_thread); the previous limit comes back,
     and the E-step under it gives the unlimited values to rounding."""
     from threadpoolctl import threadpool_info
 
     from silpose.model import _em
+    from silpose.model.threads import one_blas_thread
 
     def blas_threads():
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
 
     before = blas_threads()
-    with _ppca.one_blas_thread():
+    with one_blas_thread():
         assert blas_threads() and set(blas_threads()) == {1}
     assert blas_threads() == before
     rng = np.random.default_rng(3)

@@ -2,18 +2,26 @@
 
 Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
 the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
-every edge in its index window, and robust inference of a batch in blocks with the same batch at once.
+every edge in its index window (and, when only the runs that may be excursions are wanted, with the runs of that
+search filtered one by one), robust inference of a batch in blocks with the same batch at once, and its blocks on
+threads with the blocks one after the other.
 """
 
 from __future__ import annotations
+
+import threading
+import time
 
 import numpy as np
 import pytest
 
 from silpose.model.robust import RobustSettings
+from silpose.model import threads
 from silpose.model.robust import loop
-from silpose.model.robust.excursions import far_points
-from silpose.model.robust.reindex import solve_spd
+from silpose.model.robust import excursions
+from silpose.model.robust.excursions import excursion_runs, far_points, trim_excursions
+from silpose.model.robust.observed_views import view_scales
+from silpose.model.robust.reindex import reindex_contours, solve_spd
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
 
@@ -67,6 +75,97 @@ def test_staged_far_point_search_is_the_definition():
     assert 0 < want.sum() < want.size and np.array_equal(got, want)
 
 
+def _wiggly_outlines(rng, v, n):
+    """(points, polygon) (v, n, 2) px: jagged ellipses against their smooth reconstruction, slid a little, some with
+    loops that add points to the outline (spikes out and back: excursions) and bumps that move points in place (runs
+    of far points of every length, some wrapping past index 0)."""
+    t = 2 * np.pi * np.arange(n) / n
+    polygon = np.stack([30 * np.cos(t), 50 * np.sin(t)], -1) + 100 + rng.normal(0, 0.5, size=(v, n, 2))
+    points = np.empty((v, n, 2))
+    for a in range(v):
+        loops = [(int(rng.integers(0, n)), int(rng.integers(4, 20))) for _ in range(rng.integers(0, 3))]
+        m = n - sum(length for _, length in loops)  # points on the ellipse; the loops add the rest
+        u = 2 * np.pi * (np.arange(m) + rng.integers(0, 4)) / m
+        base = np.stack([30 * np.cos(u), 50 * np.sin(u)], -1) + 100
+        pieces, at = [], 0
+        for start, length in sorted(loops):
+            start = min(start * m // n, m - 1)
+            tip = base[start] + (base[start] - 100) / 40 * rng.uniform(8, 25)
+            up = np.linspace(0, 1, length // 2 + 2)[1:-1, None]
+            down = np.linspace(1, 0, length - length // 2 + 2)[1:-1, None]
+            pieces += [base[at:start + 1], base[start] + np.r_[up, down] * (tip - base[start])]
+            at = start + 1
+        points[a] = np.concatenate(pieces + [base[at:]])[:n] + rng.normal(0, rng.uniform(0.3, 2.0), (n, 2))
+        for _ in range(rng.integers(0, 3)):  # bumps in place: 1 to 40 points pushed out 3 to 25 px
+            start, length = rng.integers(0, n), rng.integers(1, 40)
+            idx = (start + np.arange(length)) % n
+            bump = np.sin(np.pi * (np.arange(length) + 1) / (length + 1))[:, None]
+            points[a, idx] += bump * rng.uniform(3, 25) * (points[a, idx] - 100) / 40
+    return points, polygon
+
+
+def test_far_points_of_possible_excursions_are_the_far_runs_that_pass_the_arc_test():
+    """With ``extra``, the far runs reported are exactly the far runs of the full search whose arc - chord exceeds
+    it (each run's arc summed on its own), and views that are far all round are kept whole."""
+    rng = np.random.default_rng(4)
+    v, n = 60, 100
+    points, polygon = _wiggly_outlines(rng, v, n)
+    points[0] = polygon[0] + 200.0  # far all round
+    limit = rng.uniform(2.0, 5.0, v)
+    extra = rng.uniform(4.0, 14.0, v)
+    full = far_points(points, polygon, limit)
+    got = far_points(points, polygon, limit, extra)
+    want = np.zeros_like(full)
+    kept = dropped = 0
+    for a in range(v):
+        for run in excursion_runs(full[a]):
+            if len(run) == n:
+                want[a] = True
+                continue
+            path = points[a, np.r_[(run[0] - 1) % n, run, (run[-1] + 1) % n]]
+            arc = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+            if arc - np.linalg.norm(path[-1] - path[0]) > extra[a]:
+                want[a, run] = True
+                kept += 1
+            else:
+                dropped += 1
+    assert kept > 20 and dropped > 20 and want[0].all()  # both kinds of run, many of them
+    assert np.array_equal(got, want)
+
+
+def test_trimming_with_the_pruned_search_equals_the_full_search(monkeypatch):
+    rng = np.random.default_rng(5)
+    points, polygon = _wiggly_outlines(rng, 80, 100)
+    present = np.ones((20, 4), bool)
+    present[::3, 1] = False
+    c, rec = points.reshape(20, 4, 100, 2), polygon.reshape(20, 4, 100, 2)
+    pruned, changed = trim_excursions(c, rec, present)
+    full_search = excursions.far_points
+    monkeypatch.setattr(excursions, "far_points", lambda p, q, limit, extra=None: full_search(p, q, limit))
+    full, full_changed = trim_excursions(c, rec, present)
+    assert 5 < changed.sum() < changed.size - 20
+    assert np.array_equal(changed, full_changed) and np.array_equal(pruned, full)
+
+
+def test_repairs_with_known_view_scales_equal_the_repairs_that_compute_them():
+    """Robust inference keeps the observed views' scales from one repair to the next (they depend on the observed
+    points only): given them, trimming and re-indexing give what they give computing them (absent views: NaN)."""
+    rng = np.random.default_rng(6)
+    points, polygon = _wiggly_outlines(rng, 80, 100)
+    present = np.ones((20, 4), bool)
+    present[::3, 1] = False
+    c, rec = points.reshape(20, 4, 100, 2), polygon.reshape(20, 4, 100, 2)
+    c[~present] = np.nan
+    with np.errstate(invalid="ignore"):
+        scales = view_scales(c.reshape(-1, 100, 2)).reshape(20, 4)
+    assert np.isnan(scales[~present]).all() and np.isfinite(scales[present]).all()
+    for step in (trim_excursions, reindex_contours):
+        out, changed = step(c, rec, present)
+        known, known_changed = step(c, rec, present, scales=scales)
+        assert changed.any() and np.array_equal(changed, known_changed)
+        assert np.array_equal(out, known, equal_nan=True)
+
+
 @pytest.fixture(scope="module")
 def small_model():
     train = make_linear_shapes(300, n_views=3, n_points=24, seed=5)
@@ -76,16 +175,22 @@ def small_model():
     return model, test.contours[300:].astype(np.float64)
 
 
-def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkeypatch):
-    model, contours = small_model
+def _corrupted(contours):
+    """(contours with a stretch of view 1 pushed out in every 4th frame, view 2 absent (NaN) in every 5th; present)."""
     bad = contours.copy()
     bad[::4, 1, 3:8] += np.array([25.0, -15.0])
     present = np.ones(bad.shape[:2], bool)
     present[::5, 2] = False
     bad[::5, 2] = np.nan
+    return bad, present
+
+
+def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkeypatch):
+    model, contours = small_model
+    bad, present = _corrupted(contours)
     settings = RobustSettings(window=2)
     whole = model.infer(bad, present, robust=settings, hypotheses=2)
-    monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: blocks of 7, 7, 7, 7 and 2
+    monkeypatch.setattr(loop, "BLOCK_FRAMES", 7)  # 30 frames: 5 blocks of 6
     blocks = model.infer(bad, present, robust=settings, hypotheses=2)
     for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
                  "log_marginal_robust", "noise_variance", "robust_input_px"):
@@ -96,6 +201,74 @@ def test_robust_inference_in_blocks_equals_the_batch_at_once(small_model, monkey
         assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
     np.testing.assert_allclose(blocks.hypotheses.joints, whole.hypotheses.joints, rtol=1e-9, atol=1e-10)
     assert np.array_equal(blocks.hypotheses.component, whole.hypotheses.component)
+
+
+def test_blocks_on_threads_equal_the_blocks_one_after_the_other(small_model, monkeypatch):
+    """A batch's blocks inferred on threads (silpose.model.threads.map_blocks, BLAS on one thread) give the answers of
+    the same blocks on the caller's thread, and more than one thread did run them."""
+    model, contours = small_model
+    bad, present = _corrupted(contours)
+    monkeypatch.setattr(loop, "BLOCK_FRAMES", 4)
+    monkeypatch.setattr(threads, "MIN_THREAD_FRAMES", 6)
+    monkeypatch.setattr(threads, "THREADS", 1)
+    one = model.infer(bad, present, robust=True)
+    seen = set()
+    block = loop.robust_block
+
+    def on_thread(*args):
+        seen.add(threading.get_ident())
+        time.sleep(0.01)  # each thread takes a block before the first is done
+        return block(*args)
+
+    monkeypatch.setattr(loop, "robust_block", on_thread)
+    monkeypatch.setattr(threads, "THREADS", 3)
+    bounds, count = threads.block_bounds(30, loop.BLOCK_FRAMES)  # 8 blocks of <= 4 frames: 9 for 3 threads
+    assert count == 3 and len(bounds) == 9 and {b - a for a, b in bounds} == {3, 4}
+    threaded = model.infer(bad, present, robust=True)
+    assert len(seen) > 1
+    for name in ("joints", "joints_best", "contours_px", "robust_weights", "responsibilities", "log_marginal",
+                 "log_marginal_robust", "noise_variance", "robust_input_px"):
+        # BLAS on one thread may round a product differently (seen: 2e-16)
+        np.testing.assert_allclose(getattr(threaded, name), getattr(one, name), rtol=1e-9, atol=1e-10, err_msg=name)
+    for name in ("excursions_trimmed", "reindexed"):
+        assert np.array_equal(getattr(threaded, name), getattr(one, name)), name
+
+
+def test_map_blocks_reuses_its_pool_and_maps_nested_blocks_in_place():
+    """Blocks run on the pool's threads (the same ones from call to call); a block that maps blocks again runs them
+    on its own thread (no waiting for a pool thread that is busy with it), and the answers keep the blocks' order."""
+    def inner(c):
+        time.sleep(0.005)
+        return c, threading.current_thread().name
+
+    def outer(b):
+        return b, threading.current_thread().name, threads.map_blocks(inner, [0, 1, 2], 2)
+
+    names, pools = set(), []
+    for _ in range(2):
+        got = threads.map_blocks(outer, list(range(6)), 2)
+        assert [b for b, _, _ in got] == list(range(6))
+        for _, name, nested in got:
+            assert name.startswith("silpose-block") and [c for c, _ in nested] == [0, 1, 2]
+            assert {n for _, n in nested} == {name}  # in place, on the block's own thread
+            names.add(name)
+        pools.append({t.name for t in threading.enumerate() if t.name.startswith("silpose-block")})
+    assert len(names) > 1 and names <= pools[0] == pools[1]  # the second call started no thread
+    assert threads.map_blocks(inner, [0, 1], 1) == [(0, threading.current_thread().name),
+                                                     (1, threading.current_thread().name)]
+
+
+def test_block_bounds_cover_the_batch_in_equal_shares(monkeypatch):
+    monkeypatch.setattr(threads, "THREADS", 2)
+    for n in (0, 1, 511, 512, 1000, 1025, 2500, 20000):
+        for most in (loop.BLOCK_FRAMES, None):
+            bounds, count = threads.block_bounds(n, most)
+            sizes = [b - a for a, b in bounds]
+            assert bounds[0][0] == 0 and bounds[-1][1] == n and all(b[1] == c[0] for b, c in zip(bounds, bounds[1:]))
+            assert (most is None or max(sizes) <= max(most, 1)) and max(sizes) - min(sizes) <= 1
+            assert count == (2 if n >= 2 * threads.MIN_THREAD_FRAMES else 1) and len(bounds) % count == 0
+            assert most is not None or len(bounds) == count  # no bound: one block per thread
+    assert threads.block_bounds(2000, loop.BLOCK_FRAMES) == ([(0, 1000), (1000, 2000)], 2)
 
 
 def test_reweighting_passes_sorted_by_group_and_in_chunks_equal_the_plain_order(small_model, monkeypatch):

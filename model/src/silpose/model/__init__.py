@@ -3,6 +3,7 @@
 A library: estimators, their numerics and their model file; no command line, no image or video
 I/O (those live in ``silpose.app``). Modules, lowest first::
 
+    threads           BLAS held to one thread; the blocks of a batch on threads of their own (map_blocks)
     _ppca, _em        private numerics of the mixture of PPCA (densities, E/M-step sums)
     shards            row blocks EM maps over (ShardSource, ArrayShards)
     mppca             MPPCA, the scikit-learn style estimator (paper eq. 3)

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from . import _ppca
+from .threads import one_blas_thread
 
 
 @dataclass
@@ -106,7 +107,7 @@ def shard_stats(X: np.ndarray, params: Params) -> ShardStats:
     """
     sqn, XW, Xmu = _ppca.e_step_products(X, params.means, params.components)
     factors = params.density_factors()
-    with _ppca.one_blas_thread():  # M small (rows, q) x (q, q) products
+    with one_blas_thread():  # M small (rows, q) x (q, q) products
         ll = _ppca.log_prob_from_products(sqn, XW, Xmu, params.weights, params.means, params.components,
                                           params.noise_variance, factors)
     log_norm = logsumexp(ll, axis=1)
@@ -177,7 +178,7 @@ def gate_candidates(X: np.ndarray, params: Params, k: int) -> np.ndarray:
         sqn = np.einsum("ij,ij->i", B, B)
         _, XW, Xmu = _ppca.e_step_products(B.astype(np.float32), means32, comps32, with_sqn=False)
         factors = params.density_factors()
-        with _ppca.one_blas_thread():  # M small (rows, q) x (q, q) products
+        with one_blas_thread():  # M small (rows, q) x (q, q) products
             ll = _ppca.log_prob_from_products(sqn, XW.astype(np.float64), Xmu.astype(np.float64), params.weights,
                                               params.means, params.components, params.noise_variance, factors)
         out[start:start + B.shape[0]] = np.argpartition(-ll, k - 1, axis=1)[:, :k]

@@ -19,24 +19,9 @@ EM loop stalls badly when other processes load the cores.
 from __future__ import annotations
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block: 2048 x 1657 float64 = 27 MB
-
-
-_BLAS: list = []  # the process's ThreadpoolController, made on first use (scanning the loaded libraries costs ~ms)
-
-
-def one_blas_thread():
-    """A context in which BLAS runs on one thread: for loops of small products (a block's (rows, q) x (q, q)
-    per component), where waking OpenBLAS's threads costs more than the product. Measured on one block of
-    852 rows, M 60, q 40, d 1,657 at load ~8: :func:`log_prob_from_products` 0.28 -> 0.057 s wall,
-    0.14 -> 0.025 s CPU (the same values to rounding, 5e-13 nats). The limit is process-wide (threadpoolctl):
-    use it only where one thread computes (EM's passes), never around code other threads run at once."""
-    if not _BLAS:
-        _BLAS.append(ThreadpoolController())
-    return _BLAS[0].limit(limits=1, user_api="blas")
 
 
 def _chunks(n: int, size: int = _CHUNK):
@@ -97,7 +82,7 @@ def log_prob_from_products(sqn, XW, Xmu, weights, means, components, noise_varia
                            factors: list | None = None) -> np.ndarray:
     """log pi_i + log N(x_n | mu_i, C_i) (N, M) from ``e_step_products`` (shapes there); ``factors``: the
     components' :func:`density_factors` when already computed (else computed here). EM calls it inside
-    :func:`one_blas_thread` (``silpose.model._em``).
+    ``silpose.model.threads.one_blas_thread`` (``silpose.model._em``).
 
     With e = x - mu_i: ||e||^2 = ||x||^2 - 2 x^T mu_i + ||mu_i||^2 and W_i^T e = W_i^T x - W_i^T mu_i.
     """

@@ -16,6 +16,8 @@ and noise level. ``ShapeStructureModel.infer`` calls :meth:`Posterior.infer` onc
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from .checks import Inputs
@@ -27,6 +29,7 @@ from .hypotheses import heading
 from .plausibility import view_subsets
 from .result import InferenceResult
 from .stature import REFERENCE_STATURE, estimate_stature
+from .threads import prepare
 
 __all__ = ["Posterior"]
 
@@ -54,6 +57,18 @@ class Posterior:
         self._cache: dict = {}
         self._screens: dict = {}  # present-view pattern -> ScreenMatrices
         self._output = None  # the output matrix every reconstructing conditioner shares (Conditioner.output_matrix)
+        self._lock = threading.Lock()  # the caches are shared by the threads of a batch (silpose.model.threads)
+        prepare()  # the BLAS controller those threads use, now rather than in a first large batch
+
+    def __getstate__(self) -> dict:
+        """For copies: the state without the lock (a copy gets a new one)."""
+        state = self.__dict__.copy()
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
 
     def infer(self, inputs: Inputs, s2, components: bool = False, only=None,
               screen: dict | None = None) -> tuple[InferenceResult, np.ndarray | None]:
@@ -188,6 +203,11 @@ class Posterior:
     def screen_matrices(self, pattern: np.ndarray) -> ScreenMatrices:
         """Cached :class:`~silpose.model.screen.ScreenMatrices` of one present-view pattern (every noise level)."""
         key = np.asarray(pattern, dtype=bool).tobytes()
+        with self._lock:
+            return self._screen_matrices(key, pattern)
+
+    def _screen_matrices(self, key: bytes, pattern: np.ndarray) -> ScreenMatrices:
+        """:meth:`screen_matrices` under the lock."""
         mats = self._screens.pop(key, None)
         self._screens[key] = mats  # most recently used last
         if mats is None:
@@ -238,8 +258,13 @@ class Posterior:
         conditioner whose mean covers the joints only (``BatchPosterior.missing_mean``, (N, 57)), for the
         consensus votes.
         """
-        cache = self._cache
         key = (np.asarray(pattern, dtype=bool).tobytes(), s2, bool(structure_only))
+        with self._lock:
+            return self._conditioner(key, pattern, s2, structure_only)
+
+    def _conditioner(self, key: tuple, pattern: np.ndarray, s2: float, structure_only: bool) -> Conditioner:
+        """:meth:`conditioner` under the lock."""
+        cache = self._cache
         post = cache.pop(key, None)
         if post is None:
             layout = self.layout

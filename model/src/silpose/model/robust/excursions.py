@@ -39,7 +39,8 @@ import numpy as np
 
 from .observed_views import observed_views
 
-__all__ = ["ExcursionSettings", "point_to_polygon_distance", "far_points", "excursion_runs", "trim_excursions"]
+__all__ = ["ExcursionSettings", "point_to_polygon_distance", "far_points", "excursion_candidates", "excursion_runs",
+           "outline_lengths", "run_arcs", "trim_excursions"]
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
@@ -89,7 +90,8 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return np.sqrt(dx * dx + dy * dy)
 
 
-def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np.ndarray:
+def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray,
+               extra: np.ndarray | None = None) -> np.ndarray:
     """(V, n) bool: points (V, n, 2) farther than ``limit`` (V,) px from the closed polygon (V, n, 2).
 
     Only points farther than the limit from their index-corresponding vertex can be (the distance to the
@@ -99,6 +101,12 @@ def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np
     edges is farther than the limit (:func:`_segment_distance`). The search widens in stages (:data:`_STAGES`
     edges either side, then all within n // 4), each on the points the stage before left in question, and a
     stage settles a point by a vertex first (:func:`_near_any`).
+
+    ``extra`` (V,) px: only the far points that may belong to an excursion are wanted, that is to a run whose
+    ``arc - chord`` exceeds ``extra`` (module doc); before each stage, the points still in question that lie in a
+    run of such points (:func:`excursion_candidates`) too short to exceed it are left out (reported not far), and at
+    the end the far runs that do not exceed it. The far runs reported are then exactly those whose ``arc - chord``
+    exceeds ``extra`` (to a margin for rounding), and every point of a view that is far all round.
     """
     v, n = points.shape[:2]
     limit = np.asarray(limit, dtype=np.float64)[:, None]
@@ -107,7 +115,10 @@ def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np
     far = np.zeros((v, n), dtype=bool)
     views, idx = np.nonzero(maybe)
     w = max(n // 4, 1)
+    cum = None if extra is None or views.size == 0 else outline_lengths(points)
     for reach in [min(r, w) for r in _STAGES if r < w] + [w]:
+        if cum is not None:
+            views, idx = excursion_candidates(points, cum, views, idx, np.asarray(extra, dtype=np.float64))
         if views.size == 0:
             break
         offsets = np.arange(-reach, reach + 1)
@@ -116,9 +127,66 @@ def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray) -> np
             sl = slice(s, s + _POINTS)
             within[sl] = _near_any(points, polygon, limit[:, 0], views[sl], idx[sl], offsets)
         views, idx = views[~within], idx[~within]  # still in question: the next stage's
+    if cum is not None:  # the far runs themselves
+        views, idx = excursion_candidates(points, cum, views, idx, np.asarray(extra, dtype=np.float64))
     far[views, idx] = True
     return far
 
+
+def outline_lengths(points: np.ndarray) -> np.ndarray:
+    """(V, n + 1) px: the cumulative edge lengths of closed outlines (V, n, 2), entry i the length from point 0 to
+    point i along the outline (entry n: the whole perimeter)."""
+    lx = np.roll(points[..., 0], -1, axis=1) - points[..., 0]
+    ly = np.roll(points[..., 1], -1, axis=1) - points[..., 1]
+    cum = np.zeros((points.shape[0], points.shape[1] + 1))
+    np.cumsum(np.sqrt(lx * lx + ly * ly), axis=1, out=cum[:, 1:])
+    return cum
+
+
+def excursion_candidates(points: np.ndarray, cum: np.ndarray, views: np.ndarray, idx: np.ndarray,
+                         extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points ``(views, idx)`` (P,) of ``points`` (V, n, 2) px, listed by view then index, that lie in a run of
+    them (a maximal cyclic stretch of consecutive indices of one view) whose ``arc - chord`` exceeds ``extra`` (V,)
+    px of their view, or in a view where they are every point; in their order. ``cum``: the outlines'
+    :func:`outline_lengths`.
+
+    Why that is enough (:func:`far_points`): a run of far points lies inside a run of these points (far points are
+    among them), and the arc minus the chord of a path cannot exceed that of a longer path around it (triangle
+    inequality: each end's extra stretch of arc is at least the chord's change), so a run of far points inside a run
+    of these whose ``arc - chord`` does not exceed ``extra`` fails the excursion test ``arc - chord > extra`` too.
+    The comparison keeps a margin of 1e-9 (arc + 1) px for the rounding of the cumulative sums."""
+    if views.size == 0:
+        return views, idx
+    n = points.shape[1]
+    brk = np.empty(views.size, dtype=bool)  # a run starts here
+    brk[0] = True
+    np.logical_or(views[1:] != views[:-1], idx[1:] != idx[:-1] + 1, out=brk[1:])
+    run = np.cumsum(brk) - 1  # each point's run
+    first = np.flatnonzero(brk)
+    rv, s = views[first], idx[first]
+    length = np.diff(np.r_[first, views.size])
+    # a view's last run that ends at n - 1 goes on with its first run when that starts at 0 (cyclic): one run, from
+    # the last run's start
+    new_view = np.r_[True, rv[1:] != rv[:-1]]
+    view_first = np.maximum.accumulate(np.where(new_view, np.arange(rv.size), 0))  # each run's view's first run
+    last = np.flatnonzero(np.r_[new_view[1:], True] & (s + length == n))
+    fr = view_first[last]
+    join = (s[fr] == 0) & (fr != last)
+    last, fr = last[join], fr[join]
+    length[last] += length[fr]
+    a = (s - 1) % n
+    e = a + length + 1  # edges a -> first, ..., last -> b: from outline position a to e (mod n)
+    e_in = np.minimum(e, n)
+    arc = cum[rv, e_in] - cum[rv, a] + np.where(e > n, cum[rv, np.maximum(e - n, 0)], 0.0)
+    b = (s + length) % n
+    dx, dy = points[rv, b, 0] - points[rv, a, 0], points[rv, b, 1] - points[rv, a, 1]
+    chord = np.sqrt(dx * dx + dy * dy)
+    drop = (length < n) & (arc - chord + 1e-9 * (arc + 1.0) <= extra[rv])
+    drop[fr] = drop[last]  # the first run goes with the last
+    if not drop.any():
+        return views, idx
+    keep = ~drop[run]
+    return views[keep], idx[keep]
 
 def _near_any(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray, vv: np.ndarray, ii: np.ndarray,
               offsets: np.ndarray) -> np.ndarray:
@@ -230,32 +298,12 @@ def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: 
     None for every run}: every run of every view tested at once with :func:`_trim_view`'s criteria, its arc from
     cumulative edge lengths (a margin of 1e-9 covers their rounding; :func:`_trim_view` decides). Views whose far
     points cover the whole outline are candidates (None)."""
-    v, n = far.shape
+    n = far.shape[1]
     whole = far.all(axis=1)
-    start = far & ~np.roll(far, 1, axis=1) & ~whole[:, None]
-    rv, s = np.nonzero(start)
+    rv, s, length, arc, chord = run_arcs(pts, far)
     if rv.size == 0:
         return {int(j): None for j in np.flatnonzero(whole)}
-    # only the views with a run: their rows, u, in the arrays below (the same arithmetic per view as on all of them)
-    used, u = np.unique(rv, return_inverse=True)
-    u = u.reshape(-1)
-    far_u, pts_u = far[used], pts[used]
-    # each run's length: to its view's next point that is not far (cyclic), from the sorted flat run ends
-    ends_v, ends_i = np.nonzero(far_u & ~np.roll(far_u, -1, axis=1))
-    flat_end = ends_v * n + ends_i
-    k = np.searchsorted(flat_end, u * n + s)
-    wraps = (k == flat_end.size) | (ends_v[np.minimum(k, flat_end.size - 1)] != u)
-    first_end = ends_i[np.searchsorted(flat_end, u * n)]  # the view's first run end (the wrapping run's)
-    last = np.where(wraps, first_end + n, ends_i[np.minimum(k, flat_end.size - 1)])
-    length = last + 1 - s  # points in the run
-    s3 = s + n
     a, b = (s - 1) % n, (s + length) % n
-    lx = np.roll(pts_u[..., 0], -1, axis=1) - pts_u[..., 0]
-    ly = np.roll(pts_u[..., 1], -1, axis=1) - pts_u[..., 1]
-    edges = np.sqrt(lx * lx + ly * ly)  # (U, n) edge i -> i + 1
-    cum = np.concatenate([np.zeros((used.size, 1)), np.cumsum(np.tile(edges, 3), axis=1)], axis=1)
-    arc = cum[u, s3 + length] - cum[u, s3 - 1]  # edges a -> first, ..., last -> b
-    chord = np.linalg.norm(pts[rv, b] - pts[rv, a], axis=-1)
     tol = 1e-9 * (arc + 1.0)
     # the loop tests first; the nearest reconstructed vertices only for the runs that pass them
     ok = (arc + tol > settings.ratio * chord) & (arc - chord + tol > settings.extra * scales[rv])
@@ -277,8 +325,44 @@ def _candidate_views(pts: np.ndarray, rec: np.ndarray, far: np.ndarray, scales: 
     return dict(sorted(out.items()))
 
 
+def run_arcs(pts: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Every maximal cyclic run of True in ``flags`` (V, n) of the views where not all are True, with the outline
+    (V, n, 2) px it lies on: (view, first index, length (R,) int; arc, chord (R,) px), ``arc`` the length of the
+    path a -> run -> b through the points ``a``, ``b`` either side of the run (from cumulative edge lengths: equal
+    to a direct sum to rounding), ``chord`` the distance |b - a|. Runs are listed by view, then first index."""
+    v, n = flags.shape
+    whole = flags.all(axis=1)
+    start = flags & ~np.roll(flags, 1, axis=1) & ~whole[:, None]
+    rv, s = np.nonzero(start)
+    if rv.size == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, empty, np.zeros(0), np.zeros(0)
+    # only the views with a run: their rows, u, in the arrays below (the same arithmetic per view as on all of them)
+    used, u = np.unique(rv, return_inverse=True)
+    u = u.reshape(-1)
+    flags_u, pts_u = flags[used], pts[used]
+    # each run's length: to its view's next point that is not flagged (cyclic), from the sorted flat run ends
+    ends_v, ends_i = np.nonzero(flags_u & ~np.roll(flags_u, -1, axis=1))
+    flat_end = ends_v * n + ends_i
+    k = np.searchsorted(flat_end, u * n + s)
+    wraps = (k == flat_end.size) | (ends_v[np.minimum(k, flat_end.size - 1)] != u)
+    first_end = ends_i[np.searchsorted(flat_end, u * n)]  # the view's first run end (the wrapping run's)
+    last = np.where(wraps, first_end + n, ends_i[np.minimum(k, flat_end.size - 1)])
+    length = last + 1 - s  # points in the run
+    s3 = s + n
+    a, b = (s - 1) % n, (s + length) % n
+    lx = np.roll(pts_u[..., 0], -1, axis=1) - pts_u[..., 0]
+    ly = np.roll(pts_u[..., 1], -1, axis=1) - pts_u[..., 1]
+    edges = np.sqrt(lx * lx + ly * ly)  # (U, n) edge i -> i + 1
+    cum = np.concatenate([np.zeros((used.size, 1)), np.cumsum(np.tile(edges, 3), axis=1)], axis=1)
+    arc = cum[u, s3 + length] - cum[u, s3 - 1]  # edges a -> first, ..., last -> b
+    chord = np.linalg.norm(pts[rv, b] - pts[rv, a], axis=-1)
+    return rv, s, length, arc, chord
+
+
 def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
-                    settings: ExcursionSettings = ExcursionSettings()) -> tuple[np.ndarray, np.ndarray]:
+                    settings: ExcursionSettings = ExcursionSettings(),
+                    scales: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Replace the excursions of observed contours by their chords (module doc).
 
     Args:
@@ -286,13 +370,16 @@ def trim_excursions(contours_px: np.ndarray, recon_px: np.ndarray, present: np.n
         recon_px: (N, K, n, 2) their reconstructions, px.
         present: (N, K) bool, observed views.
         settings: thresholds.
+        scales: (N, K) px, the observed contours' normalisation scales when known
+            (:func:`~silpose.model.robust.observed_views.observed_views`).
     Returns:
         (contours (N, K, n, 2) float64 with the excursions trimmed, changed (N, K) bool).
     """
-    ov = observed_views(contours_px, recon_px, present)
+    ov = observed_views(contours_px, recon_px, present, scales)
     if ov.rows.size == 0:
         return ov.contours, ov.changed
-    far = far_points(ov.points, ov.recon, settings.threshold * ov.scales)  # (V, n)
+    # (V, n): the far points that may belong to an excursion (the others cannot change the answer)
+    far = far_points(ov.points, ov.recon, settings.threshold * ov.scales, settings.extra * ov.scales)
     for j, starts in _candidate_views(ov.points, ov.recon, far, ov.scales, settings).items():
         trimmed = _trim_view(ov.points[j], ov.recon[j], far[j], float(ov.scales[j]), settings, starts)
         if trimmed is not None:

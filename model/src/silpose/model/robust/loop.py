@@ -51,6 +51,21 @@ view and missing views: joints within 1.7e-9 mm, the same views trimmed and re-i
 two Gaussian passes ~12 %), excursion trimming ~21 % (the far-point search ~13 %), re-indexing ~23 % (slide fits
 ~12 %, matching ~9 %; on the benchmark's frames it changes no view -- the slide fits' chi^2 has its 99th percentile
 at 49 against a gate of 120 -- but we found no cheap bound that proves a view unchanged before its fit).
+
+
+Since (issue "A prior that holds every motion", third round): the blocks of a batch of at least 2
+``MIN_THREAD_FRAMES`` frames run on up to ``THREADS`` threads (``silpose.model.threads.map_blocks``: the process's
+pool, BLAS on one thread meanwhile), in equal shares (``threads.block_bounds``): the BLAS floor the benchmark compares
+with uses every core, and most of robust inference is numpy's array loops, which release the GIL. Answers equal the
+blocks' one after the other (1,200 default test rows, standard noise: bit-identical joints; benchmark frames within
+2e-16 m). The excursions' far-point search leaves out the runs that cannot be excursions
+(``excursions.excursion_candidates``) and the repairs keep each view's normalisation scale until one changes the view
+(both bit-identical: 500 default test rows, standard noise and "mask mild"). What the threads give depends on the
+other jobs on the 2 shared cores: 2,000 benchmark frames, THREADS 1 vs 2 alternating in one process, median wall
+4.93 -> 3.89 s at load 10-11 (5 pairs), 3.94 -> 3.90 s at load 6 (6 pairs, the process got ~0.5 core either way);
+``benchmarks.run --only inference --quick``, three alternating pairs with main at load 5-6: 511 / 433 / 668 frames/s
+(56x / 39x / 36x the floor) on main, 514 / 487 / 653 frames/s (40x / 28x / 30x) here -- the same throughput, the
+ratios moved with the floor (0.07-0.15 s in these runs). Not shown on an idle machine.
 """
 
 from __future__ import annotations
@@ -62,7 +77,9 @@ from ..checks import Inputs
 from ..conditioning import GATE_NATS
 from ..posterior import Posterior
 from ..result import InferenceResult
+from ..threads import block_bounds, map_blocks
 from .excursions import trim_excursions
+from .observed_views import view_scales
 from .reindex import reindex_contours
 from .weights import RobustSettings, frame_noise_variance, point_weights, snap_correspondences
 
@@ -229,14 +246,15 @@ def robust_infer(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
     slides undone, each changed frame inferred again. Sets ``excursions_trimmed``, ``reindexed`` and
     ``robust_input_px``; ``log_marginal`` stays that of the input as observed.
 
-    A batch of more than :data:`BLOCK_FRAMES` frames is inferred in consecutive blocks of that many (a frame's
-    answer depends on its own input only), so that the passes' (frames, d) arrays stay in the processor's cache."""
+    A batch of more than :data:`BLOCK_FRAMES` frames is inferred in consecutive blocks of at most that many (a frame's
+    answer depends on its own input only), so that the passes' (frames, d) arrays stay in the processor's cache; the
+    blocks of a large batch run on threads of their own (``silpose.model.threads``: ``block_bounds``, ``map_blocks``)."""
     n = len(inputs.present)
-    if n <= BLOCK_FRAMES:
+    bounds, threads = block_bounds(n, BLOCK_FRAMES)
+    if len(bounds) == 1:
         return robust_block(posterior, inputs, s2, settings, want)
-    blocks = [np.arange(s, min(s + BLOCK_FRAMES, n)) for s in range(0, n, BLOCK_FRAMES)]
-    parts = [robust_block(posterior, inputs.take(slice(b[0], b[-1] + 1)), s2, settings, want) for b in blocks]
-    res = InferenceResult.merge([r for r, _ in parts], blocks, n)
+    parts = map_blocks(lambda b: robust_block(posterior, inputs.take(slice(*b)), s2, settings, want), bounds, threads)
+    res = InferenceResult.merge([r for r, _ in parts], [np.arange(*b) for b in bounds], n)
     return res, (np.concatenate([c for _, c in parts]) if want else None)
 
 
@@ -249,6 +267,10 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
     trimmed = np.zeros(present.shape, dtype=bool)
     reindexed = np.zeros(present.shape, dtype=bool)
     work = inputs.contours
+    # each observed view's normalisation scale, for every repair (they depend on the observed points only): computed
+    # once, and again for the views a repair changes
+    with np.errstate(invalid="ignore", over="ignore"):
+        scales = view_scales(np.asarray(work, dtype=np.float64).reshape(-1, *work.shape[2:])).reshape(present.shape)
     # shadows, blobs, holes (silpose.model.robust.excursions), then slides along the outline (.reindex)
     steps = ([(trim_excursions, settings.excursions, trimmed)] * int(settings.excursion_passes)
              + [(reindex_contours, settings.reindex, reindexed)] * int(settings.reindex_passes))
@@ -262,9 +284,9 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
         look = unseen[step]
         unseen[step] = np.zeros(0, dtype=np.intp)
         if look is None:
-            new, changed = step(work, res.contours_px, present, step_settings)
+            new, changed = step(work, res.contours_px, present, step_settings, scales)
         else:
-            new_l, changed_l = step(work[look], res.contours_px[look], present[look], step_settings)
+            new_l, changed_l = step(work[look], res.contours_px[look], present[look], step_settings, scales[look])
             new, changed = work.copy(), np.zeros(present.shape, dtype=bool)
             new[look], changed[look] = new_l, changed_l
         rows = np.flatnonzero(changed.any(axis=1))
@@ -272,6 +294,8 @@ def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
             settled.add(step)
             continue
         work = np.where(changed[..., None, None], new, work)
+        with np.errstate(invalid="ignore", over="ignore"):
+            scales[changed] = view_scales(work[changed])
         done |= changed
         again, again_comp = robust_passes(posterior, inputs.with_contours(work).take(rows), s2, settings, want)
         res.put(rows, again)

@@ -45,13 +45,16 @@ class ObservedViews:
         self.changed[self.rows[j], self.views[j]] = True
 
 
-def observed_views(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray) -> ObservedViews:
+def observed_views(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
+                   scales: np.ndarray | None = None) -> ObservedViews:
     """The present views whose observed contour and reconstruction are finite.
 
     Args:
         contours_px: (N, K, n, 2) observed contours, px (absent views may hold NaN).
         recon_px: (N, K, n, 2) their reconstructions, px.
         present: (N, K) bool, observed views.
+        scales: (N, K) px, the :func:`view_scales` of ``contours_px`` when the caller knows them (robust inference
+            keeps them from one repair to the next: they depend on the observed points only); None = computed here.
     """
     c = np.asarray(contours_px, dtype=np.float64)
     rec = np.asarray(recon_px, dtype=np.float64)
@@ -62,7 +65,8 @@ def observed_views(contours_px: np.ndarray, recon_px: np.ndarray, present: np.nd
         pts, polys = c.reshape(-1, *c.shape[2:]), rec.reshape(-1, *rec.shape[2:])
     else:
         pts, polys = c[rows, views], rec[rows, views]
-    return ObservedViews(c.copy(), np.zeros(present.shape, dtype=bool), rows, views, pts, polys, view_scales(pts))
+    sc = view_scales(pts) if scales is None else np.asarray(scales, dtype=np.float64)[rows, views]
+    return ObservedViews(c.copy(), np.zeros(present.shape, dtype=bool), rows, views, pts, polys, sc)
 
 
 def view_scales(points: np.ndarray) -> np.ndarray:

@@ -265,15 +265,16 @@ def resample_by_index(points: np.ndarray, positions: np.ndarray) -> np.ndarray:
 
 
 def reindex_contours(contours_px: np.ndarray, recon_px: np.ndarray, present: np.ndarray,
-                     settings: ReindexSettings = ReindexSettings()) -> tuple[np.ndarray, np.ndarray]:
+                     settings: ReindexSettings = ReindexSettings(),
+                     scales: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Undo the significant slides of observed contours against their reconstructions (module doc); the
-    arguments and the usable views are those of :func:`~silpose.model.robust.observed_views.observed_views`, and
-    ``settings`` its thresholds.
+    arguments (``scales`` included) and the usable views are those of
+    :func:`~silpose.model.robust.observed_views.observed_views`, and ``settings`` its thresholds.
 
     Returns:
         (contours (N, K, n, 2) float64, resampled by index where a slide was significant; changed (N, K) bool).
     """
-    ov = observed_views(contours_px, recon_px, present)
+    ov = observed_views(contours_px, recon_px, present, scales)
     n = ov.contours.shape[2]
     window = settings.window_points(n)
     gate = settings.min_chi2_per_point * n
