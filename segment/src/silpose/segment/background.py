@@ -66,8 +66,8 @@ import numpy as np
 
 from . import cleanup
 from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
-from .chroma import grow_shadows
-from .ncc import background_window_stats, shadow_mask
+from .chroma import seeded_components, shadow_like
+from .ncc import background_window_stats, outer_index, shadow_mask
 
 STAGES = ("candidates", "shadow_rejected", "edges", "median", "morphology", "final")
 """Names of the masks returned with ``return_stages=True``, in pipeline order."""
@@ -349,6 +349,7 @@ class BackgroundModel:
             self.colour_mean_, self.colour_std_ = colour
             # Colour candidates: sum_c (f_c - mean_c)^2 / max(std_c, min_std)^2 > 3 k^2.
             self._cmean32 = self.colour_mean_.astype(np.float32)
+            self._cmean_px = np.ascontiguousarray(self.colour_mean_).reshape(-1, 3)  # (H W, 3) pixel list
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
             self._cthr = np.float32(3.0 * self.k_sigma**2)
         self._mean32 = self.mean_.astype(np.float32)
@@ -440,7 +441,7 @@ class BackgroundModel:
         self._check_fitted()
         arr = as_single_frame(frame, "frame")
         self._check_shape(arr.shape[:2], "frame")
-        stages = self._segment(arr[None])
+        stages = self._segment(arr[None], return_stages)
         if return_stages:
             return {k: v[0] for k, v in stages.items()}
         return stages["final"][0]
@@ -462,7 +463,7 @@ class BackgroundModel:
         self._check_shape(stack.shape[1:3], "frames")
         out = {k: np.empty(stack.shape[:3], bool) for k in (STAGES if return_stages else ("final",))}
         for start in range(0, stack.shape[0], _BATCH_CHUNK):
-            chunk = self._segment(stack[start : start + _BATCH_CHUNK])
+            chunk = self._segment(stack[start : start + _BATCH_CHUNK], return_stages)
             for k in out:
                 out[k][start : start + _BATCH_CHUNK] = chunk[k]
         return out if return_stages else out["final"]
@@ -498,8 +499,13 @@ class BackgroundModel:
                 cv2.convertScaleAbs(f, dst=out[i], alpha=float(1.0 / max(float(g), 1e-3)))
         return out
 
-    def _segment(self, stack: np.ndarray) -> dict[str, np.ndarray]:
-        """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}."""
+    def _segment(self, stack: np.ndarray, stages: bool = False) -> dict[str, np.ndarray]:
+        """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}: every stage
+        of :data:`STAGES` with ``stages``, else only ``"final"``.
+
+        After the candidates, each frame is processed on its region of interest only: the candidates'
+        bounding box grown by :meth:`_roi_margin` pixels (clipped to the frame). Every later step gives there
+        the values it gives on the whole frame, and nothing outside it (see :meth:`_roi_margin`)."""
         if self.gain:
             stack = self._normalise_gain(stack)
         gray = to_gray(stack)
@@ -515,33 +521,77 @@ class BackgroundModel:
             # Graylevel, vectorised over the stack: |f - mean| > k sigma, for integer f exactly
             # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
             cand = (gray > self._upper) | (gray < self._lower)
-        out = {k: np.empty(gray.shape, bool) for k in STAGES}
-        out["candidates"][:] = cand
+        names = STAGES if stages else ("final",)
+        out = {k: np.zeros(gray.shape, bool) for k in names}
+        if stages:
+            out["candidates"][:] = cand
+        h, w = gray.shape[1:]
+        margin = self._roi_margin()
         for i in range(gray.shape[0]):
-            kept = cand[i]
-            if self._bg is not None and kept.any():
-                support = kept if self.ncc_support == "candidates" else None
-                shadow = shadow_mask(gray[i], self._bg, support, self.min_support, self.ncc_threshold, self.shadow_ratio)
-                if use_colour and self.chroma_max is not None:
-                    shadow = grow_shadows(stack[i], self.colour_mean_, kept, shadow & kept, self.shadow_ratio, self.chroma_max)
-                kept = kept & ~shadow
-            out["shadow_rejected"][i] = kept
-            if self.edge_coverage is not None:
-                kept = self._trim_edges(stack[i] if use_colour else gray[i], kept)
-            out["edges"][i] = kept
-            m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)
-            out["median"][i] = m > 0
-            m = cleanup.open_close(m, self.open_size, self.close_size)
-            out["morphology"][i] = m > 0
-            if self.largest_blob:
-                m = cleanup.largest_blob(m)
-            out["final"][i] = m > 0
+            x, y, bw, bh = cv2.boundingRect(cand[i].view(np.uint8))
+            if bw == 0:
+                continue  # no candidate: every stage is empty
+            roi = (slice(max(y - margin, 0), min(y + bh + margin, h)), slice(max(x - margin, 0), min(x + bw + margin, w)))
+            masks = self._segment_roi(stack[i] if use_colour else gray[i], gray[i][roi],
+                                      np.ascontiguousarray(cand[i][roi]), roi, stages)
+            for k, m in masks.items():
+                out[k][i][roi] = m
         return out
 
-    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray) -> np.ndarray:
-        """Step 4 of the module docstring on one frame ((H, W, 3) colour with a colour background, else
-        (H, W) graylevel; gain-normalised) and its kept pixels (H, W) bool -> the kept pixels without the
-        mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed."""
+    def _roi_margin(self) -> int:
+        """Pixels the region of interest extends beyond the candidates' bounding box. Every pixel of a later stage
+        that can be set lies inside it, and so does each window that decides one: the NCC's windows (radius
+        ``r_n = ncc_window // 2``) around candidates, and the clean-up's. The median (radius ``r_m``) sets pixels
+        up to ``r_m`` out and reads ``r_m`` further; the opening adds nothing beyond the median's, its erosion
+        reads ``2 r_o`` further; the closing dilates by ``r_c`` and its erosion reads ``2 r_c`` beyond that. So
+        a margin above ``max(r_n, 2 r_m, r_m + 2 r_o, r_m + 3 r_c)`` leaves a ring of unset pixels inside the
+        region's edges wide enough that OpenCV's border rules there (replicated, or neutral for the morphology)
+        see what the whole frame would show: zeros. One more pixel for the edge rule's 3x3 neighbourhoods."""
+        r_n = self.ncc_window // 2
+        r_m, r_o, r_c = (max(int(v), 1) // 2 for v in (self.median_size, self.open_size, self.close_size))
+        return max(r_n, 2 * r_m, r_m + 2 * r_o, r_m + 3 * r_c) + 2
+
+    def _segment_roi(self, whole, gray, cand, roi, stages: bool) -> dict[str, np.ndarray]:
+        """Steps 3-5 on a frame's region of interest ``roi`` (slice, slice) -> {stage: (h, w) bool} (every stage
+        after "candidates" with ``stages``, else "final"). whole: the whole frame (H, W, 3) colour with a colour
+        background, else (H, W) graylevel, contiguous; gray (h, w) uint8 and cand (h, w) bool (contiguous): the
+        region's graylevels and candidates."""
+        out = {}
+        kept = cand
+        frame = whole[roi]
+        if self._bg is not None:
+            support = kept if self.ncc_support == "candidates" else None
+            shadow = shadow_mask(gray, self._bg.crop(*roi), support, self.min_support, self.ncc_threshold,
+                                 self.shadow_ratio, at=kept)
+            if frame.ndim == 3 and self.chroma_max is not None and shadow.any():
+                # grow_shadows, with the colour test at the candidates that are not seeds only, their colours taken
+                # from the whole frame's contiguous pixel lists (a fancy index into the region is 4x slower)
+                like = np.zeros(kept.shape, bool)
+                j = np.flatnonzero(kept & ~shadow)
+                px = outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
+                like.reshape(-1)[j] = shadow_like(np.take(whole.reshape(-1, 3), px, axis=0),
+                                                  np.take(self._cmean_px, px, axis=0), self.shadow_ratio, self.chroma_max)
+                shadow = seeded_components(like, shadow)
+            kept = kept & ~shadow
+        if stages:
+            out["shadow_rejected"] = kept
+        if self.edge_coverage is not None:
+            kept = self._trim_edges(frame, kept, roi)
+        m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)
+        if stages:
+            out["edges"], out["median"] = kept, m > 0
+        m = cleanup.open_close(m, self.open_size, self.close_size)
+        if stages:
+            out["morphology"] = m > 0
+        if self.largest_blob:
+            m = cleanup.largest_blob(m)
+        out["final"] = m > 0
+        return out
+
+    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray, roi=(slice(None), slice(None))) -> np.ndarray:
+        """Step 4 of the module docstring on one frame's region of interest ``roi`` ((h, w, 3) colour with a colour
+        background, else (h, w) graylevel; gain-normalised) and its kept pixels (h, w) bool -> the kept pixels
+        without the mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed."""
         k8 = kept.view(np.uint8)
         x, y, w, h = cv2.boundingRect(k8)
         if w == 0:
@@ -551,10 +601,11 @@ class BackgroundModel:
         sub = k8[y0:y1, x0:x1]
         interior = cv2.erode(sub, _CROSS3, borderType=cv2.BORDER_REPLICATE)  # all 8 neighbours kept
         if frame.ndim == 3:
-            d = cv2.subtract(frame[y0:y1, x0:x1], self._cmean32[y0:y1, x0:x1], dtype=cv2.CV_32F)
+            mean = self._cmean32[roi][y0:y1, x0:x1]
+            d = cv2.subtract(frame[y0:y1, x0:x1], mean, dtype=cv2.CV_32F)
             d = cv2.sqrt(cv2.transform(cv2.multiply(d, d), _SUM3))
         else:
-            d = cv2.absdiff(frame[y0:y1, x0:x1].astype(np.float32), self._mean32[y0:y1, x0:x1])
+            d = cv2.absdiff(frame[y0:y1, x0:x1].astype(np.float32), self._mean32[roi][y0:y1, x0:x1])
         ref = cv2.dilate(d * interior, _CROSS3)  # the largest interior neighbour's difference (0: none)
         drop = (sub > interior) & (d < np.float32(self.edge_coverage) * ref)
         if not drop.any():

@@ -70,10 +70,26 @@ class BackgroundWindowStats:
     noise_var: np.ndarray | None = None
     noise_mean: np.ndarray | None = None
 
+    def crop(self, rows: slice, cols: slice) -> BackgroundWindowStats:
+        """The same statistics on the rectangle ``[rows, cols]`` of the image (views, no copy). The NCC of a
+        cropped frame with them equals the full image's at every pixel at least ``window // 2`` pixels inside
+        the crop's edges that are not the image's edges (the windows there lie inside the crop)."""
+        def cut(a):
+            return None if a is None else a[rows, cols]
+
+        return BackgroundWindowStats(self.window, self.min_texture, cut(self.b), cut(self.bb), cut(self.mean),
+                                     cut(self.var), cut(self.noise_var), cut(self.noise_mean))
+
 
 def box(img: np.ndarray, window: int) -> np.ndarray:
     """Mean of ``img`` (H, W) over the ``window`` x ``window`` square around each pixel (reflect-101)."""
     return cv2.boxFilter(img, -1, (window, window), normalize=True, borderType=cv2.BORDER_REFLECT_101)
+
+
+def outer_index(j: np.ndarray, width: int, outer_width: int, row0: int, col0: int) -> np.ndarray:
+    """Flat indices ``j`` (n,) into a rectangle ``width`` pixels wide whose top-left pixel is (``row0``,
+    ``col0``) of an image ``outer_width`` wide -> the same pixels' flat indices into that image (n,)."""
+    return j + (j // width) * (outer_width - width) + (row0 * outer_width + col0)
 
 
 def background_window_stats(
@@ -124,7 +140,7 @@ def local_ncc(
     h, w = np.shape(frame)
     ncc = np.zeros((h, w), np.float32)
     ratio = np.full((h, w), np.nan, np.float32)
-    region, sub_ncc, sub_ratio = _ncc_region(frame, bg, support, min_support)
+    region, _, sub_ncc, sub_ratio = _ncc_region(frame, bg, support, min_support)
     if region is not None:
         ncc[region], ratio[region] = sub_ncc, sub_ratio
     return ncc, ratio
@@ -137,31 +153,52 @@ def shadow_mask(
     min_support: float,
     threshold: float,
     ratio_bounds: tuple[float, float],
+    at: np.ndarray | None = None,
 ) -> np.ndarray:
     """Pixels whose window looks like a shadow: ``NCC > threshold`` and
     ``ratio_bounds[0] <= E[f] / E[b] <= ratio_bounds[1]`` (arguments as in :func:`local_ncc`).
 
-    Returns (H, W) bool. Same values as thresholding :func:`local_ncc`'s maps, but only the
-    region where the NCC can be defined is touched.
+    at : array (H, W) bool or None
+        Pixels to test (the candidates, the only pixels whose answer the pipeline uses); None: all.
+        The window sums are box-filtered as without it; the NCC itself (about 30 array operations)
+        is then computed at those pixels only, with the same float32 operations, so the answers
+        there are the same bit for bit.
+
+    Returns (H, W) bool: the same values as thresholding :func:`local_ncc`'s maps (False outside
+    ``at``), but only the region where the NCC can be defined is touched.
     """
     out = np.zeros(np.shape(frame), bool)
-    region, ncc, ratio = _ncc_region(frame, bg, support, min_support)
+    region, sel, ncc, ratio = _ncc_region(frame, bg, support, min_support, at)
     if region is not None:
-        out[region] = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+        hit = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+        if sel is None:
+            out[region] = hit
+        else:
+            out[region][sel] = hit
     return out
 
 
-def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
+def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float, at=None):
     """NCC and ratio on the smallest rectangle holding every pixel with a defined NCC.
 
-    Returns (region, ncc, ratio): region a (slice, slice) of the image or None (nothing defined),
-    ncc and ratio float32 arrays of the region's shape (0 / nan where undefined inside it).
+    Returns (region, sel, ncc, ratio): region a (slice, slice) of the image or None (nothing
+    defined); without ``at``, sel is None and ncc and ratio are float32 arrays of the region's shape
+    (0 / nan where undefined inside it); with ``at`` ((H, W) bool), sel is the (region-shaped) bool
+    mask of the pixels of ``at`` whose NCC is defined (with ``support``; every pixel of ``at`` over
+    full windows) and ncc, ratio are 1-D, at those pixels in raster order.
     """
     w = bg.window
     if support is None:
         f = np.asarray(frame, np.float32) - _CENTER
-        ncc, ratio = _ncc_full_window(f, bg)
-        return (slice(None), slice(None)), ncc, ratio
+        mf = box(f, w)
+        var_f = box(f * f, w) - mf * mf
+        cov = box(f * bg.b, w) - mf * bg.mean
+        terms = (mf, bg.mean, var_f, bg.var, cov, bg.noise_mean)
+        sel = None if at is None else np.asarray(at, bool)
+        if sel is not None:
+            terms = tuple(None if t is None else t[sel] for t in terms)
+        ncc, ratio = _finish(*terms, True, bg.min_texture)
+        return (slice(None), slice(None)), sel, ncc, ratio
     h, wd = support.shape
     # Candidates per window, counted exactly in integers; the NCC is defined where the count
     # reaches min_support of the window. Only the bounding box of those pixels (plus the
@@ -172,7 +209,7 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
     enough = count >= need
     rows, cols = np.flatnonzero(enough.any(axis=1)), np.flatnonzero(enough.any(axis=0))
     if rows.size == 0:
-        return None, None, None
+        return None, None, None, None
     r = w // 2
     y0, y1 = max(rows[0] - r, 0), min(rows[-1] + r + 1, h)  # input crop: the box's reach
     x0, x1 = max(cols[0] - r, 0), min(cols[-1] + r + 1, wd)
@@ -182,27 +219,31 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
     c = support[y0:y1, x0:x1].astype(np.float32)
     b, bb = bg.b[y0:y1, x0:x1], bg.bb[y0:y1, x0:x1]
     ok_support = enough[region]
-    inv = np.zeros(ok_support.shape, np.float32)
-    np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
     cf = c * f
-    mf = box(cf, w)[oy, ox] * inv
-    mb = box(c * b, w)[oy, ox] * inv
-    var_f = box(cf * f, w)[oy, ox] * inv - mf * mf
-    var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
-    cov = box(cf * b, w)[oy, ox] * inv - mf * mb
-    noise = None if bg.noise_var is None else box(c * bg.noise_var[y0:y1, x0:x1], w)[oy, ox] * inv
-    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
-    ratio[~ok_support] = np.nan
-    return region, ncc, ratio
-
-
-def _ncc_full_window(f: np.ndarray, bg: BackgroundWindowStats) -> tuple[np.ndarray, np.ndarray]:
-    """NCC and brightness ratio over full windows; f is the centred frame (H, W) float32."""
-    w = bg.window
-    mf = box(f, w)
-    var_f = box(f * f, w) - mf * mf
-    cov = box(f * bg.b, w) - mf * bg.mean
-    return _finish(mf, bg.mean, var_f, bg.var, cov, bg.noise_mean, True, bg.min_texture)
+    products = [cf, c * b, cf * f, c * bb, cf * b]
+    if bg.noise_var is not None:
+        products.append(c * bg.noise_var[y0:y1, x0:x1])
+    if at is None:
+        sel = None
+        inv = np.zeros(ok_support.shape, np.float32)
+        np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
+        sums = [box(p, w)[oy, ox] for p in products]
+    else:  # only the pixels of `at` with enough support: gather the window sums there (flat takes: fast)
+        sel = ok_support & np.asarray(at, bool)[region]
+        j = np.flatnonzero(sel)
+        inv = np.float32(w * w) / np.take(count, outer_index(j, sel.shape[1], wd, region[0].start, region[1].start))
+        jc = outer_index(j, sel.shape[1], x1 - x0, oy.start, ox.start)
+        sums = [np.take(box(p, w), jc) for p in products]
+    mf = sums[0] * inv
+    mb = sums[1] * inv
+    var_f = sums[2] * inv - mf * mf
+    var_b = sums[3] * inv - mb * mb
+    cov = sums[4] * inv - mf * mb
+    noise = sums[5] * inv if len(sums) > 5 else None
+    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support if sel is None else True, bg.min_texture)
+    if sel is None:
+        ratio[~ok_support] = np.nan
+    return region, sel, ncc, ratio
 
 
 def _finish(mf, mb, var_f, var_b, cov, noise, ok, min_texture: float) -> tuple[np.ndarray, np.ndarray]:
