@@ -67,7 +67,7 @@ import numpy as np
 from . import cleanup
 from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
 from .chroma import seeded_components, shadow_like
-from .ncc import background_window_stats, outer_index, shadow_mask
+from .ncc import background_window_stats, shadow_mask
 
 STAGES = ("candidates", "shadow_rejected", "edges", "median", "morphology", "final")
 """Names of the masks returned with ``return_stages=True``, in pipeline order."""
@@ -95,6 +95,12 @@ def add_sums(frames: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> None:
             np.multiply(f, f, out=sq, dtype=np.uint16)
             acc += sq
         s2 += acc
+
+
+def _outer_index(j: np.ndarray, width: int, outer_width: int, row0: int, col0: int) -> np.ndarray:
+    """Flat indices ``j`` (n,) into a rectangle ``width`` pixels wide whose top-left pixel is (``row0``,
+    ``col0``) of an image ``outer_width`` wide -> the same pixels' flat indices into that image (n,)."""
+    return j + (j // width) * (outer_width - width) + (row0 * outer_width + col0)
 
 
 def _median_rows(x: np.ndarray) -> np.ndarray:
@@ -526,10 +532,10 @@ class BackgroundModel:
         the values it gives on the whole frame, and nothing outside it (see :meth:`_roi_margin`)."""
         if self.gain:
             stack = self._normalise_gain(stack)
-        gray = to_gray(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
+        gray = None if use_colour else to_gray(stack)  # colour: converted in each region of interest only
         if use_colour:
-            cand = np.empty(gray.shape, bool)
+            cand = np.empty(stack.shape[:3], bool)
             for i in range(stack.shape[0]):  # per frame, float32 in OpenCV (~10x numpy's speed)
                 d = cv2.subtract(stack[i], self._cmean32, dtype=cv2.CV_32F)
                 cv2.multiply(d, d, dst=d)
@@ -540,18 +546,21 @@ class BackgroundModel:
             # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
             cand = (gray > self._upper) | (gray < self._lower)
         names = STAGES if stages else ("final",)
-        out = {k: np.zeros(gray.shape, bool) for k in names}
+        out = {k: np.zeros(cand.shape, bool) for k in names}
         if stages:
             out["candidates"][:] = cand
-        h, w = gray.shape[1:]
+        h, w = cand.shape[1:]
         margin = self._roi_margin()
-        for i in range(gray.shape[0]):
+        for i in range(cand.shape[0]):
             x, y, bw, bh = cv2.boundingRect(cand[i].view(np.uint8))
             if bw == 0:
                 continue  # no candidate: every stage is empty
             roi = (slice(max(y - margin, 0), min(y + bh + margin, h)), slice(max(x - margin, 0), min(x + bw + margin, w)))
-            masks = self._segment_roi(stack[i] if use_colour else gray[i], gray[i][roi],
-                                      np.ascontiguousarray(cand[i][roi]), roi, stages)
+            if use_colour:  # the same graylevels as to_gray's, pixel by pixel
+                whole, region_gray = stack[i], cv2.cvtColor(stack[i][roi], cv2.COLOR_BGR2GRAY)
+            else:
+                whole, region_gray = gray[i], gray[i][roi]
+            masks = self._segment_roi(whole, region_gray, np.ascontiguousarray(cand[i][roi]), roi, stages)
             for k, m in masks.items():
                 out[k][i][roi] = m
         return out
@@ -586,7 +595,7 @@ class BackgroundModel:
                 # from the whole frame's contiguous pixel lists (a fancy index into the region is 4x slower)
                 like = np.zeros(kept.shape, bool)
                 j = np.flatnonzero(kept & ~shadow)
-                px = outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
+                px = _outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
                 like.reshape(-1)[j] = shadow_like(np.take(whole.reshape(-1, 3), px, axis=0),
                                                   np.take(self._cmean_px, px, axis=0), self.shadow_ratio, self.chroma_max)
                 shadow = seeded_components(like, shadow)

@@ -86,12 +86,6 @@ def box(img: np.ndarray, window: int) -> np.ndarray:
     return cv2.boxFilter(img, -1, (window, window), normalize=True, borderType=cv2.BORDER_REFLECT_101)
 
 
-def outer_index(j: np.ndarray, width: int, outer_width: int, row0: int, col0: int) -> np.ndarray:
-    """Flat indices ``j`` (n,) into a rectangle ``width`` pixels wide whose top-left pixel is (``row0``,
-    ``col0``) of an image ``outer_width`` wide -> the same pixels' flat indices into that image (n,)."""
-    return j + (j // width) * (outer_width - width) + (row0 * outer_width + col0)
-
-
 def background_window_stats(
     background: np.ndarray, window: int, min_texture: float = 2.0, noise_var: np.ndarray | None = None
 ) -> BackgroundWindowStats:
@@ -230,9 +224,10 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float, a
         sums = [box(p, w)[oy, ox] for p in products]
     else:  # only the pixels of `at` with enough support: gather the window sums there (flat takes: fast)
         sel = ok_support & np.asarray(at, bool)[region]
-        j = np.flatnonzero(sel)
-        inv = np.float32(w * w) / np.take(count, outer_index(j, sel.shape[1], wd, region[0].start, region[1].start))
-        jc = outer_index(j, sel.shape[1], x1 - x0, oy.start, ox.start)
+        in_crop = np.zeros(f.shape, bool)
+        in_crop[oy, ox] = sel
+        jc = np.flatnonzero(in_crop)  # the same pixels, in raster order, as flat indices into the crop
+        inv = np.float32(w * w) / np.take(count[y0:y1, x0:x1], jc)
         sums = [np.take(box(p, w), jc) for p in products]
     mf = sums[0] * inv
     mb = sums[1] * inv
