@@ -134,7 +134,7 @@ def local_ncc(
     h, w = np.shape(frame)
     ncc = np.zeros((h, w), np.float32)
     ratio = np.full((h, w), np.nan, np.float32)
-    region, _, sub_ncc, sub_ratio = _ncc_region(frame, bg, support, min_support)
+    region, sub_ncc, sub_ratio = _ncc_region(frame, bg, support, min_support)
     if region is not None:
         ncc[region], ratio[region] = sub_ncc, sub_ratio
     return ncc, ratio
@@ -153,33 +153,58 @@ def shadow_mask(
     ``ratio_bounds[0] <= E[f] / E[b] <= ratio_bounds[1]`` (arguments as in :func:`local_ncc`).
 
     at : array (H, W) bool or None
-        Pixels to test (the candidates, the only pixels whose answer the pipeline uses); None: all.
-        The window sums are box-filtered as without it; the NCC itself (about 30 array operations)
-        is then computed at those pixels only, with the same float32 operations, so the answers
-        there are the same bit for bit.
+        Pixels to test (the candidates: the only pixels whose answer the pipeline uses); None: all.
+        With ``support``, the brightness ratio is computed first, from 2 of the 6 window sums, at
+        those pixels only; the other 4 sums are box-filtered over the bounding box of the pixels
+        whose ratio is within ``ratio_bounds`` (a shadow darkens: on a person brighter than the room
+        that is the cast shadow alone), and the NCC computed at those pixels only. Same float32
+        operations on the same window sums (up to the last bit of a sum, which OpenCV's running
+        box sums take from where the crop starts), so the same answers.
 
     Returns (H, W) bool: the same values as thresholding :func:`local_ncc`'s maps (False outside
     ``at``), but only the region where the NCC can be defined is touched.
     """
+    if at is not None and support is not None:
+        return _shadow_at(frame, bg, support, min_support, threshold, ratio_bounds, np.asarray(at, bool))
     out = np.zeros(np.shape(frame), bool)
-    region, sel, ncc, ratio = _ncc_region(frame, bg, support, min_support, at)
+    region, ncc, ratio = _ncc_region(frame, bg, support, min_support)
     if region is not None:
-        hit = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
-        if sel is None:
-            out[region] = hit
-        else:
-            out[region][sel] = hit
+        out[region] = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+    if at is not None:
+        out &= at
     return out
 
 
-def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float, at=None):
+def _support_crop(support: np.ndarray, w: int, min_support: float):
+    """Candidates per window, counted exactly in integers; the NCC is defined where the count reaches
+    ``min_support`` of the window. Only the bounding box of those pixels (plus the window's reach) is filtered
+    further: isolated noise candidates never qualify.
+
+    Returns None (no such pixel) or (count, enough, crop, region, inner): count (H, W) uint16 and enough (H, W)
+    bool; crop and region (slice, slice) of the image, the box filters' input (region grown by the window's reach,
+    clipped) and the pixels with a defined NCC's bounding box; inner: region as (slice, slice) of the crop."""
+    h, wd = support.shape
+    need = max(1, int(np.ceil(float(min_support) * w * w - 1e-9)))
+    support8 = np.ascontiguousarray(support, bool).view(np.uint8)
+    count = cv2.boxFilter(support8, cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
+    enough = count >= need
+    x, y, bw, bh = cv2.boundingRect(enough.view(np.uint8))
+    if bw == 0:
+        return None
+    r = w // 2
+    y0, y1 = max(y - r, 0), min(y + bh + r, h)  # input crop: the box's reach
+    x0, x1 = max(x - r, 0), min(x + bw + r, wd)
+    crop = (slice(y0, y1), slice(x0, x1))
+    region = (slice(y, y + bh), slice(x, x + bw))
+    inner = (slice(y - y0, y + bh - y0), slice(x - x0, x + bw - x0))
+    return count, enough, crop, region, inner
+
+
+def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
     """NCC and ratio on the smallest rectangle holding every pixel with a defined NCC.
 
-    Returns (region, sel, ncc, ratio): region a (slice, slice) of the image or None (nothing
-    defined); without ``at``, sel is None and ncc and ratio are float32 arrays of the region's shape
-    (0 / nan where undefined inside it); with ``at`` ((H, W) bool), sel is the (region-shaped) bool
-    mask of the pixels of ``at`` whose NCC is defined (with ``support``; every pixel of ``at`` over
-    full windows) and ncc, ratio are 1-D, at those pixels in raster order.
+    Returns (region, ncc, ratio): region a (slice, slice) of the image or None (nothing defined),
+    ncc and ratio float32 arrays of the region's shape (0 / nan where undefined inside it).
     """
     w = bg.window
     if support is None:
@@ -187,58 +212,73 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float, a
         mf = box(f, w)
         var_f = box(f * f, w) - mf * mf
         cov = box(f * bg.b, w) - mf * bg.mean
-        terms = (mf, bg.mean, var_f, bg.var, cov, bg.noise_mean)
-        sel = None if at is None else np.asarray(at, bool)
-        if sel is not None:
-            terms = tuple(None if t is None else t[sel] for t in terms)
-        ncc, ratio = _finish(*terms, True, bg.min_texture)
-        return (slice(None), slice(None)), sel, ncc, ratio
-    h, wd = support.shape
-    # Candidates per window, counted exactly in integers; the NCC is defined where the count
-    # reaches min_support of the window. Only the bounding box of those pixels (plus the
-    # window's reach) is filtered further: isolated noise candidates never qualify.
-    need = max(1, int(np.ceil(float(min_support) * w * w - 1e-9)))
-    support8 = np.ascontiguousarray(support, bool).view(np.uint8)
-    count = cv2.boxFilter(support8, cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
-    enough = count >= need
-    rows, cols = np.flatnonzero(enough.any(axis=1)), np.flatnonzero(enough.any(axis=0))
-    if rows.size == 0:
-        return None, None, None, None
-    r = w // 2
-    y0, y1 = max(rows[0] - r, 0), min(rows[-1] + r + 1, h)  # input crop: the box's reach
-    x0, x1 = max(cols[0] - r, 0), min(cols[-1] + r + 1, wd)
-    oy, ox = slice(rows[0] - y0, rows[-1] + 1 - y0), slice(cols[0] - x0, cols[-1] + 1 - x0)  # output, in crop
-    region = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-    f = np.asarray(frame[y0:y1, x0:x1], np.float32) - _CENTER
-    c = support[y0:y1, x0:x1].astype(np.float32)
-    b, bb = bg.b[y0:y1, x0:x1], bg.bb[y0:y1, x0:x1]
+        ncc, ratio = _finish(mf, bg.mean, var_f, bg.var, cov, bg.noise_mean, True, bg.min_texture)
+        return (slice(None), slice(None)), ncc, ratio
+    found = _support_crop(support, w, min_support)
+    if found is None:
+        return None, None, None
+    count, enough, crop, region, (oy, ox) = found
+    f = np.asarray(frame[crop], np.float32) - _CENTER
+    c = support[crop].astype(np.float32)
+    b, bb = bg.b[crop], bg.bb[crop]
     ok_support = enough[region]
+    inv = np.zeros(ok_support.shape, np.float32)
+    np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
     cf = c * f
-    products = [cf, c * b, cf * f, c * bb, cf * b]
-    if bg.noise_var is not None:
-        products.append(c * bg.noise_var[y0:y1, x0:x1])
-    if at is None:
-        sel = None
-        inv = np.zeros(ok_support.shape, np.float32)
-        np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
-        sums = [box(p, w)[oy, ox] for p in products]
-    else:  # only the pixels of `at` with enough support: gather the window sums there (flat takes: fast)
-        sel = ok_support & np.asarray(at, bool)[region]
-        in_crop = np.zeros(f.shape, bool)
-        in_crop[oy, ox] = sel
-        jc = np.flatnonzero(in_crop)  # the same pixels, in raster order, as flat indices into the crop
-        inv = np.float32(w * w) / np.take(count[y0:y1, x0:x1], jc)
-        sums = [np.take(box(p, w), jc) for p in products]
-    mf = sums[0] * inv
-    mb = sums[1] * inv
-    var_f = sums[2] * inv - mf * mf
-    var_b = sums[3] * inv - mb * mb
-    cov = sums[4] * inv - mf * mb
-    noise = sums[5] * inv if len(sums) > 5 else None
-    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support if sel is None else True, bg.min_texture)
-    if sel is None:
-        ratio[~ok_support] = np.nan
-    return region, sel, ncc, ratio
+    mf = box(cf, w)[oy, ox] * inv
+    mb = box(c * b, w)[oy, ox] * inv
+    var_f = box(cf * f, w)[oy, ox] * inv - mf * mf
+    var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
+    cov = box(cf * b, w)[oy, ox] * inv - mf * mb
+    noise = None if bg.noise_var is None else box(c * bg.noise_var[crop], w)[oy, ox] * inv
+    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
+    ratio[~ok_support] = np.nan
+    return region, ncc, ratio
+
+
+def _shadow_at(frame, bg: BackgroundWindowStats, support, min_support: float, threshold: float, ratio_bounds, at):
+    """:func:`shadow_mask` at the pixels ``at`` with candidate ``support`` (see there): (H, W) bool."""
+    w, r = bg.window, bg.window // 2
+    out = np.zeros(np.shape(frame), bool)
+    found = _support_crop(support, w, min_support)
+    if found is None:
+        return out
+    count, enough, crop, region, inner = found
+    tested = np.zeros(count[crop].shape, bool)  # the pixels of `at` with a defined NCC, in the crop
+    tested[inner] = enough[region] & at[region]
+    j = np.flatnonzero(tested)  # raster order; flat indices into the crop's arrays
+    if not j.size:
+        return out
+    f = np.asarray(frame[crop], np.float32) - _CENTER
+    c = support[crop].astype(np.float32)
+    b = bg.b[crop]
+    cf = c * f
+    inv = np.float32(w * w) / np.take(count[crop], j)  # 1 / E_W[c]
+    mf = np.take(box(cf, w), j) * inv
+    mb = np.take(box(c * b, w), j) * inv
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = (mf + _CENTER) / (mb + _CENTER)  # as in _finish
+    dark = (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+    if not dark.any():
+        return out
+    j, mf, mb, inv = j[dark], mf[dark], mb[dark], inv[dark]
+    # The other window sums over those pixels' bounding box and the windows' reach only (inside the crop,
+    # whose edges are the image's or at least r pixels from any pixel tested).
+    ch, cw = f.shape
+    rows, cols = np.divmod(j, cw)
+    y0, y1, x0, x1 = max(rows.min() - r, 0), min(rows.max() + r + 1, ch), max(cols.min() - r, 0), min(cols.max() + r + 1, cw)
+    sub = (slice(y0, y1), slice(x0, x1))
+    js = (rows - y0) * (x1 - x0) + (cols - x0)
+    c, f, b, cf = c[sub], f[sub], b[sub], cf[sub]
+    var_f = np.take(box(cf * f, w), js) * inv - mf * mf
+    var_b = np.take(box(c * bg.bb[crop][sub], w), js) * inv - mb * mb
+    cov = np.take(box(cf * b, w), js) * inv - mf * mb
+    noise = None if bg.noise_var is None else np.take(box(c * bg.noise_var[crop][sub], w), js) * inv
+    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, True, bg.min_texture)
+    hit = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
+    rows, cols = np.divmod(j[hit], cw)
+    out[rows + crop[0].start, cols + crop[1].start] = True
+    return out
 
 
 def _finish(mf, mb, var_f, var_b, cov, noise, ok, min_texture: float) -> tuple[np.ndarray, np.ndarray]:
