@@ -367,7 +367,7 @@ class BackgroundModel:
             self.colour_mean_, self.colour_std_ = colour
             # Colour candidates: sum_c (f_c - mean_c)^2 / max(std_c, min_std)^2 > 3 k^2.
             self._cmean32 = self.colour_mean_.astype(np.float32)
-            self._cmean_px = np.ascontiguousarray(self.colour_mean_).reshape(-1, 3)  # (H W, 3) pixel list
+            self._cmean_planes = np.ascontiguousarray(self.colour_mean_.reshape(-1, 3).T)  # (3, H W) channel planes
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
             self._cthr = np.float32(3.0 * self.k_sigma**2)
         self._mean32 = self.mean_.astype(np.float32)
@@ -533,37 +533,41 @@ class BackgroundModel:
         if self.gain:
             stack = self._normalise_gain(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
-        gray = None if use_colour else to_gray(stack)  # colour: converted in each region of interest only
-        if use_colour:
-            cand = np.empty(stack.shape[:3], bool)
-            for i in range(stack.shape[0]):  # per frame, float32 in OpenCV (~10x numpy's speed)
-                d = cv2.subtract(stack[i], self._cmean32, dtype=cv2.CV_32F)
-                cv2.multiply(d, d, dst=d)
-                cv2.multiply(d, self._inv_var, dst=d)
-                np.greater(cv2.transform(d, _SUM3), self._cthr, out=cand[i])  # sum over channels
-        else:
+        if not use_colour:
             # Graylevel, vectorised over the stack: |f - mean| > k sigma, for integer f exactly
             # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
-            cand = (gray > self._upper) | (gray < self._lower)
+            gray = to_gray(stack)
+            cand_all = (gray > self._upper) | (gray < self._lower)
         names = STAGES if stages else ("final",)
-        out = {k: np.zeros(cand.shape, bool) for k in names}
-        if stages:
-            out["candidates"][:] = cand
-        h, w = cand.shape[1:]
+        out = {k: np.zeros(stack.shape[:3], bool) for k in names}
+        h, w = stack.shape[1:3]
         margin = self._roi_margin()
-        for i in range(cand.shape[0]):
-            x, y, bw, bh = cv2.boundingRect(cand[i].view(np.uint8))
+        for i in range(stack.shape[0]):
+            cand, sq = self._colour_candidates(stack[i]) if use_colour else (cand_all[i], None)
+            if stages:
+                out["candidates"][i] = cand
+            x, y, bw, bh = cv2.boundingRect(cand.view(np.uint8))
             if bw == 0:
-                continue  # no candidate: every stage is empty
+                continue  # no candidate: every later stage is empty
             roi = (slice(max(y - margin, 0), min(y + bh + margin, h)), slice(max(x - margin, 0), min(x + bw + margin, w)))
             if use_colour:  # the same graylevels as to_gray's, pixel by pixel
                 whole, region_gray = stack[i], cv2.cvtColor(stack[i][roi], cv2.COLOR_BGR2GRAY)
             else:
                 whole, region_gray = gray[i], gray[i][roi]
-            masks = self._segment_roi(whole, region_gray, np.ascontiguousarray(cand[i][roi]), roi, stages)
+            masks = self._segment_roi(whole, region_gray, np.ascontiguousarray(cand[roi]), roi, stages, sq)
             for k, m in masks.items():
                 out[k][i][roi] = m
         return out
+
+    def _colour_candidates(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Colour candidates of one frame (H, W, 3) uint8 (float32 in OpenCV, ~10x numpy's speed) -> (H, W) bool,
+        and the squared colour difference from the background mean ``sum_c (f_c - mean_c)^2`` (H, W) float32 that
+        the edge rule uses (None when it is off)."""
+        d = cv2.subtract(frame, self._cmean32, dtype=cv2.CV_32F)
+        cv2.multiply(d, d, dst=d)
+        sq = cv2.transform(d, _SUM3) if self.edge_coverage is not None else None  # sum over channels
+        cv2.multiply(d, self._inv_var, dst=d)
+        return cv2.transform(d, _SUM3) > self._cthr, sq
 
     def _roi_margin(self) -> int:
         """Pixels the region of interest extends beyond the candidates' bounding box. Every pixel of a later stage
@@ -578,11 +582,12 @@ class BackgroundModel:
         r_m, r_o, r_c = (max(int(v), 1) // 2 for v in (self.median_size, self.open_size, self.close_size))
         return max(r_n, 2 * r_m, r_m + 2 * r_o, r_m + 3 * r_c) + 2
 
-    def _segment_roi(self, whole, gray, cand, roi, stages: bool) -> dict[str, np.ndarray]:
+    def _segment_roi(self, whole, gray, cand, roi, stages: bool, sq=None) -> dict[str, np.ndarray]:
         """Steps 3-5 on a frame's region of interest ``roi`` (slice, slice) -> {stage: (h, w) bool} (every stage
         after "candidates" with ``stages``, else "final"). whole: the whole frame (H, W, 3) colour with a colour
         background, else (H, W) graylevel, contiguous; gray (h, w) uint8 and cand (h, w) bool (contiguous): the
-        region's graylevels and candidates."""
+        region's graylevels and candidates; sq: the whole frame's squared colour differences or None (see
+        :meth:`_colour_candidates`)."""
         out = {}
         kept = cand
         frame = whole[roi]
@@ -596,14 +601,16 @@ class BackgroundModel:
                 like = np.zeros(kept.shape, bool)
                 j = np.flatnonzero(kept & ~shadow)
                 px = _outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
-                like.reshape(-1)[j] = shadow_like(np.take(whole.reshape(-1, 3), px, axis=0),
-                                                  np.take(self._cmean_px, px, axis=0), self.shadow_ratio, self.chroma_max)
+                flat, px3 = whole.reshape(-1), 3 * px
+                colours = [np.take(flat, px3 + k) for k in range(3)]  # 1-D takes, channel by channel: fast
+                means = [np.take(plane, px) for plane in self._cmean_planes]
+                like.reshape(-1)[j] = shadow_like(colours, means, self.shadow_ratio, self.chroma_max, channel_axis=0)
                 shadow = seeded_components(like, shadow)
             kept = kept & ~shadow
         if stages:
             out["shadow_rejected"] = kept
         if self.edge_coverage is not None:
-            kept = self._trim_edges(frame, kept, roi)
+            kept = self._trim_edges(frame, kept, roi, sq)
         m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)
         if stages:
             out["edges"], out["median"] = kept, m > 0
@@ -615,10 +622,11 @@ class BackgroundModel:
         out["final"] = m > 0
         return out
 
-    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray, roi=(slice(None), slice(None))) -> np.ndarray:
+    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray, roi=(slice(None), slice(None)), sq=None) -> np.ndarray:
         """Step 4 of the module docstring on one frame's region of interest ``roi`` ((h, w, 3) colour with a colour
         background, else (h, w) graylevel; gain-normalised) and its kept pixels (h, w) bool -> the kept pixels
-        without the mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed."""
+        without the mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed. sq: the
+        whole frame's squared colour differences when the candidates computed them (the same values), else None."""
         k8 = kept.view(np.uint8)
         x, y, w, h = cv2.boundingRect(k8)
         if w == 0:
@@ -627,7 +635,9 @@ class BackgroundModel:
         x0, y0, x1, y1 = max(x - 1, 0), max(y - 1, 0), min(x + w + 1, W), min(y + h + 1, H)
         sub = k8[y0:y1, x0:x1]
         interior = cv2.erode(sub, _CROSS3, borderType=cv2.BORDER_REPLICATE)  # all 8 neighbours kept
-        if frame.ndim == 3:
+        if sq is not None:
+            d = cv2.sqrt(sq[roi][y0:y1, x0:x1])
+        elif frame.ndim == 3:
             mean = self._cmean32[roi][y0:y1, x0:x1]
             d = cv2.subtract(frame[y0:y1, x0:x1], mean, dtype=cv2.CV_32F)
             d = cv2.sqrt(cv2.transform(cv2.multiply(d, d), _SUM3))

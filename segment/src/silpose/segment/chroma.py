@@ -29,13 +29,15 @@ import cv2
 import numpy as np
 
 
-def brightness_chroma(frame: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def brightness_chroma(frame: np.ndarray, mean: np.ndarray, channel_axis: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """Brightness distortion ``alpha`` and chromaticity distortion ``cd`` of a colour frame.
 
     Parameters
     ----------
     frame : array (H, W, 3) uint8 or float, colour frame (any channel order, same as ``mean``)
     mean : array (H, W, 3) float, per-pixel background mean colour, graylevels
+    channel_axis : -1 (channels last, as above) or 0 (channels first: (3, ...) planes, e.g. (3, n)
+        pixel lists, whose channels are contiguous rows)
 
     Returns
     -------
@@ -47,24 +49,28 @@ def brightness_chroma(frame: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, 
     """
     f = np.asarray(frame, np.float64)
     m = np.asarray(mean, np.float64)
+    fc = (f[0], f[1], f[2]) if channel_axis == 0 else (f[..., 0], f[..., 1], f[..., 2])
+    mc = (m[0], m[1], m[2]) if channel_axis == 0 else (m[..., 0], m[..., 1], m[..., 2])
 
     def dot(a, b):
-        return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
-    mm = dot(m, m)
+    mm = dot(mc, mc)
     alpha = np.zeros(mm.shape)
-    np.divide(dot(f, m), mm, out=alpha, where=mm > 0)
-    resid = f - alpha[..., None] * m
+    np.divide(dot(fc, mc), mm, out=alpha, where=mm > 0)
+    resid = [p - alpha * q for p, q in zip(fc, mc)]
     cd = np.sqrt(dot(resid, resid))
     return alpha, cd
 
 
-def shadow_like(frame_px: np.ndarray, mean_px: np.ndarray, ratio_bounds: tuple[float, float], chroma_max: float) -> np.ndarray:
+def shadow_like(
+    frame_px: np.ndarray, mean_px: np.ndarray, ratio_bounds: tuple[float, float], chroma_max: float, channel_axis: int = -1
+) -> np.ndarray:
     """Shadow-like pixels: ``ratio_bounds[0] <= alpha <= ratio_bounds[1]`` and ``cd <= chroma_max``.
 
     frame_px (..., 3) uint8 or float and mean_px (..., 3) float: colours of the same pixels (e.g. (n, 3)
-    lists of candidate pixels); returns (...) bool."""
-    alpha, cd = brightness_chroma(frame_px, mean_px)
+    lists of candidate pixels; (3, ...) with ``channel_axis=0``, see :func:`brightness_chroma`); returns (...) bool."""
+    alpha, cd = brightness_chroma(frame_px, mean_px, channel_axis)
     return (alpha >= ratio_bounds[0]) & (alpha <= ratio_bounds[1]) & (cd <= chroma_max)
 
 
