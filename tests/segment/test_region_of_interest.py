@@ -96,3 +96,22 @@ def test_largest_blob_keeps_the_largest_and_the_first_of_equal_ones():
     one = np.zeros((30, 40), np.uint8)
     one[3:9, 4:7] = 255
     assert cleanup.largest_blob(one) is one  # a single blob: returned as it is
+
+
+def test_colour_prefilter_bounds_never_exclude_a_shadow_like_pixel():
+    """The uint8 per-channel bounds tried before the colour test hold every shadow-like pixel (and rule out most
+    of the others), for pixels near the rule's limits."""
+    from silpose.segment.chroma import shadow_like
+
+    rng = np.random.default_rng(8)
+    background = rng.integers(0, 256, (5, 60, 80, 3), dtype=np.uint8)
+    model = BackgroundModel().fit(background)
+    mean = model.colour_mean_
+    alpha = rng.uniform(0.0, 1.3, (60, 80, 1))
+    for spread in (2.0, 5.0, 12.0):  # chromaticity distortions around chroma_max = 6
+        frame = np.clip(np.rint(alpha * mean + rng.normal(0, spread, mean.shape)), 0, 255).astype(np.uint8)
+        like = shadow_like(frame, mean, model.shadow_ratio, model.chroma_max)
+        inside = cv2.inRange(frame, model._like_lo, model._like_hi) > 0
+        assert like.sum() > 100
+        assert not (like & ~inside).any()
+        assert (~inside).sum() > 0.2 * inside.size

@@ -368,6 +368,14 @@ class BackgroundModel:
             # Colour candidates: sum_c (f_c - mean_c)^2 / max(std_c, min_std)^2 > 3 k^2.
             self._cmean32 = self.colour_mean_.astype(np.float32)
             self._cmean_planes = np.ascontiguousarray(self.colour_mean_.reshape(-1, 3).T)  # (3, H W) channel planes
+            if self.chroma_max is not None:
+                # A shadow-like pixel has f_c = alpha m_c + r_c with alpha in shadow_ratio and |r_c| <= cd <= chroma_max,
+                # so lo m_c - chroma_max <= f_c <= hi m_c + chroma_max in every channel: uint8 bounds (one graylevel
+                # looser than that, against rounding) that rule most other pixels out in one cv2.inRange.
+                lo, hi = self.shadow_ratio
+                cm = self.colour_mean_
+                self._like_lo = np.clip(np.ceil(lo * cm - self.chroma_max) - 1, 0, 255).astype(np.uint8)
+                self._like_hi = np.clip(np.floor(hi * cm + self.chroma_max) + 1, 0, 255).astype(np.uint8)
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
             self._cthr = np.float32(3.0 * self.k_sigma**2)
         self._mean32 = self.mean_.astype(np.float32)
@@ -563,7 +571,8 @@ class BackgroundModel:
         """Colour candidates of one frame (H, W, 3) uint8 (float32 in OpenCV, ~10x numpy's speed) -> (H, W) bool,
         and the squared colour difference from the background mean ``sum_c (f_c - mean_c)^2`` (H, W) float32 that
         the edge rule uses (None when it is off)."""
-        d = cv2.subtract(frame, self._cmean32, dtype=cv2.CV_32F)
+        d = frame.astype(np.float32)  # then in place: a third faster than cv2.subtract(..., dtype=CV_32F), same values
+        cv2.subtract(d, self._cmean32, dst=d)
         cv2.multiply(d, d, dst=d)
         sq = cv2.transform(d, _SUM3) if self.edge_coverage is not None else None  # sum over channels
         cv2.multiply(d, self._inv_var, dst=d)
@@ -599,7 +608,8 @@ class BackgroundModel:
                 # grow_shadows, with the colour test at the candidates that are not seeds only, their colours taken
                 # from the whole frame's contiguous pixel lists (a fancy index into the region is 4x slower)
                 like = np.zeros(kept.shape, bool)
-                j = np.flatnonzero(kept & ~shadow)
+                maybe = cv2.inRange(frame, self._like_lo[roi], self._like_hi[roi]) > 0  # (see _prepare)
+                j = np.flatnonzero(kept & ~shadow & maybe)
                 px = _outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
                 flat, px3 = whole.reshape(-1), 3 * px
                 colours = [np.take(flat, px3 + k) for k in range(3)]  # 1-D takes, channel by channel: fast
