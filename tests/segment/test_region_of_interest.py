@@ -115,3 +115,21 @@ def test_colour_prefilter_bounds_never_exclude_a_shadow_like_pixel():
         assert like.sum() > 100
         assert not (like & ~inside).any()
         assert (~inside).sum() > 0.2 * inside.size
+
+
+@pytest.mark.parametrize("colour", [True, False])
+def test_gain_lookup_table_equals_dividing_the_frame(scene, colour):
+    """_normalise_gain's lookup tables give what OpenCV's division of the whole frame gives, pixel for pixel."""
+    background = scene.background if colour else scene.background[..., 1]
+    model = BackgroundModel(gain=True).fit(background)
+    rng = np.random.default_rng(2)
+    frames = rng.integers(0, 256, (3, *background.shape[1:]), dtype=np.uint8)
+    frames[0] = np.clip(background[0] * 1.37, 0, 255).astype(np.uint8)  # brighter: gains > 1, saturation at 0/255
+    got = model._normalise_gain(frames)
+    for f, g in zip(frames, got):
+        gain = model.frame_gain(f)
+        if colour:
+            want = cv2.transform(f, np.diag(1.0 / np.maximum(gain, 1e-3)).astype(np.float32))
+        else:
+            want = cv2.convertScaleAbs(f, alpha=float(1.0 / max(float(gain), 1e-3)))
+        np.testing.assert_array_equal(g, want)

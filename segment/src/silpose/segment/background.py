@@ -79,6 +79,7 @@ _BATCH_CHUNK = 64  # frames per vectorised chunk in segment_batch (bounds the te
 SUM_FRAMES = 65_000
 _GAIN_STEP = 4  # every 4th row and column are the pixels the gain is measured on
 _GAIN_MIN_LEVEL = 16.0  # graylevels: darker background pixels say little about the gain
+_RAMP3 = np.repeat(np.arange(256, dtype=np.uint8)[None, :, None], 3, axis=2)  # (1, 256, 3): every graylevel per channel
 
 
 def add_sums(frames: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> None:
@@ -522,13 +523,17 @@ class BackgroundModel:
         return np.median(ratio, axis=0).astype(np.float32)
 
     def _normalise_gain(self, stack: np.ndarray) -> np.ndarray:
+        """Each frame divided by its gain (rounded, saturating). The division is OpenCV's (``cv2.transform`` by the
+        diagonal matrix of the inverse gains, ``cv2.convertScaleAbs`` for graylevels) applied to the 256 graylevels
+        once, then looked up (``cv2.LUT``, 3x faster than transforming the frame; the same values)."""
         out = np.empty_like(stack)
         for i, f in enumerate(stack):
             g = self.frame_gain(f)
             if f.ndim == 3 and np.ndim(g) == 1:
-                out[i] = cv2.transform(f, np.diag(1.0 / np.maximum(g, 1e-3)).astype(np.float32))  # saturating
+                lut = cv2.transform(_RAMP3, np.diag(1.0 / np.maximum(g, 1e-3)).astype(np.float32))  # saturating
             else:
-                cv2.convertScaleAbs(f, dst=out[i], alpha=float(1.0 / max(float(g), 1e-3)))
+                lut = cv2.convertScaleAbs(_RAMP3[..., 0], alpha=float(1.0 / max(float(g), 1e-3)))
+            cv2.LUT(f, lut, dst=out[i])
         return out
 
     def _segment(self, stack: np.ndarray, stages: bool = False) -> dict[str, np.ndarray]:
