@@ -16,7 +16,10 @@ candidates inside it all lie in the shadow (one gain, high NCC). Both variants a
 (the background terms are computed once, :class:`BackgroundWindowStats`); over candidates, one
 integer count of candidates per window, then 5 float filters (6 with the noise correction) restricted to the bounding box of
 the pixels whose window holds enough candidates (cropped with the window's reach, so the values
-equal those of full-image filtering).
+equal those of full-image filtering). The pipeline needs the answer at the candidates only
+(:func:`shadow_mask`'s ``at``): there the brightness ratio comes first, from 2 of the window sums,
+and the other sums are filtered only over the bounding box of the candidates whose window darkened
+within the ratio bounds; the NCC is then computed at those pixels alone (1-D arrays).
 
 Noise correction (optional; an addition to the paper): camera noise of variance ``s^2`` in the
 frame caps the NCC of even a perfect shadow at ``sqrt(1 - s^2 / Var f)``, which falls below a
