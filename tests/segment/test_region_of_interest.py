@@ -133,3 +133,18 @@ def test_gain_lookup_table_equals_dividing_the_frame(scene, colour):
         else:
             want = cv2.convertScaleAbs(f, alpha=float(1.0 / max(float(gain), 1e-3)))
         np.testing.assert_array_equal(g, want)
+
+
+@pytest.mark.parametrize("gain", [0.25, 0.252, 0.998, 1.0, 1.002])
+def test_quick_brightness_test_keeps_every_shadow_at_the_ratio_bounds(gain):
+    """Frames darkened to near the ratio bounds: the integer brightness test before the NCC drops no pixel the
+    dense computation calls a shadow."""
+    rng = np.random.default_rng(int(gain * 100))
+    h, w = 40, 50
+    background = cv2.GaussianBlur(rng.uniform(30, 220, (h, w)), (0, 0), 1.0)
+    frame = np.clip(np.rint(gain * background + rng.normal(0, 1.5, (h, w))), 0, 255).astype(np.uint8)
+    bg = background_window_stats(background, 7, 1.0, np.full((h, w), 2.0))
+    support = rng.random((h, w)) < 0.8
+    dense = shadow_mask(frame, bg, support, 0.25, 0.5, (0.25, 1.0))
+    assert (dense & support).sum() > 20
+    np.testing.assert_array_equal(shadow_mask(frame, bg, support, 0.25, 0.5, (0.25, 1.0), at=support), dense & support)

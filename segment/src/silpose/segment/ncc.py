@@ -17,9 +17,10 @@ candidates inside it all lie in the shadow (one gain, high NCC). Both variants a
 integer count of candidates per window, then 5 float filters (6 with the noise correction) restricted to the bounding box of
 the pixels whose window holds enough candidates (cropped with the window's reach, so the values
 equal those of full-image filtering). The pipeline needs the answer at the candidates only
-(:func:`shadow_mask`'s ``at``): there the brightness ratio comes first, from 2 of the window sums,
-and the other sums are filtered only over the bounding box of the candidates whose window darkened
-within the ratio bounds; the NCC is then computed at those pixels alone (1-D arrays).
+(:func:`shadow_mask`'s ``at``): there a quick integer test of the brightness ratio comes first
+(uint8 box sums of the frame and of the background rounded up and down), and the float sums are
+filtered only over the bounding box of the candidates whose window may have darkened within the
+ratio bounds; the NCC is then computed at those pixels alone (1-D arrays).
 
 Noise correction (optional; an addition to the paper): camera noise of variance ``s^2`` in the
 frame caps the NCC of even a perfect shadow at ``sqrt(1 - s^2 / Var f)``, which falls below a
@@ -62,6 +63,8 @@ class BackgroundWindowStats:
     mean : ``E_W[b - 128]``; var : ``Var_W b`` in graylevels^2 (full windows)
     noise_var : per-pixel noise variance ``s^2`` (graylevels^2) or None (no noise correction)
     noise_mean : ``E_W[s^2]`` (full windows) or None
+    floor, ceil : (H, W) uint8, the background rounded down and up (graylevels 0-255), or None: integer
+        bounds on the window sums of the background, for :func:`shadow_mask`'s quick brightness test
     """
 
     window: int
@@ -72,6 +75,8 @@ class BackgroundWindowStats:
     var: np.ndarray
     noise_var: np.ndarray | None = None
     noise_mean: np.ndarray | None = None
+    floor: np.ndarray | None = None
+    ceil: np.ndarray | None = None
 
     def crop(self, rows: slice, cols: slice) -> BackgroundWindowStats:
         """The same statistics on the rectangle ``[rows, cols]`` of the image (views, no copy). The NCC of a
@@ -81,7 +86,8 @@ class BackgroundWindowStats:
             return None if a is None else a[rows, cols]
 
         return BackgroundWindowStats(self.window, self.min_texture, cut(self.b), cut(self.bb), cut(self.mean),
-                                     cut(self.var), cut(self.noise_var), cut(self.noise_mean))
+                                     cut(self.var), cut(self.noise_var), cut(self.noise_mean), cut(self.floor),
+                                     cut(self.ceil))
 
 
 def box(img: np.ndarray, window: int) -> np.ndarray:
@@ -111,7 +117,10 @@ def background_window_stats(
     if noise_var is not None:
         nv = np.asarray(noise_var, np.float32)
         nm = box(nv, window)
-    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var, nv, nm)
+    level = np.asarray(background, np.float64)
+    floor = np.clip(np.floor(level), 0, 255).astype(np.uint8)
+    ceil = np.clip(np.ceil(level), 0, 255).astype(np.uint8)
+    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var, nv, nm, floor, ceil)
 
 
 def local_ncc(
@@ -157,12 +166,12 @@ def shadow_mask(
 
     at : array (H, W) bool or None
         Pixels to test (the candidates: the only pixels whose answer the pipeline uses); None: all.
-        With ``support``, the brightness ratio is computed first, from 2 of the 6 window sums, at
-        those pixels only; the other 4 sums are box-filtered over the bounding box of the pixels
-        whose ratio is within ``ratio_bounds`` (a shadow darkens: on a person brighter than the room
-        that is the cast shadow alone), and the NCC computed at those pixels only. Same float32
-        operations on the same window sums (up to the last bit of a sum, which OpenCV's running
-        box sums take from where the crop starts), so the same answers.
+        With ``support``, a quick brightness test in integers comes first at those pixels (see
+        :func:`_shadow_at`: it drops only pixels whose ratio is outside ``ratio_bounds``); the window
+        sums are then box-filtered over the bounding box of the pixels left only (a shadow darkens: on
+        a person brighter than the room that is the cast shadow alone), and the NCC computed at those
+        pixels only. Same float32 operations on the same window sums (up to the last bit of a sum,
+        which OpenCV's running box sums take from where the crop starts), so the same answers.
 
     Returns (H, W) bool: the same values as thresholding :func:`local_ncc`'s maps (False outside
     ``at``), but only the region where the NCC can be defined is touched.
@@ -240,7 +249,14 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
 
 
 def _shadow_at(frame, bg: BackgroundWindowStats, support, min_support: float, threshold: float, ratio_bounds, at):
-    """:func:`shadow_mask` at the pixels ``at`` with candidate ``support`` (see there): (H, W) bool."""
+    """:func:`shadow_mask` at the pixels ``at`` with candidate ``support`` (see there): (H, W) bool.
+
+    1. A quick brightness test at the pixels of ``at`` with enough support, in integers: the window sums of the
+       candidates' graylevels ``S_f`` and of the background rounded up and down (``S_ceil >= S_b >= S_floor``),
+       three uint8 box filters. A shadow's ratio ``S_f / S_b`` lies in ``ratio_bounds``, so it has
+       ``lo S_floor <= S_f <= hi S_ceil`` (with a margin far above float32 rounding): the others are not shadows.
+    2. The window sums of the NCC in float32 (as :func:`local_ncc`) over the bounding box of the pixels left and
+       the windows' reach, the NCC and the exact ratio test there."""
     w, r = bg.window, bg.window // 2
     out = np.zeros(np.shape(frame), bool)
     found = _support_crop(support, w, min_support)
@@ -249,38 +265,41 @@ def _shadow_at(frame, bg: BackgroundWindowStats, support, min_support: float, th
     count, enough, crop, region, inner = found
     tested = np.zeros(count[crop].shape, bool)  # the pixels of `at` with a defined NCC, in the crop
     tested[inner] = enough[region] & at[region]
+    c8 = np.ascontiguousarray(support[crop]).view(np.uint8)
+    frame8 = np.asarray(frame[crop], np.uint8)
+    if bg.floor is not None:
+        def window_sum(levels):  # float32 sums of integers below 2^24 (255 w^2): exact
+            return cv2.boxFilter(levels * c8, cv2.CV_32F, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
+
+        lo, hi = ratio_bounds
+        s_f = window_sum(frame8)
+        # S_f - hi S_ceil <= 0 <= S_f - lo S_floor, with 2 graylevels of slack in the sums against float rounding
+        tested &= cv2.scaleAdd(window_sum(bg.ceil[crop]), -float(hi), s_f) <= np.float32(2.0)
+        tested &= cv2.scaleAdd(window_sum(bg.floor[crop]), -float(lo), s_f) >= np.float32(-2.0)
     j = np.flatnonzero(tested)  # raster order; flat indices into the crop's arrays
     if not j.size:
         return out
-    f = np.asarray(frame[crop], np.float32) - _CENTER
-    c = support[crop].astype(np.float32)
-    b = bg.b[crop]
-    cf = c * f
-    inv = np.float32(w * w) / np.take(count[crop], j)  # 1 / E_W[c]
-    mf = np.take(box(cf, w), j) * inv
-    mb = np.take(box(c * b, w), j) * inv
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = (mf + _CENTER) / (mb + _CENTER)  # as in _finish
-    dark = (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
-    if not dark.any():
-        return out
-    j, mf, mb, inv = j[dark], mf[dark], mb[dark], inv[dark]
-    # The other window sums over those pixels' bounding box and the windows' reach only (inside the crop,
-    # whose edges are the image's or at least r pixels from any pixel tested).
-    ch, cw = f.shape
+    # The window sums over those pixels' bounding box and the windows' reach only (inside the crop, whose edges
+    # are the image's or at least r pixels from any pixel tested).
+    ch, cw = tested.shape
     rows, cols = np.divmod(j, cw)
     y0, y1, x0, x1 = max(rows.min() - r, 0), min(rows.max() + r + 1, ch), max(cols.min() - r, 0), min(cols.max() + r + 1, cw)
     sub = (slice(y0, y1), slice(x0, x1))
     js = (rows - y0) * (x1 - x0) + (cols - x0)
-    c, f, b, cf = c[sub], f[sub], b[sub], cf[sub]
+    f = frame8[sub].astype(np.float32) - _CENTER
+    c = c8[sub].astype(np.float32)
+    b = bg.b[crop][sub]
+    cf = c * f
+    inv = np.float32(w * w) / np.take(count[crop][sub], js)  # 1 / E_W[c]
+    mf = np.take(box(cf, w), js) * inv
+    mb = np.take(box(c * b, w), js) * inv
     var_f = np.take(box(cf * f, w), js) * inv - mf * mf
     var_b = np.take(box(c * bg.bb[crop][sub], w), js) * inv - mb * mb
     cov = np.take(box(cf * b, w), js) * inv - mf * mb
     noise = None if bg.noise_var is None else np.take(box(c * bg.noise_var[crop][sub], w), js) * inv
     ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, True, bg.min_texture)
     hit = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
-    rows, cols = np.divmod(j[hit], cw)
-    out[rows + crop[0].start, cols + crop[1].start] = True
+    out[rows[hit] + crop[0].start, cols[hit] + crop[1].start] = True
     return out
 
 
