@@ -63,11 +63,11 @@ pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared 
 the gain divides the frame through 256-entry lookup tables. The masks equal those of the former
 whole-frame pipeline (``tests/segment/test_region_of_interest.py``). Measured with
 ``benchmarks/segmentation.py``'s ``--quick`` sizes, the former and this pipeline alternating in one
-process (2 rounds, a shared 2-core machine at load 6-8; CPU time per frame, fastest of 3 passes, over
-MOG2's at the same resolution): 320x240 2.90 / 2.67x before, 1.45 / 1.63x after (1.5 ms per frame);
-1920x1080 at full size 4.30 / 4.24x before, 1.43 / 1.64x after (126 -> 42-56 ms); the working size
-360x202, resize and scaling back included, 1.70 / 1.53x before, 1.21 / 1.31x after; the subtractions
-alone on frames shrunk beforehand 3.38 / 3.44x before, 2.25 / 2.03x after (the gain's lookup and
+process (2 rounds, a shared 2-core machine at load 6-7; CPU time per frame, fastest of 3 passes, over
+MOG2's at the same resolution): 320x240 2.79 / 3.00x before, 1.25 / 1.45x after (1.1-1.4 ms per frame);
+1920x1080 at full size 4.47 / 4.85x before, 1.58 / 1.48x after (106-115 -> 35-37 ms); the working size
+360x202, resize and scaling back included, 1.58 / 1.59x before, 1.28 / 1.37x after; the subtractions
+alone on frames shrunk beforehand 3.57 / 3.80x before, 2.04 / 1.85x after (the gain's lookup and
 median are a sixth of ours there; MOG2 has none).
 
 Defaults were measured on ``data/smoke/frames`` (Blender Cycles renders with floor shadows, 32
