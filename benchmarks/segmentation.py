@@ -130,9 +130,11 @@ def run(
         for name in fns:
             rows.append(_best_row(name, best[name], truth))
             if name == "BackgroundModel.segment (streaming)":
-                t0, c0 = time.perf_counter(), time.thread_time()
-                batch = model.segment_batch(frames)
-                wall, cpu = time.perf_counter() - t0, time.thread_time() - c0
+                wall = cpu = float("inf")
+                for _ in range(max(1, repeats)):  # the fastest of the passes, as the streaming rows
+                    t0, c0 = time.perf_counter(), time.thread_time()
+                    batch = model.segment_batch(frames)
+                    wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.thread_time() - c0)
                 rows.append(_row("BackgroundModel.segment_batch", batch, truth, wall, cpu, None))
         rows.append(
             {"method": f"BackgroundModel.fit ({n_background} background frames)", "frames": n_background,
