@@ -118,8 +118,9 @@ def test_colour_prefilter_bounds_never_exclude_a_shadow_like_pixel():
 
 
 @pytest.mark.parametrize("colour", [True, False])
-def test_gain_lookup_table_equals_dividing_the_frame(scene, colour):
-    """_normalise_gain's lookup tables give what OpenCV's division of the whole frame gives, pixel for pixel."""
+def test_gain_division_channel_by_channel_equals_dividing_the_frame(scene, colour):
+    """_normalise_gain (colour: convertScaleAbs channel by channel) gives what cv2.transform by the diagonal matrix
+    of the inverse gains gives on the whole frame, pixel for pixel."""
     background = scene.background if colour else scene.background[..., 1]
     model = BackgroundModel(gain=True).fit(background)
     rng = np.random.default_rng(2)
