@@ -63,12 +63,12 @@ pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared 
 the gain divides the frame channel by channel (cv2.convertScaleAbs). The masks equal those of the former
 whole-frame pipeline (``tests/segment/test_region_of_interest.py``). Measured with
 ``benchmarks/segmentation.py``'s ``--quick`` sizes, the former and this pipeline alternating in one
-process (2 rounds, a shared 2-core machine at load 6-7; CPU time per frame, fastest of 3 passes, over
-MOG2's at the same resolution): 320x240 2.79 / 3.00x before, 1.25 / 1.45x after (1.1-1.4 ms per frame);
-1920x1080 at full size 4.47 / 4.85x before, 1.58 / 1.48x after (106-115 -> 35-37 ms); the working size
-360x202, resize and scaling back included, 1.58 / 1.59x before, 1.28 / 1.37x after; the subtractions
-alone on frames shrunk beforehand 3.57 / 3.80x before, 2.04 / 1.85x after (the gain's division and
-median are a sixth of ours there; MOG2 has none).
+process (2 rounds, a shared 2-core machine at load 3-4; CPU time per frame, fastest of 3 passes, over
+MOG2's at the same resolution): 320x240 2.60 / 2.64x before, 1.17 / 1.22x after (2.3 -> 1.0-1.1 ms per
+frame); 1920x1080 at full size 3.98 / 4.14x before, 1.40 / 1.33x after (91-97 -> 30-32 ms); the working
+size 360x202, resize and scaling back included, 1.61 / 1.66x before, 1.23 / 1.19x after; the
+subtractions alone on frames shrunk beforehand 3.35 / 3.52x before, 1.76 / 1.67x after (the gain's
+division and median, which MOG2 does not do, are about a tenth of ours there).
 
 Defaults were measured on ``data/smoke/frames`` (Blender Cycles renders with floor shadows, 32
 views; ``python -m silpose.app.segment_quality``): mean IoU against the true masks 0.662 with
