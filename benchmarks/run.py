@@ -91,7 +91,7 @@ SECTIONS: dict[str, Section] = {
         "peak RSS of the in-memory vs streaming (out-of-core) MPPCA fit; dataset repeated 1x/2x/4x at fixed shard size",
     ),
     "segmentation": Section(
-        "segmentation", {"n_frames": 200}, {"n_frames": 40, "n_background": 20, "hd_frames": 4},
+        "segmentation", {"n_frames": 200}, {"n_frames": 40, "n_background": 20, "hd_frames": 8},
         "background subtraction frames/s per core at 320x240 vs OpenCV MOG2; at 1920x1080 through the working size",
     ),
     "frames": Section(

@@ -23,3 +23,23 @@ def test_segmentation_rows_are_consistent_with_their_timings():
         assert math.isclose(r["ratio_to_mog2"], (r["frames"] / r["cpu_s"]) / mog_rate, rel_tol=1e-12)
     streaming = [r for r in rows if not math.isnan(r["ms_p50"])]
     assert len(streaming) == 4 and all(r["ms_p50"] <= r["ms_p95"] for r in streaming)
+    for name in ("BackgroundModel.segment (streaming)", "no shadow rejection (ncc_threshold=None)"):
+        r = by[name]  # the same-resolution comparison with the MOG2 row
+        assert r["same_size_mog2"] == mog["method"]
+        assert math.isclose(r["time_vs_same_size_mog2"], (r["cpu_s"] / r["frames"]) / (mog["cpu_s"] / mog["frames"]))
+        assert math.isclose(r["iou_minus_same_size_mog2"], r["iou"] - mog["iou"])
+
+
+def test_best_of_keeps_the_fastest_pass_per_frame(monkeypatch):
+    """Repeated passes: the masks of the last pass, and per frame the smallest of the passes' times."""
+    import numpy as np
+
+    from benchmarks import segmentation
+
+    passes = iter([(np.zeros((2, 3, 4), bool), np.array([3.0, 1.0]), np.array([2.0, 1.0])),
+                   (np.ones((2, 3, 4), bool), np.array([2.0, 5.0]), np.array([4.0, 0.5]))])
+    monkeypatch.setattr(segmentation, "_stream", lambda fn, frames: next(passes))
+    masks, sec, cpu = segmentation._best_of({"a": None}, np.zeros((2, 3, 4)), repeats=2)["a"]
+    assert masks.all()
+    np.testing.assert_array_equal(sec, [2.0, 1.0])
+    np.testing.assert_array_equal(cpu, [2.0, 0.5])

@@ -53,6 +53,23 @@ Two additions for real rooms (not in the paper):
 Colour frames are BGR (``cv2.imread`` order) and are converted with ``cv2.cvtColor`` for the
 graylevel statistics and the NCC.
 
+Speed (issue 24: at most 1.5x OpenCV's MOG2 at the same resolution). Steps 1-2 run on the whole frame;
+steps 3-5 on the frame's region of interest only: the candidates' bounding box grown by a margin that
+keeps every later value what whole-frame processing gives (``BackgroundModel._roi_margin``). Inside it
+the NCC is computed at the candidates only, after a quick integer test of the brightness ratio
+(:mod:`.ncc`); the colour test runs
+on the candidates that are not NCC seeds and fall within per-channel uint8 bounds every shadow-like
+pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared colour differences;
+the gain divides the frame channel by channel (cv2.convertScaleAbs). The masks equal those of the former
+whole-frame pipeline (``tests/segment/test_region_of_interest.py``). Measured with
+``benchmarks/segmentation.py``'s ``--quick`` sizes, the former and this pipeline alternating in one
+process (2 rounds, a shared 2-core machine at load 3-4; CPU time per frame, fastest of 3 passes, over
+MOG2's at the same resolution): 320x240 2.60 / 2.64x before, 1.17 / 1.22x after (2.3 -> 1.0-1.1 ms per
+frame); 1920x1080 at full size 3.98 / 4.14x before, 1.40 / 1.33x after (91-97 -> 30-32 ms); the working
+size 360x202, resize and scaling back included, 1.61 / 1.66x before, 1.23 / 1.19x after; the
+subtractions alone on frames shrunk beforehand 3.35 / 3.52x before, 1.76 / 1.67x after (the gain's
+division and median, which MOG2 does not do, are about a tenth of ours there).
+
 Defaults were measured on ``data/smoke/frames`` (Blender Cycles renders with floor shadows, 32
 views; ``python -m silpose.app.segment_quality``): mean IoU against the true masks 0.662 with
 the paper's graylevel rules and the former cleanup (median 5, open 3, close 7), see
@@ -66,7 +83,7 @@ import numpy as np
 
 from . import cleanup
 from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
-from .chroma import grow_shadows
+from .chroma import seeded_components, shadow_like
 from .ncc import background_window_stats, shadow_mask
 
 STAGES = ("candidates", "shadow_rejected", "edges", "median", "morphology", "final")
@@ -95,6 +112,24 @@ def add_sums(frames: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> None:
             np.multiply(f, f, out=sq, dtype=np.uint16)
             acc += sq
         s2 += acc
+
+
+def _outer_index(j: np.ndarray, width: int, outer_width: int, row0: int, col0: int) -> np.ndarray:
+    """Flat indices ``j`` (n,) into a rectangle ``width`` pixels wide whose top-left pixel is (``row0``,
+    ``col0``) of an image ``outer_width`` wide -> the same pixels' flat indices into that image (n,)."""
+    return j + (j // width) * (outer_width - width) + (row0 * outer_width + col0)
+
+
+def _median_rows(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=-1)`` of float32 rows (..., n), n >= 1, without NaN: the same values (the mean of the
+    two middle ones for even n, summed in float32), without np.median's generic machinery (half its time on the
+    few thousand gain ratios of a frame)."""
+    n = x.shape[-1]
+    k = n // 2
+    if n % 2:
+        return np.partition(x, k, axis=-1)[..., k]
+    part = np.partition(x, (k - 1, k), axis=-1)
+    return (part[..., k - 1] + part[..., k]) / np.float32(2)
 
 
 class BackgroundModel:
@@ -349,6 +384,15 @@ class BackgroundModel:
             self.colour_mean_, self.colour_std_ = colour
             # Colour candidates: sum_c (f_c - mean_c)^2 / max(std_c, min_std)^2 > 3 k^2.
             self._cmean32 = self.colour_mean_.astype(np.float32)
+            self._cmean_planes = np.ascontiguousarray(self.colour_mean_.reshape(-1, 3).T)  # (3, H W) channel planes
+            if self.chroma_max is not None:
+                # A shadow-like pixel has f_c = alpha m_c + r_c with alpha in shadow_ratio and |r_c| <= cd <= chroma_max,
+                # so lo m_c - chroma_max <= f_c <= hi m_c + chroma_max in every channel: uint8 bounds (one graylevel
+                # looser than that, against rounding) that rule most other pixels out in one cv2.inRange.
+                lo, hi = self.shadow_ratio
+                cm = self.colour_mean_
+                self._like_lo = np.clip(np.ceil(lo * cm - self.chroma_max) - 1, 0, 255).astype(np.uint8)
+                self._like_hi = np.clip(np.floor(hi * cm + self.chroma_max) + 1, 0, 255).astype(np.uint8)
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
             self._cthr = np.float32(3.0 * self.k_sigma**2)
         self._mean32 = self.mean_.astype(np.float32)
@@ -361,6 +405,10 @@ class BackgroundModel:
         self._gain_ref = grid.astype(np.float32)
         self._gain_ok = (grid > _GAIN_MIN_LEVEL) if grid.ndim == 2 else (grid > _GAIN_MIN_LEVEL).all(axis=-1)
         self._gain_ref_ok = self._gain_ref[self._gain_ok]  # (N,) or (N, 3): frame_gain's denominators
+        self._gain_ref_rows = np.ascontiguousarray(self._gain_ref_ok.T)  # (N,) or (3, N)
+        h, w = self.mean_.shape
+        grid_px = np.arange(0, h, _GAIN_STEP)[:, None] * w + np.arange(0, w, _GAIN_STEP)[None, :]
+        self._gain_px = grid_px[self._gain_ok]  # (N,) flat pixel indices of those grid points
 
     def _check_params(self) -> None:
         def fail(name, value, rule):
@@ -440,7 +488,7 @@ class BackgroundModel:
         self._check_fitted()
         arr = as_single_frame(frame, "frame")
         self._check_shape(arr.shape[:2], "frame")
-        stages = self._segment(arr[None])
+        stages = self._segment(arr[None], return_stages)
         if return_stages:
             return {k: v[0] for k, v in stages.items()}
         return stages["final"][0]
@@ -462,7 +510,7 @@ class BackgroundModel:
         self._check_shape(stack.shape[1:3], "frames")
         out = {k: np.empty(stack.shape[:3], bool) for k in (STAGES if return_stages else ("final",))}
         for start in range(0, stack.shape[0], _BATCH_CHUNK):
-            chunk = self._segment(stack[start : start + _BATCH_CHUNK])
+            chunk = self._segment(stack[start : start + _BATCH_CHUNK], return_stages)
             for k in out:
                 out[k][start : start + _BATCH_CHUNK] = chunk[k]
         return out if return_stages else out["final"]
@@ -477,71 +525,139 @@ class BackgroundModel:
             f = f.astype(np.float32) @ np.array([0.114, 0.587, 0.299], np.float32)  # BGR -> grey, as cv2.cvtColor
         elif f.ndim == 2 and ref.ndim == 3:
             ref = ref @ np.array([0.114, 0.587, 0.299], np.float32)
-        else:  # the frame of the background's kind: the grid's reference values taken once (_prepare)
-            ratio = f[self._gain_ok].astype(np.float32) / self._gain_ref_ok
-            if not len(ratio):
-                return np.ones(ratio.shape[1:], np.float32)
+        else:  # the frame of the background's kind: the grid's reference values and pixels taken once (_prepare)
+            frame = np.asarray(frame)
+            px = np.take(frame.reshape(-1, *frame.shape[2:]), self._gain_px, axis=0)  # (N,) or (N, 3)
             # per channel, over contiguous rows: the same medians as over the (N, C) columns, in a third of the time
-            return np.median(np.ascontiguousarray(ratio.T), axis=-1).astype(np.float32)
+            ratio = np.ascontiguousarray(px.T, dtype=np.float32) / self._gain_ref_rows
+            if not ratio.shape[-1]:
+                return np.ones(ratio.shape[:-1], np.float32)
+            return _median_rows(ratio)
         ratio = f[self._gain_ok].astype(np.float32) / ref[self._gain_ok]
         if not len(ratio):
             return np.ones(ratio.shape[1:], np.float32)
         return np.median(ratio, axis=0).astype(np.float32)
 
     def _normalise_gain(self, stack: np.ndarray) -> np.ndarray:
+        """Each frame divided by its gain (rounded, saturating): ``cv2.convertScaleAbs`` by the inverse gain, channel
+        by channel for colour frames (split, scaled, merged: 6x faster than ``cv2.transform`` by the diagonal
+        matrix of the float32 inverse gains, 2.5x a 3-channel ``cv2.LUT``, and the same values, tested)."""
         out = np.empty_like(stack)
         for i, f in enumerate(stack):
             g = self.frame_gain(f)
             if f.ndim == 3 and np.ndim(g) == 1:
-                out[i] = cv2.transform(f, np.diag(1.0 / np.maximum(g, 1e-3)).astype(np.float32))  # saturating
+                inv = (1.0 / np.maximum(g, 1e-3)).astype(np.float32)
+                cv2.merge([cv2.convertScaleAbs(c, alpha=float(a)) for c, a in zip(cv2.split(f), inv)], dst=out[i])
             else:
                 cv2.convertScaleAbs(f, dst=out[i], alpha=float(1.0 / max(float(g), 1e-3)))
         return out
 
-    def _segment(self, stack: np.ndarray) -> dict[str, np.ndarray]:
-        """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}."""
+    def _segment(self, stack: np.ndarray, stages: bool = False) -> dict[str, np.ndarray]:
+        """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}: every stage
+        of :data:`STAGES` with ``stages``, else only ``"final"``.
+
+        After the candidates, each frame is processed on its region of interest only: the candidates'
+        bounding box grown by :meth:`_roi_margin` pixels (clipped to the frame). Every later step gives there
+        the values it gives on the whole frame, and nothing outside it (see :meth:`_roi_margin`)."""
         if self.gain:
             stack = self._normalise_gain(stack)
-        gray = to_gray(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
-        if use_colour:
-            cand = np.empty(gray.shape, bool)
-            for i in range(stack.shape[0]):  # per frame, float32 in OpenCV (~10x numpy's speed)
-                d = cv2.subtract(stack[i], self._cmean32, dtype=cv2.CV_32F)
-                cv2.multiply(d, d, dst=d)
-                cv2.multiply(d, self._inv_var, dst=d)
-                np.greater(cv2.transform(d, _SUM3), self._cthr, out=cand[i])  # sum over channels
-        else:
+        if not use_colour:
             # Graylevel, vectorised over the stack: |f - mean| > k sigma, for integer f exactly
             # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
-            cand = (gray > self._upper) | (gray < self._lower)
-        out = {k: np.empty(gray.shape, bool) for k in STAGES}
-        out["candidates"][:] = cand
-        for i in range(gray.shape[0]):
-            kept = cand[i]
-            if self._bg is not None and kept.any():
-                support = kept if self.ncc_support == "candidates" else None
-                shadow = shadow_mask(gray[i], self._bg, support, self.min_support, self.ncc_threshold, self.shadow_ratio)
-                if use_colour and self.chroma_max is not None:
-                    shadow = grow_shadows(stack[i], self.colour_mean_, kept, shadow & kept, self.shadow_ratio, self.chroma_max)
-                kept = kept & ~shadow
-            out["shadow_rejected"][i] = kept
-            if self.edge_coverage is not None:
-                kept = self._trim_edges(stack[i] if use_colour else gray[i], kept)
-            out["edges"][i] = kept
-            m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)
-            out["median"][i] = m > 0
-            m = cleanup.open_close(m, self.open_size, self.close_size)
-            out["morphology"][i] = m > 0
-            if self.largest_blob:
-                m = cleanup.largest_blob(m)
-            out["final"][i] = m > 0
+            gray = to_gray(stack)
+            cand_all = (gray > self._upper) | (gray < self._lower)
+        names = STAGES if stages else ("final",)
+        out = {k: np.zeros(stack.shape[:3], bool) for k in names}
+        h, w = stack.shape[1:3]
+        margin = self._roi_margin()
+        for i in range(stack.shape[0]):
+            cand, sq = self._colour_candidates(stack[i]) if use_colour else (cand_all[i], None)
+            if stages:
+                out["candidates"][i] = cand
+            x, y, bw, bh = cv2.boundingRect(cand.view(np.uint8))
+            if bw == 0:
+                continue  # no candidate: every later stage is empty
+            roi = (slice(max(y - margin, 0), min(y + bh + margin, h)), slice(max(x - margin, 0), min(x + bw + margin, w)))
+            if use_colour:  # the same graylevels as to_gray's, pixel by pixel
+                whole, region_gray = stack[i], cv2.cvtColor(stack[i][roi], cv2.COLOR_BGR2GRAY)
+            else:
+                whole, region_gray = gray[i], gray[i][roi]
+            masks = self._segment_roi(whole, region_gray, np.ascontiguousarray(cand[roi]), roi, stages, sq)
+            for k, m in masks.items():
+                out[k][i][roi] = m
         return out
 
-    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray) -> np.ndarray:
-        """Step 4 of the module docstring on one frame ((H, W, 3) colour with a colour background, else
-        (H, W) graylevel; gain-normalised) and its kept pixels (H, W) bool -> the kept pixels without the
-        mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed."""
+    def _colour_candidates(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Colour candidates of one frame (H, W, 3) uint8 (float32 in OpenCV, ~10x numpy's speed) -> (H, W) bool,
+        and the squared colour difference from the background mean ``sum_c (f_c - mean_c)^2`` (H, W) float32 that
+        the edge rule uses (None when it is off)."""
+        d = frame.astype(np.float32)  # then in place: a third faster than cv2.subtract(..., dtype=CV_32F), same values
+        cv2.subtract(d, self._cmean32, dst=d)
+        cv2.multiply(d, d, dst=d)
+        sq = cv2.transform(d, _SUM3) if self.edge_coverage is not None else None  # sum over channels
+        cv2.multiply(d, self._inv_var, dst=d)
+        return cv2.transform(d, _SUM3) > self._cthr, sq
+
+    def _roi_margin(self) -> int:
+        """Pixels the region of interest extends beyond the candidates' bounding box. Every pixel of a later stage
+        that can be set lies inside it, and so does each window that decides one: the NCC's windows (radius
+        ``r_n = ncc_window // 2``) around candidates, and the clean-up's. The median (radius ``r_m``) sets pixels
+        up to ``r_m`` out and reads ``r_m`` further; the opening adds nothing beyond the median's, its erosion
+        reads ``2 r_o`` further; the closing dilates by ``r_c`` and its erosion reads ``2 r_c`` beyond that. So
+        a margin above ``max(r_n, 2 r_m, r_m + 2 r_o, r_m + 3 r_c)`` leaves a ring of unset pixels inside the
+        region's edges wide enough that OpenCV's border rules there (replicated, or neutral for the morphology)
+        see what the whole frame would show: zeros. One more pixel for the edge rule's 3x3 neighbourhoods."""
+        r_n = self.ncc_window // 2
+        r_m, r_o, r_c = (max(int(v), 1) // 2 for v in (self.median_size, self.open_size, self.close_size))
+        return max(r_n, 2 * r_m, r_m + 2 * r_o, r_m + 3 * r_c) + 2
+
+    def _segment_roi(self, whole, gray, cand, roi, stages: bool, sq=None) -> dict[str, np.ndarray]:
+        """Steps 3-5 on a frame's region of interest ``roi`` (slice, slice) -> {stage: (h, w) bool} (every stage
+        after "candidates" with ``stages``, else "final"). whole: the whole frame (H, W, 3) colour with a colour
+        background, else (H, W) graylevel, contiguous; gray (h, w) uint8 and cand (h, w) bool (contiguous): the
+        region's graylevels and candidates; sq: the whole frame's squared colour differences or None (see
+        :meth:`_colour_candidates`)."""
+        out = {}
+        kept = cand
+        frame = whole[roi]
+        if self._bg is not None:
+            support = kept if self.ncc_support == "candidates" else None
+            shadow = shadow_mask(gray, self._bg.crop(*roi), support, self.min_support, self.ncc_threshold,
+                                 self.shadow_ratio, at=kept)
+            if frame.ndim == 3 and self.chroma_max is not None and shadow.any():
+                # grow_shadows, with the colour test at the candidates that are not seeds only, their colours taken
+                # from the whole frame's contiguous pixel lists (a fancy index into the region is 4x slower)
+                like = np.zeros(kept.shape, bool)
+                maybe = cv2.inRange(frame, self._like_lo[roi], self._like_hi[roi]) > 0  # (see _prepare)
+                j = np.flatnonzero(kept & ~shadow & maybe)
+                px = _outer_index(j, kept.shape[1], whole.shape[1], roi[0].start, roi[1].start)
+                flat, px3 = whole.reshape(-1), 3 * px
+                colours = [np.take(flat, px3 + k) for k in range(3)]  # 1-D takes, channel by channel: fast
+                means = [np.take(plane, px) for plane in self._cmean_planes]
+                like.reshape(-1)[j] = shadow_like(colours, means, self.shadow_ratio, self.chroma_max, channel_axis=0)
+                shadow = seeded_components(like, shadow)
+            kept = kept & ~shadow
+        if stages:
+            out["shadow_rejected"] = kept
+        if self.edge_coverage is not None:
+            kept = self._trim_edges(frame, kept, roi, sq)
+        m = cleanup.median(kept.view(np.uint8) * np.uint8(255), self.median_size)
+        if stages:
+            out["edges"], out["median"] = kept, m > 0
+        m = cleanup.open_close(m, self.open_size, self.close_size)
+        if stages:
+            out["morphology"] = m > 0
+        if self.largest_blob:
+            m = cleanup.largest_blob(m)
+        out["final"] = m > 0
+        return out
+
+    def _trim_edges(self, frame: np.ndarray, kept: np.ndarray, roi=(slice(None), slice(None)), sq=None) -> np.ndarray:
+        """Step 4 of the module docstring on one frame's region of interest ``roi`` ((h, w, 3) colour with a colour
+        background, else (h, w) graylevel; gain-normalised) and its kept pixels (h, w) bool -> the kept pixels
+        without the mixed edge pixels. Only the kept pixels' bounding box (grown by one) is computed. sq: the
+        whole frame's squared colour differences when the candidates computed them (the same values), else None."""
         k8 = kept.view(np.uint8)
         x, y, w, h = cv2.boundingRect(k8)
         if w == 0:
@@ -550,11 +666,14 @@ class BackgroundModel:
         x0, y0, x1, y1 = max(x - 1, 0), max(y - 1, 0), min(x + w + 1, W), min(y + h + 1, H)
         sub = k8[y0:y1, x0:x1]
         interior = cv2.erode(sub, _CROSS3, borderType=cv2.BORDER_REPLICATE)  # all 8 neighbours kept
-        if frame.ndim == 3:
-            d = cv2.subtract(frame[y0:y1, x0:x1], self._cmean32[y0:y1, x0:x1], dtype=cv2.CV_32F)
+        if sq is not None:
+            d = cv2.sqrt(sq[roi][y0:y1, x0:x1])
+        elif frame.ndim == 3:
+            mean = self._cmean32[roi][y0:y1, x0:x1]
+            d = cv2.subtract(frame[y0:y1, x0:x1], mean, dtype=cv2.CV_32F)
             d = cv2.sqrt(cv2.transform(cv2.multiply(d, d), _SUM3))
         else:
-            d = cv2.absdiff(frame[y0:y1, x0:x1].astype(np.float32), self._mean32[y0:y1, x0:x1])
+            d = cv2.absdiff(frame[y0:y1, x0:x1].astype(np.float32), self._mean32[roi][y0:y1, x0:x1])
         ref = cv2.dilate(d * interior, _CROSS3)  # the largest interior neighbour's difference (0: none)
         drop = (sub > interior) & (d < np.float32(self.edge_coverage) * ref)
         if not drop.any():

@@ -29,29 +29,63 @@ import cv2
 import numpy as np
 
 
-def brightness_chroma(frame: np.ndarray, mean: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def brightness_chroma(frame: np.ndarray, mean: np.ndarray, channel_axis: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """Brightness distortion ``alpha`` and chromaticity distortion ``cd`` of a colour frame.
 
     Parameters
     ----------
     frame : array (H, W, 3) uint8 or float, colour frame (any channel order, same as ``mean``)
     mean : array (H, W, 3) float, per-pixel background mean colour, graylevels
+    channel_axis : -1 (channels last, as above) or 0 (channels first: (3, ...) planes, e.g. (3, n)
+        pixel lists, whose channels are contiguous rows)
 
     Returns
     -------
     alpha : array (H, W) float64 (0 where the background is black)
     cd : array (H, W) float64, graylevels
 
-    Any leading shape works: (..., 3) in, (...) out.
+    Any leading shape works: (..., 3) in, (...) out. The sums over the 3 channels are written out
+    (``a0 b0 + a1 b1 + a2 b2``): 2-3x faster than ``einsum`` on the few thousand pixels of a frame.
     """
     f = np.asarray(frame, np.float64)
     m = np.asarray(mean, np.float64)
-    mm = np.einsum("...c,...c->...", m, m)
+    fc = (f[0], f[1], f[2]) if channel_axis == 0 else (f[..., 0], f[..., 1], f[..., 2])
+    mc = (m[0], m[1], m[2]) if channel_axis == 0 else (m[..., 0], m[..., 1], m[..., 2])
+
+    def dot(a, b):
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+    mm = dot(mc, mc)
     alpha = np.zeros(mm.shape)
-    np.divide(np.einsum("...c,...c->...", f, m), mm, out=alpha, where=mm > 0)
-    resid = f - alpha[..., None] * m
-    cd = np.sqrt(np.einsum("...c,...c->...", resid, resid))
+    np.divide(dot(fc, mc), mm, out=alpha, where=mm > 0)
+    resid = [p - alpha * q for p, q in zip(fc, mc)]
+    cd = np.sqrt(dot(resid, resid))
     return alpha, cd
+
+
+def shadow_like(
+    frame_px: np.ndarray, mean_px: np.ndarray, ratio_bounds: tuple[float, float], chroma_max: float, channel_axis: int = -1
+) -> np.ndarray:
+    """Shadow-like pixels: ``ratio_bounds[0] <= alpha <= ratio_bounds[1]`` and ``cd <= chroma_max``.
+
+    frame_px (..., 3) uint8 or float and mean_px (..., 3) float: colours of the same pixels (e.g. (n, 3)
+    lists of candidate pixels; (3, ...) with ``channel_axis=0``, see :func:`brightness_chroma`); returns (...) bool."""
+    alpha, cd = brightness_chroma(frame_px, mean_px, channel_axis)
+    return (alpha >= ratio_bounds[0]) & (alpha <= ratio_bounds[1]) & (cd <= chroma_max)
+
+
+def seeded_components(like: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """The 8-connected components of ``like | seeds`` that hold a seed: (H, W) bool, from two (H, W) bool
+    masks (``like`` is modified: the seeds are added to it)."""
+    like |= seeds
+    n, labels = cv2.connectedComponents(like.view(np.uint8), connectivity=8)
+    seeded = np.zeros(n, bool)
+    seeded[labels[seeds]] = True
+    seeded[0] = False
+    ids = np.flatnonzero(seeded)
+    if ids.size == 1:  # one seeded component (a person's shadow): one comparison, 8x faster than the lookup
+        return cv2.compare(labels, int(ids[0]), cv2.CMP_EQ) > 0
+    return np.take(seeded, labels)  # (twice as fast as seeded[labels])
 
 
 def grow_shadows(
@@ -80,16 +114,8 @@ def grow_shadows(
     seeds = np.asarray(seeds, bool)
     if not seeds.any():
         return seeds.copy()
-    # Distortions at the candidate pixels only (a few % of the image): (n, 1, 3) views.
-    idx = np.flatnonzero(candidates)
-    f = np.asarray(frame).reshape(-1, 3)[idx][:, None]
-    m = np.asarray(mean).reshape(-1, 3)[idx][:, None]
-    alpha, cd = brightness_chroma(f, m)
-    ok = (alpha[:, 0] >= ratio_bounds[0]) & (alpha[:, 0] <= ratio_bounds[1]) & (cd[:, 0] <= chroma_max)
-    like = seeds.copy()
-    like.reshape(-1)[idx[ok]] = True
-    n, labels = cv2.connectedComponents(like.view(np.uint8), connectivity=8)
-    seeded = np.zeros(n, bool)
-    seeded[labels[seeds]] = True
-    seeded[0] = False
-    return seeded[labels]
+    # Distortions at the candidate pixels only (a few % of the image): (n, 3) gathers.
+    candidates = np.asarray(candidates, bool)
+    like = np.zeros(seeds.shape, bool)
+    like[candidates] = shadow_like(np.asarray(frame)[candidates], np.asarray(mean)[candidates], ratio_bounds, chroma_max)
+    return seeded_components(like, seeds)

@@ -22,7 +22,7 @@ def median(mask: np.ndarray, size: int) -> np.ndarray:
     if size <= 1:
         return mask
     count = cv2.boxFilter(mask >> 7, cv2.CV_16U, (size, size), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    return np.where(count >= (size * size + 1) // 2, np.uint8(255), np.uint8(0))
+    return cv2.compare(count, (size * size + 1) // 2, cv2.CMP_GE)  # 255 where count >= half, else 0
 
 
 def _kernel(size: int) -> np.ndarray:
@@ -43,9 +43,13 @@ def open_close(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
 
 def largest_blob(mask: np.ndarray) -> np.ndarray:
     """Keep only the largest 8-connected component (ties: the lowest label, i.e. first in raster
-    order). An empty mask stays empty. mask: (H, W) uint8 0/255."""
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    order). An empty mask stays empty. mask: (H, W) uint8 0/255.
+
+    The labels alone are counted first (a quarter of the time of labels with statistics): most masks
+    hold one blob, and are returned as they are."""
+    n, labels = cv2.connectedComponents(mask, connectivity=8)
     if n <= 2:  # background only, or a single blob
         return mask
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    return np.where(labels == best, np.uint8(255), np.uint8(0))
+    return cv2.compare(labels, best, cv2.CMP_EQ)
