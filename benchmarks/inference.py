@@ -162,7 +162,7 @@ def run(frames: int = 20000, repeats: int = 3, latency_calls: int = 300, n_laten
                          vs_plain=t / plain, note=f"{frames} frames, best of {repeats}; {t / plain:.1f}x the plain "
                                                   f"4-view time"))
     rows += large_mixture(big_components, big_latent, big_frames, latency_calls)
-    return rows
+    return blas_floor.shared_floor(rows)
 
 
 def large_mixture(n_components: int, n_latent: int, frames: int, latency_calls: int) -> list[dict]:

@@ -89,3 +89,14 @@ def test_time_product_runs_at_least_repeats_times_and_min_seconds():
         calls.clear()
         blas_floor.time_product(p, repeats=1, min_seconds=0.02)
         assert len(calls) > 5  # microsecond products are repeated until min_seconds have passed
+
+
+def test_rows_of_the_same_shapes_share_the_fastest_floor():
+    rows = [dict(case="a", seconds=2.0, blas_floor_s=0.5, over_floor=4.0, floor_products="P"),
+            dict(case="b", seconds=3.0, blas_floor_s=0.25, over_floor=12.0, floor_products="P"),
+            dict(case="c", seconds=1.0, blas_floor_s=0.1, over_floor=10.0, floor_products="Q"),
+            dict(case="d", seconds=1.0)]
+    out = blas_floor.shared_floor(rows)
+    assert [r["blas_floor_s"] for r in out[:3]] == [0.25, 0.25, 0.1]
+    assert [r["over_floor"] for r in out[:3]] == [8.0, 12.0, 10.0]  # seconds / the shared floor
+    assert "blas_floor_s" not in out[3]
