@@ -11,7 +11,8 @@ Section ``inference`` of ``python -m benchmarks.run``. Rows:
 
 Each row carries the BLAS floor of its shapes (:func:`benchmarks.blas_floor.inference`: the
 observed-block product and the output product every exact posterior mean needs), timed in the same
-process, and the ratio of the measured time to it (``over_floor``).
+process, and the ratio of the measured time to it (``over_floor``); rows of the same shapes share the fastest
+floor timed among them (:func:`benchmarks.blas_floor.shared_floor`).
 
 Model: d = 4 x 200 x 2 + 57 = 1657, q = 30, M = 5. Parameters are random but well-conditioned (the
 timings do not depend on their values), so no EM fit is needed; frames are drawn from the model itself.
