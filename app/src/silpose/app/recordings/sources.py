@@ -415,6 +415,15 @@ class CameraReader:
         if self.cap is not None:
             self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
 
+    def skip(self, n: int) -> None:
+        """Move ``n`` frames forward without returning them: a video's frames are decoded (its P-frames need
+        them) but neither converted to BGR nor resized -- for a few frames, cheaper than :meth:`seek` (OpenCV's
+        FFmpeg seek decodes again from 16 or more frames before the target)."""
+        for _ in range(max(0, int(n))):
+            if self.cap is not None and not self.cap.grab():
+                break
+            self.index += 1
+
     def _next(self) -> np.ndarray | None:
         if self.ended_at is not None:
             return None
