@@ -157,7 +157,9 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
     if blobs.empty:
         return np.zeros(P, int), [VIEW_EMPTY] * P
     cols, ring = _column_points(xy), _ring_points(xy, BODY_RADIUS_M)
-    span = np.stack([np.c_[xy, np.zeros(P)], np.c_[xy, np.full(P, MIN_TOP_M)]], axis=1)  # (P, 2, 3)
+    span = np.zeros((P, 2, 3))  # (P, 2, 3): the floor point and the point MIN_TOP_M above it
+    span[:, :, :2] = xy[:, None]
+    span[:, 1, 2] = MIN_TOP_M
     pts = np.concatenate([cols, ring, span], axis=1)
     h, r = cols.shape[1], ring.shape[1]
     depth = cam.to_camera(pts[:, h + r:])[..., 2]  # (P, 2)
