@@ -234,3 +234,33 @@ def test_median_frames_is_numpys_median(n):
 
     frames = list(np.random.default_rng(n).integers(0, 256, (n, 7, 5, 3), dtype=np.uint8))
     assert np.array_equal(median_frames(frames), np.median(np.stack(frames), axis=0).astype(np.uint8))
+
+
+def test_a_grey_reader_takes_the_luma_plane_of_yuv_videos(rig, tools, tmp_path):
+    """Mask videos (planar YUV) are read from the decoder's luma plane, mapped to the grey levels of OpenCV's
+    BGR -> grey conversion of the same frames (within 1); a video of another pixel format (FFV1, BGRA) is read
+    as BGR and converted."""
+    import cv2
+
+    from silpose.app.recordings.sources import DECODER_PARAMS
+
+    y, x = np.mgrid[:486, :644]
+    frames = np.stack([((x + 3 * i) % 256).astype(np.uint8) for i in range(3)])
+    frames[:, 100:300, 200:400] = 255  # a mask-like block
+    tools.write_video(tmp_path / "cam0.mp4", frames)
+    w = cv2.VideoWriter(str(tmp_path / "cam1.avi"), cv2.VideoWriter_fourcc(*"FFV1"), 25, (644, 486))
+    for f in frames:
+        w.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
+    w.release()
+    rec = open_recording(tmp_path, rig)
+    for cam, luma in (("cam0", True), ("cam1", False)):
+        r = CameraReader(rec.sources[cam], grey=True)
+        cap = cv2.VideoCapture(str(rec.sources[cam].path), cv2.CAP_FFMPEG, DECODER_PARAMS)
+        assert r.luma is luma
+        for _ in range(3):
+            got, (ok, bgr) = r.read(), cap.read()
+            want = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+            assert ok and got.shape == want.shape and np.abs(got.astype(int) - want).max() <= 1
+        assert r.read() is None
+        r.close()
+        cap.release()
