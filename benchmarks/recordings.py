@@ -228,7 +228,15 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     from silpose.model.persistence import load_model
 
     m = load_model(model)
-    import matplotlib.pyplot  # noqa: F401  (the floor plan's import, before the baseline)
+    # the imports a run makes once per process, before the baseline and the clock: the floor plan's (pyplot, its
+    # Agg backend, PIL's image plugins) and pyarrow's pandas metadata (the Parquet writer's close); ~0.3 s of a
+    # run's finish on a loaded 2-core machine where Python compiles them (PYTHONDONTWRITEBYTECODE)
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.pyplot  # noqa: F401
+    import pyarrow.pandas_compat  # noqa: F401
+    from PIL import Image
+
+    Image.preinit()
 
     baseline = psutil.Process().memory_info().rss
     cpu0, t0 = time.process_time(), time.perf_counter()

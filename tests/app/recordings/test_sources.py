@@ -208,3 +208,59 @@ def test_a_video_a_codec_block_narrower_is_the_calibrations_picture(rig, tools, 
     tools.write_video(tmp_path / "cam1.mp4", np.zeros((2, 486, 624), np.uint8))
     with pytest.raises(RecordingError, match=r"cam1.mp4: frames are 624x486 \(WxH\).*another aspect ratio"):
         open_recording(tmp_path, rig)
+
+
+def test_spread_frames_decodes_forward_or_seeks_to_the_same_frames(rig, tools, tmp_path, monkeypatch):
+    """Frames near each other are reached by decoding forward (CameraReader.skip), far ones by seeking; either
+    way the picks are the evenly spread frames."""
+    from silpose.app.recordings import silhouettes
+
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(30))
+    src = open_recording(tmp_path, rig).sources["cam0"]
+    picks = [0, 4, 7, 11, 14, 18, 22, 25, 29]  # np.linspace(0, 29, 9) rounded
+    near = [_frame_index(f) for f in silhouettes.spread_frames(src, 9)]
+    monkeypatch.setattr(silhouettes, "SEEK_GAP", -1)  # every pick sought
+    far = [_frame_index(f) for f in silhouettes.spread_frames(src, 9)]
+    assert near == far == picks
+    r = CameraReader(src, grey=True)
+    r.skip(5)
+    assert _frame_index(r.read()) == 5 and r.index == 6
+    r.close()
+
+
+@pytest.mark.parametrize("n", [3, 4, 9, 10, 17])
+def test_median_frames_is_numpys_median(n):
+    from silpose.app.recordings.silhouettes import median_frames
+
+    frames = list(np.random.default_rng(n).integers(0, 256, (n, 7, 5, 3), dtype=np.uint8))
+    assert np.array_equal(median_frames(frames), np.median(np.stack(frames), axis=0).astype(np.uint8))
+
+
+def test_a_grey_reader_takes_the_luma_plane_of_yuv_videos(rig, tools, tmp_path):
+    """Mask videos (planar YUV) are read from the decoder's luma plane, mapped to the grey levels of OpenCV's
+    BGR -> grey conversion of the same frames (within 1); a video of another pixel format (FFV1, BGRA) is read
+    as BGR and converted."""
+    import cv2
+
+    from silpose.app.recordings.sources import DECODER_PARAMS
+
+    y, x = np.mgrid[:486, :644]
+    frames = np.stack([((x + 3 * i) % 256).astype(np.uint8) for i in range(3)])
+    frames[:, 100:300, 200:400] = 255  # a mask-like block
+    tools.write_video(tmp_path / "cam0.mp4", frames)
+    w = cv2.VideoWriter(str(tmp_path / "cam1.avi"), cv2.VideoWriter_fourcc(*"FFV1"), 25, (644, 486))
+    for f in frames:
+        w.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
+    w.release()
+    rec = open_recording(tmp_path, rig)
+    for cam, luma in (("cam0", True), ("cam1", False)):
+        r = CameraReader(rec.sources[cam], grey=True)
+        cap = cv2.VideoCapture(str(rec.sources[cam].path), cv2.CAP_FFMPEG, DECODER_PARAMS)
+        assert r.luma is luma
+        for _ in range(3):
+            got, (ok, bgr) = r.read(), cap.read()
+            want = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+            assert ok and got.shape == want.shape and np.abs(got.astype(int) - want).max() <= 1
+        assert r.read() is None
+        r.close()
+        cap.release()

@@ -236,11 +236,13 @@ def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int) 
     return resample_closed(poly, i, start, n_points), length
 
 
-def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
+def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tuple[int, int] = (0, 0),
+                        centroid_x: float | None = None) -> np.ndarray:
     """:func:`extract_contour`'s points for a mask known to hold ONE 8-connected blob (a labelled component
     cut out of a label image), without labelling it again: (n_points, 2) float32 px, ``offset`` (x, y) added
     (the image position of ``blob``'s pixel (0, 0)). The area centroid comes from ``cv2.moments`` (the mean
-    of the blob's pixel centres, as the labelling's). Raises EmptyMaskError on an empty mask.
+    of the blob's pixel centres, as the labelling's), or is ``centroid_x`` (x in ``blob``'s pixels, when the
+    caller's labelling gave it). Raises EmptyMaskError on an empty mask.
 
     blob: (h, w) bool or uint8 {0, 1}."""
     if int(n_points) < 1:
@@ -248,10 +250,15 @@ def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tupl
     h, w = blob.shape
     padded = np.zeros((h + 2, w + 2), np.uint8)
     padded[1:-1, 1:-1] = blob
-    m = cv2.moments(padded, binaryImage=True)
-    if m["m00"] <= 0:
-        raise EmptyMaskError(f"mask of shape {blob.shape} has no foreground pixel")
-    cx = m["m10"] / m["m00"] - 1 + offset[0]
+    if centroid_x is None:
+        m = cv2.moments(padded, binaryImage=True)
+        if m["m00"] <= 0:
+            raise EmptyMaskError(f"mask of shape {blob.shape} has no foreground pixel")
+        cx = m["m10"] / m["m00"] - 1 + offset[0]
+    else:
+        if not cv2.countNonZero(padded):
+            raise EmptyMaskError(f"mask of shape {blob.shape} has no foreground pixel")
+        cx = float(centroid_x) + offset[0]
     pts, _ = _trace(padded, (offset[0] - 1, offset[1] - 1), cx, int(n_points))
     return pts.astype(np.float32)
 

@@ -82,7 +82,8 @@ def blob_contour(blobs: Blobs, label: int, n_points: int) -> np.ndarray | None:
     ox, oy = blobs.origin
     crop = (blobs.labels[y - oy : y - oy + bh, x - ox : x - ox + bw] == label).view(np.uint8)
     try:
-        c = single_blob_contour(crop, n_points)  # one component: no labelling again (extract_contour's points)
+        # one component: no labelling again (extract_contour's points), its centroid the labelling's
+        c = single_blob_contour(crop, n_points, centroid_x=float(blobs.centroid[label, 0]) - x)
     except EmptyMaskError:
         return None
     return c.astype(np.float64) + (x, y)

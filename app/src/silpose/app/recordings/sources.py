@@ -46,8 +46,10 @@ whose decoding stopped early gets one warning line instead (:meth:`CameraReader.
 Decoding: OpenCV's FFmpeg backend (``cv2.VideoCapture``), one frame at a time, so memory does not grow
 with the recording's length. Why not PyAV: OpenCV already ships FFmpeg in the wheel the workspace uses
 (no new dependency), decodes a 644x486 frame in ~1.3 ms here (MPEG-4 part 2; about PyAV's speed, both
-call libavcodec), and the only thing PyAV would add -- direct access to the decoder's luma plane, saving
-one BGR -> grey conversion (~0.1 ms) -- is not where the time goes (see ``benchmarks/recordings.py``).
+call libavcodec). A grey reader (mask videos) asks OpenCV for the decoder's own picture (``CAP_PROP_CONVERT_RGB``
+off) when its pixel format is planar YUV (:data:`LUMA_FORMATS`) and keeps the luma plane, mapped to the grey levels
+of a BGR -> grey conversion (:data:`LUMA_TO_GREY`): FFmpeg's YUV -> BGR conversion and the grey conversion after it
+were half of a mask frame's decoding (0.48 -> 0.24 CPU ms per 644x486 frame).
 Frames larger than the working size are shrunk by :func:`~.resolution.shrink` (a whole-factor block average
 then bilinear: a sixth of the time of OpenCV's ``INTER_AREA`` at a fractional factor).
 """
@@ -83,6 +85,15 @@ CODEC_BLOCK = 16
 #: loaded 2-core machine), 6.1 CPU ms per frame with one thread, 8.9 with FFmpeg's default (one per core); the
 #: frames are the same
 DECODER_PARAMS = [cv2.CAP_PROP_N_THREADS, 1]
+#: pixel formats (FourCC of ``CAP_PROP_CODEC_PIXEL_FORMAT``) whose first plane is the luma plane: a grey reader
+#: (mask videos) takes that plane from the decoder (``CAP_PROP_CONVERT_RGB`` off) instead of a BGR picture it then
+#: converts to grey -- FFmpeg's YUV -> BGR conversion is most of a small frame's decoding: measured on the lab's
+#: 644x486 MPEG-4 mask videos, 0.48 -> 0.24 CPU ms per frame; every other format is read as BGR
+LUMA_FORMATS = frozenset({"I420", "IYUV", "YV12", "NV12", "NV21", "Y42B", "444P"})
+#: video (limited-range) luma 16..235 -> the grey level 0..255 of OpenCV's BGR -> grey conversion of the same
+#: frame (BT.601: grey = 1.164 (Y - 16), chroma cancels): within 1 grey level of it on the lab's mask videos, and the
+#: same masks (60 frames)
+LUMA_TO_GREY = np.clip(np.round((np.arange(256) - 16) * 255 / 219), 0, 255).astype(np.uint8)
 #: FFmpeg log level OpenCV is given unless the user set ``OPENCV_FFMPEG_LOGLEVEL`` (-8: AV_LOG_QUIET)
 FFMPEG_LOGLEVEL = "-8"
 
@@ -355,6 +366,11 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
     return Recording(folder, sources, missing, n_steps, fps, warnings)
 
 
+def _fourcc(code: float) -> str:
+    """The four characters of a FourCC number (OpenCV's ``CAP_PROP_*`` codes)."""
+    return int(code).to_bytes(4, "little").decode("latin-1")
+
+
 def fit_picture(img: np.ndarray, pad: tuple[int, int]) -> np.ndarray:
     """``img`` (H, W[, C]) with ``pad = (columns, rows)`` added at its right and bottom edges (copies of its
     last column / row) or, when negative, removed there: (H + rows, W + columns[, C])."""
@@ -381,13 +397,24 @@ class CameraReader:
         self.index = source.skip + int(start)
         self.ended_at: int | None = None  # frame index where reading stopped, once it has
         self.cap = None
+        self.luma = False  # frames are the decoder's luma plane (LUMA_FORMATS)
         if source.is_video:
-            self.cap = cv2.VideoCapture(str(source.path), cv2.CAP_FFMPEG, DECODER_PARAMS)
-            if not self.cap.isOpened():
-                raise RecordingError(f"{source.path}: OpenCV (FFmpeg) cannot open this video")
+            self.cap = self._open(grey)
+            if grey and _fourcc(self.cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT)) in LUMA_FORMATS:
+                self.luma = True
+            elif grey:
+                self.cap.release()
+                self.cap = self._open(False)
             for _ in range(self.index):
                 if not self.cap.grab():
                     break
+
+    def _open(self, luma: bool):
+        params = DECODER_PARAMS + ([cv2.CAP_PROP_CONVERT_RGB, 0] if luma else [])
+        cap = cv2.VideoCapture(str(self.source.path), cv2.CAP_FFMPEG, params)
+        if not cap.isOpened():
+            raise RecordingError(f"{self.source.path}: OpenCV (FFmpeg) cannot open this video")
+        return cap
 
     def read(self) -> np.ndarray | None:
         img = self._next()
@@ -398,6 +425,8 @@ class CameraReader:
         self.index += 1
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        elif self.luma:
+            img = cv2.LUT(img, LUMA_TO_GREY)
         if self.source.pad != (0, 0):
             img = fit_picture(img, self.source.pad)
         if self.source.resize_to is not None:
@@ -414,6 +443,15 @@ class CameraReader:
         self.ended_at = None
         if self.cap is not None:
             self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
+
+    def skip(self, n: int) -> None:
+        """Move ``n`` frames forward without returning them: a video's frames are decoded (its P-frames need
+        them) but neither converted to BGR nor resized -- for a few frames, cheaper than :meth:`seek` (OpenCV's
+        FFmpeg seek decodes again from 16 or more frames before the target)."""
+        for _ in range(max(0, int(n))):
+            if self.cap is not None and not self.cap.grab():
+                break
+            self.index += 1
 
     def _next(self) -> np.ndarray | None:
         if self.ended_at is not None:

@@ -63,24 +63,42 @@ _RING = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                   np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], axis=1)
 
 
+def _ring_points(xy: np.ndarray, radius: float) -> np.ndarray:
+    """(P, 24, 3) world points of the cylinders of ``radius`` metres at floor points ``xy`` (P, 2): 12 round the
+    floor, 12 round the top (:data:`BODY_HEIGHT_M`)."""
+    ring = xy[:, None, :] + radius * _RING[None]  # (P, 12, 2)
+    return np.concatenate([np.concatenate([ring, np.zeros(ring.shape[:2] + (1,))], -1),
+                           np.concatenate([ring, np.full(ring.shape[:2] + (1,), BODY_HEIGHT_M)], -1)], axis=1)
+
+
+def _box_of(px: np.ndarray) -> np.ndarray:
+    """(P, 4) x0, y0, x1, y1 px: the box of each person's projected cylinder points ``px`` (P, m, 2), with slack."""
+    return np.concatenate([px.min(axis=1) - BOX_SLACK_PX, px.max(axis=1) + BOX_SLACK_PX], axis=1)
+
+
 def body_box(cam, xy: np.ndarray, radius: float = BODY_RADIUS_M) -> np.ndarray:
     """(P, 4) x0, y0, x1, y1 px: image box of the cylinder of ``radius`` metres standing at floor points ``xy``
     (P, 2)."""
     xy = np.asarray(xy, float).reshape(-1, 2)
-    ring = xy[:, None, :] + radius * _RING[None]  # (P, 12, 2)
-    pts = np.concatenate([np.concatenate([ring, np.zeros(ring.shape[:2] + (1,))], -1),
-                          np.concatenate([ring, np.full(ring.shape[:2] + (1,), BODY_HEIGHT_M)], -1)], axis=1)
-    px = cam.project(pts)
-    return np.concatenate([px.min(axis=1) - BOX_SLACK_PX, px.max(axis=1) + BOX_SLACK_PX], axis=1)
+    return _box_of(cam.project(_ring_points(xy, radius)))
+
+
+def _column_points(xy: np.ndarray) -> np.ndarray:
+    """(P, h, 3) world points of the torso columns (:data:`~.floor.COLUMN_HEIGHTS`) above floor points ``xy``."""
+    hz = np.asarray(COLUMN_HEIGHTS)
+    P = len(xy)
+    return np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (P, len(hz), 1))], -1)
+
+
+def _labels_at(blobs: Blobs, px: np.ndarray) -> np.ndarray:
+    """Usable blob labels (0: none) at projected points ``px`` (..., 2) (rounded; NaN: beyond the lens model)."""
+    lab = blobs.label_at(np.nan_to_num(np.round(px), nan=-1.0).astype(int))
+    return np.where(blobs.usable[lab], lab, 0)
 
 
 def _column_labels(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
     """(P, h) usable blob labels (0: none) under the torso columns of people at floor points ``xy`` (P, 2)."""
-    hz = np.asarray(COLUMN_HEIGHTS)
-    P = len(xy)
-    pts = np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (P, len(hz), 1))], -1)
-    lab = blobs.label_at(np.nan_to_num(np.round(cam.project(pts)), nan=-1.0).astype(int))  # NaN: beyond the lens model
-    return np.where(blobs.usable[lab], lab, 0)
+    return _labels_at(blobs, cam.project(_column_points(xy)))
 
 
 def _main_label(lab_row: np.ndarray) -> int:
@@ -131,19 +149,29 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
     """The blob of each of P people at floor points ``xy`` (P, 2) in one camera.
 
     Returns (labels (P,) int, the person's blob label or 0, statuses (P,) of :data:`VIEW_STATUSES`).
+    Every person's points (torso column, body cylinder, floor point and the point :data:`MIN_TOP_M` above it) are
+    projected in one call.
     """
     xy = np.asarray(xy, float).reshape(-1, 2)
     P = len(xy)
     if blobs.empty:
         return np.zeros(P, int), [VIEW_EMPTY] * P
-    lab = _column_labels(cam, blobs, xy)
+    cols, ring = _column_points(xy), _ring_points(xy, BODY_RADIUS_M)
+    span = np.zeros((P, 2, 3))  # (P, 2, 3): the floor point and the point MIN_TOP_M above it
+    span[:, :, :2] = xy[:, None]
+    span[:, 1, 2] = MIN_TOP_M
+    pts = np.concatenate([cols, ring, span], axis=1)
+    h, r = cols.shape[1], ring.shape[1]
+    depth = cam.to_camera(pts[:, h + r:])[..., 2]  # (P, 2)
+    px = cam.project(pts)
+    lab = _labels_at(blobs, px[:, :h])
     mine = np.array([_main_label(row) for row in lab], int)
     # every blob any person's column touches is claimed by that person
     claims: dict[int, set] = {}
     for p, row in enumerate(lab.tolist()):
         for b in set(row) - {0}:
             claims.setdefault(int(b), set()).add(p)
-    boxes = body_box(cam, xy) if P else np.zeros((0, 4))
+    boxes = _box_of(px[:, h : h + r]) if P else np.zeros((0, 4))
     status = []
     for p in range(P):
         b = int(mine[p])
@@ -154,13 +182,14 @@ def assign_views(cam, blobs: Blobs, xy: np.ndarray) -> tuple[np.ndarray, list[st
         elif blobs.touches_border[b]:
             status.append(VIEW_BORDER)
         else:
-            x, y, w, h = blobs.bbox[b]
+            x, y, w, bh = blobs.bbox[b]
             x0, y0, x1, y1 = boxes[p]
-            fits = x >= x0 and y >= y0 and x + w - 1 <= x1 and y + h - 1 <= y1
+            fits = x >= x0 and y >= y0 and x + w - 1 <= x1 and y + bh - 1 <= y1
             if not fits:
                 status.append(VIEW_CLUTTER)
             else:
-                status.append(VIEW_OK if spans_person(cam, blobs.bbox[b], xy[p]) else VIEW_PARTIAL)
+                ok = _spans(blobs.bbox[b], px[p, h + r:], cam.K[0, 0], depth[p])
+                status.append(VIEW_OK if ok else VIEW_PARTIAL)
     return mine, status
 
 
@@ -170,13 +199,17 @@ def spans_person(cam, bbox: np.ndarray, xy: np.ndarray) -> bool:
 
     Tolerances are metres at the person's distance (``f / depth`` px per metre); the boxes are compared in
     image coordinates, so a rolled camera is handled like an upright one."""
-    x, y, w, h = (float(v) for v in bbox)
     pts = np.array([[xy[0], xy[1], 0.0], [xy[0], xy[1], MIN_TOP_M]])
-    depth = cam.to_camera(pts)[:, 2]
+    return _spans(bbox, cam.project(pts), cam.K[0, 0], cam.to_camera(pts)[:, 2])
+
+
+def _spans(bbox: np.ndarray, px: np.ndarray, f: float, depth: np.ndarray) -> bool:
+    """:func:`spans_person` from the projected floor and top points ``px`` (2, 2), the focal length ``f`` px and
+    their depths (2,) metres."""
+    x, y, w, h = (float(v) for v in bbox)
     if np.any(depth <= 0):
         return False
-    px = cam.project(pts)
-    per_m = cam.K[0, 0] / depth
+    per_m = f / depth
     for (u, v), tol in zip(px, (FOOT_TOLERANCE_M * per_m[0], TOP_TOLERANCE_M * per_m[1])):
         if not (x - tol <= u <= x + w - 1 + tol and y - tol <= v <= y + h - 1 + tol):
             return False
