@@ -5,7 +5,7 @@
 Every figure comes from a file a command wrote, never from a hand-copied number:
 ``reports/<preset>/headline.json`` (``silpose eval``), the training report next to the model the evaluation
 read (``<model>.report.json``, ``silpose train``) and ``reports/bench/bench.json`` (``just bench``). A preset
-without a report gets "not measured" in its column. The README gets the short results table and the table of
+without a report gets "not measured" in its column. The README gets the short results table, the speed table and the table of
 calibration formats (from ``silpose.app.rig.formats.FORMATS``) between ``<!-- NAME:start -->`` and
 ``<!-- NAME:end -->`` markers.
 """
@@ -207,6 +207,79 @@ def bench_section(bench: Path) -> list[str]:
     return out
 
 
+def _rows(data: dict, section: str) -> list[dict]:
+    return next((s.get("rows", []) for s in data.get("sections", []) if s.get("section") == section), [])
+
+
+def _row(rows: list[dict], **match) -> dict | None:
+    """The first row whose fields start with the given values (strings) or equal them (other values)."""
+    for r in rows:
+        if all((isinstance(v, str) and str(r.get(k, "")).startswith(v)) or r.get(k) == v for k, v in match.items()):
+            return r
+    return None
+
+
+def _segmentation_cell(rows: list[dict], method: str) -> str | None:
+    r = _row(rows, method=method)
+    ref = _row(rows, method=(r or {}).get("same_size_mog2") or "\0")
+    if not r or not ref or r.get("time_vs_same_size_mog2") is None:
+        return None
+    return f"{r['time_vs_same_size_mog2']:.2f}× MOG2's CPU time, IoU {r['iou']:.3f} vs {ref['iou']:.3f}"
+
+
+def speed_rows(data: dict) -> list[tuple[str, str | None]]:
+    """The headline speed figures of a ``bench.json`` as (what, figure or None when the row is missing)."""
+    rec, seg, inf = _rows(data, "recordings"), _rows(data, "segmentation"), _rows(data, "inference")
+    ids = _rows(data, "identities")
+    out = []
+    masks = _row(rec, name="run", run="3x", steps=90) or _row(rec, name="run", run="1x", steps=30)
+    out.append(("4 mask videos, 644×486 → joints, no overlays", masks and
+                f"{masks['steps_per_s']:.1f} time steps/s over {masks['steps']} steps "
+                f"({masks['steady_steps_per_s']:.0f} after the set-up)"))
+    colour = next((r for r in rec if r.get("name") == "run" and str(r.get("run", "")).startswith("colour")
+                   and "overlays" not in str(r.get("run"))), None)
+    size = str(colour["run"]).split()[-1].replace("x", "×") if colour else ""
+    out.append((f"4 colour videos, {size} → joints, no overlays",
+                colour and f"{colour['steps_per_s']:.1f} time steps/s over {colour['steps']} steps "
+                f"({colour['steady_steps_per_s']:.0f} after the {colour['setup_s']:.1f} s set-up)"))
+    ov_m = _row(rec, name="run", run="1x with overlays")
+    ov_c = next((r for r in rec if str(r.get("run", "")).startswith("colour") and "overlays" in str(r.get("run"))), None)
+    out.append(("overlay videos' share of a run's time: masks / colour", ov_m and ov_c and
+                f"{100 * ov_m['overlay_share_wall']:.0f} % / {100 * ov_c['overlay_share_wall']:.0f} %"))
+    idr = _row(ids, input="mask videos", tracker="appearance")
+    out.append(("4 walkers crossing (mask videos): ids / identity switches",
+                idr and f"{idr['ids']} / {idr['identity_switches']} over {idr['frames']} steps"))
+    out.append(("segmentation, 320×240, vs OpenCV's MOG2 on the same frames",
+                _segmentation_cell(seg, "BackgroundModel.segment (streaming)")))
+    out.append(("segmentation, full HD shrunk to the working size, vs MOG2 at that size",
+                _segmentation_cell(seg, "1920x1080: BackgroundModel at the working size")))
+    out.append(("segmentation, full HD at full size, vs MOG2", _segmentation_cell(seg, "1920x1080: BackgroundModel at full")))
+    plain = _row(inf, case="batched, 4 views (joints")
+    robust = _row(inf, case="batched, 4 views, robust (")
+    out.append(("inference, 4 views, batched: plain / robust, × the BLAS floor", plain and robust and
+                f"{plain['over_floor']:.1f}× / {robust['over_floor']:.1f}× "
+                f"({plain['value']:,.0f} / {robust['value']:,.0f} frames/s)"))
+    one = _row(inf, case="single frame, 4 views, robust, M")
+    out.append(("inference, one frame, robust, " + (one["case"].split("robust, ")[-1] if one else "M 50 q 40"),
+                one and f"{one['value']:.1f} ms"))
+    return out
+
+
+def speed_table(bench: Path) -> str:
+    """The README's speed table from ``bench.json``; says how to measure when there is none."""
+    try:
+        data = json.loads(bench.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "Not measured: `just bench`, then `just results`."
+    m = data.get("machine", {})
+    size = "`just bench --quick`" if data.get("quick") else "`just bench`"
+    load = m.get("load_average") or ["?"]
+    lines = [f"| {size}: {m.get('cpu_count', '?')} cores, {m.get('cpu', '?')}, {m.get('blas', '?')}, load {load[0]} "
+             "| measured |", "|---|---|"]
+    lines += [f"| {what} | {fig if fig is not None else NOT_MEASURED} |" for what, fig in speed_rows(data)]
+    return "\n".join(lines)
+
+
 def group_section(reports: dict[str, dict | None]) -> list[str]:
     """Per activity group (``by_group`` of a report whose test set comes from the motion library)."""
     out = []
@@ -312,7 +385,7 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     curve = learning_curve_section(bench.parent.parent)
     if curve:
         parts += ["## Learning curve (posterior mean, standard noise)", ""] + curve
-    parts += ["## Benchmarks", ""] + bench_section(bench)
+    parts += ["## Benchmarks", "", "### Summary", "", speed_table(bench), ""] + bench_section(bench)
     return "\n".join(parts).rstrip() + "\n"
 
 
@@ -341,6 +414,7 @@ def main(argv=None) -> None:
     curve = curve_table(args.reports / "motions" / "learning_curve.json")
     readme = replace_block(readme, "curve", "\n".join(curve) if curve else
                            "(not measured: `python -m silpose.eval.learning_curve data/motions` writes it)")
+    readme = replace_block(readme, "speed", speed_table(args.reports / "bench" / "bench.json"))
     write_text_atomic(args.readme, readme)
     print(f"wrote {args.out} and the tables of {args.readme}")
 
