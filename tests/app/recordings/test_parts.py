@@ -341,3 +341,32 @@ def test_tracker_starts_and_confirms_tracks_only_from_allowed_detections():
     assert tr.n_persons == 0
     tr.update(3, p, np.array([True]))
     assert tr.n_persons == 1
+
+
+def test_floor_grid_takes_pixels_a_lens_model_sends_to_infinity_without_warning(rig, tools, monkeypatch):
+    """Far beyond a distorted camera's lens model the projection overflows to +-inf or NaN (Pose2Sim's demo rig
+    did): the grid casts them to indices without a RuntimeWarning, those cells are unseen, and people are found."""
+    import warnings
+
+    from silpose.app.recordings import floor
+
+    true_projection = floor.project_fast
+
+    def overflowing(cam, pts):  # the first camera's lens model overflows beyond 1.5 m; the others see there
+        px = true_projection(cam, pts)
+        if cam.name == rig[0].name:
+            far = np.linalg.norm(pts[:, :2], axis=1) > 1.5
+            px[far & (pts[:, 2] > 1.0)] = np.inf
+            px[far & (pts[:, 2] <= 1.0)] = -np.inf
+        return px
+
+    monkeypatch.setattr(floor, "project_fast", overflowing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        grid = FloorGrid(list(rig), DEFAULT_WORKSPACE.bounds, margin=3.0)
+    far = np.hypot(grid.X.ravel()[grid.active], grid.Y.ravel()[grid.active]) > 1.5 + grid.cell
+    assert far.any() and not grid.sees[0][far].any()  # the other cameras see there, the first does not
+    assert all(0 <= int(i.min()) and int(i.max()) < c.width * c.height for i, c in zip(grid.index, rig))
+    where = np.array([[0.7, 0.9]])
+    det = grid.locate([(m > 0).view(np.uint8) for m in tools.cylinder_masks(rig, where)])
+    assert len(det.positions) == 1 and np.linalg.norm(det.positions[0] - where[0]) < 0.06

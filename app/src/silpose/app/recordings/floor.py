@@ -148,7 +148,10 @@ class FloorGrid:
         self.active = np.flatnonzero(np.sum(sees, axis=0) >= self.min_views) if sees else np.zeros(0, np.intp)
         self.index, self.sees = [], []
         for cam, seen, px in zip(cameras, sees, pixels):
-            px = np.nan_to_num(px[self.active], nan=-1.0).astype(np.int64)
+            # a point far beyond a distorted lens projects to NaN or to huge pixels: any value outside the image
+            # is clipped to its border below (``seen`` is False there), so cap it before the integer cast
+            px = np.clip(np.nan_to_num(px[self.active], nan=-1.0, posinf=-1.0, neginf=-1.0), -1,
+                         max(cam.width, cam.height)).astype(np.int64)
             flat = np.clip(px[..., 1], 0, cam.height - 1) * cam.width + np.clip(px[..., 0], 0, cam.width - 1)
             self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, active cells)
             self.sees.append(seen[self.active])

@@ -115,15 +115,19 @@ def project_fast(cam: Camera, points: np.ndarray) -> np.ndarray:
     d[: cam.dist.size] = cam.dist
     k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d
     xc = cam.to_camera(points)
-    x, y = xc[:, 0] / xc[:, 2], xc[:, 1] / xc[:, 2]
-    r2 = x * x + y * y
-    r4, r6 = r2 * r2, r2 * r2 * r2
-    radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
+    # a point in the camera's plane (depth 0) divides by zero: its r2 is inf or NaN, so it gets NaN below
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        x, y = xc[:, 0] / xc[:, 2], xc[:, 1] / xc[:, 2]
+        r2 = x * x + y * y
+        r4, r6 = r2 * r2, r2 * r2 * r2
+        radial = (1 + k1 * r2 + k2 * r4 + k3 * r6) / (1 + k4 * r2 + k5 * r4 + k6 * r6)
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r4
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r4
     K = cam.K
-    uv = np.stack([K[0, 0] * xd + K[0, 1] * yd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)
-    uv[~(np.sqrt(r2) < cam.max_radius)] = np.nan  # beyond the lens model's domain: not seen (Camera.max_radius)
+    with np.errstate(invalid="ignore", over="ignore"):
+        uv = np.stack([K[0, 0] * xd + K[0, 1] * yd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)
+        inside = np.sqrt(r2) < cam.max_radius
+    uv[~inside] = np.nan  # beyond the lens model's domain: not seen (Camera.max_radius)
     return uv
 
 
