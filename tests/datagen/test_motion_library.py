@@ -19,7 +19,7 @@ from silpose.datagen.motion.config import MotionConfigError, motion_from_dict
 from silpose.datagen.motion.library import (BUNDLED, CMU_ACKNOWLEDGEMENT, FRAMES_NAME, MANIFEST_NAME, PARENTS, ROLES,
                                             LibraryClip, LibraryError, derive, load_library, reconstruct, resample_chain,
                                             write_library)
-from silpose.datagen.motion.mix import MIX_FIELDS, PART_FIELDS, MixedMotion, prepare_library
+from silpose.datagen.motion.mix import MIX_FIELDS, PART_FIELDS, SWING_FIELDS, MixedMotion, prepare_library
 from silpose.datagen.motion.retarget import retarget_frame
 from silpose.datagen.scene import draw_scene
 from silpose.datagen.subjects import sample_subject
@@ -277,6 +277,7 @@ source = "library"
 procedural_walk = 0.2
 mirror = true
 part_mix = 0.5
+limb_swing = 0.5
 [motion.weights]
 bend = 3.0
 leap = 3.0
@@ -301,7 +302,9 @@ def test_rendered_motions_dataset_validates_and_indexes_its_clip_list(tmp_path):
         assert clips[0]["id"] == "procedural-walk" and {"id", "group", "split", "licence"} <= set(clips[1])
         gait = load_split(tmp_path / "ds", split, columns=["gait"]).gait
         idx = np.asarray(gait["clip"], int)
-        assert set(gait) == set(MIX_FIELDS + PART_FIELDS) and np.all((idx >= 0) & (idx < len(clips)))
+        assert set(gait) == set(MIX_FIELDS + PART_FIELDS + SWING_FIELDS) and np.all((idx >= 0) & (idx < len(clips)))
+        swung = np.any([np.asarray(gait[k]) != 0 for k in SWING_FIELDS], axis=0)
+        assert np.any(swung) if split == "train" else not np.any(swung)  # limb swing: training only
         legs = np.asarray(gait["legs_clip"], int)
         assert np.any(legs > 0) if split == "train" else np.all(legs == -1)  # part mixing: training only
         assert all(clips[i]["split"] == "train" for i in legs if i > 0)
@@ -312,4 +315,4 @@ def test_rendered_motions_dataset_validates_and_indexes_its_clip_list(tmp_path):
 
     assert write_preview(tmp_path / "ds", tmp_path / "p.png", split="train").stat().st_size > 0  # part-mixed labels
     card = (tmp_path / "ds" / "README.md").read_text()
-    assert CMU_ACKNOWLEDGEMENT in card and "| group | train clips | test clips |" in card
+    assert CMU_ACKNOWLEDGEMENT in card and "| group | train clips | test clips |" in card and "Limb swing: 0.5" in card

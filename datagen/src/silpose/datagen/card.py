@@ -193,6 +193,10 @@ def _library_section(motion: dict, loaded: dict) -> str:
         + (f"Part mixing: {float(motion['part_mix']):g} of the train split's library frames take their hips and legs "
            "from a second train frame (`legs_clip`, `legs_frame`, `legs_mirror`; `legs_clip` -1: the frame's own legs). "
            if float(motion.get("part_mix") or 0) > 0 else "")
+        + (f"Limb swing: {float(motion['limb_swing']):g} of the train split's library frames have each arm turned "
+           f"about its shoulder and each leg about its hip by up to {float(motion.get('limb_swing_deg', 90)):g} degrees "
+           "(`swing_<limb>_x|y|z`: rotation vectors, radians, world axes; all 0: not swung). "
+           if float(motion.get("limb_swing") or 0) > 0 else "")
         + f"Library frames sha256 `{str(lib.get('frames_sha256', ''))[:16]}`, {lib.get('fps', '?')} fps.\n",
         *summary, "", *rows, "",
         *([f"**Acknowledgement.** {lib['acknowledgement']}\n"] if lib.get("acknowledgement") else []),

@@ -40,11 +40,19 @@ The motion library instead (no BVH import at generation time; :mod:`.library`, :
     procedural_walk = 0.2          # share of samples posed by the procedural walk instead
     mirror = true
     part_mix = 0.3                 # share of training library frames whose legs come from another frame
+    limb_swing = 0.3               # share of training library frames whose arms and legs are swung
+    limb_swing_deg = 90            # largest swing, degrees (default 90)
 
 ``part_mix`` (augmentation, training samples only; default 0): the hips and legs of that share of
 the training split's library frames come from a second training frame, turned about the vertical
 to the first frame's hip line (:func:`.retarget.combine_legs`), so the training poses hold
 upper- and lower-body combinations that no clip has.
+
+``limb_swing`` (augmentation, training samples only; default 0): each arm of that share of the
+training split's library frames is turned about its shoulder and each leg about its hip, as a rigid
+chain, by an angle uniform in [0, ``limb_swing_deg``] about a uniformly random axis
+(:func:`.retarget.swing_limbs`): an arm raised overhead, a leg lifted to the side, poses between the
+clips' own.
 """
 
 from __future__ import annotations
@@ -59,7 +67,10 @@ SOURCES = ("procedural", "bvh", "library")
 #: Metres per unit of the CMU BVH conversions (1/0.45 inch).
 CMU_SCALE = 0.0254 / 0.45
 _KEYS = {"source", "bvh", "scale", "joint_map", "stride", "frames", "mirror", "weight", "licence", "note", "clip"}
-_LIBRARY_KEYS = {"source", "library", "groups", "weights", "procedural_walk", "mirror", "part_mix"}
+_LIBRARY_KEYS = {"source", "library", "groups", "weights", "procedural_walk", "mirror", "part_mix", "limb_swing",
+                 "limb_swing_deg"}
+#: The largest ``limb_swing_deg`` (degrees): a half turn.
+MAX_SWING_DEG = 180.0
 _CLIP_KEYS = {"file", "scale", "joint_map", "stride", "frames", "weight", "licence", "note"}
 
 
@@ -103,6 +114,8 @@ class MotionConfig:
     weights: dict = field(default_factory=dict)
     walk_share: float = 0.0
     part_mix: float = 0.0
+    limb_swing: float = 0.0
+    limb_swing_deg: float = 90.0
 
     @property
     def is_bvh(self) -> bool:
@@ -131,13 +144,18 @@ def _library_from_dict(raw: dict, base: Path, msrc: str) -> MotionConfig:
     if not isinstance(weights, dict) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and v >= 0 for v in weights.values()):
         raise MotionConfigError(f"{msrc}: field 'weights' must be a table of group = weight >= 0, got {weights!r}")
-    share, part_mix = (_share(raw, key, msrc) for key in ("procedural_walk", "part_mix"))
+    share, part_mix, swing = (_share(raw, key, msrc) for key in ("procedural_walk", "part_mix", "limb_swing"))
+    swing_deg = raw.get("limb_swing_deg", 90.0)
+    if (not isinstance(swing_deg, (int, float)) or isinstance(swing_deg, bool)
+            or not 0.0 < swing_deg <= MAX_SWING_DEG):
+        raise MotionConfigError(f"{msrc}: field 'limb_swing_deg' must be a number of degrees in (0, "
+                                f"{MAX_SWING_DEG:g}], got {swing_deg!r}")
     mirror = raw.get("mirror", False)
     if not isinstance(mirror, bool):
         raise MotionConfigError(f"{msrc}: field 'mirror' must be true or false, got {mirror!r}")
     return MotionConfig(source="library", mirror=mirror, base=base, library=lib, groups=tuple(groups),
                         weights={str(k): float(v) for k, v in weights.items()}, walk_share=share,
-                        part_mix=part_mix)
+                        part_mix=part_mix, limb_swing=swing, limb_swing_deg=float(swing_deg))
 
 
 def _share(raw: dict, key: str, msrc: str) -> float:

@@ -27,6 +27,13 @@ position are drawn and unused) gives the hips and legs (:func:`retarget.combine_
 stand on its feet (:func:`retarget.above_feet`; up to :data:`LEGS_TRIES` frames are drawn), recorded in
 :data:`PART_FIELDS` (``legs_clip`` -1 for a frame whose legs are its own). With ``part_mix`` 0 the
 fields and draws are those above, so the test split and older datasets are unchanged.
+
+Limb swing (``limb_swing`` > 0, training split only): after part mixing, a library frame draws one more
+uniform number; below ``limb_swing`` each limb of :data:`retarget.LIMBS` draws a rotation vector (axis
+uniform on the sphere, angle uniform in [0, ``limb_swing_deg``]) and the limbs are turned
+(:func:`retarget.swing_limbs`) if the pose still stands on its feet (:func:`retarget.above_feet`; up to
+:data:`LEGS_TRIES` draws, then no swing), recorded in :data:`SWING_FIELDS` (radians, world axes; zeros: no
+swing). With ``limb_swing`` 0 nothing more is drawn or recorded.
 """
 
 from __future__ import annotations
@@ -42,13 +49,15 @@ from ..walk import GAIT_FIELDS, sample_gait
 from .bvh_motion import BvhMotion
 from .config import MotionConfig
 from .library import Library, LibraryClip, LibraryError, load_library
-from .retarget import above_feet, combine_legs
+from .retarget import LIMBS, above_feet, combine_legs, swing_limbs
 from .source import Pose, WalkMotion
 
 #: The per-sample motion parameters of a library dataset (the ``gait`` column's fields).
 MIX_FIELDS: tuple[str, ...] = ("clip", "frame", "mirror") + GAIT_FIELDS
 #: The second frame's fields of a part-mixed dataset (``[motion] part_mix`` > 0).
 PART_FIELDS: tuple[str, ...] = ("legs_clip", "legs_frame", "legs_mirror")
+#: The limb-swing rotation vectors of a swung dataset (``[motion] limb_swing`` > 0): radians, world axes.
+SWING_FIELDS: tuple[str, ...] = tuple(f"swing_{limb}_{a}" for limb in LIMBS for a in "xyz")
 #: Second frames drawn for a part-mixed sample until one stands (:func:`retarget.above_feet`); then its own legs.
 LEGS_TRIES = 5
 WALK_ENTRY = {"name": "procedural-walk", "id": "procedural-walk", "group": "walk", "split": "train+test",
@@ -91,8 +100,9 @@ class PreparedLibrary:
     def metadata(self) -> dict:
         """The ``motion`` entry of the dataset config (metadata, manifest, card)."""
         m = self.config
-        fields = MIX_FIELDS + (PART_FIELDS if m.part_mix > 0 else ())
-        return {"source": "library", "fields": list(fields), "mirror": m.mirror, "part_mix": m.part_mix,
+        fields = MIX_FIELDS + (PART_FIELDS if m.part_mix > 0 else ()) + (SWING_FIELDS if m.limb_swing > 0 else ())
+        swing = {"limb_swing": m.limb_swing, "limb_swing_deg": m.limb_swing_deg} if m.limb_swing > 0 else {}
+        return {"source": "library", "fields": list(fields), "mirror": m.mirror, "part_mix": m.part_mix, **swing,
                 "procedural_walk": m.walk_share, "groups": list(m.groups), "weights": dict(m.weights),
                 "library": {"path": m.library, "frames_sha256": self.library.sha256(),
                             "acknowledgement": self.library.manifest.get("acknowledgement", ""),
@@ -103,6 +113,7 @@ class PreparedLibrary:
         """The ``motion`` entry of the render workers' config."""
         return {"source": "library", "library": str(self.library.folder), "mirror": self.config.mirror,
                 "procedural_walk": self.config.walk_share, "part_mix": self.config.part_mix,
+                "limb_swing": self.config.limb_swing, "limb_swing_deg": self.config.limb_swing_deg,
                 "clips": [{"row": int(r), **{k: c[k] for k in ("split", "weight")}}
                           for r, c in zip(self.rows, self.clip_list()[1:])]}
 
@@ -135,11 +146,17 @@ class MixedMotion:
     stream = MOTION_STREAM
 
     def __init__(self, clips: list[LibraryClip], indices: list[int], walk_share: float, mirror: bool = False,
-                 workspace: Workspace = DEFAULT_WORKSPACE, part_mix: float = 0.0, legs_fields: bool = False):
+                 workspace: Workspace = DEFAULT_WORKSPACE, part_mix: float = 0.0, legs_fields: bool = False,
+                 limb_swing: float = 0.0, limb_swing_deg: float = 90.0, swing_fields: bool = False):
         """``part_mix``: share of library frames whose legs come from a second frame;
-        ``legs_fields``: record :data:`PART_FIELDS` (a part-mixed dataset's test split too)."""
+        ``legs_fields``: record :data:`PART_FIELDS` (a part-mixed dataset's test split too);
+        ``limb_swing``, ``limb_swing_deg``: share of library frames whose limbs are swung, largest angle (degrees);
+        ``swing_fields``: record :data:`SWING_FIELDS` (a swung dataset's test split too)."""
         self.part_mix = float(part_mix) if clips else 0.0
-        self.fields = MIX_FIELDS + (PART_FIELDS if legs_fields or self.part_mix > 0 else ())
+        self.limb_swing = float(limb_swing) if clips else 0.0
+        self.max_swing = np.deg2rad(float(limb_swing_deg))
+        self.fields = (MIX_FIELDS + (PART_FIELDS if legs_fields or self.part_mix > 0 else ())
+                       + (SWING_FIELDS if swing_fields or self.limb_swing > 0 else ()))
         self.walk = WalkMotion(workspace)
         self.walk_share = float(walk_share) if clips else 1.0
         self.indices = list(indices)
@@ -159,12 +176,16 @@ class MixedMotion:
         train = split == "train"
         share = float(motion.get("procedural_walk", 0.0)) if train else 0.0
         part_mix = float(motion.get("part_mix", 0.0))
+        swing = float(motion.get("limb_swing", 0.0))
         return cls(clips, indices, share, bool(motion.get("mirror", False)), workspace,
-                   part_mix=part_mix if train else 0.0, legs_fields=part_mix > 0)
+                   part_mix=part_mix if train else 0.0, legs_fields=part_mix > 0,
+                   limb_swing=swing if train else 0.0, limb_swing_deg=float(motion.get("limb_swing_deg", 90.0)),
+                   swing_fields=swing > 0)
 
     def draw(self, rng: np.random.Generator) -> dict[str, float]:
         """A walk pose or a library frame, heading and floor position (module docstring)."""
         own_legs = {"legs_clip": -1.0, "legs_frame": 0.0, "legs_mirror": 0.0} if PART_FIELDS[0] in self.fields else {}
+        own_legs.update({k: 0.0 for k in SWING_FIELDS} if SWING_FIELDS[0] in self.fields else {})
         if self.bvh is None or rng.random() < self.walk_share:
             return {"clip": 0.0, "frame": 0.0, "mirror": 0.0, **sample_gait(rng, self.workspace), **own_legs}
         p = self.bvh.draw(rng)
@@ -180,16 +201,35 @@ class MixedMotion:
                     out.update(legs_clip=float(self.indices[int(q["clip"])]), legs_frame=q["frame"],
                                legs_mirror=q["mirror"])
                     break
+        if self.limb_swing > 0 and rng.random() < self.limb_swing:
+            base = self.points(out)
+            for _ in range(LEGS_TRIES):
+                axes = rng.normal(size=(len(LIMBS), 3))
+                angles = rng.uniform(0.0, self.max_swing, size=len(LIMBS))
+                vecs = axes / np.linalg.norm(axes, axis=1, keepdims=True) * angles[:, None]
+                swings = dict(zip(LIMBS, vecs))
+                if above_feet(swing_limbs(base, swings)):
+                    out.update({f"swing_{limb}_{a}": float(v[i]) for limb, v in swings.items()
+                                for i, a in enumerate("xyz")})
+                    break
         return out
+
+    def points(self, params: dict[str, float]) -> dict[str, np.ndarray]:
+        """Role positions (:func:`retarget.clip_points`) of a library sample's frame, its legs from the second
+        frame when part-mixed, its limbs swung when swung; ``params`` as :meth:`draw` returns them."""
+        c = self.local[int(params["clip"])]
+        pts = self.bvh.clips[c].points(int(params["frame"]), bool(params["mirror"]))
+        legs = int(params.get("legs_clip", -1))
+        if legs >= 0:
+            lower = self.bvh.clips[self.local[legs]].points(int(params["legs_frame"]), bool(params["legs_mirror"]))
+            pts = combine_legs(pts, lower)
+        if any(params.get(k, 0.0) for k in SWING_FIELDS):
+            pts = swing_limbs(pts, {limb: np.array([params[f"swing_{limb}_{a}"] for a in "xyz"]) for limb in LIMBS})
+        return pts
 
     def pose(self, subject: dict[str, float], params: dict[str, float]) -> Pose:
         """The walk's or the retargeted clip frame's (or the two part-mixed frames') pose of ``subject``."""
         c = int(params["clip"])
         if c == 0:
             return self.walk.pose(subject, {k: params[k] for k in GAIT_FIELDS})
-        legs = int(params.get("legs_clip", -1))
-        if legs < 0:
-            return self.bvh.pose(subject, {**params, "clip": float(self.local[c])})
-        upper = self.bvh.clips[self.local[c]].points(int(params["frame"]), bool(params["mirror"]))
-        lower = self.bvh.clips[self.local[legs]].points(int(params["legs_frame"]), bool(params["legs_mirror"]))
-        return self.bvh.placed(subject, combine_legs(upper, lower), params)
+        return self.bvh.placed(subject, self.points(params), params)

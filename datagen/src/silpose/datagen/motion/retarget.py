@@ -155,6 +155,42 @@ def combine_legs(upper: dict[str, np.ndarray], lower: dict[str, np.ndarray]) -> 
     return out
 
 
+#: The limbs :func:`swing_limbs` turns: name -> (pivot role, roles turned with it).
+LIMBS: dict[str, tuple[str, tuple[str, ...]]] = {
+    **{f"{s}_arm": (f"{s}_shoulder", (f"{s}_elbow", f"{s}_wrist")) for s in "lr"},
+    **{f"{s}_leg": (f"{s}_hip", (f"{s}_knee", f"{s}_ankle", f"{s}_toe")) for s in "lr"},
+}
+
+
+def rotation_from_vector(v: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation by ``|v|`` radians about ``v / |v|`` (Rodrigues' formula,
+    ``R = I + sin t K + (1 - cos t) K^2`` with ``K`` the cross-product matrix of the unit axis)."""
+    v = np.asarray(v, np.float64)
+    t = float(np.linalg.norm(v))
+    if t < EPS:
+        return np.eye(3)
+    k = v / t
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(t) * K + (1.0 - np.cos(t)) * (K @ K)
+
+
+def swing_limbs(pts: dict[str, np.ndarray], swings: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Role positions (:func:`clip_points`) with each limb of ``swings`` (:data:`LIMBS` name -> (3,) rotation
+    vector, radians, world axes) turned about its pivot as a rigid chain: ``p = pivot + R (p - pivot)``
+    (:func:`rotation_from_vector`), so bone lengths and the elbow and knee angles are kept (limb-swing
+    augmentation, ``[motion] limb_swing``). Roles a clip lacks are skipped."""
+    out = dict(pts)
+    for limb, v in swings.items():
+        pivot, roles = LIMBS[limb]
+        if pivot not in pts:
+            continue
+        R = rotation_from_vector(v)
+        for r in roles:
+            if r in pts:
+                out[r] = pts[pivot] + R @ (pts[r] - pts[pivot])
+    return out
+
+
 #: The roles a pose stands on (the floor touches the lowest of them).
 FOOT_ROLES: tuple[str, ...] = ("l_ankle", "r_ankle", "l_toe", "r_toe")
 
