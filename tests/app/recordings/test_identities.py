@@ -6,6 +6,10 @@ and the wall of cameras) while walking on. Scored against the cylinders' true fl
 :func:`benchmarks.recording_scores.score_rows` (people, identity switches). Measured: this tracker 4 ids, 2
 switches (one pair's ids exchanged while their hulls were one detection, restored when they parted); the
 tracker before lost tracks and re-identification (lost after 0.5 s, 3 hits, 0.6 m gate) 9 ids, 4 switches.
+That 4 / 2 relied on a re-identification that wrote one id at two places: person 3, re-emerging at frame 70,
+took person 1's id at frame 77 while person 1 had been seen 0.97 m away until frame 74. A person seen after a
+new track began, farther from it than two people in contact (``CONTACT_M``), is no longer that track: 5 ids, 3
+switches, no id at two places (the lab recording of ``benchmarks.identities`` keeps 4 ids, 2 switches).
 """
 
 import numpy as np
@@ -47,7 +51,10 @@ def test_one_id_per_person_through_crossings_and_an_occlusion(tiny_model, record
     s = run_recording(tiny_model, folder, tmp_path / "o", RecordingOptions(masks=True, overlays=False))
     sc = score_rows(read_rows(tmp_path / "o" / "joints.parquet"), truth)
     assert sc["paired"] >= 0.8 * 4 * N - 4 * len(HIDDEN)  # the people were found
-    assert s.n_persons == sc["persons"] == 4 and sc["identity_switches"] <= 2 and sc["false_rows"] <= 10
+    assert s.n_persons == sc["persons"] <= 5 and sc["identity_switches"] <= 3 and sc["false_rows"] <= 10
+    rows = read_rows(tmp_path / "o" / "joints.parquet")
+    pairs = list(zip(rows["frame"], rows["person"]))
+    assert len(pairs) == len(set(pairs))  # one row per id and frame: an id is one person at a time
 
 
 def test_a_person_lost_for_a_second_keeps_their_id():

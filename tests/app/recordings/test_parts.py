@@ -7,6 +7,7 @@ import pyarrow.parquet as pq
 
 from silpose.app.recordings.blobs import blob_contour, find_blobs
 from silpose.app.recordings.floor import FloorGrid
+from silpose.app.recordings.pipeline import one_row_per_person
 from silpose.app.recordings.placement import body_point, place_contours, place_roots, root_height
 from silpose.app.recordings.silhouettes import binarise
 from silpose.app.recordings.tracking import Tracker
@@ -161,6 +162,54 @@ def test_tracker_keeps_ids_through_a_crossing_and_drops_a_one_frame_ghost():
         tr2.update(step, np.zeros((0, 2)))
     out = tr2.update(7, np.array([[0.0, 0.0]]))
     assert tr2.n_persons == 1 and out[0][0].person == 0  # reappearing after the track ended: a new track
+
+
+def test_a_new_track_never_takes_the_id_of_a_person_seen_elsewhere_after_it_began():
+    """Pose2Sim's two-person demo wrote one id at two places for 10 frames: a track that began 1.3 m away while
+    person 1 was still detected took their id when they were lost, and its held-back rows went out under it. An
+    id is one person at a time: a person who vanished before the new track began is still re-identified, and so
+    is one whose detection split in two (the new track began within the association gate)."""
+    def run(b_starts: int, b_at=(1.2, 0.3)) -> tuple[dict, Tracker]:
+        tr = Tracker(gate=0.6, max_misses=10, min_hits=3, reid_gate=3.0, recent=1)
+        where = {}
+        for step in range(14):
+            det = [np.array([0.0, 0.0])] if step < 6 else []  # person A, gone after step 5
+            if step >= b_starts:
+                det.append(np.array(b_at))  # B, 1.2 m away (within the re-identification gate)
+            for t, d in tr.update(step, np.array(det).reshape(-1, 2)):
+                if d >= 0:
+                    where.setdefault(t.key, []).append((step, t))
+        return where, tr
+
+    where, tr = run(b_starts=4)  # B began while A was still seen: two people
+    ids = {key: rows[-1][1].person for key, rows in where.items()}
+    steps = {key: {s for s, _ in rows} for key, rows in where.items()}
+    assert tr.n_persons == 2 and len(set(ids.values())) == 2
+    for k1 in ids:  # no id at two places in one step
+        for k2 in ids:
+            if k1 < k2 and ids[k1] == ids[k2]:
+                assert not steps[k1] & steps[k2]
+    where, tr = run(b_starts=8)  # B appeared after A vanished: the same person, re-identified
+    assert tr.n_persons == 1 and {rows[-1][1].person for rows in where.values()} == {1}
+    where, tr = run(b_starts=4, b_at=(0.3, 0.1))  # A's detection split, then only the second part stayed
+    assert tr.n_persons == 1 and {t.person for rows in where.values() for _, t in rows} - {0} == {1}
+
+
+def test_one_row_per_person_keeps_the_older_tracks_row():
+    steps = np.array([5, 5, 5, 6, 6, 7])
+    person = np.array([1, 1, 2, 1, 0, 1])
+    began = np.array([9, 2, 4, 9, 1, 9])  # at step 5 id 1 is held by a track from step 9 and one from step 2
+    keep = one_row_per_person(steps, person, began)
+    assert keep.tolist() == [False, True, True, True, False, True]
+    rng = np.random.default_rng(0)  # against a dictionary, on random rows
+    steps, person, began = rng.integers(0, 6, 200), rng.integers(0, 4, 200), rng.integers(0, 50, 200)
+    best = {}
+    for i in range(200):
+        if person[i] > 0:
+            k = (steps[i], person[i])
+            if k not in best or (began[i], i) < (began[best[k]], best[k]):
+                best[k] = i
+    assert set(np.flatnonzero(one_row_per_person(steps, person, began))) == set(best.values())
 
 
 def _body(rng):

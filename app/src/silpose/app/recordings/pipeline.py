@@ -806,9 +806,24 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
     return rows_out, joints
 
 
+def one_row_per_person(steps: np.ndarray, person: np.ndarray, began: np.ndarray) -> np.ndarray:
+    """(R,) bool: the rows to write of rows at ``steps`` (R,) of ``person`` ids (R,; 0: not a person), one per id
+    and step: where two tracks hold one id at one step (a track re-identified as a person whose split detection
+    it was, :meth:`~.tracking.Tracker.update`), the row of the track that began first (``began``, (R,) steps)."""
+    keep = np.asarray(person) > 0
+    if len(keep) < 2:
+        return keep
+    order = np.lexsort((began, person, steps))  # by step, then id, then the older track first
+    s, p = steps[order], person[order]
+    repeat = np.r_[False, (s[1:] == s[:-1]) & (p[1:] == p[:-1])]
+    keep[order[repeat]] = False
+    return keep
+
+
 def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_tracks, final: bool):
     """Write the held-back chunks whose steps are all <= ``cutoff`` (all of them when ``final``): rows of
-    tracks that became persons, minus not-detected rows after a track's last detection. Returns the rest."""
+    tracks that became persons, minus not-detected rows after a track's last detection, one per id and step
+    (:func:`one_row_per_person`). Returns the rest."""
     keep = []
     for last, rows, tracks, steps in pending:
         if not final and last > cutoff:
@@ -817,6 +832,7 @@ def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_track
         person = np.array([t.person for t in tracks], np.int32)
         bridged = np.array([t.last > s for t, s in zip(tracks, steps)], bool)  # detected again after this step
         ok = (person > 0) & ((rows.status != STATUS_NOT_DETECTED) | bridged)
+        ok &= one_row_per_person(steps, np.where(ok, person, 0), np.array([t.first for t in tracks], int))
         if not ok.any():
             continue
         out = rows.take(np.flatnonzero(ok))

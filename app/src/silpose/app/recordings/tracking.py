@@ -34,7 +34,8 @@ detections whose feet some camera sees start one, :func:`silpose.app.recordings.
 count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits, and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
 people, rarely hold that long; a dropped track leaves no rows). On becoming a person it is first
-re-identified: while persons' tracks are lost, it takes the id of the one of lowest cost -- distance to its
+re-identified: while persons' tracks are lost (last detected before it began, or within ``contact`` of it: one
+person's split detection), it takes the id of the one of lowest cost -- distance to its
 prediction plus ``look_weight`` times the appearance distance of the two models, none above ``look_gate`` --
 within ``reid_gate`` metres (that track ends); else it gets a new public id (1, 2, ... in order). With a head
 count (``max_people``) reached, it takes the id of the most alike lost person wherever they were lost, and
@@ -112,7 +113,8 @@ LOOK_GATE = float("inf")
 class Track:
     """One track. key: internal number; person: public id (0 while tentative); position, velocity: (2,) m and
     m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step;
-    looks: its appearance model (:class:`~.appearance.PersonLooks`, :meth:`Tracker.learn`) or None."""
+    first: the step it started; looks: its appearance model (:class:`~.appearance.PersonLooks`,
+    :meth:`Tracker.learn`) or None."""
 
     key: int
     position: np.ndarray
@@ -121,6 +123,7 @@ class Track:
     misses: int = 0
     last: int = 0
     person: int = 0
+    first: int = 0
     looks: object = None  # appearance model (the caller's: ``distance(observation) -> float``, NaN unknown)
 
     def predict(self, step: int, coast: int = 1 << 30) -> np.ndarray:
@@ -261,7 +264,7 @@ class Tracker:
             out.append((t, int(d)))
         for d in np.flatnonzero(free & allowed):
             self.n_keys += 1
-            t = Track(self.n_keys, positions[d].copy(), last=step)
+            t = Track(self.n_keys, positions[d].copy(), last=step, first=step)
             if self.min_hits <= 1:
                 self._confirm(t, keep, step)
             keep.append(t)
@@ -278,9 +281,16 @@ class Tracker:
         (distance to its prediction + ``look_weight`` times the appearance distance of the two tracks' models;
         which then ends), else a new id. With ``max_people`` ids given out already, the lost track of lowest
         cost whatever its distance (appearance first, distance breaking ties), and while none is lost ``t``
-        stays tentative. ``tracks``: the live tracks kept so far this step."""
+        stays tentative. ``tracks``: the live tracks kept so far this step.
+
+        A person still detected after ``t`` began is ``t`` only if last seen within ``contact`` (``gate`` when 0)
+        of ``t``: so near, one blob may hold both and the floor grid split one person in two; farther, they are two
+        people, and one person is never in two places at once. (The pipeline writes one row per id and step,
+        :func:`~.pipeline.one_row_per_person`.)"""
+        near = self.contact if self.contact > 0 else self.gate
         lost = [u for u in self.tracks if u.person > 0 and u.last < step and u is not t
-                and u.key not in self._reidentified]
+                and u.key not in self._reidentified
+                and (u.last < t.first or float(np.linalg.norm(u.position - t.position)) <= near)]
         full = 0 < self.max_people <= self.n_persons
         if lost and (self.reid_gate > 0 or full):
             dist = np.array([float(np.linalg.norm(u.predict(step, self.coast) - t.position)) for u in lost])
