@@ -27,7 +27,7 @@ from typing import Callable, Sequence, TypeVar
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["THREADS", "MIN_THREAD_FRAMES", "one_blas_thread", "prepare", "block_bounds", "map_blocks"]
+__all__ = ["THREADS", "MIN_THREAD_FRAMES", "one_blas_thread", "prepare", "block_bounds", "map_blocks", "map_threads"]
 
 #: threads that infer the blocks of a large batch at once (:func:`map_blocks`); 1 = the blocks one after the other on
 #: the caller's thread
@@ -94,6 +94,17 @@ def map_blocks(fn: Callable[[T], R], blocks: Sequence[T], threads: int) -> list[
     threads = min(int(threads), len(blocks))
     if threads <= 1 or getattr(_IN_POOL, "active", False):
         return [fn(b) for b in blocks]
-    pool = _pool(threads)
     with one_blas_thread():
-        return list(pool.map(fn, blocks))
+        return map_threads(fn, blocks, threads)
+
+
+def map_threads(fn: Callable[[T], R], items: Sequence[T], threads: int) -> list[R]:
+    """``[fn(x) for x in items]`` on ``threads`` threads of the process's pool, BLAS left as it is: for numpy's
+    element-wise passes over a large batch (``silpose.model.features``' contour normalisation), whose loops release the
+    GIL. In place on the caller's thread when one thread or one item, and when the caller is one of the pool's threads
+    (e.g. a block of :func:`map_blocks`). ``fn`` must write disjoint outputs; the first exception raised is raised
+    here."""
+    threads = min(int(threads), len(items))
+    if threads <= 1 or getattr(_IN_POOL, "active", False):
+        return [fn(x) for x in items]
+    return list(_pool(threads).map(fn, items))
