@@ -274,13 +274,15 @@ def _normalise_chunk(f: np.ndarray, q: np.ndarray, c: np.ndarray, s: np.ndarray)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
 
 
-def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
+def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64.
 
     q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px. With matching shapes, about
     :data:`CHUNK_CONTOURS` contours at a time along the first axis (the same values; ``q`` may be a strided view,
     e.g. of the reconstructions' part of the shape vectors, and is not copied), the chunks of a large batch on threads
-    (:func:`chunk_threads`).
+    (:func:`chunk_threads`). ``out``: a float64 array of ``q``'s shape to write to (and return), with matching shapes
+    only; None = a new one.
     """
     q = np.asarray(q, dtype=np.float64)
     c = np.asarray(centroid, dtype=np.float64)
@@ -288,13 +290,18 @@ def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray)
     if q.ndim >= 3 and c.shape == q.shape[:-2] + (2,) and sc.shape == q.shape[:-2]:
         per_row = max(1, int(np.prod(q.shape[1:-2])))
         step = max(1, CHUNK_CONTOURS // per_row)
-        out = np.empty(q.shape)
+        if out is None:
+            out = np.empty(q.shape)
+        elif out.shape != q.shape or out.dtype != np.float64:
+            raise ValueError(f"denormalise_contours: out must be float64 of shape {q.shape}, got {out.dtype} {out.shape}")
 
         def chunk(a: int) -> None:
             _denormalise_into(q[a:a + step], c[a:a + step], sc[a:a + step], out[a:a + step])
 
         map_threads(chunk, range(0, len(q), step), chunk_threads(len(q) * per_row))
         return out
+    if out is not None:
+        raise ValueError("denormalise_contours: out needs centroid and scale of the contours' leading shape")
     out = q * sc[..., None, None]
     out[..., 0] += c[..., 0, None]
     out[..., 1] += c[..., 1, None]
