@@ -203,7 +203,7 @@ def test_large_batches_condition_in_blocks_on_threads(monkeypatch, dense_referen
     monkeypatch.setattr(threads, "THREADS", 2)  # two threads whatever the machine's cores
     monkeypatch.setattr(conditioning, "map_blocks", spy)
     res = Conditioner(p, obs, 0.2, reconstruct=True)(X, return_components=True)
-    assert seen == [(4, 2)]  # 549 rows: 4 blocks of <= THREAD_BLOCK_ROWS (256) on 2 threads
+    assert seen == [(2, 2)]  # 549 rows: 2 blocks of <= THREAD_BLOCK_ROWS (512) on 2 threads
     ref = dense_reference(p, X, obs, 0.2)
     for key in ("reconstruction", "best_mean", "component_means", "responsibilities", "variance"):
         np.testing.assert_allclose(getattr(res, key), ref[key], rtol=1e-9, atol=1e-11, err_msg=key)

@@ -233,7 +233,7 @@ def test_large_one_pattern_batches_in_blocks_equal_the_whole_batch_steps(fitted,
     run_blocks = posterior.map_blocks
     monkeypatch.setattr(posterior, "map_blocks", lambda fn, b, t: seen.append((len(b), t)) or run_blocks(fn, b, t))
     got = run()
-    assert seen == [(4, 2)] * 3  # 600 frames: 4 blocks of <= 256 on 2 threads, each call
+    assert seen == [(2, 2)] * 3  # 600 frames: 2 blocks of <= THREAD_BLOCK_ROWS (512) on 2 threads, each call
     for g, w in zip(got, want):
         for f in dataclasses.fields(w):
             a, b = getattr(g, f.name), getattr(w, f.name)

@@ -32,7 +32,10 @@ A batch then costs two large matrix products per chunk of rows, ``A (N, d_a) @ [
 ``P_i = D_i^-1 W_a K_i^-1`` (so ``x_hat_i = a P_i - mu_a P_i``) and ``[r_i x_hat_i]_i @
 [W_1^T .. W_M^T]``, with ``e^T D^-1 e`` expanded as ``a^T D^-1 a - 2 a^T D^-1 mu_a + mu_a^T D^-1
 mu_a`` from the first product and ``u^T K^-1 u = x_hat^T K x_hat``: O(N (d_a + d) q M) at BLAS-3
-speed, no (N, M, d) intermediate.
+speed, no (N, M, d) intermediate. A batch of at least 2 x ``MIN_THREAD_FRAMES`` rows is evaluated in blocks of at
+most :data:`THREAD_BLOCK_ROWS` rows on the process's threads, BLAS on one thread each (``silpose.model.threads``): the
+element-wise work between the products then runs on every core; each row's values are those of the one-thread
+evaluation to rounding (a product's rows blocked differently by BLAS).
 """
 
 from __future__ import annotations
@@ -48,11 +51,11 @@ __all__ = ["MixtureParams", "BatchPosterior", "RowsPosterior", "Conditioner", "c
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block of the batched products ...
 _CHUNK_VALUES = 1 << 21  # ... and fewer when M max(q, d_det) is large: each (M, rows, .) temporary <= 16 MB
-#: rows per block when a batch's blocks run on threads (``Conditioner.__call__``): each block's temporaries stay in
-#: the cache, and a process's first large batch maps ~4x less new memory for the threads' temporaries (measured
-#: on the benchmark's 2,000 frames at load ~10: 3,400 page faults in the first call instead of 8,100; wall ~90 ms
-#: instead of ~140-200 ms in the calls after it, 2 pairs of runs)
-THREAD_BLOCK_ROWS = 256
+#: rows per block when a batch's blocks run on threads (``Conditioner.__call__``, ``Posterior.infer_in_blocks``): each
+#: block's temporaries stay small (a process's first large batch maps new memory for each thread's; the benchmark's
+#: 2,000 frames: 5,600 page faults in the first call, none after it), and one-thread BLAS is as fast as on the whole
+#: batch (the two products, 2,000 rows: 47.0 ms CPU in blocks of 512 or 2,000, 49.8 in 256, 52.0 in 128; load 8)
+THREAD_BLOCK_ROWS = 512
 #: nats: a component whose log posterior weight is this far below a row's best adds less than e^-30 of that row's
 #: means and is left out of their products (Conditioner.__call__)
 GATE_NATS = 30.0

@@ -11,7 +11,8 @@ reconstruction: missing views from the conditional mean, present views from thei
 :class:`Posterior` holds what one fitted mixture needs to answer: its layout, its rig (the 'stature' joint
 frame) and a cache of :class:`~silpose.model.conditioning.Conditioner` objects, one per present-view pattern
 and noise level. ``ShapeStructureModel.infer`` calls :meth:`Posterior.infer` once, robust inference
-(``silpose.model.robust``) once per pass.
+(``silpose.model.robust``) once per pass. A large batch of one view pattern and one noise level is inferred in
+blocks on threads (:meth:`Posterior.infer_in_blocks`), each block normalised, conditioned and denormalised in turn.
 """
 
 from __future__ import annotations

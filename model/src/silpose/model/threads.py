@@ -1,7 +1,7 @@
 """Threads: BLAS held to one thread, and the blocks of a batch inferred on threads of their own.
 
 :func:`one_blas_thread` is a context in which BLAS runs on one thread (threadpoolctl; the limit is process-wide and the
-previous one comes back at its end). Two users:
+previous one comes back at its end). Its users:
 
 - EM's loops of small products (``silpose.model._em``: a block's (rows, q) x (q, q) per component), where waking
   OpenBLAS's threads costs more than the product. Measured on one block of 852 rows, M 60, q 40, d 1,657 at load ~8:
@@ -11,11 +11,16 @@ previous one comes back at its end). Two users:
   products on one BLAS thread, so that the threads do not compete with BLAS's own for the cores. numpy releases the
   GIL inside its array loops, which are most of the work. Two callers mapping blocks at once from threads of their
   own share the pool; the BLAS limit is the process's, restored when each leaves.
+- plain inference of a large batch (``silpose.model.posterior.Posterior.infer_in_blocks``, and the blocks of
+  ``silpose.model.conditioning.Conditioner.__call__``): blocks of at most ``THREAD_BLOCK_ROWS`` (512) frames, each
+  normalised, conditioned and denormalised by one thread into arrays the caller's thread allocated, so that the ~35 %
+  of its work outside BLAS (contour normalisation, the latent algebra, the pixel reconstructions) runs on every core
+  too. An earlier try (whole-batch steps in equal blocks of >= 256 frames) gained nothing at load 7-9 and cost a
+  process's first large batch ~100 ms (threads' memory arenas); with blocks of 512 frames and no whole-batch
+  temporaries, a call after the first maps no new memory (page faults per 2,000-frame call 2,079 -> 0).
 
-Plain inference stays on the caller's thread: tried the same way (equal blocks of >= 256 frames per thread), its
-2,000 benchmark frames took 226 vs 229 ms (median of 5 alternating pairs, load 7-9) and 216 vs 206 ms (8 pairs,
-load 9), and a process's first large batch paid ~100 ms more (threads and their memory arenas starting), which the
-benchmark's one timed call would have counted: its non-BLAS part (~30 %) is too small to gain more.
+:func:`map_threads` is the pool without the BLAS limit, for numpy's element-wise passes (``silpose.model.features``:
+the chunks of a large batch's contour normalisation and denormalisation).
 """
 
 from __future__ import annotations
