@@ -221,8 +221,9 @@ class FeatureLayout:
 CHUNK_CONTOURS = 512
 #: contours of a batch from which :func:`normalise_contours` and :func:`denormalise_contours` run their chunks on
 #: ``silpose.model.threads.THREADS`` threads (``map_threads``; each chunk gives the same values on any thread): 2,000
-#: frames of 4 views, the benchmark's batch, spent ~17 of their ~45 ms of work outside BLAS in these two passes,
-#: on one core
+#: frames of 4 views, the benchmark's batch, spent ~17 ms in these two passes on one core (9.0 + 7.4 ms CPU, load ~10),
+#: about half of their work outside BLAS. Inside a block of ``Posterior.infer_in_blocks`` (already on a pool thread)
+#: the chunks run in place
 THREAD_CONTOURS = 4 * CHUNK_CONTOURS
 
 
