@@ -53,6 +53,18 @@ robust batched 511 / 433 / 668 frames/s (56x / 39x / 36x its floor) on main, 514
 ms and 14.0 / 19.6 / 13.7 ms. The throughput did not change at this load (the other jobs left the process ~0.5 core
 with one thread or two); the ratios moved with the floor (0.07-0.15 s). At load 10-11, THREADS 1 vs 2 in one
 process: robust 4.93 -> 3.89 s median wall (45x -> 37x).
+
+Measured 2026-12-03 after plain inference's blocks on threads (``silpose.model.threads`` doc: a large batch of one view
+pattern normalised, conditioned and denormalised in blocks of 512 frames on both cores, BLAS on one thread each), main
+(84df551) and new code alternating, each in its own process, at load 7-9 (no idle machine in reach; the floor itself
+took 62-110 ms, against ~21 ms idle): ``--quick`` through ``benchmarks.run``, three pairs, plain batched 4 views
+3.55x / 2.62x / 1.89x its floor on main, 3.07x / 1.95x / 1.96x new; robust 52x / 46x / 34x and 54x / 34x / 37x;
+single frame robust M 50 16.5 / 13.6 / 30.0 ms and 22.8 / 13.7 / 16.1 ms. Work per 2,000-frame plain call (user +
+system CPU of all threads, median of 7 calls after the first, three pairs at load 8-9): 105 / 96 / 155 ms on main,
+84 / 75 / 79 ms new (the first call: 100-163 and 101-121 ms); page faults per call after the first 2,079 -> 0.
+Single frame, M 50 q 40, one BLAS thread, CPU median: plain 2.32 / 1.78 -> 1.80 / 1.74 ms, robust 6.91 / 6.45 ->
+6.29 / 6.35 ms. On an idle machine the plain row should gain most: its ~35 % of work outside BLAS now runs on both
+cores; not measured here.
 """
 
 from __future__ import annotations

@@ -182,6 +182,36 @@ def test_rows_conditioned_in_chunks_equal_one_batch(monkeypatch):
     np.testing.assert_allclose(one.reconstruction[0], whole.reconstruction[31], rtol=1e-12)
 
 
+def test_large_batches_condition_in_blocks_on_threads(monkeypatch, dense_reference):
+    """A batch of >= 2 x MIN_THREAD_FRAMES rows is conditioned in blocks on the pool's threads (``threads.map_blocks``,
+    BLAS on one thread): every row equals dense conditioning, and a NaN in a late block is still refused."""
+    import silpose.model.conditioning as conditioning
+    from silpose.model import threads
+
+    rng = np.random.default_rng(11)
+    p = Params(rng)
+    obs = np.array([0, 2, 3, 5, 7, 8])
+    n = 2 * threads.MIN_THREAD_FRAMES + 37
+    X = p.means_[rng.integers(3, size=n)][:, obs] + rng.standard_normal((n, obs.size))
+    seen = []
+    run = conditioning.map_blocks
+
+    def spy(fn, blocks, count):
+        seen.append((len(blocks), count))
+        return run(fn, blocks, count)
+
+    monkeypatch.setattr(threads, "THREADS", 2)  # two threads whatever the machine's cores
+    monkeypatch.setattr(conditioning, "map_blocks", spy)
+    res = Conditioner(p, obs, 0.2, reconstruct=True)(X, return_components=True)
+    assert seen == [(2, 2)]  # 549 rows: 2 blocks of <= THREAD_BLOCK_ROWS (512) on 2 threads
+    ref = dense_reference(p, X, obs, 0.2)
+    for key in ("reconstruction", "best_mean", "component_means", "responsibilities", "variance"):
+        np.testing.assert_allclose(getattr(res, key), ref[key], rtol=1e-9, atol=1e-11, err_msg=key)
+    np.testing.assert_allclose(res.log_marginal, ref["log_marginal"], rtol=1e-10)
+    X[n - 3, 2] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        Conditioner(p, obs, 0.2)(X)
+
 @pytest.mark.parametrize(
     "call, match",
     [

@@ -100,6 +100,39 @@ def test_normalisation_in_chunks_and_of_strided_views(monkeypatch):
     assert np.array_equal(out, rec * s[..., None, None] + c[..., None, :], equal_nan=True)
 
 
+
+def test_normalisation_chunks_on_threads_equal_one_thread(monkeypatch):
+    """A large batch's chunks of contours run on the pool's threads (``features.chunk_threads``): the same values bit
+    for bit as the broadcast forms on one thread, and the chunks did run on other threads."""
+    import threading
+
+    rng = np.random.default_rng(9)
+    pts = _contours(rng, (23, 3))
+    pts[4, 2, 9] = np.nan
+    pts[7, 1] = 150.0  # a degenerate contour: scale 0, q = 0
+    want_q, want_c, want_s = normalise_contours(pts)  # 69 contours: one thread
+    vectors = np.concatenate([want_q.reshape(23, -1), rng.normal(size=(23, 57))], axis=1)
+    rec = vectors[:, :3 * 200 * 2].reshape(23, 3, 200, 2)
+    want_px = denormalise_contours(rec, want_c, want_s)
+    names = set()
+    run_chunk = features._normalise_chunk
+
+    def chunk(*args):
+        names.add(threading.current_thread().name)
+        run_chunk(*args)
+
+    monkeypatch.setattr(features, "_normalise_chunk", chunk)
+    monkeypatch.setattr(features, "CHUNK_CONTOURS", 5)  # 14 chunks ...
+    monkeypatch.setattr(features, "THREAD_CONTOURS", 20)  # ... on threads ...
+    monkeypatch.setattr(features, "THREADS", 2)  # ... two of them, whatever the machine's cores
+    q, c, s = normalise_contours(pts)
+    assert names and all(n.startswith("silpose-block") for n in names)
+    for got, want in ((q, want_q), (c, want_c), (s, want_s)):
+        assert np.array_equal(got, want, equal_nan=True)
+    assert s[7, 1] == 0 and np.all(q[7, 1] == 0)
+    assert np.array_equal(denormalise_contours(rec, c, s), want_px, equal_nan=True)
+    assert np.array_equal(want_px, rec * want_s[..., None, None] + want_c[..., None, :], equal_nan=True)
+
 def test_frame_noise_variance_is_the_nanmedian_form():
     rng = np.random.default_rng(4)
     obs, rec = rng.normal(size=(12, 4, 200, 2)), rng.normal(size=(12, 4, 200, 2))

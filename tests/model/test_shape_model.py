@@ -197,3 +197,54 @@ def test_conditioner_cache_is_bounded_by_bytes_and_changes_no_result(fitted, mon
         np.testing.assert_allclose(res.joints, reference.joints, rtol=1e-12)
         np.testing.assert_allclose(res.contours_px, reference.contours_px, rtol=1e-12)
     model._posterior = None
+
+
+def test_large_one_pattern_batches_in_blocks_equal_the_whole_batch_steps(fitted, monkeypatch):
+    """A batch of >= 2 x MIN_THREAD_FRAMES frames with one present-view pattern is normalised, conditioned and
+    denormalised in blocks on threads (``Posterior.infer_in_blocks``): every field equals the whole-batch steps on one
+    thread (the reference: the block path and the conditioner's threads switched off), also with an absent view (its
+    given factors kept) and with the component means (hypotheses); an overflowing frame is named by its batch index."""
+    import dataclasses
+
+    from silpose.model import posterior, threads
+
+    model, train, test = fitted
+    c = np.concatenate([train.contours, test.contours, train.contours[:120]])  # 600 frames
+    n, k = c.shape[:2]
+    absent = np.ones((n, k), bool)
+    absent[:, 1] = False
+    c_absent = c.copy()
+    c_absent[:, 1] = np.nan
+    cen = np.concatenate([train.centroid, test.centroid, train.centroid[:120]])
+    sc = np.concatenate([train.scale, test.scale, train.scale[:120]])
+    calls = [dict(contours_px=c), dict(contours_px=c_absent, views_present=absent, centroid=cen, scale=sc),
+             dict(contours_px=c, hypotheses=2)]
+
+    def run():
+        model._posterior = None  # a new cache of conditioners each time
+        return [model.infer(**kw) for kw in calls]
+
+    monkeypatch.setattr(posterior, "MIN_THREAD_FRAMES", 10**9)  # the reference: whole-batch steps ...
+    monkeypatch.setattr(threads, "THREADS", 1)  # ... on one thread
+    want = run()
+    monkeypatch.setattr(posterior, "MIN_THREAD_FRAMES", threads.MIN_THREAD_FRAMES)
+    monkeypatch.setattr(threads, "THREADS", 2)
+    seen = []
+    run_blocks = posterior.map_blocks
+    monkeypatch.setattr(posterior, "map_blocks", lambda fn, b, t: seen.append((len(b), t)) or run_blocks(fn, b, t))
+    got = run()
+    assert seen == [(2, 2)] * 3  # 600 frames: 2 blocks of <= THREAD_BLOCK_ROWS (512) on 2 threads, each call
+    for g, w in zip(got, want):
+        for f in dataclasses.fields(w):
+            a, b = getattr(g, f.name), getattr(w, f.name)
+            if isinstance(b, np.ndarray):
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12, err_msg=f.name)
+        assert (g.hypotheses is None) == (w.hypotheses is None)
+        if w.hypotheses is not None:
+            np.testing.assert_allclose(g.hypotheses.joints, w.hypotheses.joints, rtol=1e-12, atol=1e-12)
+    assert np.isnan(got[1].contours_px[:, 1]).sum() == 0  # the absent view: mapped with its given factors
+    np.testing.assert_array_equal(got[1].centroid[:, 1], cen[:, 1])
+    bad = c.astype(np.float64)
+    bad[550, 2, 3] = 1e300  # finite, but its squares overflow
+    with pytest.raises(ValueError, match="overflow.*frame 550, view 2"):
+        model.infer(bad)

@@ -32,7 +32,10 @@ A batch then costs two large matrix products per chunk of rows, ``A (N, d_a) @ [
 ``P_i = D_i^-1 W_a K_i^-1`` (so ``x_hat_i = a P_i - mu_a P_i``) and ``[r_i x_hat_i]_i @
 [W_1^T .. W_M^T]``, with ``e^T D^-1 e`` expanded as ``a^T D^-1 a - 2 a^T D^-1 mu_a + mu_a^T D^-1
 mu_a`` from the first product and ``u^T K^-1 u = x_hat^T K x_hat``: O(N (d_a + d) q M) at BLAS-3
-speed, no (N, M, d) intermediate.
+speed, no (N, M, d) intermediate. A batch of at least 2 x ``MIN_THREAD_FRAMES`` rows is evaluated in blocks of at
+most :data:`THREAD_BLOCK_ROWS` rows on the process's threads, BLAS on one thread each (``silpose.model.threads``): the
+element-wise work between the products then runs on every core; each row's values are those of the one-thread
+evaluation to rounding (a product's rows blocked differently by BLAS).
 """
 
 from __future__ import annotations
@@ -41,11 +44,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .threads import block_bounds, map_blocks
+
 __all__ = ["MixtureParams", "BatchPosterior", "RowsPosterior", "Conditioner", "condition", "condition_rows"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _CHUNK = 2048  # rows per block of the batched products ...
 _CHUNK_VALUES = 1 << 21  # ... and fewer when M max(q, d_det) is large: each (M, rows, .) temporary <= 16 MB
+#: rows per block when a batch's blocks run on threads (``Conditioner.__call__``, ``Posterior.infer_in_blocks``): each
+#: block's temporaries stay small (a process's first large batch maps new memory for each thread's; the benchmark's
+#: 2,000 frames: 5,600 page faults in the first call, none after it), and one-thread BLAS is as fast as on the whole
+#: batch (the two products, 2,000 rows: 47.0 ms CPU in blocks of 512 or 2,000, 49.8 in 256, 52.0 in 128; load 8)
+THREAD_BLOCK_ROWS = 512
 #: nats: a component whose log posterior weight is this far below a row's best adds less than e^-30 of that row's
 #: means and is left out of their products (Conditioner.__call__)
 GATE_NATS = 30.0
@@ -265,7 +275,12 @@ class Conditioner:
         else:
             self.B = self.output_matrix(p, out_dims)
         self.W_det = W[:, det, :]  # (M, d_det, q)
+        self.WdT = np.ascontiguousarray(self.W_det.transpose(0, 2, 1))  # (M, q, d_det): BLAS-ready right-hand sides
         self.mu_det = mu[:, det]
+        # the detail dims among the returned ones as a slice when consecutive (the joints block: a view, not a copy)
+        pos = np.asarray(self.detail_pos)
+        run = pos.size > 0 and bool((np.diff(pos) == 1).all())
+        self.detail_cols = slice(int(pos[0]), int(pos[-1]) + 1) if run else pos
         self.Kinv = np.linalg.inv(self.K)
         self.sig2 = sig2
         # posterior variance of the detail dims per component: diag(W_det K^-1 W_det^T) + sigma^2
@@ -314,7 +329,7 @@ class Conditioner:
         return X
 
     def __call__(self, X_obs, *, return_components: bool = False, return_cov: bool = False,
-                 components=None) -> BatchPosterior:
+                 components=None, out: np.ndarray | None = None) -> BatchPosterior:
         """Posterior for observations X_obs (N, d_a) (or (d_a,) for one row), columns in ``observed`` order.
 
         ``return_components`` adds the component means of the detail dims (N, M, d_det); ``return_cov``
@@ -323,16 +338,26 @@ class Conditioner:
         knows they are negligible, e.g. more than :data:`GATE_NATS` below the best); None = all. Components whose
         log posterior weight is more than :data:`GATE_NATS` below a row's best add nothing to the means: they are
         left out of the output product where no row of a block needs them (relative change < M e^-30).
+        ``out``: an (N, d_out) float64 array (e.g. rows of a larger one) the mixture mean is written to and returned
+        in (``reconstruction`` or ``missing_mean``); None = a new one.
         Raises ValueError for a wrong shape, NaN or inf, or values so large that the log density overflows.
         """
-        X = self.checked_rows(X_obs)
+        X = np.asarray(X_obs, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.d_a:
+            X = self.checked_rows(X_obs)  # a shape error, or one row (d_a,); NaN and inf are caught per chunk below
         m_all, q, n_det = self.m, self.q, self.detail.size
         if return_cov and components is not None:
             raise ValueError("condition: return_cov needs every component (components=None)")
         sub = _Subset(self, components)
         m = sub.m
         n = X.shape[0]
-        mean = np.empty((n, self.B.shape[1]))
+        if out is None:
+            mean = np.empty((n, self.B.shape[1]))
+        elif out.shape != (n, self.B.shape[1]) or out.dtype != np.float64:
+            raise ValueError(f"condition: out must be a float64 array of shape ({n}, {self.B.shape[1]}), got "
+                             f"{out.dtype} {out.shape}")
+        else:
+            mean = out
         best = np.empty((n, n_det))
         var = np.empty((n, n_det))
         resp = np.zeros((n, m_all)) if sub.idx is not None else np.empty((n, m_all))
@@ -342,8 +367,9 @@ class Conditioner:
         if want_cm:
             cmeans = np.empty((n, m_all, n_det)) if sub.idx is None else np.full((n, m_all, n_det), np.nan)
         chunk = int(min(_CHUNK, max(64, _CHUNK_VALUES // max(1, m * max(q, n_det)))))
-        for s in range(0, n, chunk):
-            sl = slice(s, min(s + chunk, n))
+
+        def rows(bounds: tuple[int, int]) -> None:  # one block of rows: every output row of it written here
+            sl = slice(*bounds)
             x = X[sl]
             b = x.shape[0]
             Pm = (x @ sub.A).reshape(b, m, q + 1)  # a @ P_i and a . mu_a,i (D^-1-weighted) for every i
@@ -355,6 +381,8 @@ class Conditioner:
                 maha = e2 * sub.invD[None, :]
             else:
                 maha = (x * x) @ sub.invD_dims.T - 2.0 * Pm[:, :, q] + sub.mu_sq[None, :]  # e^T D^-1 e
+            if not np.isfinite(maha).all():  # NaN or inf in x (the error), or squares that overflow (caught below)
+                self.checked_rows(x)
             quad = np.sum(np.matmul(xh, sub.K) * xh, axis=2).T  # u^T K^-1 u = x_hat^T K x_hat  (b, M)
             logp = sub.log_norm[None, :] - 0.5 * (maha - quad)
             top = logp.max(axis=1, keepdims=True)  # log-sum-exp, stable
@@ -374,7 +402,7 @@ class Conditioner:
             # per-component means of the detail dims (M, b, d_det): those of the components in use
             cm = sub.mu_det[act, None, :] + np.matmul(xa, sub.WdT[act])
             best[sl] = cm[np.argmax(ra, axis=1), np.arange(b)]
-            dev = cm - mean[sl][:, self.detail_pos][None]
+            dev = cm - mean[sl, self.detail_cols][None]
             var[sl] = ra @ sub.var_det[act] + np.einsum("bm,mbj->bj", ra, dev * dev)  # law of total variance
             sub.scatter(resp, sl, r)
             logm[sl] = lm
@@ -382,6 +410,14 @@ class Conditioner:
                 if not isinstance(act, slice):  # every component's mean was asked for
                     cm = sub.mu_det[:, None, :] + np.matmul(xh, sub.WdT)
                 sub.scatter(cmeans, sl, cm.transpose(1, 0, 2))
+
+        # blocks of at most `chunk` rows; a large batch's on threads, each block's products on one BLAS thread
+        # (silpose.model.threads.map_blocks): the element-wise work between the products runs on both cores then
+        if n:
+            blocks, threads = block_bounds(n, chunk)
+            if threads > 1:  # blocks of a thread's cache size (module doc, "Evaluation")
+                blocks, threads = block_bounds(n, min(chunk, THREAD_BLOCK_ROWS))
+            map_blocks(rows, blocks, threads)
         if not np.all(np.isfinite(logm)):
             row = int(np.flatnonzero(~np.isfinite(logm))[0])
             raise ValueError(f"condition: the log density of row {row} is not finite (X_obs values too large)")
@@ -403,7 +439,7 @@ class _Subset:
     def __init__(self, cond: "Conditioner", components) -> None:
         m, q = cond.m, cond.q
         self.q = q
-        self.WdT = cond.W_det.transpose(0, 2, 1)  # (M, q, d_det)
+        self.WdT = cond.WdT  # (M, q, d_det)
         names = ("c", "mu_sq", "log_norm", "K", "mu_det", "var_det")
         if components is None:
             self.idx, self.m, self.A, self.B = None, m, cond.A, cond.B

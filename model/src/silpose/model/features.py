@@ -29,6 +29,7 @@ from silpose.shared.skeleton import N_JOINTS, root_relative
 
 from .checks import check_contours
 from .stature import REFERENCE_STATURE, estimate_stature
+from .threads import THREADS, map_threads
 
 LAYOUT_VERSION = 1
 #: how the structure block's joints are scaled (see FeatureLayout.joint_frame); files without the
@@ -218,6 +219,17 @@ class FeatureLayout:
 #: contours per chunk of :func:`normalise_contours` and :func:`denormalise_contours`: a chunk's arrays (0.8 MB at
 #: n 200) stay in a core's cache between the steps (on (1024, 4, 200, 2) batches ~1.5x faster than whole-array steps)
 CHUNK_CONTOURS = 512
+#: contours of a batch from which :func:`normalise_contours` and :func:`denormalise_contours` run their chunks on
+#: ``silpose.model.threads.THREADS`` threads (``map_threads``; each chunk gives the same values on any thread): 2,000
+#: frames of 4 views, the benchmark's batch, spent ~17 ms in these two passes on one core (9.0 + 7.4 ms CPU, load ~10),
+#: about half of their work outside BLAS. Inside a block of ``Posterior.infer_in_blocks`` (already on a pool thread)
+#: the chunks run in place
+THREAD_CONTOURS = 4 * CHUNK_CONTOURS
+
+
+def chunk_threads(n_contours: int) -> int:
+    """Threads for the chunks of a pass over ``n_contours`` contours (:data:`THREAD_CONTOURS`)."""
+    return THREADS if n_contours >= THREAD_CONTOURS else 1
 
 
 def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -228,7 +240,8 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     Same definition as the shared function; its sums run in another order (strided row sums, one
     dot product per contour), which is ~10x faster on (N, K, 200, 2) batches and agrees to ~1e-15
     relative. Every model file was fitted through this arithmetic, so the model keeps it. Contours are
-    normalised :data:`CHUNK_CONTOURS` at a time (each on its own: the same values).
+    normalised :data:`CHUNK_CONTOURS` at a time (each on its own: the same values), the chunks of a large batch on
+    threads (:func:`chunk_threads`).
     """
     p = np.asarray(points, dtype=np.float64)
     lead, n = p.shape[:-2], p.shape[-2]
@@ -236,9 +249,12 @@ def normalise_contours(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     q = np.empty(f.shape)
     c = np.empty((len(f), 2))
     s = np.empty(len(f))
-    for a in range(0, len(f), CHUNK_CONTOURS):
+
+    def chunk(a: int) -> None:
         b = min(a + CHUNK_CONTOURS, len(f))
         _normalise_chunk(f[a:b], q[a:b], c[a:b], s[a:b])
+
+    map_threads(chunk, range(0, len(f), CHUNK_CONTOURS), chunk_threads(len(f)))
     return q.reshape(p.shape), c.reshape(*lead, 2), s.reshape(lead)
 
 
@@ -259,22 +275,34 @@ def _normalise_chunk(f: np.ndarray, q: np.ndarray, c: np.ndarray, s: np.ndarray)
     q /= np.where(s > 0, s, 1.0)[:, None, None]
 
 
-def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray) -> np.ndarray:
+def denormalise_contours(q: np.ndarray, centroid: np.ndarray, scale: np.ndarray,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Inverse of :func:`normalise_contours` (``silpose.shared.contours.denormalise``): ``p = s q + c``, float64.
 
     q (..., n, 2), centroid (..., 2) px, scale (...,) px -> (..., n, 2) px. With matching shapes, about
     :data:`CHUNK_CONTOURS` contours at a time along the first axis (the same values; ``q`` may be a strided view,
-    e.g. of the reconstructions' part of the shape vectors, and is not copied).
+    e.g. of the reconstructions' part of the shape vectors, and is not copied), the chunks of a large batch on threads
+    (:func:`chunk_threads`). ``out``: a float64 array of ``q``'s shape to write to (and return), with matching shapes
+    only; None = a new one.
     """
     q = np.asarray(q, dtype=np.float64)
     c = np.asarray(centroid, dtype=np.float64)
     sc = np.asarray(scale, dtype=np.float64)
     if q.ndim >= 3 and c.shape == q.shape[:-2] + (2,) and sc.shape == q.shape[:-2]:
-        step = max(1, CHUNK_CONTOURS // max(1, int(np.prod(q.shape[1:-2]))))
-        out = np.empty(q.shape)
-        for a in range(0, len(q), step):
+        per_row = max(1, int(np.prod(q.shape[1:-2])))
+        step = max(1, CHUNK_CONTOURS // per_row)
+        if out is None:
+            out = np.empty(q.shape)
+        elif out.shape != q.shape or out.dtype != np.float64:
+            raise ValueError(f"denormalise_contours: out must be float64 of shape {q.shape}, got {out.dtype} {out.shape}")
+
+        def chunk(a: int) -> None:
             _denormalise_into(q[a:a + step], c[a:a + step], sc[a:a + step], out[a:a + step])
+
+        map_threads(chunk, range(0, len(q), step), chunk_threads(len(q) * per_row))
         return out
+    if out is not None:
+        raise ValueError("denormalise_contours: out needs centroid and scale of the contours' leading shape")
     out = q * sc[..., None, None]
     out[..., 0] += c[..., 0, None]
     out[..., 1] += c[..., 1, None]

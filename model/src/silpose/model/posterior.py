@@ -11,7 +11,8 @@ reconstruction: missing views from the conditional mean, present views from thei
 :class:`Posterior` holds what one fitted mixture needs to answer: its layout, its rig (the 'stature' joint
 frame) and a cache of :class:`~silpose.model.conditioning.Conditioner` objects, one per present-view pattern
 and noise level. ``ShapeStructureModel.infer`` calls :meth:`Posterior.infer` once, robust inference
-(``silpose.model.robust``) once per pass.
+(``silpose.model.robust``) once per pass. A large batch of one view pattern and one noise level is inferred in
+blocks on threads (:meth:`Posterior.infer_in_blocks`), each block normalised, conditioned and denormalised in turn.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import threading
 import numpy as np
 
 from .checks import Inputs
-from .conditioning import Conditioner
+from .conditioning import THREAD_BLOCK_ROWS, Conditioner
 from .gated import condition_gated, rows_where
 from .screen import Screen, ScreenMatrices
 from .features import FeatureLayout, denormalise_contours, normalise_contours
@@ -29,7 +30,7 @@ from .hypotheses import heading
 from .plausibility import view_subsets
 from .result import InferenceResult
 from .stature import REFERENCE_STATURE, estimate_stature
-from .threads import prepare
+from .threads import MIN_THREAD_FRAMES, block_bounds, map_blocks, prepare
 
 __all__ = ["Posterior"]
 
@@ -87,6 +88,9 @@ class Posterior:
         c_mod, present = inputs.contours, inputs.present
         n, kmod = present.shape
         all_present = bool(present.all())
+        if (only is None and screen is None and np.ndim(s2) == 0 and n >= 2 * MIN_THREAD_FRAMES
+                and (all_present or bool((present == present[:1]).all()))):
+            return self.infer_in_blocks(inputs, float(s2), components)
         # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
         with np.errstate(invalid="ignore", over="ignore"):
             norm, cen, sc = normalise_contours(c_mod)
@@ -163,6 +167,18 @@ class Posterior:
                 if components:
                     cmeans[rows] = post.component_means
 
+        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc)
+
+    def assemble(self, inputs: Inputs, mean, best, var, resp, logm, cmeans, cen, sc,
+                 px: np.ndarray | None = None) -> tuple[InferenceResult, np.ndarray | None]:
+        """The :meth:`infer` result from the conditioning's arrays of every frame (module doc): mixture mean (N, d),
+        best component's joints block, its variance (N, 57), responsibilities (N, M), log marginal (N,), component
+        means of the joints (N, M, 57) or None, the normalisation factors cen (N, K, 2) and sc (N, K) px, and the
+        reconstructions in pixels (N, K, n, 2) when already made (None: made here)."""
+        layout = self.layout
+        c_mod, present = inputs.contours, inputs.present
+        n = len(present)
+        M = self.n_components
         rec, joints = layout.split(mean)
         w = layout.structure_weight
         joints_best = best.reshape(n, layout.n_joints, 3) / w
@@ -174,11 +190,59 @@ class Posterior:
             joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
             if comp_joints is not None:
                 comp_joints = comp_joints * factor[:, None, None, None]
-        px = denormalise_contours(rec, cen, sc)
+        if px is None:
+            px = denormalise_contours(rec, cen, sc)
         res = InferenceResult(joints=joints, joints_best=joints_best, joint_std=joint_std, contours_norm=rec,
                               contours_px=px, centroid=cen, scale=sc, views_present=present, responsibilities=resp,
                               log_marginal=logm, views=layout.views)
         return res, comp_joints
+
+    def infer_in_blocks(self, inputs: Inputs, s2: float, components: bool) -> tuple[InferenceResult,
+                                                                                      np.ndarray | None]:
+        """:meth:`infer` of a large batch whose frames all have one present-view pattern, at one noise ``s2``: blocks of
+        :data:`~silpose.model.conditioning.THREAD_BLOCK_ROWS` frames on the pool's threads
+        (:func:`~silpose.model.threads.map_blocks`, BLAS on one thread each), each block normalised, conditioned
+        and denormalised in turn while its arrays are in the cache, into the batch's arrays. The same arithmetic as
+        the whole-batch steps, row by row (the normalised contours are never a whole-batch array)."""
+        layout = self.layout
+        c_mod, present = inputs.contours, inputs.present
+        n, kmod = present.shape
+        pattern = present[0]
+        every = bool(pattern.all())
+        obs = layout.observed_mask(pattern)[: layout.contour_dim]
+        cond = self.conditioner(pattern, s2)
+        sd, M = layout.structure_dim, self.n_components
+        mean = np.empty((n, layout.dim))
+        best, var = np.empty((n, sd)), np.empty((n, sd))
+        resp, logm = np.empty((n, M)), np.empty(n)
+        cmeans = np.empty((n, M, sd)) if components else None
+        cen, sc = np.empty((n, kmod, 2)), np.empty((n, kmod))
+        px = np.empty(c_mod.shape)
+
+        def block(bounds: tuple[int, int]) -> None:
+            sl = slice(*bounds)
+            with np.errstate(invalid="ignore", over="ignore"):  # as in infer
+                norm, cen[sl], sc[sl] = normalise_contours(c_mod[sl])
+            overflow = present[sl] & ~(np.isfinite(sc[sl]) & np.isfinite(cen[sl]).all(axis=-1))
+            if overflow.any():
+                r, p = np.argwhere(overflow)[0]
+                raise ValueError(
+                    f"contours_px values too large to normalise (overflow) in an observed view: frame {sl.start + r}, "
+                    f"view {layout.views[p]}; pixel coordinates must be finite and of image size")
+            if not every:  # keep the known factors for absent views
+                cen[sl] = np.where(present[sl, :, None], cen[sl], inputs.centroid[sl])
+                sc[sl] = np.where(present[sl], sc[sl], inputs.scale[sl])
+            flat = norm.reshape(len(norm), -1)
+            post = cond(flat if every else flat[:, obs], return_components=components, out=mean[sl])
+            best[sl], var[sl], resp[sl], logm[sl] = post.best_mean, post.variance, post.responsibilities, post.log_marginal
+            if components:
+                cmeans[sl] = post.component_means
+            rec = mean[sl, : layout.contour_dim].reshape(px[sl].shape)
+            denormalise_contours(rec, cen[sl], sc[sl], out=px[sl])
+
+        blocks, threads = block_bounds(n, THREAD_BLOCK_ROWS)
+        map_blocks(block, blocks, threads)
+        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc, px)
 
     def screened(self, screen: dict, pattern: np.ndarray, present: np.ndarray, flat: np.ndarray, rows,
                  cond: Conditioner) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Threads: BLAS held to one thread, and the blocks of a batch inferred on threads of their own.
 
 :func:`one_blas_thread` is a context in which BLAS runs on one thread (threadpoolctl; the limit is process-wide and the
-previous one comes back at its end). Two users:
+previous one comes back at its end). Its users:
 
 - EM's loops of small products (``silpose.model._em``: a block's (rows, q) x (q, q) per component), where waking
   OpenBLAS's threads costs more than the product. Measured on one block of 852 rows, M 60, q 40, d 1,657 at load ~8:
@@ -11,11 +11,16 @@ previous one comes back at its end). Two users:
   products on one BLAS thread, so that the threads do not compete with BLAS's own for the cores. numpy releases the
   GIL inside its array loops, which are most of the work. Two callers mapping blocks at once from threads of their
   own share the pool; the BLAS limit is the process's, restored when each leaves.
+- plain inference of a large batch (``silpose.model.posterior.Posterior.infer_in_blocks``, and the blocks of
+  ``silpose.model.conditioning.Conditioner.__call__``): blocks of at most ``THREAD_BLOCK_ROWS`` (512) frames, each
+  normalised, conditioned and denormalised by one thread into arrays the caller's thread allocated, so that the ~35 %
+  of its work outside BLAS (contour normalisation, the latent algebra, the pixel reconstructions) runs on every core
+  too. An earlier try (whole-batch steps in equal blocks of >= 256 frames) gained nothing at load 7-9 and cost a
+  process's first large batch ~100 ms (threads' memory arenas); with blocks of 512 frames and no whole-batch
+  temporaries, a call after the first maps no new memory (page faults per 2,000-frame call 2,079 -> 0).
 
-Plain inference stays on the caller's thread: tried the same way (equal blocks of >= 256 frames per thread), its
-2,000 benchmark frames took 226 vs 229 ms (median of 5 alternating pairs, load 7-9) and 216 vs 206 ms (8 pairs,
-load 9), and a process's first large batch paid ~100 ms more (threads and their memory arenas starting), which the
-benchmark's one timed call would have counted: its non-BLAS part (~30 %) is too small to gain more.
+:func:`map_threads` is the pool without the BLAS limit, for numpy's element-wise passes (``silpose.model.features``:
+the chunks of a large batch's contour normalisation and denormalisation).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from typing import Callable, Sequence, TypeVar
 
 from threadpoolctl import ThreadpoolController
 
-__all__ = ["THREADS", "MIN_THREAD_FRAMES", "one_blas_thread", "prepare", "block_bounds", "map_blocks"]
+__all__ = ["THREADS", "MIN_THREAD_FRAMES", "one_blas_thread", "prepare", "block_bounds", "map_blocks", "map_threads"]
 
 #: threads that infer the blocks of a large batch at once (:func:`map_blocks`); 1 = the blocks one after the other on
 #: the caller's thread
@@ -94,6 +99,17 @@ def map_blocks(fn: Callable[[T], R], blocks: Sequence[T], threads: int) -> list[
     threads = min(int(threads), len(blocks))
     if threads <= 1 or getattr(_IN_POOL, "active", False):
         return [fn(b) for b in blocks]
-    pool = _pool(threads)
     with one_blas_thread():
-        return list(pool.map(fn, blocks))
+        return map_threads(fn, blocks, threads)
+
+
+def map_threads(fn: Callable[[T], R], items: Sequence[T], threads: int) -> list[R]:
+    """``[fn(x) for x in items]`` on ``threads`` threads of the process's pool, BLAS left as it is: for numpy's
+    element-wise passes over a large batch (``silpose.model.features``' contour normalisation), whose loops release the
+    GIL. In place on the caller's thread when one thread or one item, and when the caller is one of the pool's threads
+    (e.g. a block of :func:`map_blocks`). ``fn`` must write disjoint outputs; the first exception raised is raised
+    here."""
+    threads = min(int(threads), len(items))
+    if threads <= 1 or getattr(_IN_POOL, "active", False):
+        return [fn(x) for x in items]
+    return list(_pool(threads).map(fn, items))
