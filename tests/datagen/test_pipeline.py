@@ -115,6 +115,28 @@ def test_a_resume_with_another_max_redraws_keeps_the_finished_shards(tmp_path):
     assert any(verdicts)  # the stand-in redraws some samples once
 
 
+def test_a_dataset_made_before_an_augmentation_field_existed_resumes_with_it_off(tmp_path):
+    """``[motion] part_mix`` / ``limb_swing`` at 0 draw and render what a config without them does
+    (shards.MOTION_DEFAULTS): the motions preset's 48,000 samples, made before ``part_mix`` existed, were refused
+    ("field 'config' differs") by every later `silpose gen motions`. Any other value is another dataset."""
+    import copy
+
+    config = tiny_config(tmp_path)
+    task = plan_shards(config)[0]
+    before = dataset_metadata(config)
+    before["config"]["motion"] = {"source": "library", "mirror": True}  # as written before the fields existed
+    write_shard(tmp_path / task.file, synthetic_render_samples(config.worker_config(), task.split, list(task.indices)),
+                before)
+    now = copy.deepcopy(before)
+    now["config"]["motion"].update(part_mix=0.0, limb_swing=0.0)
+    assert shard_is_complete(tmp_path / task.file, task, now)
+    for field, value in (("part_mix", 0.3), ("limb_swing", 0.5)):
+        other = copy.deepcopy(now)
+        other["config"]["motion"][field] = value
+        with pytest.raises(GenerationError, match="differs"):
+            shard_is_complete(tmp_path / task.file, task, other)
+
+
 def test_worker_failure_names_the_shard_and_leaves_no_partial_file(tmp_path):
     out = tmp_path / "ds"
     with pytest.raises(ExecutorError, match=r"shard test-00000-of-00001.parquet: worker failed: RuntimeError: synthetic"):

@@ -84,6 +84,10 @@ def locked_folder(out: Path, recursive: bool = False) -> Iterator[FolderLock]:
 #: function of (seed, split, index, redraw), so a sample found within 50 draws is the same with 1000 allowed
 #: (a shard whose ``redraws`` exceed a lowered value is rendered again, and fails as this run would).
 RESUME_NEUTRAL = ("max_redraws",)
+#: ``[motion]`` augmentation fields whose value here draws and renders exactly what a config without the field
+#: does (``silpose.datagen.motion.mix``): a dataset made before the field existed resumes under a config that
+#: has it at this value.
+MOTION_DEFAULTS = {"part_mix": 0.0, "limb_swing": 0.0}
 
 
 def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
@@ -121,10 +125,14 @@ def shard_is_complete(path: Path, task: ShardTask, metadata: dict) -> bool:
 
 
 def _resume_key(metadata: dict, key: str):
-    """``metadata[key]``, without the :data:`RESUME_NEUTRAL` fields for ``config``."""
+    """``metadata[key]``, without the :data:`RESUME_NEUTRAL` fields for ``config``, nor its motion's
+    :data:`MOTION_DEFAULTS` fields at their neutral value."""
     value = metadata.get(key)
     if key == "config" and isinstance(value, dict):
-        return {k: v for k, v in value.items() if k not in RESUME_NEUTRAL}
+        value = {k: v for k, v in value.items() if k not in RESUME_NEUTRAL}
+        motion = value.get("motion")
+        if isinstance(motion, dict):
+            value["motion"] = {k: v for k, v in motion.items() if MOTION_DEFAULTS.get(k, object()) != v}
     return value
 
 
