@@ -119,11 +119,13 @@ class FloorGrid:
             a camera sees only cells nearer than :func:`person_reach`.
     Attributes:
         xs (nx,), ys (ny,): cell centres, metres.
+        workspace: ((x_min, x_max), (y_min, y_max)) metres, ``bounds`` (:meth:`in_workspace`).
     """
 
     def __init__(self, cameras, bounds, cell: float = CELL_M, margin: float = MARGIN_M, min_views: int = 2,
                  heights=COLUMN_HEIGHTS, search=None):
         (x0, x1), (y0, y1) = bounds
+        self.workspace = ((float(x0), float(x1)), (float(y0), float(y1)))
         x0, x1, y0, y1 = x0 - margin, x1 + margin, y0 - margin, y1 + margin
         (sx0, sx1), (sy0, sy1) = search if search is not None else ((x0, x1), (y0, y1))
         self.cell = float(cell)
@@ -156,6 +158,12 @@ class FloorGrid:
             self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, active cells)
             self.sees.append(seen[self.active])
         self.n_heights = len(hz)
+
+    def in_workspace(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: floor points ``xy`` (N, 2) metres in the workspace, where the rig films its subjects."""
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        (x0, x1), (y0, y1) = self.workspace
+        return (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
 
     def occupancy(self, masks: list) -> tuple[np.ndarray, np.ndarray]:
         """(strict, tolerant) (ny, nx) float32 scores (module docstring) from per-camera (H, W) {0, 1} uint8

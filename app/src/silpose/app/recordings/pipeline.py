@@ -83,6 +83,7 @@ from .floorplan import write_floorplan
 from .hull import PersonHulls
 from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
+from .ghosts import explain_away
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
@@ -90,7 +91,7 @@ from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, wo
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
-from .tracking import CONFIRM_S, Track, Tracker, tracker_for_fps
+from .tracking import CONFIRM_S, TRAVEL_M, Track, Tracker, tracker_for_fps
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, body_box, grounded, person_labels)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
@@ -400,6 +401,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     fps = recording.fps
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
     tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)
+    tracker.may_confirm = lambda t: may_be_person(t, grid)  # static clutter is never a person (module docstring)
     lag = tracker.decided_within
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
@@ -693,8 +695,15 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
                  & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
         det = type(det)(det.positions[inner], det.scores[inner])
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
+    feet = None  # (D,) cameras in which each detection's blob ends at its feet, when counted
+    if len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found before them (.ghosts)
+        feet = np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], det.positions), seen_by)), axis=0)
+        keep = explain_away(work, masks, det.positions, np.lexsort((-det.scores, -feet)), grid.min_views)
+        det, feet = type(det)(det.positions[keep], det.scores[keep]), feet[keep]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
+        if feet is not None:
+            return feet[idx] > 0
         xy = det.positions[idx]
         return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
             np.zeros(len(idx), bool)
@@ -703,9 +712,11 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    taken = [d for _, d in links if d >= 0]
+    # static clutter's tracks take no views (a blob it shares with a person is the person's) and protect nothing
+    taken = [d for t, d in links if d >= 0 and not static_clutter(t, grid)]
     where = det.positions[taken]
-    near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
+    # persons protect their boxes from becoming background (_Camera.settle); tentative tracks and ghosts do not
+    near = det.positions[[d for t, d in links if d >= 0 and t.person]].reshape(-1, 2)
     kept = boxes = None
     if hulls is not None and len(where):
         boxes = hulls.prepare(where)  # and the tiles the threads read
@@ -724,17 +735,32 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     per_cam = list(mapper(views, range(len(names))))
     out = []
     for track, d in links:
-        if d < 0:
-            out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
-                               np.full((len(names), n_pts, 2), np.nan), np.full(len(names), np.nan)))
+        if d < 0 or d not in taken:
+            out.append(_Person(step, track, np.full(2, np.nan) if d < 0 else det.positions[d].copy(),
+                               [VIEW_NOT_SEEN] * len(names), np.full((len(names), n_pts, 2), np.nan),
+                               np.full(len(names), np.nan)))
         else:
             i = taken.index(d)
             if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
                 tracker.learn(track, step, [lk[i] for _, _, _, lk in per_cam], lambda: PersonLooks(len(names)))
+            track.alone = track.alone or any(st[i] == VIEW_OK for st, _, _, _ in per_cam)
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _, _ in per_cam],
                                np.stack([c[i] for _, c, _, _ in per_cam]), np.array([u[i] for _, _, u, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0
     return out, near
+
+
+def static_clutter(track: Track, grid: FloorGrid) -> bool:
+    """A tentative track beyond the workspace that has not walked (:data:`~.tracking.TRAVEL_M`): someone or something
+    standing there, which becomes background (module docstring, "Static clutter")."""
+    return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position)[0])
+
+
+def may_be_person(track: Track, grid: FloorGrid) -> bool:
+    """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or,
+    in the workspace, once some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which
+    live on other people's blobs, never have one)."""
+    return track.travel >= TRAVEL_M or (track.alone and bool(grid.in_workspace(track.position)[0]))
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,

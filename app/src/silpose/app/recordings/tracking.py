@@ -31,7 +31,10 @@ detection whose appearance distance exceeds ``look_gate`` (off by default, :data
 
 A detection still left starts a tentative track when the caller allows it (the pipeline lets only
 detections whose feet some camera sees start one, :func:`silpose.app.recordings.views.grounded`; only those
-count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits, and is
+count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits -- and, when
+the caller sets ``may_confirm``, once that allows it (the pipeline: beyond the room, only a track that has
+travelled :data:`TRAVEL_M` from where it started, :attr:`Track.travel`; someone who stands still there all along is
+static clutter that becomes background, not a person) -- and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
 people, rarely hold that long; a dropped track leaves no rows). On becoming a person it is first
 re-identified: while persons' tracks are lost, it takes the id of the one of lowest cost -- distance to its
@@ -83,6 +86,11 @@ _FORBIDDEN = 1e6
 GATE_M = 0.3
 #: metres per second: the gate's growth while a person is unseen
 UNSEEN_SPEED_M_S = 0.5
+#: metres a track that starts beyond the room must travel from where it started before it becomes a person
+#: (module docstring; the pipeline's ``may_confirm``): twice the floor grid's least separation of two people
+#: (0.5 m, :meth:`.floor.FloorGrid.locate`) -- a standing person's detection wanders within less than that even
+#: at the back of the room, where cameras on one wall resolve depth poorly -- so anyone who walked counts
+TRAVEL_M = 1.0
 #: seconds a person's lost track waits to be re-identified
 LOST_S = 4.0
 #: seconds of constant-velocity extrapolation
@@ -112,7 +120,9 @@ LOOK_GATE = float("inf")
 class Track:
     """One track. key: internal number; person: public id (0 while tentative); position, velocity: (2,) m and
     m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step;
-    looks: its appearance model (:class:`~.appearance.PersonLooks`, :meth:`Tracker.learn`) or None."""
+    looks: its appearance model (:class:`~.appearance.PersonLooks`, :meth:`Tracker.learn`) or None; origin: (2,) m,
+    its first position (None: ``position``); travel: metres, the farthest it has been detected from ``origin``;
+    alone: the caller has seen it alone in some camera (the pipeline: a usable view of its own, ``VIEW_OK``)."""
 
     key: int
     position: np.ndarray
@@ -122,6 +132,13 @@ class Track:
     last: int = 0
     person: int = 0
     looks: object = None  # appearance model (the caller's: ``distance(observation) -> float``, NaN unknown)
+    origin: np.ndarray | None = None
+    travel: float = 0.0
+    alone: bool = False
+
+    def __post_init__(self):
+        if self.origin is None:
+            self.origin = np.array(self.position, float).copy()
 
     def predict(self, step: int, coast: int = 1 << 30) -> np.ndarray:
         """(2,) metres: where the motion model puts the track at ``step`` (at most ``coast`` steps extrapolated)."""
@@ -141,6 +158,8 @@ class Tracker:
         self.tentative_misses, self.reid_gate, self.recent = int(tentative_misses), float(reid_gate), int(recent)
         self.contact, self.look_weight, self.look_gate = float(contact), float(look_weight), float(look_gate)
         self.max_people = int(max_people)
+        #: tentative track -> may it become a person now (besides ``min_hits``)? None: always (module docstring)
+        self.may_confirm: Callable[[Track], bool] | None = None
         self._looks: Callable[[np.ndarray], list] | None = None  # this step's detections' observations
         self._seen: dict[int, object] = {}  # detection -> its observation, this step
         self.tracks: list[Track] = []
@@ -249,8 +268,9 @@ class Tracker:
                 v = (positions[d] - t.position) / max(dt, 1)
                 t.velocity = v if t.hits == 1 else self.smoothing * v + (1 - self.smoothing) * t.velocity
                 t.position, t.last, t.misses = positions[d].copy(), step, 0
+                t.travel = max(t.travel, float(np.linalg.norm(t.position - t.origin)))
                 t.hits += 1 if (t.person or allowed[d]) else 0
-                if not t.person and t.hits >= self.min_hits:
+                if not t.person and t.hits >= self.min_hits and self._confirmable(t):
                     self._confirm(t, keep, step)
             else:
                 t.misses += 1
@@ -262,7 +282,7 @@ class Tracker:
         for d in np.flatnonzero(free & allowed):
             self.n_keys += 1
             t = Track(self.n_keys, positions[d].copy(), last=step)
-            if self.min_hits <= 1:
+            if self.min_hits <= 1 and self._confirmable(t):
                 self._confirm(t, keep, step)
             keep.append(t)
             out.append((t, int(d)))
@@ -272,6 +292,9 @@ class Tracker:
             self._reidentified.clear()
         self.tracks = keep
         return out
+
+    def _confirmable(self, t: Track) -> bool:
+        return self.may_confirm is None or bool(self.may_confirm(t))
 
     def _confirm(self, t: Track, tracks: list[Track], step: int) -> None:
         """Make tentative ``t`` a person: the id of the lost person's track within ``reid_gate`` of lowest cost
