@@ -10,7 +10,9 @@ fractions over the cameras that see the whole column and have a non-empty mask (
 foreground in every camera that sees them; a camera whose mask is empty that frame, all-black, says
 nothing). Cells seen by fewer than ``min_views`` such cameras score 0.
 
-People are the peaks of the score map smoothed by a Gaussian (sigma 2 cells), at least
+Where the rays through different people cross, a cell scores like a person too (a ghost): the pipeline keeps
+only the peaks that explain foreground the others do not (:mod:`.ghosts`). People are the peaks of the score map
+smoothed by a Gaussian (sigma 2 cells), at least
 ``min_score`` high and ``separation`` metres apart (strongest first), each placed at the score-weighted
 centroid of its cells within 0.25 m (sub-cell). A person hidden from one camera (a pillar, a table, a
 segmentation that lost them) scores 0 there; so a second, tolerant map takes, where ``min_views + 2`` or

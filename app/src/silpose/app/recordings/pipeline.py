@@ -42,13 +42,21 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 
 Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
 standing still at the back -- is foreground that no person explains. Per camera, a pixel that has been
-foreground outside the image box of every person detected on the floor (:func:`~.views.body_box`: the
-cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor point) for
-:data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
+foreground outside the image box of every person on the floor (a track the tracker confirmed;
+:func:`~.views.body_box`: the cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor
+point) for :data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
 either; a frame where it is background does -- becomes
-background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). People in the
-workspace are protected by their box, however still they stand; clutter touching a person's box is absorbed
-outside it, so their blob again fits their box.
+background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). Persons are protected
+by their box, however still they stand; clutter touching a person's box is absorbed outside it, so their blob
+again fits their box. Tentative tracks and the floor grid's ghosts protect nothing (a newcomer's pixels age for the
+0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`may_be_person`, the
+tracker's ``may_confirm``; mask videos absorb nothing, so there every track the tracker confirms is one): a track
+that has walked :data:`~.tracking.TRAVEL_M`, or, in the workspace, one that some camera has seen alone (a usable
+view of its own; a ghost lives on other people's blobs). A track beyond the workspace that has not walked
+(:func:`static_clutter`) takes no views -- a blob it shares with a person is the person's -- and never protects:
+someone who stands still at the back all along becomes background, not a person (issue 24: "persistent static
+blobs become background, not people"). Before any of this, the floor grid's ghosts are explained away by the
+people found before them (:mod:`.ghosts`).
 
 At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
 90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
@@ -401,9 +409,10 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     fps = recording.fps
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
     tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)
-    tracker.may_confirm = lambda t: may_be_person(t, grid)  # static clutter is never a person (module docstring)
-    lag = tracker.decided_within
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
+    if absorb > 0:  # static clutter becomes background, never a person (module docstring)
+        tracker.may_confirm = lambda t: may_be_person(t, grid)
+    lag = tracker.decided_within
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
     reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
     cams = {c: _Camera(reader(CameraReader(s, silhouettes.grey, start)), silhouettes,
@@ -482,11 +491,11 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     warnings.append(msg)
                     if warn:
                         warn(msg)
-                found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                found, where, n_found = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
                                             views_map, hulls,
                                             [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks)
                 people += found
-                detected += bool(len(where))
+                detected += bool(n_found)
                 for c, cam in cams.items():
                     if seen[c].status is None and cam.settle(seen[c], where) and stepper.ahead:
                         stale.add(c)
@@ -673,14 +682,16 @@ def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapp
 
 def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
                  mapper=map, hulls: PersonHulls | None = None, min_areas=None,
-                 colour: bool = False) -> tuple[list[_Person], np.ndarray]:
+                 colour: bool = False) -> tuple[list[_Person], np.ndarray, int]:
     """Floor detection, tracking, the people's visual hulls (``hulls``, :mod:`.hull`; None: views uncut) and
     (per camera, through ``mapper``) view assignment of one step; ``min_areas`` (K,) px: blobs of the cut masks;
     ``colour``: the people's looks include colour histograms (:mod:`.appearance`).
 
-    Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
-    no track takes are dropped before the views are assigned, so a ghost never makes a real person's blob
-    look shared."""
+    The grid's ghosts are explained away (:mod:`.ghosts`); only detections whose feet some camera sees may start a
+    track (:func:`~.views.grounded`); detections no track takes, and static clutter's tracks (:func:`static_clutter`),
+    are dropped before the views are assigned, so neither makes a real person's blob look shared. Returns the
+    step's people, the floor points (P, 2) of the persons whose boxes are protected from becoming background
+    (``_Camera.settle``) and the number of detections."""
     t0 = time.perf_counter()
     masks, blobs = [], []
     for c in names:
@@ -698,7 +709,12 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     feet = None  # (D,) cameras in which each detection's blob ends at its feet, when counted
     if len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found before them (.ghosts)
         feet = np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], det.positions), seen_by)), axis=0)
-        keep = explain_away(work, masks, det.positions, np.lexsort((-det.scores, -feet)), grid.min_views)
+        need = np.full(len(det.positions), grid.min_views)  # one camera where a person seen last step is predicted
+        seen_last = [t.predict(step, tracker.coast) for t in tracker.tracks if t.person and t.misses == 0]
+        if seen_last:
+            near = np.linalg.norm(det.positions[:, None] - np.array(seen_last)[None], axis=2).min(axis=1)
+            need[near <= tracker.gate] = 1
+        keep = explain_away(work, masks, det.positions, np.lexsort((-det.scores, -feet)), need)
         det, feet = type(det)(det.positions[keep], det.scores[keep]), feet[keep]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
@@ -712,8 +728,10 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    # static clutter's tracks take no views (a blob it shares with a person is the person's) and protect nothing
-    taken = [d for t, d in links if d >= 0 and not static_clutter(t, grid)]
+    # static clutter's tracks (colour videos: tracker.may_confirm) take no views (a blob it shares with a person is
+    # the person's) and protect nothing
+    clutter = (lambda t: static_clutter(t, grid)) if tracker.may_confirm is not None else (lambda t: False)
+    taken = [d for t, d in links if d >= 0 and not clutter(t)]
     where = det.positions[taken]
     # persons protect their boxes from becoming background (_Camera.settle); tentative tracks and ghosts do not
     near = det.positions[[d for t, d in links if d >= 0 and t.person]].reshape(-1, 2)
@@ -747,7 +765,7 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _, _ in per_cam],
                                np.stack([c[i] for _, c, _, _ in per_cam]), np.array([u[i] for _, _, u, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0
-    return out, near
+    return out, near, len(det.positions)
 
 
 def static_clutter(track: Track, grid: FloorGrid) -> bool:

@@ -32,9 +32,10 @@ detection whose appearance distance exceeds ``look_gate`` (off by default, :data
 A detection still left starts a tentative track when the caller allows it (the pipeline lets only
 detections whose feet some camera sees start one, :func:`silpose.app.recordings.views.grounded`; only those
 count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits -- and, when
-the caller sets ``may_confirm``, once that allows it (the pipeline: beyond the room, only a track that has
-travelled :data:`TRAVEL_M` from where it started, :attr:`Track.travel`; someone who stands still there all along is
-static clutter that becomes background, not a person) -- and is
+the caller sets ``may_confirm``, once that allows it (the pipeline, colour videos: a track that has travelled
+:data:`TRAVEL_M` from where it started, :attr:`Track.travel`, or one in the workspace that a camera has seen alone;
+someone who stands still beyond the workspace all along is static clutter that becomes background, not a person;
+such a track may become a person later than ``decided_within``, and its rows before that are not written) -- and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
 people, rarely hold that long; a dropped track leaves no rows). On becoming a person it is first
 re-identified: while persons' tracks are lost, it takes the id of the one of lowest cost -- distance to its
@@ -86,10 +87,11 @@ _FORBIDDEN = 1e6
 GATE_M = 0.3
 #: metres per second: the gate's growth while a person is unseen
 UNSEEN_SPEED_M_S = 0.5
-#: metres a track that starts beyond the room must travel from where it started before it becomes a person
-#: (module docstring; the pipeline's ``may_confirm``): twice the floor grid's least separation of two people
-#: (0.5 m, :meth:`.floor.FloorGrid.locate`) -- a standing person's detection wanders within less than that even
-#: at the back of the room, where cameras on one wall resolve depth poorly -- so anyone who walked counts
+#: metres a track beyond the workspace must travel from where it started before it becomes a person (module
+#: docstring; the pipeline's ``may_confirm``): twice the floor grid's least separation of two people (0.5 m,
+#: :meth:`.floor.FloorGrid.locate`) -- a standing person's detection wanders less than that even at the back of the
+#: room, where cameras on one wall resolve depth poorly (at most 0.51 m for the three people standing 6.8 m from the
+#: lab rig's cameras in tests/app/recordings/test_rooms.py, ``still``) -- so that anyone who walked counts
 TRAVEL_M = 1.0
 #: seconds a person's lost track waits to be re-identified
 LOST_S = 4.0
