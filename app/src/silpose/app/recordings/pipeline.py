@@ -706,23 +706,34 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
                  & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
         det = type(det)(det.positions[inner], det.scores[inner])
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
-    feet = None  # (D,) cameras in which each detection's blob ends at its feet, when counted
+    feet = np.full(len(det.positions), -1)  # cameras in which each detection's blob ends at its feet (-1: not asked)
+
+    def count_feet(idx: np.ndarray) -> np.ndarray:
+        ask = idx[feet[idx] < 0]
+        if len(ask):
+            xy = det.positions[ask]
+            feet[ask] = (np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by
+                         else 0)
+        return feet[idx]
+
     if len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found before them (.ghosts)
-        feet = np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], det.positions), seen_by)), axis=0)
-        need = np.full(len(det.positions), grid.min_views)  # one camera where a person seen last step is predicted
+        # strongest first: where a person seen at the previous step is predicted (within the gate; there one camera
+        # of its own suffices), then grounded in more cameras (asked only when several others compete), then score
+        need = np.full(len(det.positions), grid.min_views)
         seen_last = [t.predict(step, tracker.coast) for t in tracker.tracks if t.person and t.misses == 0]
+        tracked = np.zeros(len(det.positions), bool)
         if seen_last:
-            near = np.linalg.norm(det.positions[:, None] - np.array(seen_last)[None], axis=2).min(axis=1)
-            need[near <= tracker.gate] = 1
-        keep = explain_away(work, masks, det.positions, np.lexsort((-det.scores, -feet)), need)
+            gap = np.linalg.norm(det.positions[:, None] - np.array(seen_last)[None], axis=2).min(axis=1)
+            tracked = gap <= tracker.gate
+            need[tracked] = 1
+        if (~tracked).sum() > 1:
+            count_feet(np.flatnonzero(~tracked))
+        order = np.lexsort((-det.scores, -np.maximum(feet, 0), ~tracked))
+        keep = explain_away(work, masks, det.positions, order, need)
         det, feet = type(det)(det.positions[keep], det.scores[keep]), feet[keep]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
-        if feet is not None:
-            return feet[idx] > 0
-        xy = det.positions[idx]
-        return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
-            np.zeros(len(idx), bool)
+        return count_feet(np.asarray(idx, int)) > 0
 
     looks = _detection_looks(work, [seen.get(c) for c in names], det.positions, colour, mapper)
     links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
