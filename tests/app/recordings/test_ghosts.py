@@ -74,3 +74,18 @@ def test_a_track_beyond_the_workspace_becomes_a_person_only_after_walking(rig):
     inside.alone = True
     assert may_be_person(inside, grid)
     assert grid.in_workspace(np.array([[0.0, 0.0], [0.0, y1 + 0.1]])).tolist() == [True, False]
+
+
+def test_the_tracker_vouches_for_detections_where_a_person_seen_lately_is_predicted():
+    tr = Tracker(min_hits=1, gate=0.3, growth=0.1, recent=2, max_misses=10)
+    for step in range(3):  # a person walking +x at 0.1 m a step
+        tr.update(step, np.array([[0.1 * step, 0.0]]))
+    assert tr.n_persons == 1
+    # at step 3 they are predicted at x = 0.3: within the gate yes, 0.5 m off no
+    assert tr.vouched(np.array([[0.32, 0.05], [0.8, 0.0]]), 3).tolist() == [True, False]
+    tr.update(3, np.zeros((0, 2)))
+    tr.update(4, np.zeros((0, 2)))  # missed twice: the gate grew by 0.1 m a step unseen after the first
+    assert tr.vouched(np.array([[0.55, 0.0]]), 5).tolist() == [True]
+    tr.update(5, np.zeros((0, 2)))  # missed more than ``recent`` steps: nobody vouches any more
+    assert tr.vouched(np.array([[0.6, 0.0]]), 6).tolist() == [False]
+    assert Tracker().vouched(np.array([[0.0, 0.0]]), 0).tolist() == [False]  # no tracks

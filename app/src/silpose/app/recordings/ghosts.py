@@ -10,20 +10,21 @@ The classic cure of multi-view occupancy (Fleuret et al., "Multicamera People Tr
 Occupancy Map", PAMI 2008; greedy "explain the silhouettes" selections) is to explain the masks with as few people
 as possible: a candidate is kept only if it explains foreground that the candidates kept before it do not.
 :func:`explain_away` does this greedily on the grid's peaks, strongest first (the caller's order; the pipeline
-puts first the candidates whose blob ends at their own feet in more cameras, :func:`.views.grounded`, which a
-ghost's rarely does, then the grid's score): a kept person explains, in each camera, the image box of the cylinder
+puts first the candidates where a person is predicted, below, then those whose blob ends at their own feet in more
+cameras, :func:`.views.grounded`, which a ghost's rarely does, then the grid's score): a kept person explains, in each camera, the image box of the cylinder
 of radius :data:`EXPLAIN_RADIUS_M` standing at their floor point (floor to :data:`~.views.BODY_HEIGHT_M`); a
 candidate is kept when, in at least ``min_views`` cameras, at least ``min_share`` of its torso column
 (:data:`~.floor.COLUMN_HEIGHTS`) falls on foreground that no kept person explains.
 
 A ghost's column lies, in every camera, on a real person's pixels: once they are kept it explains nothing. A real
 person hidden behind (or in front of) a kept one in some cameras keeps the cameras where they stand clear. Hidden
-in all but one camera -- two walkers crossing in front of cameras on one wall -- they would be dropped, so a
-candidate may need fewer cameras (``min_views`` per candidate): the pipeline asks one camera of its own where a
-person's track seen at the previous step predicts someone (within the tracker's gate, :mod:`.tracking`) -- a ghost
-that close to a person's predicted position is that person. Measured on the lab recording (two walkers crossing,
-50 frames of lossy mask videos, tests/app/recordings/test_lab.py): 2 of the 100 person-frames lost at the crossing
-with 2 cameras for everyone, none with 1 for the tracked.
+in all but one camera -- walkers crossing in front of cameras on one wall -- they would be dropped, so a candidate
+may need fewer cameras (``min_views`` per candidate): the pipeline keeps, first and whatever they explain, the
+candidates where a person's track seen lately predicts someone (within its gate,
+:meth:`.tracking.Tracker.vouched`) -- a ghost that close to a person's predicted position is that person -- and
+asks the rest for ``min_views`` cameras. Measured on the lab recording (two walkers crossing, 50 frames of lossy
+mask videos, tests/app/recordings/test_lab.py): 2 of the 100 person-frames lost at the crossing when every
+candidate needed 2 cameras, none since.
 """
 
 from __future__ import annotations

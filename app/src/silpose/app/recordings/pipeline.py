@@ -717,15 +717,10 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
         return feet[idx]
 
     if len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found before them (.ghosts)
-        # strongest first: where a person seen at the previous step is predicted (within the gate; there one camera
-        # of its own suffices), then grounded in more cameras (asked only when several others compete), then score
-        need = np.full(len(det.positions), grid.min_views)
-        seen_last = [t.predict(step, tracker.coast) for t in tracker.tracks if t.person and t.misses == 0]
-        tracked = np.zeros(len(det.positions), bool)
-        if seen_last:
-            gap = np.linalg.norm(det.positions[:, None] - np.array(seen_last)[None], axis=2).min(axis=1)
-            tracked = gap <= tracker.gate
-            need[tracked] = 1
+        # strongest first: where a person seen lately is predicted (within their gate: that person, kept), then
+        # grounded in more cameras (asked only when several others compete), then score
+        tracked = tracker.vouched(det.positions, step)
+        need = np.where(tracked, 0, grid.min_views)
         if (~tracked).sum() > 1:
             count_feet(np.flatnonzero(~tracked))
         order = np.lexsort((-det.scores, -np.maximum(feet, 0), ~tracked))

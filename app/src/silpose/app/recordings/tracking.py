@@ -295,6 +295,18 @@ class Tracker:
         self.tracks = keep
         return out
 
+    def vouched(self, positions: np.ndarray, step: int) -> np.ndarray:
+        """(D,) bool: detections ``positions`` (D, 2) metres of ``step`` within the gate of a person's track seen in
+        the last ``recent`` steps, at its prediction -- where the motion model says that person is (the pipeline
+        keeps them when it explains the floor grid's ghosts away, :mod:`.ghosts`)."""
+        positions = np.asarray(positions, float).reshape(-1, 2)
+        tracks = [t for t in self.tracks if t.person and t.misses <= self.recent]
+        if not tracks or not len(positions):
+            return np.zeros(len(positions), bool)
+        pred = np.stack([t.predict(step, self.coast) for t in tracks])
+        gates = np.array([self._gate(t, step) for t in tracks])
+        return np.any(np.linalg.norm(positions[:, None] - pred[None], axis=2) <= gates[None], axis=1)
+
     def _confirmable(self, t: Track) -> bool:
         return self.may_confirm is None or bool(self.may_confirm(t))
 
