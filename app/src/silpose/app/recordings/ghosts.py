@@ -64,13 +64,15 @@ def explain_away(cameras, masks: list, positions: np.ndarray, order, min_views=2
     cols = np.concatenate([np.repeat(xy[:, None], len(hz), 1), np.broadcast_to(hz[None, :, None], (D, len(hz), 1))], -1)
     need = int(np.ceil(min_share * len(hz) - 1e-9))
     views_needed = np.broadcast_to(np.asarray(min_views, int), (D,))
-    own_fg, boxes = [], []  # per camera: (D, h) column points on foreground (False where unseen), (D, 4) boxes
-    for cam, m in zip(cameras, masks):
+    own_fg, boxes, pts = [], [], []  # per camera: (D, h) column points on foreground (False where unseen), (D, 4)
+    for cam, m in zip(cameras, masks):  # boxes, (D, h, 2) column pixels (None: no mask)
         if m is None:
             own_fg.append(np.zeros((D, len(hz)), bool))
             boxes.append(np.full((D, 4), np.nan))
+            pts.append(None)
             continue
         px = cam.project(cols)  # (D, h, 2)
+        pts.append(px)
         seen = np.all((cam.to_camera(cols)[..., 2] > 0) & cam.in_image(np.round(px), margin=0.5), axis=1)
         ij = np.nan_to_num(np.round(px), nan=0.0).astype(np.int64)
         u, v = np.clip(ij[..., 0], 0, cam.width - 1), np.clip(ij[..., 1], 0, cam.height - 1)
@@ -78,7 +80,6 @@ def explain_away(cameras, masks: list, positions: np.ndarray, order, min_views=2
         boxes.append(body_box(cam, xy, radius))
     # explained[k] (D, h): column points inside the box of a kept person, per camera
     explained = [np.zeros((D, len(hz)), bool) for _ in cameras]
-    pts = [cam.project(cols) if m is not None else None for cam, m in zip(cameras, masks)]
     for d in (int(i) for i in order):
         views = sum(int(np.sum(fg[d] & ~ex[d]) >= need) for fg, ex in zip(own_fg, explained))
         if views < views_needed[d]:
