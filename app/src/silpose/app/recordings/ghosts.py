@@ -22,9 +22,11 @@ in all but one camera -- walkers crossing in front of cameras on one wall -- the
 may need fewer cameras (``min_views`` per candidate): the pipeline keeps, first and whatever they explain, the
 candidates where a person's track seen lately predicts someone (within its gate,
 :meth:`.tracking.Tracker.vouched`) -- a ghost that close to a person's predicted position is that person -- and
-asks the rest for ``min_views`` cameras. Measured on the lab recording (two walkers crossing, 50 frames of lossy
-mask videos, tests/app/recordings/test_lab.py): 2 of the 100 person-frames lost at the crossing when every
-candidate needed 2 cameras, none since.
+asks the rest for ``min_views`` cameras. Measured with explaining away on the lab recording (two walkers crossing,
+50 frames of lossy mask videos, tests/app/recordings/test_lab.py): 2 of the 100 person-frames lost at the crossing
+when every candidate needed 2 cameras, none since. The pipeline explains ghosts away in colour videos, where a
+ghost that lasts keeps static clutter from becoming background (:mod:`.pipeline`, "Static clutter"; the measured
+cost on mask videos of four walkers is there).
 """
 
 from __future__ import annotations
