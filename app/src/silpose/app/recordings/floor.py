@@ -10,7 +10,9 @@ fractions over the cameras that see the whole column and have a non-empty mask (
 foreground in every camera that sees them; a camera whose mask is empty that frame, all-black, says
 nothing). Cells seen by fewer than ``min_views`` such cameras score 0.
 
-People are the peaks of the score map smoothed by a Gaussian (sigma 2 cells), at least
+Where the rays through different people cross, a cell scores like a person too (a ghost): the pipeline keeps
+only the peaks that explain foreground the others do not (:mod:`.ghosts`). People are the peaks of the score map
+smoothed by a Gaussian (sigma 2 cells), at least
 ``min_score`` high and ``separation`` metres apart (strongest first), each placed at the score-weighted
 centroid of its cells within 0.25 m (sub-cell). A person hidden from one camera (a pillar, a table, a
 segmentation that lost them) scores 0 there; so a second, tolerant map takes, where ``min_views + 2`` or
@@ -119,11 +121,13 @@ class FloorGrid:
             a camera sees only cells nearer than :func:`person_reach`.
     Attributes:
         xs (nx,), ys (ny,): cell centres, metres.
+        workspace: ((x_min, x_max), (y_min, y_max)) metres, ``bounds`` (:meth:`in_workspace`).
     """
 
     def __init__(self, cameras, bounds, cell: float = CELL_M, margin: float = MARGIN_M, min_views: int = 2,
                  heights=COLUMN_HEIGHTS, search=None):
         (x0, x1), (y0, y1) = bounds
+        self.workspace = ((float(x0), float(x1)), (float(y0), float(y1)))
         x0, x1, y0, y1 = x0 - margin, x1 + margin, y0 - margin, y1 + margin
         (sx0, sx1), (sy0, sy1) = search if search is not None else ((x0, x1), (y0, y1))
         self.cell = float(cell)
@@ -156,6 +160,12 @@ class FloorGrid:
             self.index.append(np.ascontiguousarray(flat.reshape(-1, len(hz)).T, dtype=np.intp))  # (h, active cells)
             self.sees.append(seen[self.active])
         self.n_heights = len(hz)
+
+    def in_workspace(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) bool: floor points ``xy`` (N, 2) metres in the workspace, where the rig films its subjects."""
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        (x0, x1), (y0, y1) = self.workspace
+        return (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
 
     def occupancy(self, masks: list) -> tuple[np.ndarray, np.ndarray]:
         """(strict, tolerant) (ny, nx) float32 scores (module docstring) from per-camera (H, W) {0, 1} uint8

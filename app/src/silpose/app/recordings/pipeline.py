@@ -42,13 +42,25 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 
 Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
 standing still at the back -- is foreground that no person explains. Per camera, a pixel that has been
-foreground outside the image box of every person detected on the floor (:func:`~.views.body_box`: the
-cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor point) for
-:data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
+foreground outside the image box of every person on the floor (a track the tracker confirmed;
+:func:`~.views.body_box`: the cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor
+point) for :data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
 either; a frame where it is background does -- becomes
-background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). People in the
-workspace are protected by their box, however still they stand; clutter touching a person's box is absorbed
-outside it, so their blob again fits their box.
+background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). Persons are protected
+by their box, however still they stand; clutter touching a person's box is absorbed outside it, so their blob
+again fits their box. Tentative tracks and the floor grid's ghosts protect nothing (a newcomer's pixels age for the
+0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`may_be_person`, the
+tracker's ``may_confirm``; mask videos absorb nothing, so there every track the tracker confirms is one): a track
+that has walked :data:`~.tracking.TRAVEL_M`, or, in the workspace, one that some camera has seen alone (a usable
+view of its own; a ghost lives on other people's blobs). A track beyond the workspace that has not walked
+(:func:`static_clutter`) takes no views -- a blob it shares with a person is the person's -- and never protects:
+someone who stands still at the back all along becomes background, not a person (issue 24: "persistent static
+blobs become background, not people"). Before any of this, the floor grid's ghosts are explained away by the
+people found before them (:mod:`.ghosts`): where clutter is absorbed, a ghost that lasts protects it and shares
+the people's blobs. Not in mask videos, where nothing is absorbed: on the four-walker lab recording
+(:data:`silpose.datagen.lab.FOUR_WALKERS`, 200 frames, masks) explaining away took the rows off every true person
+from 8 to 1 but cost an id (5 instead of 4), a switch (11 vs 10) and 12 person-frames found (634 vs 646): walkers
+emerging from the group, hidden behind the others in all but one camera, were found later.
 
 At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
 90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
@@ -83,6 +95,7 @@ from .floorplan import write_floorplan
 from .hull import PersonHulls
 from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
+from .ghosts import explain_away
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
@@ -90,7 +103,7 @@ from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, wo
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
-from .tracking import CONFIRM_S, Track, Tracker, tracker_for_fps
+from .tracking import CONFIRM_S, TRAVEL_M, Track, Tracker, tracker_for_fps
 from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
                     assign_views, body_box, grounded, person_labels)
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
@@ -400,8 +413,10 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     fps = recording.fps
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
     tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)
-    lag = tracker.decided_within
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
+    if absorb > 0:  # static clutter becomes background, never a person (module docstring)
+        tracker.may_confirm = lambda t: may_be_person(t, grid)
+    lag = tracker.decided_within
     threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
     reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
     cams = {c: _Camera(reader(CameraReader(s, silhouettes.grey, start)), silhouettes,
@@ -480,11 +495,12 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                     warnings.append(msg)
                     if warn:
                         warn(msg)
-                found, where = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                found, where, n_found = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
                                             views_map, hulls,
-                                            [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks)
+                                            [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks,
+                                            explain=absorb > 0)
                 people += found
-                detected += bool(len(where))
+                detected += bool(n_found)
                 for c, cam in cams.items():
                     if seen[c].status is None and cam.settle(seen[c], where) and stepper.ahead:
                         stale.add(c)
@@ -671,14 +687,17 @@ def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapp
 
 def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
                  mapper=map, hulls: PersonHulls | None = None, min_areas=None,
-                 colour: bool = False) -> tuple[list[_Person], np.ndarray]:
+                 colour: bool = False, explain: bool = False) -> tuple[list[_Person], np.ndarray, int]:
     """Floor detection, tracking, the people's visual hulls (``hulls``, :mod:`.hull`; None: views uncut) and
     (per camera, through ``mapper``) view assignment of one step; ``min_areas`` (K,) px: blobs of the cut masks;
-    ``colour``: the people's looks include colour histograms (:mod:`.appearance`).
+    ``colour``: the people's looks include colour histograms (:mod:`.appearance`); ``explain``: explain the grid's
+    ghosts away (:mod:`.ghosts`; the pipeline: where static clutter becomes background, colour videos).
 
-    Only detections whose feet some camera sees may start a track (:func:`~.views.grounded`); detections
-    no track takes are dropped before the views are assigned, so a ghost never makes a real person's blob
-    look shared."""
+    Only detections whose feet some camera sees may start a
+    track (:func:`~.views.grounded`); detections no track takes, and static clutter's tracks (:func:`static_clutter`),
+    are dropped before the views are assigned, so neither makes a real person's blob look shared. Returns the
+    step's people, the floor points (P, 2) of the persons whose boxes are protected from becoming background
+    (``_Camera.settle``) and the number of detections."""
     t0 = time.perf_counter()
     masks, blobs = [], []
     for c in names:
@@ -693,19 +712,41 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
                  & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
         det = type(det)(det.positions[inner], det.scores[inner])
     seen_by = [k for k, b in enumerate(blobs) if b is not None]
+    feet = np.full(len(det.positions), -1)  # cameras in which each detection's blob ends at its feet (-1: not asked)
+
+    def count_feet(idx: np.ndarray) -> np.ndarray:
+        ask = idx[feet[idx] < 0]
+        if len(ask):
+            xy = det.positions[ask]
+            feet[ask] = (np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by
+                         else 0)
+        return feet[idx]
+
+    if explain and len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found first (.ghosts)
+        # strongest first: where a person seen lately is predicted (within their gate: that person, kept), then
+        # grounded in more cameras (asked only when several others compete), then score
+        tracked = tracker.vouched(det.positions, step)
+        need = np.where(tracked, 0, grid.min_views)
+        if (~tracked).sum() > 1:
+            count_feet(np.flatnonzero(~tracked))
+        order = np.lexsort((-det.scores, -np.maximum(feet, 0), ~tracked))
+        keep = explain_away(work, masks, det.positions, order, need)
+        det, feet = type(det)(det.positions[keep], det.scores[keep]), feet[keep]
 
     def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
-        xy = det.positions[idx]
-        return np.any(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by else \
-            np.zeros(len(idx), bool)
+        return count_feet(np.asarray(idx, int)) > 0
 
     looks = _detection_looks(work, [seen.get(c) for c in names], det.positions, colour, mapper)
     links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
     timings["floor"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    taken = [d for _, d in links if d >= 0]
+    # static clutter's tracks (colour videos: tracker.may_confirm) take no views (a blob it shares with a person is
+    # the person's) and protect nothing
+    clutter = (lambda t: static_clutter(t, grid)) if tracker.may_confirm is not None else (lambda t: False)
+    taken = [d for t, d in links if d >= 0 and not clutter(t)]
     where = det.positions[taken]
-    near = det.positions  # every detection protects its box from becoming background (_Camera.settle)
+    # persons protect their boxes from becoming background (_Camera.settle); tentative tracks and ghosts do not
+    near = det.positions[[d for t, d in links if d >= 0 and t.person]].reshape(-1, 2)
     kept = boxes = None
     if hulls is not None and len(where):
         boxes = hulls.prepare(where)  # and the tiles the threads read
@@ -724,17 +765,32 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
     per_cam = list(mapper(views, range(len(names))))
     out = []
     for track, d in links:
-        if d < 0:
-            out.append(_Person(step, track, np.full(2, np.nan), [VIEW_NOT_SEEN] * len(names),
-                               np.full((len(names), n_pts, 2), np.nan), np.full(len(names), np.nan)))
+        if d < 0 or d not in taken:
+            out.append(_Person(step, track, np.full(2, np.nan) if d < 0 else det.positions[d].copy(),
+                               [VIEW_NOT_SEEN] * len(names), np.full((len(names), n_pts, 2), np.nan),
+                               np.full(len(names), np.nan)))
         else:
             i = taken.index(d)
             if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
                 tracker.learn(track, step, [lk[i] for _, _, _, lk in per_cam], lambda: PersonLooks(len(names)))
+            track.alone = track.alone or any(st[i] == VIEW_OK for st, _, _, _ in per_cam)
             out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _, _ in per_cam],
                                np.stack([c[i] for _, c, _, _ in per_cam]), np.array([u[i] for _, _, u, _ in per_cam])))
     timings["views"] += time.perf_counter() - t0
-    return out, near
+    return out, near, len(det.positions)
+
+
+def static_clutter(track: Track, grid: FloorGrid) -> bool:
+    """A tentative track beyond the workspace that has not walked (:data:`~.tracking.TRAVEL_M`): someone or something
+    standing there, which becomes background (module docstring, "Static clutter")."""
+    return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position)[0])
+
+
+def may_be_person(track: Track, grid: FloorGrid) -> bool:
+    """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or,
+    in the workspace, once some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which
+    live on other people's blobs, never have one)."""
+    return track.travel >= TRAVEL_M or (track.alone and bool(grid.in_workspace(track.position)[0]))
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,

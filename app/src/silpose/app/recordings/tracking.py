@@ -31,7 +31,11 @@ detection whose appearance distance exceeds ``look_gate`` (off by default, :data
 
 A detection still left starts a tentative track when the caller allows it (the pipeline lets only
 detections whose feet some camera sees start one, :func:`silpose.app.recordings.views.grounded`; only those
-count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits, and is
+count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits -- and, when
+the caller sets ``may_confirm``, once that allows it (the pipeline, colour videos: a track that has travelled
+:data:`TRAVEL_M` from where it started, :attr:`Track.travel`, or one in the workspace that a camera has seen alone;
+someone who stands still beyond the workspace all along is static clutter that becomes background, not a person;
+such a track may become a person later than ``decided_within``, and its rows before that are not written) -- and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
 people, rarely hold that long; a dropped track leaves no rows). On becoming a person it is first
 re-identified: while persons' tracks are lost (last detected before it began, or within ``contact`` of it: one
@@ -84,6 +88,12 @@ _FORBIDDEN = 1e6
 GATE_M = 0.3
 #: metres per second: the gate's growth while a person is unseen
 UNSEEN_SPEED_M_S = 0.5
+#: metres a track beyond the workspace must travel from where it started before it becomes a person (module
+#: docstring; the pipeline's ``may_confirm``): twice the floor grid's least separation of two people (0.5 m,
+#: :meth:`.floor.FloorGrid.locate`) -- a standing person's detection wanders less than that even at the back of the
+#: room, where cameras on one wall resolve depth poorly (at most 0.51 m for the three people standing 6.8 m from the
+#: lab rig's cameras in tests/app/recordings/test_rooms.py, ``still``) -- so that anyone who walked counts
+TRAVEL_M = 1.0
 #: seconds a person's lost track waits to be re-identified
 LOST_S = 4.0
 #: seconds of constant-velocity extrapolation
@@ -114,7 +124,9 @@ class Track:
     """One track. key: internal number; person: public id (0 while tentative); position, velocity: (2,) m and
     m per step; hits: detections so far; misses: consecutive steps without one; last: last detected step;
     first: the step it started; looks: its appearance model (:class:`~.appearance.PersonLooks`,
-    :meth:`Tracker.learn`) or None."""
+    :meth:`Tracker.learn`) or None; origin: (2,) m, its first position (None: ``position``); travel: metres, the
+    farthest it has been detected from ``origin``; alone: the caller has seen it alone in some camera (the
+    pipeline: a usable view of its own, ``VIEW_OK``)."""
 
     key: int
     position: np.ndarray
@@ -125,6 +137,13 @@ class Track:
     person: int = 0
     first: int = 0
     looks: object = None  # appearance model (the caller's: ``distance(observation) -> float``, NaN unknown)
+    origin: np.ndarray | None = None
+    travel: float = 0.0
+    alone: bool = False
+
+    def __post_init__(self):
+        if self.origin is None:
+            self.origin = np.array(self.position, float).copy()
 
     def predict(self, step: int, coast: int = 1 << 30) -> np.ndarray:
         """(2,) metres: where the motion model puts the track at ``step`` (at most ``coast`` steps extrapolated)."""
@@ -144,6 +163,8 @@ class Tracker:
         self.tentative_misses, self.reid_gate, self.recent = int(tentative_misses), float(reid_gate), int(recent)
         self.contact, self.look_weight, self.look_gate = float(contact), float(look_weight), float(look_gate)
         self.max_people = int(max_people)
+        #: tentative track -> may it become a person now (besides ``min_hits``)? None: always (module docstring)
+        self.may_confirm: Callable[[Track], bool] | None = None
         self._looks: Callable[[np.ndarray], list] | None = None  # this step's detections' observations
         self._seen: dict[int, object] = {}  # detection -> its observation, this step
         self.tracks: list[Track] = []
@@ -252,8 +273,9 @@ class Tracker:
                 v = (positions[d] - t.position) / max(dt, 1)
                 t.velocity = v if t.hits == 1 else self.smoothing * v + (1 - self.smoothing) * t.velocity
                 t.position, t.last, t.misses = positions[d].copy(), step, 0
+                t.travel = max(t.travel, float(np.linalg.norm(t.position - t.origin)))
                 t.hits += 1 if (t.person or allowed[d]) else 0
-                if not t.person and t.hits >= self.min_hits:
+                if not t.person and t.hits >= self.min_hits and self._confirmable(t):
                     self._confirm(t, keep, step)
             else:
                 t.misses += 1
@@ -265,7 +287,7 @@ class Tracker:
         for d in np.flatnonzero(free & allowed):
             self.n_keys += 1
             t = Track(self.n_keys, positions[d].copy(), last=step, first=step)
-            if self.min_hits <= 1:
+            if self.min_hits <= 1 and self._confirmable(t):
                 self._confirm(t, keep, step)
             keep.append(t)
             out.append((t, int(d)))
@@ -275,6 +297,21 @@ class Tracker:
             self._reidentified.clear()
         self.tracks = keep
         return out
+
+    def vouched(self, positions: np.ndarray, step: int) -> np.ndarray:
+        """(D,) bool: detections ``positions`` (D, 2) metres of ``step`` within the gate of a person's track seen in
+        the last ``recent`` steps, at its prediction -- where the motion model says that person is (the pipeline
+        keeps them when it explains the floor grid's ghosts away, :mod:`.ghosts`)."""
+        positions = np.asarray(positions, float).reshape(-1, 2)
+        tracks = [t for t in self.tracks if t.person and t.misses <= self.recent]
+        if not tracks or not len(positions):
+            return np.zeros(len(positions), bool)
+        pred = np.stack([t.predict(step, self.coast) for t in tracks])
+        gates = np.array([self._gate(t, step) for t in tracks])
+        return np.any(np.linalg.norm(positions[:, None] - pred[None], axis=2) <= gates[None], axis=1)
+
+    def _confirmable(self, t: Track) -> bool:
+        return self.may_confirm is None or bool(self.may_confirm(t))
 
     def _confirm(self, t: Track, tracks: list[Track], step: int) -> None:
         """Make tentative ``t`` a person: the id of the lost person's track within ``reid_gate`` of lowest cost

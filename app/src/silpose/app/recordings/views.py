@@ -26,7 +26,8 @@ their own feet -- within :data:`FOOT_TOLERANCE_M` of where the floor point proje
 where nobody nearer hides their feet; a ghost's torso column lies on someone else's blob, which ends at
 that someone's feet, nearer or farther. Measured on the lab recording with four walkers (one frame in
 three): 85 % of the real detections were grounded in at least one camera, 29 % of the ghosts; with two
-walkers, 99 % of the real ones. The pipeline lets only grounded detections start a track. Statuses for the camera as
+walkers, 99 % of the real ones. The pipeline lets only grounded detections start a track, and explains the grid's
+ghosts away with the detections grounded in more cameras first (:mod:`.ghosts`). Statuses for the camera as
 a whole: :data:`VIEW_NO_VIDEO`, :data:`VIEW_ENDED` (the video stopped), :data:`VIEW_EMPTY` (no
 foreground at all, e.g. an all-black mask), :data:`VIEW_NOT_SEEN` (the column falls on no usable blob),
 :data:`VIEW_NOT_MODELLED` (a camera the model was not trained on).
