@@ -161,11 +161,13 @@ class FloorGrid:
             self.sees.append(seen[self.active])
         self.n_heights = len(hz)
 
-    def in_workspace(self, xy: np.ndarray) -> np.ndarray:
-        """(N,) bool: floor points ``xy`` (N, 2) metres in the workspace, where the rig films its subjects."""
+    def in_workspace(self, xy: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(N,) bool: floor points ``xy`` (N, 2) metres in the workspace, where the rig films its subjects, grown
+        by ``margin`` metres on every side."""
         xy = np.asarray(xy, float).reshape(-1, 2)
         (x0, x1), (y0, y1) = self.workspace
-        return (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
+        m = float(margin)
+        return (xy[:, 0] >= x0 - m) & (xy[:, 0] <= x1 + m) & (xy[:, 1] >= y0 - m) & (xy[:, 1] <= y1 + m)
 
     def occupancy(self, masks: list) -> tuple[np.ndarray, np.ndarray]:
         """(strict, tolerant) (ny, nx) float32 scores (module docstring) from per-camera (H, W) {0, 1} uint8

@@ -51,11 +51,11 @@ by their box, however still they stand; clutter touching a person's box is absor
 again fits their box. Tentative tracks and the floor grid's ghosts protect nothing (a newcomer's pixels age for the
 0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`may_be_person`, the
 tracker's ``may_confirm``; mask videos absorb nothing, so there every track the tracker confirms is one): a track
-that has walked :data:`~.tracking.TRAVEL_M`, or, in the workspace, one that some camera has seen alone (a usable
-view of its own; a ghost lives on other people's blobs). A track beyond the workspace that has not walked
-(:func:`static_clutter`) takes no views -- a blob it shares with a person is the person's -- and never protects:
-someone who stands still at the back all along becomes background, not a person (issue 24: "persistent static
-blobs become background, not people"). Before any of this, the floor grid's ghosts are explained away by the
+that has walked :data:`~.tracking.TRAVEL_M`, or, in the workspace or the margin the floor grid searches around it
+(:data:`.floor.MARGIN_M`), one that some camera has seen alone (a usable view of its own; a ghost lives on other
+people's blobs). A track beyond both that has not walked (:func:`static_clutter`) takes no views -- a blob it shares
+with a person is the person's -- and never protects: someone who stands still at the back all along becomes
+background, not a person ("persistent static blobs become background, not people"). Before any of this, the floor grid's ghosts are explained away by the
 people found before them (:mod:`.ghosts`): where clutter is absorbed, a ghost that lasts protects it and shares
 the people's blobs. Not in mask videos, where nothing is absorbed: on the four-walker lab recording
 (:data:`silpose.datagen.lab.FOUR_WALKERS`, 200 frames, masks) explaining away took the rows off every true person
@@ -90,7 +90,7 @@ from ..errors import RecordingError
 from ..inference import TOP_K, InferOptions, infer_rows
 from .appearance import PersonLooks, observe
 from .blobs import Blobs, blob_contour, find_blobs
-from .floor import FloorGrid, capture_bounds
+from .floor import MARGIN_M, FloorGrid, capture_bounds
 from .floorplan import write_floorplan
 from .hull import PersonHulls
 from .lookahead import StepAhead
@@ -781,16 +781,18 @@ def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: T
 
 
 def static_clutter(track: Track, grid: FloorGrid) -> bool:
-    """A tentative track beyond the workspace that has not walked (:data:`~.tracking.TRAVEL_M`): someone or something
-    standing there, which becomes background (module docstring, "Static clutter")."""
-    return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position)[0])
+    """A tentative track beyond the workspace and the margin the floor grid searches around it (:data:`.floor.MARGIN_M`)
+    that has not walked (:data:`~.tracking.TRAVEL_M`): someone or something standing there, which becomes background
+    (module docstring, "Static clutter"). Within the margin a person standing still is a person: an imported
+    workspace can be small (Pose2Sim's demo: 1.5 m x 0.7 m, its two people up to 0.4 m outside it)."""
+    return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position, MARGIN_M)[0])
 
 
 def may_be_person(track: Track, grid: FloorGrid) -> bool:
     """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or,
-    in the workspace, once some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which
+    in the workspace or its margin, once some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which
     live on other people's blobs, never have one)."""
-    return track.travel >= TRAVEL_M or (track.alone and bool(grid.in_workspace(track.position)[0]))
+    return track.travel >= TRAVEL_M or (track.alone and bool(grid.in_workspace(track.position, MARGIN_M)[0]))
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,
