@@ -23,18 +23,18 @@ least 3 usable views, and the number of person ids.
 
 Measured (share of the walker's person-frames after the first 2 s with >= 3 usable views, person ids):
 
-========  ===========================  ===============  ==============================  ===========================
+========  ===========================  ===============  ==============================  =============================
 room      before (main d1d2ea4)        uncut (b4d0303)  visual hull (branch hull)       explaining away (stillroom)
-========  ===========================  ===============  ==============================  ===========================
+========  ===========================  ===============  ==============================  =============================
 lighting  0 %, 6 ids (all foreground)  100 %, 1 id      100 %, 1 id                     100 %, 1 id
 prop      0 %, 1 id                    92 %, 1 id       100 %, 1 id (all: 75 -> 100 %)  100 %, 1 id
 platform                               100 %, 1 id      100 %, 1 id                     100 %, 1 id
-still     0 %, 4 ids                   42 %, 2 ids      45 %, 2 ids; then 0 %, 4 ids    100 %, 1 id; 31 %, 3 ids*
+still     0 %, 4 ids                   42 %, 2 ids      45 %, 2 ids; then 0 %, 4 ids    100 %, 1 id; 31 %, 3 ids (*)
 lamp                                   8 %, 1 id        100 %, 1 id                     100 %, 1 id
 nudged                                                                                  100 %, 1 id
-========  ===========================  ===============  ==============================  ===========================
+========  ===========================  ===============  ==============================  =============================
 
-\* with the workspace margin below (landed).
+(*) with the workspace margin below (landed).
 
 ``still`` fell back to 0 %, 4 ids when ``silpose infer --videos`` began to search wherever 2 cameras see a person
 (:func:`silpose.app.recordings.floor.capture_bounds`): the people at the back are then detected and protect
