@@ -43,7 +43,9 @@ view of the room, :func:`~.silhouettes.room_view`) is a task of its own (:mod:`.
 run's set-up is that room view: the median of 9 frames spread over the whole video, reached by decoding forward
 (``SEEK_GAP``), so up to ~260 frames it decodes every frame once more and grows with the recording (4 x 1932x1458,
 MPEG-4: ~4.8 CPU ms per frame and camera; 30 steps: ~0.15 CPU s per camera, 150 steps: ~0.7). Results are those of
-the one-after-the-other set-up, byte for byte.
+the one-after-the-other set-up, byte for byte, at the same CPU per step (110 ms in both, benchmark ``recordings``,
+colour, 150 steps); the wall-clock gain is within the shared machine's noise (four alternating pairs at load 2-9:
+'setup' 5.8 / 6.8 / 4.3 / 9.5 s against 6.5 / 5.6 / 8.3 / 6.2 s before).
 
 Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
 detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
