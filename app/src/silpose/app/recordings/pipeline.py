@@ -35,6 +35,18 @@ under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s
 parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's decoding threads
 (:data:`~.sources.DECODER_PARAMS`): the cameras already run in threads of their own.
 
+Set-up (before the first step; ``setup`` of the run's timings): the videos are probed a thread each
+(:func:`~.sources.probe_all`); each camera's reader is opened -- and, in its thread, decodes its first frames --
+while the backgrounds are learnt, and the floor grid is built meanwhile, since none of them needs a background;
+the backgrounds of colour videos are learnt in a pool where each camera's room view (the plate registration's
+view of the room, :func:`~.silhouettes.room_view`) is a task of its own (:mod:`.silhouettes`). Most of a colour
+run's set-up is that room view: the median of 9 frames spread over the whole video, reached by decoding forward
+(``SEEK_GAP``), so up to ~260 frames it decodes every frame once more and grows with the recording (4 x 1932x1458,
+MPEG-4: ~4.8 CPU ms per frame and camera; 30 steps: ~0.15 CPU s per camera, 150 steps: ~0.7). Results are those of
+the one-after-the-other set-up, byte for byte, at the same CPU per step (110 ms in both, benchmark ``recordings``,
+colour, 150 steps); the wall-clock gain is within the shared machine's noise (four alternating pairs at load 2-9:
+'setup' 5.8 / 6.8 / 4.3 / 9.5 s against 6.5 / 5.6 / 8.3 / 6.2 s before).
+
 Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
 detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
 rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what happens during the run
@@ -399,13 +411,29 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     work = [work_camera(c, work_size(c, workspace.center, opt.work_person_px)) for c in rig]
     sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
                for c, s in recording.sources.items()}
-    grid = FloorGrid(work, workspace.bounds, search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
+    start = first_step(opt)
+    threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
+    reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
+    # the cameras' readers open (and, in threads, decode ahead) while the backgrounds are learnt, and the floor grid
+    # is built meanwhile: neither needs a background (module docstring, "Set-up")
+    readers: dict = {}
+    try:
+        for c, src in sources.items():
+            readers[c] = reader(CameraReader(src, opt.masks, start))
+        with ThreadPoolExecutor(max_workers=1) as aside:
+            grid_job = aside.submit(FloorGrid, work, workspace.bounds,
+                                    search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
+            silhouettes, start = make_silhouettes(opt, rig, sources, work)
+            grid = grid_job.result()
+        total = recording.n_steps - start if recording.n_steps >= 0 else -1
+        if recording.n_steps >= 0 and total <= 0:
+            raise RecordingError(f"{videos}: no frames left after the {start} background frames")
+    except BaseException:
+        for r in readers.values():
+            r.close()
+        raise
     hulls = (PersonHulls(work, ((grid.xs[0], grid.xs[-1]), (grid.ys[0], grid.ys[-1])), workspace.center)
              if ((not opt.masks) if opt.carve is None else opt.carve) else None)
-    silhouettes, start = make_silhouettes(opt, rig, sources, work)
-    total = recording.n_steps - start if recording.n_steps >= 0 else -1
-    if recording.n_steps >= 0 and total <= 0:
-        raise RecordingError(f"{videos}: no frames left after the {start} background frames")
     if opt.max_steps is not None:
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
     # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
@@ -417,9 +445,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     if absorb > 0:  # static clutter becomes background, never a person (module docstring)
         tracker.may_confirm = lambda t: may_be_person(t, grid)
     lag = tracker.decided_within
-    threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
-    reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
-    cams = {c: _Camera(reader(CameraReader(s, silhouettes.grey, start)), silhouettes,
+    cams = {c: _Camera(readers[c], silhouettes,
                        min_blob_area(rig[names.index(c)], work[names.index(c)], workspace.center, opt.min_area),
                        keep_frame=not opt.masks,
                        cam=work[names.index(c)], absorb_frames=absorb)
@@ -605,11 +631,18 @@ def check_background_options(opt: RecordingOptions, videos, rig) -> None:
                              f"videos{hint}")
 
 
+def first_step(opt: RecordingOptions) -> int:
+    """The frame index of a run's first step (before offsets): the background frames' count with
+    ``--background-frames`` (those frames are not processed), else 0."""
+    if opt.masks or opt.background is not None or opt.background_frames is None:
+        return 0
+    return int(opt.background_frames)
+
+
 def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
-    """(the mask maker of :mod:`.silhouettes` the options ask for, the first step's frame index): mask videos
-    binarised, or colour videos segmented against empty-room clips, the recording's median or its first frames;
-    ``sources`` {camera: CameraSource} at the working sizes of ``work`` (cameras in rig order)."""
-    start = 0
+    """(the mask maker of :mod:`.silhouettes` the options ask for, the first step's frame index, :func:`first_step`):
+    mask videos binarised, or colour videos segmented against empty-room clips, the recording's median or its first
+    frames; ``sources`` {camera: CameraSource} at the working sizes of ``work`` (cameras in rig order)."""
     if opt.masks:
         silhouettes = MaskBinariser()
     elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():
@@ -620,8 +653,7 @@ def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
                                             sources if opt.align_plates else None)
     else:
         silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
-        start = int(opt.background_frames)
-    return silhouettes, start
+    return silhouettes, first_step(opt)
 
 
 def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int,

@@ -27,6 +27,7 @@ import dataclasses
 import os
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Callable
 
 import cv2
 import numpy as np
@@ -93,12 +94,13 @@ class ColourSegmenter:
 
 
 def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
-                room: CameraSource | None = None) -> BackgroundModel:
+                room: CameraSource | None = None, view: Callable[[], np.ndarray | None] | None = None) -> BackgroundModel:
     """A BackgroundModel fitted on the first ``n`` frames of ``source`` (streamed in chunks); with ``room`` (the
     recording this is the background of), the frames are first registered to the recording's own view of the room
     (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
     and the model's ``min_std`` is raised to the spread of the plate's differences from that view
-    (:func:`silpose.segment.plate_mismatch_std`)."""
+    (:func:`silpose.segment.plate_mismatch_std`). ``view``: gives that room view (e.g. a future's result, computed
+    elsewhere), asked for once the first chunk of the plate is read; None: :func:`room_view` of ``room`` here."""
     model = BackgroundModel(**{**SEGMENT_DEFAULTS, **params})
     reader = CameraReader(source, grey=False)
     seen = 0
@@ -114,11 +116,11 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
             if not frames:
                 break
             if room is not None and seen == 0:
-                view = room_view(room)
-                if view is not None and view.shape == frames[0].shape:
-                    warp = plate_alignment(frames[0], view)
+                seen_room = view() if view is not None else room_view(room)
+                if seen_room is not None and seen_room.shape == frames[0].shape:
+                    warp = plate_alignment(frames[0], seen_room)
                     aligned = frames[0] if warp is None else warp_plate(frames[0], warp)
-                    model.min_std = max(model.min_std, plate_mismatch_std(aligned, view))
+                    model.min_std = max(model.min_std, plate_mismatch_std(aligned, seen_room))
             if warp is not None:
                 frames = [warp_plate(f, warp) for f in frames]
             model.partial_fit(np.stack(frames))
@@ -201,15 +203,23 @@ def background_from_clips(folder: Path, rig, cameras, params: dict | None = None
 
 def _fit_all(sources: dict[str, CameraSource], n: int, params: dict,
              rooms: dict[str, CameraSource] | None = None) -> dict[str, BackgroundModel]:
-    """{camera: :func:`_fit_stream` of its source}, the cameras in a thread each (at most the CPU count): decoding,
+    """{camera: :func:`_fit_stream` of its source}, in a pool of threads (at most the CPU count): decoding,
     resizing and summing release the GIL, so the cameras' backgrounds are learnt side by side; the models are those
-    of one camera after the other (each thread fits its own)."""
+    of one camera after the other (each fits its own). With ``rooms``, every camera's room view (:func:`room_view`:
+    decoding its recording up to the last of the frames spread over it, most of a camera's set-up) is a task of its
+    own, submitted first, and each camera's plate is read and fitted in another once the pool is free: the pool's
+    threads take work of about one size, not two cameras' whole set-ups each, so neither waits long for the other
+    at the end."""
+    rooms = rooms or {}
     workers = max(1, min(len(sources), os.cpu_count() or 1))
-    fit = lambda c: _fit_stream(sources[c], n, params, room=(rooms or {}).get(c))  # noqa: E731
     if workers == 1:
-        return {c: fit(c) for c in sources}
+        return {c: _fit_stream(sources[c], n, params, room=rooms.get(c)) for c in sources}
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        fitted = list(pool.map(fit, sources))
+        # the room views first: a plate's task then finds its view computed (or being computed) when it asks for it
+        views = {c: pool.submit(room_view, rooms[c]) for c in sources if c in rooms}
+        fits = [pool.submit(_fit_stream, sources[c], n, params, room=rooms.get(c),
+                            view=views[c].result if c in views else None) for c in sources]
+        fitted = [f.result() for f in fits]
     return dict(zip(sources, fitted))
 
 

@@ -61,6 +61,7 @@ import os
 import queue
 import threading
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -285,6 +286,26 @@ def _probe(camera: str, path: Path) -> CameraSource:
                         img.shape[1], img.shape[0])
 
 
+def _probe_or_error(camera: str, path: Path) -> CameraSource | RecordingError:
+    try:
+        return _probe(camera, path)
+    except RecordingError as exc:
+        return exc
+
+
+def probe_all(entries: dict[str, Path], cameras) -> list[CameraSource | RecordingError]:
+    """:func:`_probe` of every camera of ``cameras`` that ``entries`` maps to a file or folder, in that order: its
+    source, or its one-line error. The videos are opened side by side, a thread each (at most the CPU count):
+    opening a video and decoding its first frame is FFmpeg's work, which releases the GIL, and a run's set-up
+    otherwise waits for one video after the other."""
+    todo = [c for c in cameras if c in entries]
+    workers = max(1, min(len(todo), os.cpu_count() or 1))
+    if workers == 1:
+        return [_probe_or_error(c, entries[c]) for c in todo]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(lambda c: _probe_or_error(c, entries[c]), todo))
+
+
 def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str = "video") -> Recording:
     """Match, probe and synchronise the videos of ``folder`` for ``rig`` (module docstring); ``role`` picks the
     video of camera folders that hold several (``"video"``, or ``"background"`` for empty-room clips)."""
@@ -302,13 +323,9 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
     quiet_decoders()
     sources = {}
     unreadable: list[RecordingError] = []
-    for cam in cameras:
-        if cam not in entries:
-            continue
-        try:
-            src = _probe(cam, entries[cam])
-        except RecordingError as exc:  # one unreadable camera is a missing view, not the end of the recording
-            unreadable.append(exc)
+    for cam, src in zip([c for c in cameras if c in entries], probe_all(entries, cameras)):
+        if isinstance(src, RecordingError):  # one unreadable camera is a missing view, not the end of the recording
+            unreadable.append(src)
             continue
         want = rig[cameras.index(cam)]
         if (src.width, src.height) != (want.width, want.height):

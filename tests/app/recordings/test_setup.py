@@ -1,0 +1,91 @@
+"""A colour run's set-up done side by side (``silpose infer --videos``): the videos probed in threads, the room
+views and the plates' fits as separate tasks of one pool, the cameras' readers opened before the backgrounds are
+learnt. Each gives what the one-after-the-other way gives (that way is what a 1-CPU machine runs)."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import cv2
+import numpy as np
+import pytest
+
+from silpose.app.errors import RecordingError
+from silpose.app.recordings.pipeline import RecordingOptions, run_recording
+from silpose.app.recordings.silhouettes import at_size, background_from_clips
+from silpose.app.recordings.sources import open_recording, probe_all
+from silpose.segment.composite import background_frames, room
+
+#: the empty-room clip's camera sat 1 % closer and a few pixels off (a 322x242 picture)
+NUDGE = np.array([[1.01, 0.0, 3.0], [0.0, 1.01, 2.0]])
+
+
+def _one_cpu(monkeypatch):
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+
+
+def test_videos_probed_side_by_side_are_those_probed_one_by_one(rig, tools, tmp_path, monkeypatch):
+    sizes = {"cam0": (644, 486), "cam1": (322, 242), "cam2": (644, 486)}  # cam1 stored at half size
+    lengths = {"cam0": 7, "cam1": 5, "cam2": 9}
+    for cam, (w, h) in sizes.items():
+        tools.write_video(tmp_path / f"{cam}.mp4", np.full((lengths[cam], h, w, 3), 60, np.uint8))
+    (tmp_path / "cam3.mp4").write_bytes(b"not a video")
+    entries = {c: tmp_path / f"{c}.mp4" for c in rig.names}
+    found = probe_all(entries, rig.names)
+    assert [type(s).__name__ for s in found] == ["CameraSource"] * 3 + ["RecordingError"]
+    assert [(s.camera, s.width, s.height, s.n_frames) for s in found[:3]] == \
+        [(c, *sizes[c], lengths[c]) for c in ("cam0", "cam1", "cam2")]
+    assert "cam3.mp4" in str(found[3])
+    rec = open_recording(tmp_path, rig)
+    _one_cpu(monkeypatch)
+    assert probe_all(entries, rig.names)[:3] == found[:3]
+    ref = open_recording(tmp_path, rig)
+    assert rec.sources == ref.sources and rec.missing == ref.missing == ("cam3",)
+    assert rec.warnings == ref.warnings and rec.n_steps == ref.n_steps == 9
+
+
+def _nudged_room(rig, tools, tmp_path, n: int = 10):
+    """Colour videos (a dark box crossing each camera's textured room) and empty-room clips shot by a nudged camera,
+    at half the lab rig's size."""
+    (tmp_path / "colour").mkdir()
+    (tmp_path / "empty").mkdir()
+    size = (322, 242)
+    for k, cam in enumerate(rig):
+        clean = np.clip(room(k, size), 0, 255).astype(np.uint8)
+        frames = np.repeat(clean[None], n, axis=0)
+        for f in range(n):
+            frames[f, 80:200, 20 + 25 * f:60 + 25 * f] = (40, 30, 50)
+        tools.write_video(tmp_path / "colour" / f"{cam.name}.mp4", frames)
+        empty = np.stack([cv2.warpAffine(e, NUDGE, size, borderMode=cv2.BORDER_REFLECT)
+                          for e in background_frames(k, size, 6)])
+        tools.write_video(tmp_path / "empty" / f"{cam.name}.mp4", empty)
+    return tmp_path / "colour", tmp_path / "empty"
+
+
+def test_room_views_as_tasks_of_their_own_learn_the_backgrounds_of_one_camera_after_the_other(rig, tools, tmp_path,
+                                                                                           monkeypatch):
+    videos, empty = _nudged_room(rig, tools, tmp_path)
+    rec = open_recording(videos, rig)
+    work = {c: (161, 122) for c in rig.names}  # the working size: every frame shrunk
+    sources = {c: at_size(s, work[c]) for c, s in rec.sources.items()}
+    side_by_side = background_from_clips(empty, rig, list(sources), {}, work, sources).models
+    _one_cpu(monkeypatch)  # one camera after the other, each room view computed inside its fit
+    one_by_one = background_from_clips(empty, rig, list(sources), {}, work, sources).models
+    for c in rig.names:
+        a, b = side_by_side[c], one_by_one[c]
+        assert a.plate_warp is not None  # the nudge was found: the room view mattered
+        np.testing.assert_array_equal(a.plate_warp, b.plate_warp)
+        assert a.min_std == b.min_std > 2.0  # raised by the plate's mismatch with the room view
+        np.testing.assert_array_equal(a.colour_mean_, b.colour_mean_)
+        np.testing.assert_array_equal(a.colour_std_, b.colour_std_)
+
+
+def test_readers_opened_before_the_backgrounds_are_closed_when_learning_fails(tiny_model, tools, tmp_path):
+    videos, empty = _nudged_room(tiny_model.rig_, tools, tmp_path, n=4)
+    (empty / "cam2.mp4").unlink()
+    before = {t for t in threading.enumerate() if t.name.startswith("read-")}
+    with pytest.raises(RecordingError, match="no empty-room clip for camera"):
+        run_recording(tiny_model, videos, tmp_path / "out", RecordingOptions(background=empty, overlays=False))
+    left = {t for t in threading.enumerate() if t.name.startswith("read-") and t.is_alive()} - before
+    assert not left, f"reader threads left running: {sorted(t.name for t in left)}"
