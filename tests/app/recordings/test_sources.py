@@ -228,6 +228,50 @@ def test_spread_frames_decodes_forward_or_seeks_to_the_same_frames(rig, tools, t
     r.close()
 
 
+def test_frames_read_ahead_are_given_again_without_decoding_them_twice(rig, tools, tmp_path, monkeypatch):
+    """CameraReader.read_ahead keeps what it read: the reads after it give the same frames, in order, then the
+    video goes on; the decoder is asked for each frame once."""
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(12))
+    src = open_recording(tmp_path, rig).sources["cam0"]
+    r = CameraReader(src, grey=False)
+    decoded = []
+    plain = r._next
+    monkeypatch.setattr(r, "_next", lambda: decoded.append(1) or plain())
+    ahead = r.read_ahead(5)
+    assert [_frame_index(f) for f in ahead] == [0, 1, 2, 3, 4] and len(decoded) == 5
+    assert [_frame_index(f) for f in r.read_ahead(3)] == [0, 1, 2] and len(decoded) == 5  # nothing new decoded
+    r.skip(1)
+    got = [r.read() for _ in range(8)]
+    assert [_frame_index(f) for f in got] == [1, 2, 3, 4, 5, 6, 7, 8] and len(decoded) == 9
+    r.close()
+    short = CameraReader(src, grey=False)
+    assert len(short.read_ahead(50)) == 12  # a shorter video gives what it has
+    assert sum(short.read() is not None for _ in range(13)) == 12
+    short.close()
+
+
+def test_room_view_is_the_median_of_the_first_frames_from_a_source_or_from_the_runs_reader(rig, tools, tmp_path):
+    """The room view (silhouettes.room_view) is the per-pixel median of frames spread over the recording's first
+    room_span frames -- the same whether read by a reader of its own or through the run's reader, which then gives
+    those frames again from the first."""
+    from silpose.app.recordings import silhouettes
+
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(30))
+    src = open_recording(tmp_path, rig).sources["cam0"]
+    assert silhouettes.room_span(1000.0) == silhouettes.ROOM_SPAN_MAX and silhouettes.room_span(1.0) == silhouettes.ROOM_FRAMES
+    frames = CameraReader(src, grey=False).read_ahead(silhouettes.room_span(src.fps))
+    assert len(frames) == min(30, silhouettes.room_span(src.fps))
+    picks = np.linspace(0, len(frames) - 1, silhouettes.ROOM_FRAMES).round().astype(int)
+    expected = np.median(np.stack([frames[i] for i in picks]), axis=0).astype(np.uint8)
+    own = silhouettes.room_view(src)
+    reader = CameraReader(src, grey=False)
+    through = silhouettes.room_view(reader)
+    np.testing.assert_array_equal(own, expected)
+    np.testing.assert_array_equal(through, expected)
+    assert [_frame_index(reader.read()) for _ in range(3)] == [0, 1, 2]
+    reader.close()
+
+
 @pytest.mark.parametrize("n", [3, 4, 9, 10, 17])
 def test_median_frames_is_numpys_median(n):
     from silpose.app.recordings.silhouettes import median_frames

@@ -39,13 +39,13 @@ Set-up (before the first step; ``setup`` of the run's timings): the videos are p
 (:func:`~.sources.probe_all`); each camera's reader is opened -- and, in its thread, decodes its first frames --
 while the backgrounds are learnt, and the floor grid is built meanwhile, since none of them needs a background;
 the backgrounds of colour videos are learnt in a pool where each camera's room view (the plate registration's
-view of the room, :func:`~.silhouettes.room_view`) is a task of its own (:mod:`.silhouettes`). Most of a colour
-run's set-up is that room view: the median of 9 frames spread over the whole video, reached by decoding forward
-(``SEEK_GAP``), so up to ~260 frames it decodes every frame once more and grows with the recording (4 x 1932x1458,
-MPEG-4: ~4.8 CPU ms per frame and camera; 30 steps: ~0.15 CPU s per camera, 150 steps: ~0.7). Results are those of
-the one-after-the-other set-up, byte for byte, at the same CPU per step (110 ms in both, benchmark ``recordings``,
-colour, 150 steps); the wall-clock gain is within the shared machine's noise (four alternating pairs at load 2-9:
-'setup' 5.8 / 6.8 / 4.3 / 9.5 s against 6.5 / 5.6 / 8.3 / 6.2 s before).
+view of the room, :func:`~.silhouettes.room_view`) is a task of its own (:mod:`.silhouettes`). The room view is
+the median of 9 frames spread over the recording's first 2 s, read through the run's own reader, which keeps them
+for the first steps (:meth:`~.sources.CameraReader.read_ahead`; its thread starts once the backgrounds are learnt):
+no frame is decoded twice. It was the median of frames spread over the whole video, reached by decoding every
+frame up to the last pick once more -- most of a colour run's set-up. Measured on the benchmark's colour recording
+(4 x 1932x1458 MPEG-4, 150 steps, three alternating pairs on the idle machine): 14.4 / 15.2 / 15.9 time steps/s
+and 16.9 / 16.2 / 15.4 CPU s, against 12.2 / 12.5 / 13.0 and 20.0 / 19.5 / 19.1 before.
 
 Rows of a track are held back until the track is a person or dropped (``Tracker.decided_within`` steps): a
 detection that never becomes a person leaves no rows. Input problems found before the run (a folder, a video, a size, a frame
@@ -417,14 +417,19 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     # the cameras' readers open (and, in threads, decode ahead) while the backgrounds are learnt, and the floor grid
     # is built meanwhile: neither needs a background (module docstring, "Set-up")
     readers: dict = {}
+    # plates registered to the room views of the recording's first frames: the run's own readers read those frames
+    # (and keep them for the first steps), their threads start after (module docstring, "Set-up")
+    rooms = opt.background is not None and str(opt.background) != MEDIAN and opt.align_plates and not opt.masks
     try:
         for c, src in sources.items():
-            readers[c] = reader(CameraReader(src, opt.masks, start))
+            readers[c] = CameraReader(src, opt.masks, start) if rooms else reader(CameraReader(src, opt.masks, start))
         with ThreadPoolExecutor(max_workers=1) as aside:
             grid_job = aside.submit(FloorGrid, work, workspace.bounds,
                                     search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
-            silhouettes, start = make_silhouettes(opt, rig, sources, work)
+            silhouettes, start = make_silhouettes(opt, rig, readers if rooms else sources, work)
             grid = grid_job.result()
+        if rooms:
+            readers = {c: reader(r) for c, r in readers.items()}
         total = recording.n_steps - start if recording.n_steps >= 0 else -1
         if recording.n_steps >= 0 and total <= 0:
             raise RecordingError(f"{videos}: no frames left after the {start} background frames")
@@ -642,7 +647,9 @@ def first_step(opt: RecordingOptions) -> int:
 def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
     """(the mask maker of :mod:`.silhouettes` the options ask for, the first step's frame index, :func:`first_step`):
     mask videos binarised, or colour videos segmented against empty-room clips, the recording's median or its first
-    frames; ``sources`` {camera: CameraSource} at the working sizes of ``work`` (cameras in rig order)."""
+    frames; ``sources`` {camera: CameraSource at the working sizes of ``work`` (cameras in rig order)}, or
+    {camera: CameraReader} of those sources when the clips are registered to the recording (``align_plates``;
+    :func:`~.silhouettes.room_view` reads its first frames through them)."""
     if opt.masks:
         silhouettes = MaskBinariser()
     elif opt.background is not None and str(opt.background) == MEDIAN and not Path(opt.background).exists():

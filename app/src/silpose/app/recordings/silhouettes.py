@@ -45,8 +45,15 @@ MASK_MEDIAN = 3
 MAX_BACKGROUND_FRAMES = 300
 #: frames spread over a recording whose per-pixel median is its background (``--background median``)
 MEDIAN_FRAMES = 41
-#: frames spread over a recording whose per-pixel median its empty-room clips are registered to (:func:`room_view`)
+#: frames spread over a recording's first :data:`ROOM_SPAN_S` seconds whose per-pixel median its empty-room clips
+#: are registered to (:func:`room_view`)
 ROOM_FRAMES = 9
+#: seconds at the start of a recording that its room view (:func:`room_view`) is taken from: long enough for people
+#: who walk to leave most pixels (a walker crosses ~2.5 m), short enough that the run keeps those frames for its
+#: first steps instead of decoding them twice (:meth:`~.sources.CameraReader.read_ahead`); at most
+#: :data:`ROOM_SPAN_MAX` frames (memory: that many frames at the working size per camera)
+ROOM_SPAN_S = 2.0
+ROOM_SPAN_MAX = 64
 #: frames: :func:`spread_frames` decodes forward to a frame at most this far ahead rather than seeking (OpenCV's
 #: FFmpeg seek decodes again from at least 16 frames before its target; measured on 30-frame 1932x1458 videos, nine
 #: frames spread over them: 0.74 s of CPU per camera seeking to each)
@@ -94,7 +101,7 @@ class ColourSegmenter:
 
 
 def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
-                room: CameraSource | None = None, view: Callable[[], np.ndarray | None] | None = None) -> BackgroundModel:
+                room: CameraSource | CameraReader | None = None, view: Callable[[], np.ndarray | None] | None = None) -> BackgroundModel:
     """A BackgroundModel fitted on the first ``n`` frames of ``source`` (streamed in chunks); with ``room`` (the
     recording this is the background of), the frames are first registered to the recording's own view of the room
     (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
@@ -177,21 +184,36 @@ def median_frames(frames: list[np.ndarray]) -> np.ndarray:
     return ((s[n // 2 - 1].astype(np.uint16) + s[n // 2]) // 2).astype(np.uint8)
 
 
-def room_view(source: CameraSource, n: int = ROOM_FRAMES) -> np.ndarray | None:
-    """The recording's own view of the room: the per-pixel median of ``n`` frames spread over it (people who
-    move are not in it), uint8; None with fewer than 3 frames."""
-    frames = spread_frames(source, n)
-    return median_frames(frames) if len(frames) >= 3 else None
+def room_span(fps: float) -> int:
+    """Frames of a recording at ``fps`` (0: unknown, taken as 25) that its room view is taken from
+    (:data:`ROOM_SPAN_S`, at least :data:`ROOM_FRAMES`, at most :data:`ROOM_SPAN_MAX`)."""
+    return int(min(ROOM_SPAN_MAX, max(ROOM_FRAMES, round(ROOM_SPAN_S * (fps if fps and fps > 0 else 25.0)))))
+
+
+def room_view(recording: CameraSource | CameraReader, n: int = ROOM_FRAMES) -> np.ndarray | None:
+    """The recording's own view of the room: the per-pixel median of ``n`` frames spread over its first
+    :func:`room_span` frames (people who move are not in it), uint8; None with fewer than 3 frames.
+    ``recording``: its source (read by a reader of its own), or the run's reader of it, which keeps the frames it
+    read for the run (:meth:`~.sources.CameraReader.read_ahead`)."""
+    own = isinstance(recording, CameraSource)
+    reader = CameraReader(recording, grey=False) if own else recording
+    try:
+        frames = reader.read_ahead(room_span(reader.source.fps))
+    finally:
+        if own:
+            reader.close()
+    picks = sorted(set(np.linspace(0, len(frames) - 1, min(n, len(frames))).round().astype(int).tolist())) if frames else []
+    return median_frames([frames[i] for i in picks]) if len(picks) >= 3 else None
 
 
 def background_from_clips(folder: Path, rig, cameras, params: dict | None = None,
                           sizes: dict[str, tuple[int, int]] | None = None,
-                          recording: dict[str, CameraSource] | None = None) -> ColourSegmenter:
+                          recording: dict[str, CameraSource | CameraReader] | None = None) -> ColourSegmenter:
     """Background models of ``cameras`` learnt from the empty-room clips in ``folder`` (same layout and
     names as the videos folder: ``<camera>.mp4``, ``<camera>/`` frames, or ``<camera>/background.avi`` in a
     camera folder holding several videos), at each camera's working size ``sizes`` (width, height; None:
-    the rig camera's size); with ``recording`` ({camera: source} at the same sizes), each clip is registered to
-    its recording first (:mod:`silpose.segment.align`)."""
+    the rig camera's size); with ``recording`` ({camera: source, or the run's reader of it, at the same sizes}),
+    each clip is registered to its recording's room view first (:func:`room_view`, :mod:`silpose.segment.align`)."""
     clips = open_recording(folder, rig, role="background")
     absent = [c for c in cameras if c not in clips.sources]
     if absent:
@@ -202,12 +224,11 @@ def background_from_clips(folder: Path, rig, cameras, params: dict | None = None
 
 
 def _fit_all(sources: dict[str, CameraSource], n: int, params: dict,
-             rooms: dict[str, CameraSource] | None = None) -> dict[str, BackgroundModel]:
+             rooms: dict[str, CameraSource | CameraReader] | None = None) -> dict[str, BackgroundModel]:
     """{camera: :func:`_fit_stream` of its source}, in a pool of threads (at most the CPU count): decoding,
     resizing and summing release the GIL, so the cameras' backgrounds are learnt side by side; the models are those
     of one camera after the other (each fits its own). With ``rooms``, every camera's room view (:func:`room_view`:
-    decoding its recording up to the last of the frames spread over it, most of a camera's set-up) is a task of its
-    own, submitted first, and each camera's plate is read and fitted in another once the pool is free: the pool's
+    decoding the recording's first frames) is a task of its own, submitted first, and each camera's plate is read and fitted in another once the pool is free: the pool's
     threads take work of about one size, not two cameras' whole set-ups each, so neither waits long for the other
     at the end."""
     rooms = rooms or {}

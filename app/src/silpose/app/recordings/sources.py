@@ -56,6 +56,7 @@ then bilinear: a sixth of the time of OpenCV's ``INTER_AREA`` at a fractional fa
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import os
 import queue
@@ -415,6 +416,7 @@ class CameraReader:
         self.ended_at: int | None = None  # frame index where reading stopped, once it has
         self.cap = None
         self.luma = False  # frames are the decoder's luma plane (LUMA_FORMATS)
+        self._ahead: collections.deque = collections.deque()  # frames read by read_ahead, given again by read
         if source.is_video:
             self.cap = self._open(grey)
             if grey and _fourcc(self.cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT)) in LUMA_FORMATS:
@@ -433,7 +435,25 @@ class CameraReader:
             raise RecordingError(f"{self.source.path}: OpenCV (FFmpeg) cannot open this video")
         return cap
 
+    def read_ahead(self, n: int) -> list[np.ndarray]:
+        """The next ``n`` frames (fewer at the end), as :meth:`read` gives them, kept: the next ``n`` calls of
+        :meth:`read` give them again without decoding them twice (a set-up that looks at a recording's first
+        frames before the run, :func:`~.silhouettes.room_view_ahead`). Memory: ``n`` frames."""
+        frames = list(self._ahead)
+        while len(frames) < n:
+            img = self._read()
+            if img is None:
+                break
+            frames.append(img)
+        self._ahead = collections.deque(frames)
+        return frames[:n]
+
     def read(self) -> np.ndarray | None:
+        if self._ahead:
+            return self._ahead.popleft()
+        return self._read()
+
+    def _read(self) -> np.ndarray | None:
         img = self._next()
         if img is None:
             if self.ended_at is None:
@@ -458,6 +478,7 @@ class CameraReader:
         (a video seeks from its previous key frame; an approximate position is fine for sampling)."""
         self.index = self.source.skip + int(frame)
         self.ended_at = None
+        self._ahead.clear()
         if self.cap is not None:
             self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
 
@@ -465,7 +486,11 @@ class CameraReader:
         """Move ``n`` frames forward without returning them: a video's frames are decoded (its P-frames need
         them) but neither converted to BGR nor resized -- for a few frames, cheaper than :meth:`seek` (OpenCV's
         FFmpeg seek decodes again from 16 or more frames before the target)."""
-        for _ in range(max(0, int(n))):
+        n = max(0, int(n))
+        while n and self._ahead:
+            self._ahead.popleft()
+            n -= 1
+        for _ in range(n):
             if self.cap is not None and not self.cap.grab():
                 break
             self.index += 1
