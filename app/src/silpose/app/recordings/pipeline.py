@@ -34,6 +34,13 @@ threads competing with the camera threads cost more than they give (measured on 
 under load: inference of 150 steps took 2.65 s with OpenBLAS's 2 threads, 0.68 s with 1); so are OpenCV's own
 parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's decoding threads
 (:data:`~.sources.DECODER_PARAMS`): the cameras already run in threads of their own.
+Colour videos decode in reader threads of their own (:class:`~.sources.ThreadedReader`), which with the run's
+thread keep two cores busy: the camera pool is then one thread per camera, at most the CPU count less two, so
+none on a 2-core machine (the segmentation, the floor and the views in the run's thread, the decoding still beside
+it). Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
+2-core machine): 15.9 / 15.3 / 16.9 time steps/s and 14.1 / 14.5 / 13.2 CPU s without the pool, 14.0 / 12.8 / 13.4
+and 17.3 / 18.4 / 17.8 with it, the same joints.csv -- six threads that take turns at the GIL cost more than the
+overlap gives (the floor's occupancy map, 0.4 CPU ms of numpy, took 5-6 ms of wall time per step beside them).
 
 Set-up (before the first step; ``setup`` of the run's timings): the videos are probed a thread each
 (:func:`~.sources.probe_all`); each camera's reader is opened -- and, in its thread, decodes its first frames --
@@ -143,7 +150,8 @@ class RecordingOptions:
     of a person); overlays: ``"mp4"`` (or True: per-camera overlay videos), ``"png"`` (one tiled PNG per frame,
     :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per
     inference batch; threads:
-    per-camera worker threads (None: one per camera, at most the CPU count; 0: none); max_steps: stop after
+    per-camera worker threads (None: one per camera, at most the CPU count, less two with reader threads;
+    0: none, module docstring "Threads"); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking, steps
     (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
     0.3 s and 4 s).
@@ -368,8 +376,12 @@ class _Person:
     cut: np.ndarray  # (K,) share of the person's blob cut as unsupported by the other views (.hull), NaN: no blob
 
 
-def _default_threads(n_cameras: int) -> int:
-    return max(0, min(n_cameras, os.cpu_count() or 1))
+def _default_threads(n_cameras: int, reader_threads: bool) -> int:
+    """Camera worker threads when the options do not say (module docstring, "Threads"): one per camera, at most the
+    CPU count, less two when the cameras decode in reader threads of their own (one core for them, one for the run's
+    thread): 0 on a 2-core machine."""
+    cores = os.cpu_count() or 1
+    return max(0, min(n_cameras, cores - 2 if reader_threads else cores))
 
 
 def run_recording(model, videos, out, options: RecordingOptions | None = None, *,
@@ -472,7 +484,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     floor_tracks: dict[int, list] = {}
     pending: list[tuple[int, PersonRows, list[Track], np.ndarray]] = []
     last_heading: dict[int, tuple[int, float]] = {}  # track key -> (step, heading) of its last chosen hypothesis
-    threads = _default_threads(len(cams)) if opt.threads is None else int(opt.threads)
+    threads = _default_threads(len(cams), threaded) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
     # mask videos without carving: the view stage in this thread (module docstring, "Threads")
