@@ -1,5 +1,7 @@
 """The videos folder: matching, probing, synchronising and streaming (silpose.app.recordings.sources)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -258,9 +260,12 @@ def test_room_view_is_the_median_of_the_first_frames_from_a_source_or_from_the_r
 
     tools.write_video(tmp_path / "cam0.mp4", _numbered(30))
     src = open_recording(tmp_path, rig).sources["cam0"]
-    assert silhouettes.room_span(1000.0) == silhouettes.ROOM_SPAN_MAX and silhouettes.room_span(1.0) == silhouettes.ROOM_FRAMES
-    frames = CameraReader(src, grey=False).read_ahead(silhouettes.room_span(src.fps))
-    assert len(frames) == min(30, silhouettes.room_span(src.fps))
+    span = silhouettes.room_span
+    assert span(dataclasses.replace(src, fps=60.0, resize_to=(160, 120))) == 120  # 2 s
+    assert span(dataclasses.replace(src, fps=1.0)) == 9  # at least ROOM_FRAMES
+    assert span(dataclasses.replace(src, fps=60.0, resize_to=(1920, 1080))) == 64 * 2**20 // (3 * 1920 * 1080)
+    frames = CameraReader(src, grey=False).read_ahead(span(src))
+    assert len(frames) == min(30, span(src))
     picks = np.linspace(0, len(frames) - 1, silhouettes.ROOM_FRAMES).round().astype(int)
     expected = np.median(np.stack([frames[i] for i in picks]), axis=0).astype(np.uint8)
     own = silhouettes.room_view(src)

@@ -47,7 +47,7 @@ Set-up (before the first step; ``setup`` of the run's timings): the videos are p
 while the backgrounds are learnt, and the floor grid is built meanwhile, since none of them needs a background;
 the backgrounds of colour videos are learnt in a pool where each camera's room view (the plate registration's
 view of the room, :func:`~.silhouettes.room_view`) is a task of its own (:mod:`.silhouettes`). The room view is
-the median of 9 frames spread over the recording's first 2 s, read through the run's own reader, which keeps them
+the median of 9 frames spread over the recording's first 2 s (at most 64 MB of frames per camera), read through the run's own reader, which keeps them
 for the first steps (:meth:`~.sources.CameraReader.read_ahead`; its thread starts once the backgrounds are learnt):
 no frame is decoded twice. It was the median of frames spread over the whole video, reached by decoding every
 frame up to the last pick once more -- most of a colour run's set-up. Measured on the benchmark's colour recording

@@ -51,9 +51,9 @@ ROOM_FRAMES = 9
 #: seconds at the start of a recording that its room view (:func:`room_view`) is taken from: long enough for people
 #: who walk to leave most pixels (a walker crosses ~2.5 m), short enough that the run keeps those frames for its
 #: first steps instead of decoding them twice (:meth:`~.sources.CameraReader.read_ahead`); at most
-#: :data:`ROOM_SPAN_MAX` frames (memory: that many frames at the working size per camera)
+#: :data:`ROOM_SPAN_MB` of frames at the working size per camera
 ROOM_SPAN_S = 2.0
-ROOM_SPAN_MAX = 64
+ROOM_SPAN_MB = 64
 #: frames: :func:`spread_frames` decodes forward to a frame at most this far ahead rather than seeking (OpenCV's
 #: FFmpeg seek decodes again from at least 16 frames before its target; measured on 30-frame 1932x1458 videos, nine
 #: frames spread over them: 0.74 s of CPU per camera seeking to each)
@@ -184,10 +184,14 @@ def median_frames(frames: list[np.ndarray]) -> np.ndarray:
     return ((s[n // 2 - 1].astype(np.uint16) + s[n // 2]) // 2).astype(np.uint8)
 
 
-def room_span(fps: float) -> int:
-    """Frames of a recording at ``fps`` (0: unknown, taken as 25) that its room view is taken from
-    (:data:`ROOM_SPAN_S`, at least :data:`ROOM_FRAMES`, at most :data:`ROOM_SPAN_MAX`)."""
-    return int(min(ROOM_SPAN_MAX, max(ROOM_FRAMES, round(ROOM_SPAN_S * (fps if fps and fps > 0 else 25.0)))))
+def room_span(source: CameraSource) -> int:
+    """Frames at the start of ``source`` that its room view is taken from: :data:`ROOM_SPAN_S` seconds (an unknown
+    frame rate taken as 25), no more than :data:`ROOM_SPAN_MB` of its frames as read (colour, at ``resize_to``
+    when set), at least :data:`ROOM_FRAMES`."""
+    w, h = source.resize_to or (source.width, source.height)
+    fps = source.fps if source.fps and source.fps > 0 else 25.0
+    fit = ROOM_SPAN_MB * 2**20 // max(1, 3 * int(w) * int(h))
+    return int(max(ROOM_FRAMES, min(round(ROOM_SPAN_S * fps), fit)))
 
 
 def room_view(recording: CameraSource | CameraReader, n: int = ROOM_FRAMES) -> np.ndarray | None:
@@ -198,7 +202,7 @@ def room_view(recording: CameraSource | CameraReader, n: int = ROOM_FRAMES) -> n
     own = isinstance(recording, CameraSource)
     reader = CameraReader(recording, grey=False) if own else recording
     try:
-        frames = reader.read_ahead(room_span(reader.source.fps))
+        frames = reader.read_ahead(room_span(reader.source))
     finally:
         if own:
             reader.close()
