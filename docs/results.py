@@ -200,6 +200,8 @@ def bench_section(bench: Path) -> list[str]:
 
     size = ("`--quick`: small sizes, so ratios against the BLAS floor are those of small products, not of the full "
             "sizes `just bench` measures" if data.get("quick") else "full sizes")
+    if overrides(data):
+        size += f"; arguments set for this run: {overrides(data)}"
     out = [f"Run: {size}.", "", "Machine: " + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
     for sec in data.get("sections", []):
         out += [f"### {sec['section']}", "", sec.get("what", ""), ""]
@@ -267,6 +269,24 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
     return out
 
 
+def overrides(data: dict) -> str:
+    """The ``--set`` arguments a ``bench.json`` was run with: each section's arguments that differ from the
+    defaults of its size (``benchmarks.run.SECTIONS``), as ``section: key value, ...; ...``; "" when none."""
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.run import SECTIONS
+
+    parts = []
+    for sec in data.get("sections", []):
+        known = SECTIONS.get(sec.get("section"))
+        if known is None:
+            continue
+        base = known.quick if data.get("quick") else known.full
+        diff = {k: v for k, v in (sec.get("kwargs") or {}).items() if base.get(k, None) != v}
+        if diff:
+            parts.append(f"{sec['section']}: " + ", ".join(f"{k} {v}" for k, v in diff.items()))
+    return "; ".join(parts)
+
+
 def speed_table(bench: Path) -> str:
     """The README's speed table from ``bench.json``; says how to measure when there is none."""
     try:
@@ -275,6 +295,8 @@ def speed_table(bench: Path) -> str:
         return "Not measured: `just bench`, then `just results`."
     m = data.get("machine", {})
     size = "`just bench --quick`" if data.get("quick") else "`just bench`"
+    if overrides(data):
+        size += f" ({overrides(data)})"
     load = m.get("load_average") or ["?"]
     lines = [f"| {size}: {m.get('cpu_count', '?')} cores, {m.get('cpu', '?')}, {m.get('blas', '?')}, load {load[0]} "
              "| measured |", "|---|---|"]

@@ -127,3 +127,21 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
     assert "| 3.2× / 41.0× (1,000 / 99 frames/s) |" in block
     assert block.count("not measured") == 5  # overlays, ids, two full-HD segmentation rows, single frame
     assert "### Summary" in (tmp_path / "r.md").read_text()
+    assert "`just bench --quick`:" in block  # the quick defaults: no arguments named
+
+
+def test_speed_block_names_the_arguments_a_bench_was_run_with(tmp_path):
+    """A bench run with ``--set`` (here a longer recording, several runs of which the longest plain one counts)
+    says so in the speed table's header and in docs/results.md."""
+    mod = _results_module()
+    rows_rec = [{"name": "run", "run": "1x", "steps": 150, "steps_per_s": 90.0, "steady_steps_per_s": 100.0},
+                {"name": "run", "run": "3x", "steps": 450, "steps_per_s": 110.04, "steady_steps_per_s": 120.0},
+                {"name": "run", "run": "3x, --robust", "steps": 450, "steps_per_s": 50.0, "steady_steps_per_s": 52.0}]
+    data = {"quick": True, "machine": {"cpu_count": 2, "load_average": [0.5]},
+            "sections": [{"section": "recordings", "kwargs": {"n_frames": 150, "repeat": 3, "train": 120,
+                                                              "n_points": 100}, "rows": rows_rec}]}
+    bench = tmp_path / "bench.json"
+    bench.write_text(json.dumps(data))
+    table = mod.speed_table(bench)
+    assert table.splitlines()[0].startswith("| `just bench --quick` (recordings: n_frames 150): 2 cores")
+    assert "| 110.0 time steps/s over 450 steps (120 after the set-up) |" in table
