@@ -101,8 +101,10 @@ SECTIONS: dict[str, Section] = {
         "(frames composited from the dataset's test masks, with its trained model)",
     ),
     "recordings": Section(
-        "recordings", {"n_frames": 150, "repeat": 10, "train": 400},
-        {"n_frames": 30, "repeat": 3, "train": 120, "n_points": 100},
+        # --quick keeps the full recording (150 frames, the full-size lab model): on a 30-frame clip the run's
+        # set-up was most of its time, so the time steps/s said little about a recording (silpose infer's use)
+        "recordings", {"n_frames": 150, "repeat": 10, "train": 400, "colour_frames": 150},
+        {"n_frames": 150, "repeat": 3, "train": 400, "n_points": 200, "colour_frames": 150},
         "silpose infer --videos on the lab recording (4 cameras 644x486, mask videos): time steps/s, CPU per step, "
         "peak RSS on 1x vs a repeat-x longer video; accuracy vs truth and clean masks; occupancy grid vs foot points",
     ),

@@ -138,10 +138,11 @@ def test_speed_block_names_the_arguments_a_bench_was_run_with(tmp_path):
                 {"name": "run", "run": "3x", "steps": 450, "steps_per_s": 110.04, "steady_steps_per_s": 120.0},
                 {"name": "run", "run": "3x, --robust", "steps": 450, "steps_per_s": 50.0, "steady_steps_per_s": 52.0}]
     data = {"quick": True, "machine": {"cpu_count": 2, "load_average": [0.5]},
-            "sections": [{"section": "recordings", "kwargs": {"n_frames": 150, "repeat": 3, "train": 120,
-                                                              "n_points": 100}, "rows": rows_rec}]}
+            "sections": [{"section": "recordings", "kwargs": {"n_frames": 300, "repeat": 3, "train": 400,
+                                                              "n_points": 200, "colour_frames": 150},
+                          "rows": rows_rec}]}
     bench = tmp_path / "bench.json"
     bench.write_text(json.dumps(data))
     table = mod.speed_table(bench)
-    assert table.splitlines()[0].startswith("| `just bench --quick` (recordings: n_frames 150): 2 cores")
+    assert table.splitlines()[0].startswith("| `just bench --quick` (recordings: n_frames 300): 2 cores")
     assert "| 110.0 time steps/s over 450 steps (120 after the set-up) |" in table
