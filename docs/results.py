@@ -222,8 +222,8 @@ def _row(rows: list[dict], **match) -> dict | None:
     return None
 
 
-def _segmentation_cell(rows: list[dict], method: str) -> str | None:
-    r = _row(rows, method=method)
+def _segmentation_cell(rows: list[dict], method: str, contains: str = "") -> str | None:
+    r = next((r for r in rows if str(r.get("method", "")).startswith(method) and contains in str(r["method"])), None)
     ref = _row(rows, method=(r or {}).get("same_size_mog2") or "\0")
     if not r or not ref or r.get("time_vs_same_size_mog2") is None:
         return None
@@ -258,6 +258,11 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
     out.append(("segmentation, full HD shrunk to the working size, vs MOG2 at that size",
                 _segmentation_cell(seg, "1920x1080: BackgroundModel at the working size")))
     out.append(("segmentation, full HD at full size, vs MOG2", _segmentation_cell(seg, "1920x1080: BackgroundModel at full")))
+    rendered = next((r for r in seg if str(r.get("method", "")).startswith("rendered frames ")
+                     and "BackgroundModel" in str(r["method"])), None)
+    size = str(rendered["method"]).split()[2].replace("x", "×") + ", " if rendered else ""
+    out.append((f"segmentation, {size}frames rendered by Blender (textured room, shadows), vs MOG2",
+                _segmentation_cell(seg, "rendered frames ", "BackgroundModel")))
     plain = _row(inf, case="batched, 4 views (joints")
     robust = _row(inf, case="batched, 4 views, robust (")
     out.append(("inference, 4 views, batched: plain / robust, × the BLAS floor", plain and robust and

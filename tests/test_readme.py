@@ -110,7 +110,11 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
                  "steady_steps_per_s": 22.0, "setup_s": 1.83}]
     rows_seg = [{"method": "ref", "iou": 0.99},
                 {"method": "BackgroundModel.segment (streaming)", "iou": 0.9, "same_size_mog2": "ref",
-                 "time_vs_same_size_mog2": 1.234}]
+                 "time_vs_same_size_mog2": 1.234},
+                {"method": "rendered frames 320x240 (data/smoke/frames): cv2 MOG2", "iou": 0.88},
+                {"method": "rendered frames 320x240 (data/smoke/frames): BackgroundModel.segment", "iou": 0.92,
+                 "same_size_mog2": "rendered frames 320x240 (data/smoke/frames): cv2 MOG2",
+                 "time_vs_same_size_mog2": 1.36}]
     rows_inf = [{"case": "batched, 4 views (joints + 4 contours)", "over_floor": 3.21, "value": 1000.0},
                 {"case": "batched, 4 views, robust (8 reweighting passes)", "over_floor": 41.0, "value": 99.0}]
     data = {"quick": True, "machine": {"cpu_count": 2, "load_average": [0.5]},
@@ -125,6 +129,8 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
     assert "| 4 colour videos, 1932×1458 → joints, no overlays | 9.0 time steps/s over 30 steps" in block
     assert "| 1.23× MOG2's CPU time, IoU 0.900 vs 0.990 |" in block
     assert "| 3.2× / 41.0× (1,000 / 99 frames/s) |" in block
+    assert "| segmentation, 320×240, frames rendered by Blender (textured room, shadows), vs MOG2 | 1.36× MOG2's " \
+           "CPU time, IoU 0.920 vs 0.880 |" in block
     assert block.count("not measured") == 5  # overlays, ids, two full-HD segmentation rows, single frame
     assert "### Summary" in (tmp_path / "r.md").read_text()
     assert "`just bench --quick`:" in block  # the quick defaults: no arguments named
