@@ -162,8 +162,21 @@ def _map(obj, fn):
     return type(obj)(**out)
 
 
+def _as_slice(idx: np.ndarray):
+    """``idx`` (k,) as a slice when it is a run of consecutive ascending indices (a block of a batch: copied as one
+    contiguous piece, not gathered), else as it is."""
+    if isinstance(idx, slice):
+        return idx
+    if idx.ndim == 1 and len(idx) and int(idx[-1]) - int(idx[0]) == len(idx) - 1 and np.all(np.diff(idx) == 1):
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
 def _merge(parts: list, order: list[np.ndarray], n: int):
-    """:meth:`InferenceResult.merge` of results or of Hypotheses."""
+    """:meth:`InferenceResult.merge` of results or of Hypotheses. A field every part has is written into an
+    uninitialised array (the parts cover every frame: no fill pass over arrays of up to ~100 MB); contiguous
+    blocks are copied as slices."""
+    order = [_as_slice(o) for o in order]
     out = {}
     for f in dataclasses.fields(parts[0]):
         values = [getattr(p, f.name) for p in parts]
@@ -172,7 +185,7 @@ def _merge(parts: list, order: list[np.ndarray], n: int):
             out[f.name] = values[0]
             continue
         if dataclasses.is_dataclass(have[0]):  # nested per-frame arrays (hypotheses)
-            filled = [v if v is not None else _map(have[0], lambda a, g: np.full((len(idx),) + a.shape[1:],
+            filled = [v if v is not None else _map(have[0], lambda a, g: np.full((_count(idx),) + a.shape[1:],
                                                                                  _fill(g, a.dtype), dtype=a.dtype))
                       for v, idx in zip(values, order)]
             out[f.name] = _merge(filled, order, n)
@@ -181,12 +194,17 @@ def _merge(parts: list, order: list[np.ndarray], n: int):
         if len(shapes) > 1:
             raise ValueError(f"merge: the parts' {f.name} have different shapes per frame: {sorted(shapes)}")
         dtype = np.result_type(*have)
-        arr = np.full((n,) + have[0].shape[1:], _fill(f, dtype), dtype=dtype)
+        shape = (n,) + have[0].shape[1:]
+        arr = np.empty(shape, dtype) if len(have) == len(values) else np.full(shape, _fill(f, dtype), dtype=dtype)
         for v, idx in zip(values, order):
             if v is not None:
                 arr[idx] = v
         out[f.name] = arr
     return type(parts[0])(**out)
+
+
+def _count(idx) -> int:
+    return idx.stop - idx.start if isinstance(idx, slice) else len(idx)
 
 
 def _check_views(parts) -> None:

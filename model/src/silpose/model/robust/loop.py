@@ -66,9 +66,19 @@ other jobs on the 2 shared cores: 2,000 benchmark frames, THREADS 1 vs 2 alterna
 ``benchmarks.run --only inference --quick``, three alternating pairs with main at load 5-6: 511 / 433 / 668 frames/s
 (56x / 39x / 36x the floor) on main, 514 / 487 / 653 frames/s (40x / 28x / 30x) here -- the same throughput, the
 ratios moved with the floor (0.07-0.15 s in these runs). Not shown on an idle machine.
+
+Fresh memory: on the project's machine the first write to memory the process has not used lately costs ~100 MB/s
+(docs/conventions.md, "Benchmarks"). A batch of 20,000 frames held every block's result (~600 MB in all) until one
+merge copied them into a new ~600 MB result: that merge took 2.0-7.0 s of a 15-17 s call, and the time per frame
+doubled from 5,000 to 10,000 frames. Each block is now written into the batch's result as soon as it is done and
+its own arrays freed, so the next block reuses their memory: 20,000 benchmark frames (idle, two alternating pairs)
+17.2 / 15.2 s -> 12.5 / 12.8 s; 2,000 and 5,000 frames within the noise. Answers are bit-identical (10,000 frames).
 """
 
 from __future__ import annotations
+
+import dataclasses
+import threading
 
 import numpy as np
 
@@ -253,9 +263,29 @@ def robust_infer(posterior: Posterior, inputs: Inputs, s2: float, settings: Robu
     bounds, threads = block_bounds(n, BLOCK_FRAMES)
     if len(bounds) == 1:
         return robust_block(posterior, inputs, s2, settings, want)
-    parts = map_blocks(lambda b: robust_block(posterior, inputs.take(slice(*b)), s2, settings, want), bounds, threads)
-    res = InferenceResult.merge([r for r, _ in parts], [np.arange(*b) for b in bounds], n)
-    return res, (np.concatenate([c for _, c in parts]) if want else None)
+    out: list[InferenceResult] = []
+    lock = threading.Lock()
+
+    def block(b: tuple[int, int]) -> np.ndarray | None:
+        # each block is written into the batch's result as soon as it is done, and its own arrays freed: the next
+        # block's reuse their memory (module doc, "fresh memory"), where holding every block for a merge at the end
+        # needed the whole result twice
+        res, comp = robust_block(posterior, inputs.take(slice(*b)), s2, settings, want)
+        with lock:
+            if not out:
+                out.append(res.nan_like(n))
+        if _fields(res) != _fields(out[0]):
+            raise RuntimeError(f"robust blocks gave different fields: {_fields(res)} vs {_fields(out[0])}")
+        out[0].put(slice(*b), res)
+        return comp
+
+    comps = map_blocks(block, bounds, threads)
+    return out[0], (np.concatenate(comps) if want else None)
+
+
+def _fields(res: InferenceResult) -> tuple[str, ...]:
+    """The names of the fields ``res`` holds (not None)."""
+    return tuple(f.name for f in dataclasses.fields(res) if getattr(res, f.name) is not None)
 
 
 def robust_block(posterior: Posterior, inputs: Inputs, s2: float, settings: RobustSettings,
