@@ -79,10 +79,11 @@ def test_settled_frames_stop_within_the_tolerance_of_every_pass(many_component_m
     tol = loop.SETTLED_PX
     monkeypatch.setattr(loop, "SETTLED_PX", 0.0)
     every = model.infer(contours, robust=True, hypotheses=2)
-    # a frame stops when a pass moved it < 0.01 px; the passes it skipped move it less (they converge)
+    # a frame stops when a pass moved it < SETTLED_PX; the passes it skipped move it less (they converge)
     assert np.abs(settled.contours_px - every.contours_px).max() < 5 * tol
     size = np.abs(every.joints).max()
-    assert np.abs(settled.joints - every.joints).max() < 1e-3 * size
+    # the joints move with the contours: by at most a few % of the tolerance (px) per unit of joint size
+    assert np.abs(settled.joints - every.joints).max() < 0.05 * tol * size
     np.testing.assert_array_equal(settled.hypotheses.component, every.hypotheses.component)
 
 

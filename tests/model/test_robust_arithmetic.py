@@ -54,7 +54,7 @@ def test_pseudo_observation_and_largest_move():
     u = rng.uniform(0, 1, size=(20, 3, 200))
     u[0] = 0.0
     assert np.array_equal(pseudo_observation(rec, obs, u), rec + u[..., None] * (obs - rec))
-    new = rec + rng.normal(0, 0.01, size=rec.shape)
+    new = rec + rng.normal(0, SETTLED_PX, size=rec.shape)  # moves of a few SETTLED_PX
     new[1] = rec[1]
     new[2, 0, 5, 1] = np.nan  # NaN counts as no move
     new[3] = np.nan
