@@ -1,9 +1,12 @@
-"""The file suffixes every camera input reads as frames or as videos, and how errors print a frame size.
+"""The file suffixes every camera input reads as frames or as videos, a video's display rotation, and how errors print
+a frame size.
 
 Frames and videos are read by :mod:`silpose.app.recordings.sources` (one reader for every camera input).
 """
 
 from __future__ import annotations
+
+import math
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 """Image file suffixes read as frames (case-insensitive): the one list every camera input uses."""
@@ -15,3 +18,15 @@ camera input uses (frames folders, recordings, ``silpose rig import``'s image-si
 def frame_size_text(shape) -> str:
     """``"<W>x<H> (WxH)"`` for an image shape (H, W[, C]), as error messages print frame sizes."""
     return f"{shape[1]}x{shape[0]} (WxH)"
+
+
+def display_rotation(cap) -> int:
+    """Degrees (0, 90, 180 or 270) by which an opened ``cv2.VideoCapture``'s metadata (the display matrix a phone
+    writes for a portrait video) asks players to rotate its frames: OpenCV's ``CAP_PROP_ORIENTATION_META``, 0 when
+    absent or not a multiple of 90."""
+    import cv2
+
+    value = float(cap.get(cv2.CAP_PROP_ORIENTATION_META) or 0.0)
+    if not math.isfinite(value) or round(value) % 90:
+        return 0
+    return int(round(value)) % 360

@@ -19,6 +19,12 @@ as whole words (:func:`silpose.app.camera_names.camera_in_stem`: CMU Panoptic's 
 stem naming two cameras is an error). A rig camera with
 no video is a missing view in every frame (a warning); no video at all is an error.
 
+Orientation: a phone stores a portrait video as landscape frames plus a rotation in its metadata (the display
+matrix), and players and FFmpeg show it upright. OpenCV reads the stored frames unless asked
+(``CAP_PROP_ORIENTATION_AUTO``), so a video with a rotation of 90, 180 or 270 degrees is read upright, as every
+player shows it -- unless only its stored frames fit the rig camera's size (a calibration made on frames read
+without the rotation), then as stored; either way a warning names the choice (:func:`orient`).
+
 Checks before any frame is processed, each a one-line :class:`~silpose.app.errors.RecordingError` naming
 the file: the video opens and decodes a first frame; its frame size is the rig camera's -- or the same
 picture at another scale (a lab calibrates at full resolution and records or stores smaller videos: both
@@ -71,7 +77,7 @@ import numpy as np
 
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
-from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, display_rotation
 from .resolution import shrink
 
 #: optional camera -> file mapping inside the videos folder
@@ -120,7 +126,9 @@ class CameraSource:
     width, height: size of the frames read, px (after ``pad``); skip: frames skipped at the start (offsets);
     resize_to: (width, height) of the rig camera when the frames are its picture at another scale (each frame is
     resized), else None; pad: (columns, rows) added at the right and bottom edges of every decoded frame
-    (negative: removed) to give the rig camera's picture (:data:`CODEC_BLOCK`), applied before ``resize_to``.
+    (negative: removed) to give the rig camera's picture (:data:`CODEC_BLOCK`), applied before ``resize_to``;
+    rotation: degrees of the video's display rotation (metadata; 0, 90, 180 or 270); upright: frames are read
+    rotated as players show them (``width``, ``height`` are then those of the rotated frames).
     """
 
     camera: str
@@ -133,6 +141,8 @@ class CameraSource:
     images: tuple[Path, ...] | None = None
     resize_to: tuple[int, int] | None = None
     pad: tuple[int, int] = (0, 0)
+    rotation: int = 0
+    upright: bool = False
 
     @property
     def is_video(self) -> bool:
@@ -276,15 +286,44 @@ def _probe(camera: str, path: Path) -> CameraSource:
     try:
         if not cap.isOpened():
             raise RecordingError(f"{path}: OpenCV (FFmpeg) cannot open this video (corrupt, or not a video)")
+        cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0.0)  # the stored frames (OpenCV's default differs between builds)
         ok, img = cap.read()
         if not ok or img is None:
             raise RecordingError(f"{path}: the video has no decodable frame (empty or corrupt)")
         fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        rotation = display_rotation(cap)
     finally:
         cap.release()
     return CameraSource(camera, path, fps if np.isfinite(fps) and fps > 0 else 0.0, count if count > 0 else -1,
-                        img.shape[1], img.shape[0])
+                        img.shape[1], img.shape[0], rotation=rotation)
+
+
+def _fits(width: int, height: int, want) -> bool:
+    """Frames of ``width`` x ``height`` are the rig camera ``want``'s picture: the same size, the same picture with
+    fewer than :data:`CODEC_BLOCK` columns or rows more or less, or the same picture at another scale (module doc)."""
+    if (width, height) == (want.width, want.height):
+        return True
+    if max(abs(want.width - width), abs(want.height - height)) < CODEC_BLOCK:
+        return True
+    return abs(want.height * width / want.width - height) <= 1.0
+
+
+def orient(src: CameraSource, want) -> tuple[CameraSource, str | None]:
+    """``src`` read upright or as stored for the rig camera ``want`` (module doc, "Orientation"), and the warning
+    that says which (None without a rotation)."""
+    if not src.rotation or not src.is_video:
+        return src, None
+    turned = src.rotation % 180 == 90
+    up = dataclasses.replace(src, upright=True, width=src.height if turned else src.width,
+                             height=src.width if turned else src.height)
+    what = f"{src.path.name}: its metadata rotates its {src.width}x{src.height} frames by {src.rotation} degrees"
+    if _fits(up.width, up.height, want) or not _fits(src.width, src.height, want):
+        return up, (f"{what}: read upright ({up.width}x{up.height}) as players show it"
+                    + ("" if turned else "; if camera {!r} was calibrated on the stored frames, remove the rotation "
+                       "(ffmpeg -i IN -c copy -metadata:s:v rotate=0 OUT)".format(src.camera)))
+    return src, (f"{what}: read as stored, because camera {src.camera!r} of the rig is {want.width}x{want.height} "
+                 f"(calibrated on the stored frames)")
 
 
 def _probe_or_error(camera: str, path: Path) -> CameraSource | RecordingError:
@@ -329,6 +368,9 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
             unreadable.append(src)
             continue
         want = rig[cameras.index(cam)]
+        src, turned = orient(src, want)
+        if turned:
+            warnings.append(turned)
         if (src.width, src.height) != (want.width, want.height):
             sx = want.width / src.width
             pad = (want.width - src.width, want.height - src.height)
@@ -433,6 +475,8 @@ class CameraReader:
         cap = cv2.VideoCapture(str(self.source.path), cv2.CAP_FFMPEG, params)
         if not cap.isOpened():
             raise RecordingError(f"{self.source.path}: OpenCV (FFmpeg) cannot open this video")
+        # upright or as stored (module doc, "Orientation"); set either way: OpenCV's default differs between builds
+        cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 1.0 if self.source.upright else 0.0)
         return cap
 
     def read_ahead(self, n: int) -> list[np.ndarray]:

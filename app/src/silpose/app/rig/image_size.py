@@ -25,7 +25,7 @@ import cv2
 from silpose.shared.camera import RigError
 
 from ..camera_names import camera_in_stem
-from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, display_rotation
 from .calibration import CalibratedCamera, normalise_key
 
 __all__ = ["parse_image_size", "parse_image_sizes", "media_size", "find_media", "resolve_image_size", "MEDIA_SUFFIXES"]
@@ -76,7 +76,8 @@ def parse_image_sizes(text: str, cameras, what: str = "--image-size") -> dict[st
 
 
 def media_size(path: Path) -> tuple[int, int] | None:
-    """(width, height) of an image or the first frame size of a video; None if unreadable."""
+    """(width, height) of an image or the first frame size of a video, upright when the video's metadata rotates it
+    (``silpose.app.recordings.sources``, "Orientation"); None if unreadable."""
     if path.suffix.lower() in IMAGE_SUFFIXES:
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         return None if img is None else (int(img.shape[1]), int(img.shape[0]))
@@ -84,7 +85,10 @@ def media_size(path: Path) -> tuple[int, int] | None:
     try:
         if not cap.isOpened():
             return None
+        cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0.0)  # the stored size (OpenCV's default differs between builds)
         w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        if display_rotation(cap) % 180 == 90:  # a phone's portrait video: upright, as players and recordings read it
+            w, h = h, w
         return (w, h) if w > 0 and h > 0 else None
     finally:
         cap.release()
