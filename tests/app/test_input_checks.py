@@ -120,10 +120,19 @@ def test_infer_reads_0_1_mask_pngs_like_0_255_ones(generated, model, tmp_path):
 
 def test_infer_points_at_threshold_when_masks_are_too_dark(generated, model, tmp_path):
     test = load_split(generated, "test", with_masks=True)
-    _write_masks(tmp_path / "dim", test.masks, load_model(model).rig_.names, 100)  # 0/100 masks, threshold 127
+    names = load_model(model).rig_.names
+    # JPEG masks at 0/100 (many grey levels: a grey mask, thresholded at 127): too dark
+    for k, name in enumerate(names):
+        (tmp_path / "dim" / name).mkdir(parents=True)
+        for i in range(len(test.masks)):
+            cv2.imwrite(str(tmp_path / "dim" / name / f"f{i:02d}.jpg"), (test.masks[i, k] * 100).astype(np.uint8))
     code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet")
     assert code == 2 and "usable silhouette" in output and "--threshold" in output
     code, output = silpose("infer", model, tmp_path / "dim", "--out", tmp_path / "dim.parquet", "--threshold", "50")
+    assert code == 0, output
+    # the same masks as PNG (two levels, no white: a label mask, silpose.app.inputs.mask_images) read as they are
+    _write_masks(tmp_path / "label", test.masks, names, 100)
+    code, output = silpose("infer", model, tmp_path / "label", "--out", tmp_path / "label.parquet")
     assert code == 0, output
 
 

@@ -100,7 +100,7 @@ def test_image_folders_are_cameras_too(rig, tmp_path):
     for i, f in enumerate(_numbered(3)):
         cv2.imwrite(str(tmp_path / "cam1" / f"{i:04d}.png"), f)
     rec = open_recording(tmp_path, rig)
-    r = CameraReader(rec.sources["cam1"], grey=True)
+    r = CameraReader(rec.sources["cam1"], grey=False)  # a grey reader reads masks (test_mask_images), not grey codes
     assert [_frame_index(r.read()) for _ in range(3)] == [0, 1, 2] and r.read() is None
 
 

@@ -7,8 +7,8 @@ Layout::
 
 Frames are matched by file name across cameras. A missing camera folder, a frame file absent from
 one camera's folder, or an empty mask (no foreground pixel) is a missing view for that frame; the
-model marginalises it. Foreground = grey value > ``threshold``, except in a 0/1 image (every pixel 0
-or 1, the dataset's own mask encoding saved as PNG), where foreground = 1 (:func:`foreground`). JPEG masks
+model marginalises it. Foreground = grey value > ``threshold`` of the image as :func:`~.mask_images.mask_grey`
+reads it (0/1 images, palettes, label maps and RGBA cut-outs included: its module doc). JPEG masks
 (what many labs' background subtraction scripts save) get a 3x3 median first, like mask videos
 (``silpose.app.recordings.silhouettes``): the codec smears 0/255 into grey edges and ringing. A frame name
 present twice in one camera folder (``0001.png`` and ``0001.jpg``) is an error.
@@ -24,19 +24,12 @@ import numpy as np
 from ..contours import view_contour
 from ..view_status import VIEW_OK
 from ..errors import InferenceInputError
+from .mask_images import mask_grey
 
 
 #: silhouette image suffixes read (case-insensitive); the lossy ones are median-filtered first
 MASK_SUFFIXES = (".png", ".bmp", ".tif", ".tiff", ".jpg", ".jpeg")
 LOSSY_SUFFIXES = (".jpg", ".jpeg")
-
-
-def foreground(img: np.ndarray, threshold: int) -> np.ndarray:
-    """(H, W) bool foreground of a grey silhouette image (H, W) uint8: ``img > threshold``, or ``img == 1``
-    when the image holds only 0 and 1 (a 0/1 mask; no 8-bit silhouette is that dark)."""
-    if img.max(initial=0) <= 1:
-        return img == 1
-    return img > threshold
 
 
 def read_png_input(model, folder: Path, threshold: int = 127):
@@ -69,16 +62,17 @@ def read_png_input(model, folder: Path, threshold: int = 127):
             path = files.get(cam_name, {}).get(frame)
             if path is None:
                 continue
-            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
             if img is None:
                 raise InferenceInputError(f"{path}: not a readable image")
-            if img.shape != (cam.height, cam.width):
+            if img.shape[:2] != (cam.height, cam.width):
                 raise InferenceInputError(
                     f"{path}: image is {img.shape[1]}x{img.shape[0]}, camera {cam_name!r} is {cam.width}x{cam.height}"
                 )
+            img = mask_grey(img)
             if path.suffix.lower() in LOSSY_SUFFIXES:
                 img = cv2.medianBlur(img, 3)
-            points, status, _ = view_contour(foreground(img, threshold), n_pts)
+            points, status, _ = view_contour(img > threshold, n_pts)
             if status == VIEW_OK:
                 contours[i, k] = points
                 present[i, k] = True

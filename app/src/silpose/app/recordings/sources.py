@@ -78,6 +78,7 @@ import numpy as np
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
 from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, display_rotation
+from ..inputs.mask_images import mask_grey
 from .resolution import shrink
 
 #: optional camera -> file mapping inside the videos folder
@@ -547,7 +548,11 @@ class CameraReader:
             return img if ok else None
         if self.index >= len(self.source.images):
             return None
-        img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_COLOR)
+        if self.grey:  # masks as users' tools write them: 0/1, palettes, label maps, RGBA cut-outs (mask_grey)
+            img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_UNCHANGED)
+            img = None if img is None else mask_grey(img)
+        else:
+            img = cv2.imread(str(self.source.images[self.index]), cv2.IMREAD_COLOR)
         if img is None or (img.shape[1], img.shape[0]) != (self.source.width, self.source.height):
             return None  # a corrupt frame ends the camera, like a video that stops decoding
         return img
