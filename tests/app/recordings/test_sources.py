@@ -313,3 +313,23 @@ def test_a_grey_reader_takes_the_luma_plane_of_yuv_videos(rig, tools, tmp_path):
         assert r.read() is None
         r.close()
         cap.release()
+
+
+def test_frames_named_without_zero_padding_are_read_in_numeric_order(rig, tmp_path):
+    """Exporters that do not zero-pad name frames img1, img2, ..., img10: read in that order, not as strings sort
+    (img1, img10, img11, img2, ...); the frame order of ``silpose infer INPUT``'s camera folders is the same."""
+    import cv2
+
+    from silpose.app.inputs.images import frame_order
+
+    (tmp_path / "cam1").mkdir()
+    frames = _numbered(12)
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / "cam1" / f"img{i + 1}.png"), f)
+    rec = open_recording(tmp_path, rig)
+    r = CameraReader(rec.sources["cam1"], grey=False)
+    assert [_frame_index(r.read()) for _ in range(12)] == list(range(12))
+    names = ["f10.png", "f9.png", "f0010b.png", "F2.png", "f1.png", "f00011.png"]
+    assert sorted(names, key=frame_order) == ["f1.png", "F2.png", "f9.png", "f10.png", "f0010b.png", "f00011.png"]
+    padded = [f"{i:05d}.png" for i in range(30)]
+    assert sorted(padded[::-1], key=frame_order) == padded  # zero-padded names keep their order

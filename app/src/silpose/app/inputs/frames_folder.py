@@ -28,14 +28,14 @@ from typing import Sequence
 import cv2
 
 from ..errors import FramesInputError
-from .images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from .images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, frame_order
 
 
 @dataclass(frozen=True)
 class CameraEntry:
     """Where one camera's frames or background live: an image folder or a video file.
 
-    name: camera name; path: the folder or video; images: the image files in name order (None for a video).
+    name: camera name; path: the folder or video; images: the image files in name order (``images.frame_order``: img2 before img10) (None for a video).
     """
 
     name: str
@@ -55,7 +55,7 @@ def _entries(folder: Path, cameras: Sequence[str], what: str) -> dict[str, Camer
             continue
         if p.is_dir():
             name, images = p.name, tuple(
-                sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES)
+                sorted((q for q in p.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES), key=frame_order)
             )
         elif p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES:
             name, images = p.stem, None

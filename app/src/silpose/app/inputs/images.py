@@ -1,5 +1,5 @@
-"""The file suffixes every camera input reads as frames or as videos, a video's display rotation, and how errors print
-a frame size.
+"""The file suffixes every camera input reads as frames or as videos, the order of a folder's frames, a video's display
+rotation, and how errors print a frame size.
 
 Frames and videos are read by :mod:`silpose.app.recordings.sources` (one reader for every camera input).
 """
@@ -7,12 +7,23 @@ Frames and videos are read by :mod:`silpose.app.recordings.sources` (one reader 
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 """Image file suffixes read as frames (case-insensitive): the one list every camera input uses."""
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm")
 """Video file suffixes read as a camera (case-insensitive; OpenCV's FFmpeg decodes them): the one list every
 camera input uses (frames folders, recordings, ``silpose rig import``'s image-size probe)."""
+
+
+def frame_order(path: Path | str) -> tuple:
+    """Sort key of a frame file in its folder: the name's runs of digits compared as numbers (``img2.png`` before
+    ``img10.png``, as exporters that do not zero-pad name frames), then the name itself; zero-padded names keep
+    their order."""
+    name = Path(path).name
+    parts = re.split(r"(\d+)", name.lower())
+    return tuple((0, int(t), "") if t.isdigit() else (1, 0, t) for t in parts), name
 
 
 def frame_size_text(shape) -> str:

@@ -24,6 +24,7 @@ import numpy as np
 from ..contours import view_contour
 from ..view_status import VIEW_OK
 from ..errors import InferenceInputError
+from .images import frame_order
 from .mask_images import mask_grey
 
 
@@ -49,7 +50,7 @@ def read_png_input(model, folder: Path, threshold: int = 127):
             f"model's cameras {names}, found {sorted(subdirs) or 'none'}"
         )
     files = {n: _mask_files(folder / n) for n in present_dirs}
-    frames = sorted(set().union(*[set(f) for f in files.values()]))
+    frames = sorted(set().union(*[set(f) for f in files.values()]), key=frame_order)
     if not frames:
         raise InferenceInputError(f"{folder}: the camera folders {present_dirs} hold no silhouette images "
                                   f"({', '.join(MASK_SUFFIXES)})")

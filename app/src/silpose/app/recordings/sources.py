@@ -3,7 +3,7 @@
 Layout of ``silpose infer MODEL --videos DIR``::
 
     DIR/<camera>.mp4 | .avi | .mkv | .mov | ...    one video per camera, named as in the rig (or holding the name), or
-    DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order), or
+    DIR/<camera>/00000.png ...                     a folder of frames (PNG/JPG, name order: frame_order), or
     DIR/<camera>/video.avi                         a camera folder holding videos: its only video, or the one
                                                    named ``video`` (``background`` for ``--background DIR``)
     DIR/cameras.toml                               optional: [cameras] <camera> = "<file or folder>"
@@ -77,7 +77,7 @@ import numpy as np
 
 from ..camera_names import camera_in_stem
 from ..errors import RecordingError
-from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, display_rotation
+from ..inputs.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, display_rotation, frame_order
 from ..inputs.mask_images import mask_grey
 from .resolution import shrink
 
@@ -276,7 +276,8 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
 def _probe(camera: str, path: Path) -> CameraSource:
     """Open, check the first frame decodes, read size / rate / count."""
     if path.is_dir():
-        images = tuple(sorted(q for q in path.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES))
+        images = tuple(sorted((q for q in path.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES),
+                              key=frame_order))
         if not images:
             raise RecordingError(f"{path}: no {'/'.join(s[1:] for s in IMAGE_SUFFIXES)} frames in this camera folder")
         img = cv2.imread(str(images[0]), cv2.IMREAD_UNCHANGED)
