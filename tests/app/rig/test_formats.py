@@ -147,3 +147,27 @@ def test_per_camera_folders_of_same_named_files_are_named_by_their_folders(tmp_p
     (dup / "config.xml").write_bytes(paths[0].read_bytes())
     with pytest.raises(RigError, match=r"camera name '[^']+' is also a camera of"):
         import_rig([paths[0], dup / "config.xml"], options())  # two folders of one name: a clash, one line
+
+
+def _windows_text(path) -> None:
+    """``path`` rewritten as a Windows editor saves text: a UTF-8 byte-order mark and CRLF line ends."""
+    text = path.read_bytes().decode("utf-8").replace("\r\n", "\n").replace("\n", "\r\n")
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+
+
+@pytest.mark.parametrize("kind", ["pose2sim", "easymocap", "opencv"])
+def test_calibrations_saved_by_windows_editors_import_the_same(tmp_path, known_calibration, check_same_projections,
+                                                               kind):
+    if kind == "pose2sim":
+        paths = [write_pose2sim(tmp_path / "Calib.toml", known_calibration)]
+    elif kind == "easymocap":
+        paths = list(write_easymocap(tmp_path, known_calibration))
+    else:
+        paths = []
+        for c in known_calibration:
+            paths.append(tmp_path / f"{c.name}.yml")
+            write_opencv_camera(paths[-1], c)
+    for p in paths:
+        _windows_text(p)
+    res = import_rig(paths, options())
+    check_same_projections(res.rig, known_calibration)

@@ -47,21 +47,20 @@ def open_filestorage(path: str | Path) -> Iterator[cv2.FileNode]:
     source = str(path)
     if not Path(path).is_file():
         raise RigError(f"{source}: calibration file not found")
-    text = None
     if Path(path).stat().st_size == 0:
         raise RigError(f"{source}: not a readable OpenCV FileStorage file (the file is empty)")
-    if Path(path).suffix.lower() in (".yml", ".yaml"):
-        try:
-            raw = Path(path).read_text(encoding="utf-8-sig")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise RigError(f"{source}: cannot read this file as text ({exc})") from None
-        if not raw.lstrip().startswith("%YAML"):  # plain YAML (ROS, hand-written): OpenCV wants its header
-            text = "%YAML:1.0\n---\n" + raw
+    # the text is read here and given to OpenCV from memory: a byte-order mark or CRLF line ends (a Windows editor's
+    # save) make OpenCV's own reader fail, and plain YAML (ROS, hand-written) needs OpenCV's header
     try:
-        if text is None:
-            fs = cv2.FileStorage(source, cv2.FILE_STORAGE_READ)
-        else:
-            fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML)
+        text = Path(path).read_text(encoding="utf-8-sig").replace("\r\n", "\n")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RigError(f"{source}: cannot read this file as text ({exc})") from None
+    xml = text.lstrip().startswith("<")
+    if not xml and not text.lstrip().startswith("%YAML"):
+        text = "%YAML:1.0\n---\n" + text
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY
+                             | (cv2.FILE_STORAGE_FORMAT_XML if xml else cv2.FILE_STORAGE_FORMAT_YAML))
         opened = fs.isOpened()
     except (cv2.error, SystemError):
         opened = False

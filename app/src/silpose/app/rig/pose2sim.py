@@ -44,7 +44,7 @@ def read_pose2sim(path: str | Path) -> list[CalibratedCamera]:
     if not p.is_file():
         raise RigError(f"{source}: calibration file not found")
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        data = tomllib.loads(p.read_text(encoding="utf-8-sig"))  # a Windows editor's byte-order mark
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError) as exc:
         raise RigError(f"{source}: not a readable TOML file ({str(exc).splitlines()[0]})") from None
     cams = []

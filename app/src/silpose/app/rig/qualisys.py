@@ -61,7 +61,7 @@ def is_qualisys(path: str | Path) -> bool:
     if p.suffix.lower() not in (".xml", ".txt"):
         return False
     try:
-        with p.open("r", encoding="utf-8", errors="replace") as f:
+        with p.open("r", encoding="utf-8-sig", errors="replace") as f:
             head = f.read(4096)
     except OSError:
         return False

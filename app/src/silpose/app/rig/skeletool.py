@@ -39,7 +39,7 @@ def is_skeletool(path: str | Path) -> bool:
     if p.suffix.lower() == ".calibration":
         return True
     try:
-        with p.open("r", encoding="utf-8", errors="replace") as f:
+        with p.open("r", encoding="utf-8-sig", errors="replace") as f:
             return f.readline(len(HEADER) + 8).strip() == HEADER
     except OSError:
         return False
