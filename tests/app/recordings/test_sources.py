@@ -76,6 +76,14 @@ def test_camera_in_stem_reads_dataset_video_names():
     assert camera_in_stem("cam10_take", ["cam1"]) == []  # cam10 is not cam1
     assert camera_in_stem("hd_00_00", ["00_00", "00"]) == ["00_00"]  # 00 only inside the longer match
     assert camera_in_stem("cam1_vs_cam2", ["cam1", "cam2"]) == ["cam1", "cam2"]
+    # one camera spelt two ways (Pose2Sim's calibration cam_01, its videos cam01): numbers compared as numbers
+    cams = ["cam_01", "cam_02", "cam_10"]
+    for stem, want in (("cam01", ["cam_01"]), ("Cam1", ["cam_01"]), ("cam-1_take3", ["cam_01"]),
+                       ("cam10", ["cam_10"]), ("camera01", []), ("cam03", [])):
+        assert camera_in_stem(stem, cams) == want, stem
+    assert camera_in_stem("cam_02", ["cam01", "cam02"]) == ["cam02"]
+    assert camera_in_stem("take_02", ["1", "2"]) == []  # number-only names keep the exact rule (02 is not 2)
+    assert camera_in_stem("take_02", ["00_01", "00_02"]) == []
 
 
 def test_videos_named_with_the_camera_inside_are_matched_with_a_warning(rig, tools, tmp_path):
