@@ -163,3 +163,16 @@ def test_malformed_clips_fail_with_one_line_naming_the_file(tmp_path, cache):
     assert run.returncode != 0
     err_lines = [ln for ln in run.stderr.splitlines() if ln.strip()]
     assert err_lines == [f"silpose gen: error: {truncated}: MOTION has 2 frame lines but 'Frames: 4' (truncated file?)"]
+
+
+def test_a_clip_saved_by_a_windows_editor_imports_as_the_same_motion(tmp_path, cache):
+    """A byte-order mark and CRLF line ends (Notepad's save): Blender's importer would not read the marked first line
+    as HIERARCHY; silpose gives it a copy without the mark, and the motion is the plain file's, value for value."""
+    plain = write_synthetic_bvh(tmp_path / "plain.bvh")
+    windows = tmp_path / "windows.bvh"
+    windows.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes().replace(b"\n", b"\r\n"))
+    entries = ensure_cached([plain, windows], workers=1)
+    a, b = read_entry(entries[plain][1]), read_entry(entries[windows][1])
+    assert entries[plain][0] != entries[windows][0]  # two files (their own checksums), one motion
+    np.testing.assert_array_equal(np.asarray(a.heads), np.asarray(b.heads))
+    np.testing.assert_array_equal(np.asarray(a.tails), np.asarray(b.tails))

@@ -179,7 +179,7 @@ def load_config(preset_or_path: str | Path, **overrides) -> GenConfig:
     """Load and validate a preset name or a TOML file; ``overrides`` replace top-level keys."""
     path = resolve(preset_or_path)
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))  # past a Windows editor's byte-order mark
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML ({exc})") from None
     raw.update({k: v for k, v in overrides.items() if v is not None})

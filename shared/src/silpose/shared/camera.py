@@ -326,7 +326,7 @@ def load_rig(path: str | Path) -> Rig:
             f"`silpose rig import {p} --out rig.json` (options --unit, --up, --origin, --image-size)"
         )
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # past a Windows editor's byte-order mark
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{p}: cannot read the rig file as UTF-8 text ({exc})") from None
     try:

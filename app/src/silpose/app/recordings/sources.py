@@ -226,7 +226,7 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
     mapping = folder / MAPPING_FILE
     if mapping.is_file():
         try:
-            doc = tomllib.loads(mapping.read_text(encoding="utf-8"))
+            doc = tomllib.loads(mapping.read_text(encoding="utf-8-sig"))
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise RecordingError(f"{mapping}: not valid TOML ({exc})") from None
         table = doc.get("cameras")

@@ -107,7 +107,7 @@ def show_command(
         _claim("rig show", lambda: claim_picture(out, "rig show"))
     try:
         loaded = load_rig(rig)
-        stored = Rig.from_json(rig.read_text(encoding="utf-8")).source  # where it was imported from
+        stored = Rig.from_json(rig.read_text(encoding="utf-8-sig")).source  # where it was imported from
     except RigError as exc:
         fail("rig show", str(exc))
     print(describe_rig(loaded, str(rig), height=person_height, imported_from=stored))
@@ -123,7 +123,7 @@ def is_rig_file(path: Path) -> bool:
     from silpose.shared.camera import Rig, RigError
 
     try:
-        Rig.from_json(path.read_text(encoding="utf-8"))
+        Rig.from_json(path.read_text(encoding="utf-8-sig"))
     except (OSError, UnicodeDecodeError, ValueError, RigError):
         return False
     return True

@@ -15,12 +15,16 @@ the file.
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .scene import quiet_stdout
 from ..motion.bvh_check import BvhError, check_structure
+
+#: the UTF-8 byte-order mark a Windows editor may put before "HIERARCHY"
+UTF8_BOM = b"\xef\xbb\xbf"
 
 
 def _last_line(exc: BaseException) -> str:
@@ -48,15 +52,21 @@ def import_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
     structure = check_structure(path)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     addon_utils.enable("io_anim_bvh", default_set=False)
-    try:
-        with quiet_stdout():
-            bpy.ops.import_anim.bvh(
-                filepath=str(path), target="ARMATURE", global_scale=1.0, frame_start=1, use_fps_scale=False,
-                update_scene_fps=False, update_scene_duration=False, use_cyclic=False, rotate_mode="NATIVE",
-                axis_forward="-Z", axis_up="Y",
-            )
-    except Exception as exc:  # the operator wraps the importer's error in a RuntimeError with its traceback
-        raise BvhError(f"{path}: Blender's BVH importer failed ({_last_line(exc)})") from None
+    with tempfile.TemporaryDirectory(prefix="silpose-bvh-") as tmp:
+        raw = path.read_bytes()
+        readable = path
+        if raw.startswith(UTF8_BOM):  # a Windows editor's byte-order mark: the importer's first line would not read
+            readable = Path(tmp) / path.name  # "HIERARCHY", so it gets a copy without the mark
+            readable.write_bytes(raw[len(UTF8_BOM):])
+        try:
+            with quiet_stdout():
+                bpy.ops.import_anim.bvh(
+                    filepath=str(readable), target="ARMATURE", global_scale=1.0, frame_start=1, use_fps_scale=False,
+                    update_scene_fps=False, update_scene_duration=False, use_cyclic=False, rotate_mode="NATIVE",
+                    axis_forward="-Z", axis_up="Y",
+                )
+        except Exception as exc:  # the operator wraps the importer's error in a RuntimeError with its traceback
+            raise BvhError(f"{path}: Blender's BVH importer failed ({_last_line(exc)})") from None
     arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
     if len(arms) != 1 or arms[0].animation_data is None or arms[0].animation_data.action is None:
         raise BvhError(f"{path}: Blender's BVH importer made no animated armature")

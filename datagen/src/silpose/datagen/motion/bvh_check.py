@@ -50,6 +50,7 @@ def check_structure(path: str | Path) -> BvhStructure:
         raise BvhError(f"{path}: BVH file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise BvhError(f"{path}: cannot read the BVH file ({type(exc).__name__}: {exc})") from None
+    text = text.removeprefix("\ufeff")  # a Windows editor's byte-order mark (the importer gets a copy without it)
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     first = next((ln.split() for ln in lines if ln.strip()), [])
     if not first or first[0].upper() != "HIERARCHY":

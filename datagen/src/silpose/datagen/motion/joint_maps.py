@@ -137,7 +137,7 @@ def load_map_file(path: str | Path) -> dict[str, str]:
     """A user joint map TOML (``role = "BVH joint"`` lines); errors name the file and the field."""
     path = Path(path)
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))  # past a Windows editor's byte-order mark
     except FileNotFoundError:
         raise JointMapError(f"{path}: joint map file not found") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
