@@ -69,3 +69,22 @@ def test_a_person_lost_for_a_second_keeps_their_id():
             det.append(np.array([1.5, -1.0]))
         out = tr.update(step, np.array(det))
     assert tr.n_persons == 2 and sorted(t.person for t, d in out if d >= 0) == [1, 2]
+
+
+@pytest.mark.parametrize("reid_speed, ids", [(0.0, 1), (0.05, 2)])
+def test_a_lost_person_does_not_reappear_where_they_could_not_have_gone(reid_speed, ids):
+    """Tracker alone, 60 steps a second: a person standing at (0, 0) is lost at step 20; from step 21 someone else
+    stands 1.3 m away. Re-identified by distance alone (within the 3 m gate) they would be the lost person, 1.3 m in
+    one step (78 m/s); at a jog's 3 m/s (0.05 m per step) they are someone new. The lost person's id still goes to
+    whoever stands where they could have walked (test above)."""
+    tr = Tracker(min_hits=3, max_misses=100, growth=0.02, reid_gate=3.0, smoothing=0.2, reid_speed=reid_speed)
+    for step in range(40):
+        det = [np.array([0.0, 0.0])] if step < 20 else [np.array([1.3, 0.0])] if step > 20 else []
+        tr.update(step, np.array(det).reshape(-1, 2))
+    assert tr.n_persons == ids
+
+
+def test_the_pipelines_tracker_bounds_re_identification_by_a_run():
+    from silpose.app.recordings.tracking import REID_SPEED_M_S, tracker_for_fps
+
+    assert tracker_for_fps(60.0).reid_speed == pytest.approx(REID_SPEED_M_S / 60.0)

@@ -41,7 +41,8 @@ people, rarely hold that long; a dropped track leaves no rows). On becoming a pe
 re-identified: while persons' tracks are lost (last detected before it began, or within ``contact`` of it: one
 person's split detection), it takes the id of the one of lowest cost -- distance to its
 prediction plus ``look_weight`` times the appearance distance of the two models, none above ``look_gate`` --
-within ``reid_gate`` metres (that track ends); else it gets a new public id (1, 2, ... in order). With a head
+within ``reid_gate`` metres and within reach of where it was lost, at ``reid_speed`` (:data:`REID_SPEED_M_S`; that
+track ends); else it gets a new public id (1, 2, ... in order). With a head
 count (``max_people``) reached, it takes the id of the most alike lost person wherever they were lost, and
 while nobody is lost it stays tentative (its rows are not written). A person's track missed for more than
 ``max_misses`` steps ends; a person coming back after that gets a new id.
@@ -104,6 +105,13 @@ CONFIRM_S = 0.3
 RECENT_S = 0.12
 #: metres: a new person re-identified to a lost one this near their prediction
 REID_GATE_M = 3.0
+#: metres per second: a new person is re-identified to a lost one only if a run at this speed (a jog) takes the
+#: lost person from where they were last seen to where the new track began, in the time between (plus the contact
+#: distance: a track lost in a merge was last seen at the merged detection, between the people): one person is never
+#: in two places at once. Without it, on Pose2Sim's two-person demo re-encoded (docs/real-recordings.md), the man's
+#: id went to someone standing about 1 m away who appeared within 0.1 s of losing him; with it, two ids, the man's
+#: track ending where Pose2Sim's ends. The synthetic lab's ids and switches are unchanged (benchmarks.identities)
+REID_SPEED_M_S = 3.0
 #: weight of the newest velocity in the smoothed one
 SMOOTHING = 0.2
 #: metres: a person's appearance model learns only while no other person's track is this near (their blobs
@@ -151,18 +159,19 @@ class Track:
 
 
 class Tracker:
-    """Assignment tracker (module docstring). gate, max_gate, reid_gate: metres; growth: metres per
-    unseen step; max_misses, tentative_misses, min_hits, coast, recent: steps; smoothing in (0, 1]."""
+    """Assignment tracker (module docstring). gate, max_gate, reid_gate: metres; growth, reid_speed: metres per
+    step; max_misses, tentative_misses, min_hits, coast, recent: steps; smoothing in (0, 1]."""
 
     def __init__(self, gate: float = 0.6, max_misses: int = 12, min_hits: int = 3, smoothing: float = 0.5,
                  growth: float = 0.0, max_gate: float = 2.0, coast: int = 12, tentative_misses: int = 2,
                  reid_gate: float = 0.0, recent: int = 3, contact: float = 0.0, look_weight: float = 0.0,
-                 look_gate: float = LOOK_GATE, max_people: int = 0):
+                 look_gate: float = LOOK_GATE, max_people: int = 0, reid_speed: float = 0.0):
         self.gate, self.max_misses, self.min_hits, self.smoothing = float(gate), int(max_misses), int(min_hits), float(smoothing)
         self.growth, self.max_gate, self.coast = float(growth), float(max_gate), int(coast)
         self.tentative_misses, self.reid_gate, self.recent = int(tentative_misses), float(reid_gate), int(recent)
         self.contact, self.look_weight, self.look_gate = float(contact), float(look_weight), float(look_gate)
         self.max_people = int(max_people)
+        self.reid_speed = float(reid_speed)  # metres per step; 0: re-identification bounded by reid_gate alone
         #: tentative track -> may it become a person now (besides ``min_hits``)? None: always (module docstring)
         self.may_confirm: Callable[[Track], bool] | None = None
         self._looks: Callable[[np.ndarray], list] | None = None  # this step's detections' observations
@@ -336,7 +345,8 @@ class Tracker:
             # beyond the head count the motion model has failed (they came back far from where they were lost):
             # the most alike lost person, distance only breaking ties
             cost = look + 1e-3 * dist if full else dist + look
-            ok = (np.ones(len(lost), bool) if full else dist <= self.reid_gate) & ~(a > self.look_gate)
+            ok = (np.ones(len(lost), bool) if full else (dist <= self.reid_gate) & self._reachable(lost, t)) \
+                & ~(a > self.look_gate)
             if ok.any():
                 u = lost[int(np.flatnonzero(ok)[np.argmin(cost[ok])])]
                 t.person = u.person
@@ -349,6 +359,16 @@ class Tracker:
             return
         self.n_persons += 1
         t.person = self.n_persons
+
+    def _reachable(self, lost: list[Track], t: Track) -> np.ndarray:
+        """(len(lost),) bool: each lost track could have gone from where it was last seen to where ``t`` began, at
+        ``reid_speed`` in the steps between, plus ``contact`` (``gate`` when 0: a track lost in a merge was last
+        seen at the merged detection, between the people; :data:`REID_SPEED_M_S`); all True without a speed."""
+        if self.reid_speed <= 0:
+            return np.ones(len(lost), bool)
+        gap = np.array([max(t.first - u.last, 0) for u in lost], float)
+        far = np.array([float(np.linalg.norm(u.position - t.origin)) for u in lost])
+        return far <= (self.contact if self.contact > 0 else self.gate) + self.reid_speed * gap
 
     def _track_look(self, u: Track, t: Track) -> float:
         """Appearance distance of track ``t``'s model (its means as one observation) to ``u``'s; NaN unknown."""
@@ -379,4 +399,4 @@ def tracker_for_fps(fps: float, min_hits: int | None = None, max_misses: int | N
     return Tracker(gate=GATE_M, min_hits=steps(CONFIRM_S) if min_hits is None else min_hits,
                    max_misses=steps(LOST_S) if max_misses is None else max_misses, smoothing=SMOOTHING,
                    growth=UNSEEN_SPEED_M_S / fps, coast=steps(COAST_S), reid_gate=REID_GATE_M, recent=steps(RECENT_S),
-                   contact=CONTACT_M, look_weight=LOOK_M)
+                   contact=CONTACT_M, look_weight=LOOK_M, reid_speed=REID_SPEED_M_S / fps)
