@@ -92,10 +92,16 @@ def test_videos_named_with_the_camera_inside_are_matched_with_a_warning(rig, too
     rec = open_recording(tmp_path, rig)
     assert rec.sources["cam0"].path.name == "hd_cam0.mp4" and rec.sources["cam2"].path.name == "cam2.mp4"
     assert any("hd_cam0.mp4: read as camera 'cam0'" in w for w in rec.warnings)
-    tools.write_video(tmp_path / "cam0.mp4", _numbered(3))  # now two videos for cam0
-    with pytest.raises(RecordingError, match=r"camera 'cam0' has both"):
-        open_recording(tmp_path, rig)
+    # a lab's folder: cam0.mp4 beside another video whose name holds cam0's: the exact name is the camera's video
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(3))
+    rec = open_recording(tmp_path, rig)
+    assert rec.sources["cam0"].path.name == "cam0.mp4"
+    assert any("hd_cam0.mp4: not read (camera 'cam0' is cam0.mp4)" in w for w in rec.warnings)
     (tmp_path / "cam0.mp4").unlink()
+    tools.write_video(tmp_path / "cam0_take2.mp4", _numbered(3))  # two videos holding cam0's name, none exactly
+    with pytest.raises(RecordingError, match=r"camera 'cam0' has both cam0_take2.mp4 and hd_cam0.mp4; name the one to read cam0.mp4"):
+        open_recording(tmp_path, rig)
+    (tmp_path / "cam0_take2.mp4").unlink()
     tools.write_video(tmp_path / "cam1_and_cam3.mp4", _numbered(3))
     with pytest.raises(RecordingError, match=r"'cam1_and_cam3' names several rig cameras \(cam1, cam3\)"):
         open_recording(tmp_path, rig)

@@ -16,7 +16,8 @@ With ``cameras.toml`` only the mapped entries are read (paths relative to DIR); 
 file stem must name a rig camera (sub-folders not named after a camera are ignored): be the name, or hold it
 as whole words (:func:`silpose.app.camera_names.camera_in_stem`: CMU Panoptic's ``hd_00_00.mp4`` is camera ``00_00``, AIST++'s
 ``gBR_sBM_c01_d04_mBR0_ch01.mp4`` camera ``c01``; a warning says which video was read as which camera, and a
-stem naming two cameras is an error). A rig camera with
+stem naming two cameras is an error; a video named exactly as a camera is that camera's, and another whose name
+holds the camera's -- ``cam1_checkerboard.mp4`` beside ``cam1.mp4`` -- is not read, with a warning). A rig camera with
 no video is a missing view in every frame (a warning); no video at all is an error.
 
 Orientation: a phone stores a portrait video as landscape frames plus a rotation in its metadata (the display
@@ -244,6 +245,7 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
             out[cam] = p
         return out
     out: dict[str, Path] = {}
+    held: list[tuple[str, Path]] = []  # videos whose names hold a camera's: after the ones named exactly
     for p in sorted(folder.iterdir()):
         if p.name.startswith("."):
             continue
@@ -254,11 +256,7 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
                         else f"is not a rig camera (cameras {list(cameras)})")
                 raise RecordingError(f"{p}: {p.stem!r} {what}; rename the video or map it in {folder / MAPPING_FILE}")
             if named[0] != p.stem:
-                if named[0] in out:
-                    raise RecordingError(f"{p}: camera {named[0]!r} has both {out[named[0]].name} and {p.name}")
-                out[named[0]] = p
-                if renamed is not None:
-                    renamed.append(f"{p.name}: read as camera {named[0]!r} (its name holds the camera's)")
+                held.append((named[0], p))
                 continue
         elif not (p.is_dir() and p.name in cameras):
             continue
@@ -270,6 +268,18 @@ def _entries(folder: Path, cameras: tuple[str, ...], role: str = "video",
         if p.stem in out:
             raise RecordingError(f"{p}: camera {p.stem!r} has both {out[p.stem].name} and {p.name}")
         out[p.stem] = p
+    exact = set(out)
+    for cam, p in held:  # a lab's cam1.mp4 beside cam1_checkerboard.mp4: the exact name is the camera's video
+        if cam in exact:
+            if renamed is not None:
+                renamed.append(f"{p.name}: not read (camera {cam!r} is {out[cam].name})")
+        elif cam in out:
+            raise RecordingError(f"{p}: camera {cam!r} has both {out[cam].name} and {p.name}; name the one to read "
+                                 f"{cam}{p.suffix} or map it in {folder / MAPPING_FILE}")
+        else:
+            out[cam] = p
+            if renamed is not None:
+                renamed.append(f"{p.name}: read as camera {cam!r} (its name holds the camera's)")
     return out
 
 
