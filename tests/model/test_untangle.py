@@ -4,7 +4,7 @@ import numpy as np
 
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
-from silpose.model.untangle import crossing_pairs, self_intersecting, untangle
+from silpose.model.untangle import batch_crossings, crossing_pairs, self_intersecting, untangle, untangle_order
 
 
 def _brute(poly: np.ndarray) -> bool:
@@ -68,3 +68,68 @@ def test_infer_untangle_returns_simple_contours():
     assert self_intersecting(model.infer(data.contours[:50]).contours_px).mean() > 0.5  # tangled as inferred
     res = model.infer(data.contours[:50], untangle=True)
     assert not self_intersecting(res.contours_px).any() and not self_intersecting(res.contours_norm).any()
+
+
+def _brute_pairs(poly: np.ndarray) -> list[tuple[int, int]]:
+    """Every crossing pair (i < j) of one polygon, exhaustively (the reference's test, all pairs)."""
+    n = len(poly)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    out = []
+    for i in range(n):
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1:
+                continue
+            p, q, r, s = poly[i], poly[(i + 1) % n], poly[j], poly[(j + 1) % n]
+            if cross(p, q, r) * cross(p, q, s) < 0 and cross(r, s, p) * cross(r, s, q) < 0:
+                out.append((i, j))
+    return out
+
+
+def _tangled_batch(seed=5, count=24, n=30):
+    """Polygons from a circle to a tangled star, with edges of uneven lengths, and one NaN polygon."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0, 2 * np.pi, (count, n)), axis=1)
+    r = 20 * (1 + rng.uniform(0.8, 2.5, (count, 1)) * rng.standard_normal((count, n)).clip(-0.9, 3))
+    polys = np.stack([r * np.cos(t), r * np.sin(t)], -1) * rng.uniform(0.1, 10, (count, 1, 1))  # another scale each
+    polys[7, 3] = np.nan
+    return polys
+
+
+def test_batch_crossings_are_each_polygons_exhaustive_pairs():
+    """One k-d tree for the batch, each polygon in units of its own longest edge: the pairs of every polygon
+    alone, from the exhaustive reference, and none between two polygons."""
+    polys = _tangled_batch()
+    got = batch_crossings(polys)
+    want = [(b, i, j) for b, p in enumerate(polys) if np.isfinite(p).all() for i, j in _brute_pairs(p)]
+    assert [tuple(r) for r in got] == want
+    assert len({b for b, _, _ in want}) > 5 and 7 not in {b for b, _, _ in want}
+    for b in (0, 3):  # the one-polygon form agrees
+        assert [tuple(r) for r in crossing_pairs(polys[b])] == _brute_pairs(polys[b])
+
+
+def test_untangling_a_batch_makes_each_polygons_own_moves():
+    """All polygons untangled together: each ends in the order its own 2-opt moves give (the reference: one
+    polygon at a time, always reversing the stretch of its first crossing pair from the exhaustive test)."""
+    polys = _tangled_batch(seed=11)
+
+    def reference(poly):
+        order = np.arange(len(poly))
+        for _ in range(200):
+            hits = _brute_pairs(poly[order])
+            if not hits:
+                break
+            i, j = hits[0]
+            order[i + 1 : j + 1] = order[i + 1 : j + 1][::-1]
+        return order
+
+    fixed = untangle(polys)[0]
+    for b, p in enumerate(polys):
+        if np.isfinite(p).all():
+            np.testing.assert_array_equal(fixed[b], p[reference(p)])
+            np.testing.assert_array_equal(untangle_order(p), reference(p))
+        else:
+            np.testing.assert_array_equal(fixed[b], p)
+    assert self_intersecting(polys).sum() > 5 and not self_intersecting(fixed).any()
