@@ -72,7 +72,7 @@ class Posterior:
         self._lock = threading.Lock()
 
     def infer(self, inputs: Inputs, s2, components: bool = False, only=None,
-              screen: dict | None = None) -> tuple[InferenceResult, np.ndarray | None]:
+              screen: dict | None = None, stature: bool = True) -> tuple[InferenceResult, np.ndarray | None]:
         """Normalise, condition (one Conditioner per present-view pattern and noise) and assemble the result.
 
         ``s2`` a float or (N,) one noise variance per frame (robust inference). With ``components`` also
@@ -82,7 +82,9 @@ class Posterior:
         (:func:`~silpose.model.gated.condition_gated`; not with ``components``); None = all. ``screen``: a dict
         the caller keeps for these ``inputs`` (empty at first): the components are chosen by a float32 first
         pass (:mod:`silpose.model.screen`), kept there and reused by later calls on the same inputs at other
-        noise levels, and only those conditioned exactly (not with ``components`` or ``only``).
+        noise levels, and only those conditioned exactly (not with ``components`` or ``only``). ``stature``
+        False: in the "stature" joint frame, the joints stay those of a 1.75 m person, for a caller that scales them
+        once at the end (:meth:`scale_to_stature`; robust inference, whose passes but the last are discarded).
         """
         layout = self.layout
         c_mod, present = inputs.contours, inputs.present
@@ -90,7 +92,7 @@ class Posterior:
         all_present = bool(present.all())
         if (only is None and screen is None and np.ndim(s2) == 0 and n >= 2 * MIN_THREAD_FRAMES
                 and (all_present or bool((present == present[:1]).all()))):
-            return self.infer_in_blocks(inputs, float(s2), components)
+            return self.infer_in_blocks(inputs, float(s2), components, stature)
         # absent views may hold NaN (never read); absurd values (~1e300 px) overflow, caught below
         with np.errstate(invalid="ignore", over="ignore"):
             norm, cen, sc = normalise_contours(c_mod)
@@ -167,14 +169,14 @@ class Posterior:
                 if components:
                     cmeans[rows] = post.component_means
 
-        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc)
+        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc, stature=stature)
 
     def assemble(self, inputs: Inputs, mean, best, var, resp, logm, cmeans, cen, sc,
-                 px: np.ndarray | None = None) -> tuple[InferenceResult, np.ndarray | None]:
+                 px: np.ndarray | None = None, stature: bool = True) -> tuple[InferenceResult, np.ndarray | None]:
         """The :meth:`infer` result from the conditioning's arrays of every frame (module doc): mixture mean (N, d),
         best component's joints block, its variance (N, 57), responsibilities (N, M), log marginal (N,), component
         means of the joints (N, M, 57) or None, the normalisation factors cen (N, K, 2) and sc (N, K) px, and the
-        reconstructions in pixels (N, K, n, 2) when already made (None: made here)."""
+        reconstructions in pixels (N, K, n, 2) when already made (None: made here); ``stature``: as in :meth:`infer`."""
         layout = self.layout
         c_mod, present = inputs.contours, inputs.present
         n = len(present)
@@ -185,20 +187,30 @@ class Posterior:
         # Var[w s] = w^2 Var[s]  ->  std(s) = sqrt(Var[w s]) / w
         joint_std = np.sqrt(np.maximum(var, 0.0)).reshape(n, layout.n_joints, 3) / w
         comp_joints = None if cmeans is None else cmeans.reshape(n, M, layout.n_joints, 3) / w
-        if layout.joint_frame == "stature":  # back from "a 1.75 m walker" to this walker's metres
-            factor = self.stature(c_mod, present) / REFERENCE_STATURE
-            joints, joints_best, joint_std = (a * factor[:, None, None] for a in (joints, joints_best, joint_std))
-            if comp_joints is not None:
-                comp_joints = comp_joints * factor[:, None, None, None]
         if px is None:
             px = denormalise_contours(rec, cen, sc)
         res = InferenceResult(joints=joints, joints_best=joints_best, joint_std=joint_std, contours_norm=rec,
                               contours_px=px, centroid=cen, scale=sc, views_present=present, responsibilities=resp,
                               log_marginal=logm, views=layout.views)
+        if stature:
+            comp_joints = self.scale_to_stature(res, comp_joints, c_mod, present)
         return res, comp_joints
 
-    def infer_in_blocks(self, inputs: Inputs, s2: float, components: bool) -> tuple[InferenceResult,
-                                                                                      np.ndarray | None]:
+    def scale_to_stature(self, res: InferenceResult, comp_joints: np.ndarray | None, contours_mod: np.ndarray,
+                         present: np.ndarray) -> np.ndarray | None:
+        """In the "stature" joint frame, from "a 1.75 m walker" to each frame's own metres: ``res``'s joints,
+        best-component joints and joint std (in place, new arrays) and ``comp_joints`` (N, M, 19, 3) or None
+        (returned) times the stature measured from ``contours_mod`` (N, K, n, 2) px in the ``present`` (N, K)
+        views over :data:`~silpose.model.stature.REFERENCE_STATURE`. Other joint frames: unchanged."""
+        if self.layout.joint_frame != "stature":
+            return comp_joints
+        factor = self.stature(contours_mod, present) / REFERENCE_STATURE
+        res.joints, res.joints_best, res.joint_std = (a * factor[:, None, None]
+                                                      for a in (res.joints, res.joints_best, res.joint_std))
+        return None if comp_joints is None else comp_joints * factor[:, None, None, None]
+
+    def infer_in_blocks(self, inputs: Inputs, s2: float, components: bool,
+                        stature: bool = True) -> tuple[InferenceResult, np.ndarray | None]:
         """:meth:`infer` of a large batch whose frames all have one present-view pattern, at one noise ``s2``: blocks of
         :data:`~silpose.model.conditioning.THREAD_BLOCK_ROWS` frames on the pool's threads
         (:func:`~silpose.model.threads.map_blocks`, BLAS on one thread each), each block normalised, conditioned
@@ -242,7 +254,7 @@ class Posterior:
 
         blocks, threads = block_bounds(n, THREAD_BLOCK_ROWS)
         map_blocks(block, blocks, threads)
-        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc, px)
+        return self.assemble(inputs, mean, best, var, resp, logm, cmeans, cen, sc, px, stature=stature)
 
     def screened(self, screen: dict, pattern: np.ndarray, present: np.ndarray, flat: np.ndarray, rows,
                  cond: Conditioner) -> np.ndarray:

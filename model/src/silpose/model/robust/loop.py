@@ -124,28 +124,31 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
     c_mod, present = inputs.contours, inputs.present
     # the two Gaussian passes share one float32 screen of every component (silpose.model.screen)
     screen: dict = {}
-    res, comp = posterior.infer(inputs, s2, components=False, screen=screen)
+    # the joints of a pass are kept only where it is a frame's last: each frame's stature is measured once, at the
+    # end, from the contours its last pass was given (the same values as every pass measuring its own)
+    res, comp = posterior.infer(inputs, s2, components=False, screen=screen, stature=False)
     observed_lm = res.log_marginal
     if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
         with np.errstate(invalid="ignore", over="ignore"):
             norm_obs = normalise_contours(c_mod)[0]
         s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-        res, comp = posterior.infer(inputs, s2_rows, components=False, screen=screen)
+        res, comp = posterior.infer(inputs, s2_rows, components=False, screen=screen, stature=False)
     else:
         s2_rows = s2
     s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
     order = pass_order(res.responsibilities, present, s2_arr)
     if order is None:
-        res, comp, u = reweighted_passes(posterior, inputs, res, comp, s2_rows, settings, want)
+        res, comp, u, last = reweighted_passes(posterior, inputs, res, comp, s2_rows, settings, want)
     else:  # the passes on the frames sorted by group, then back in the caller's order
-        res, comp, u = reweighted_passes(posterior, inputs.take(order), res.take(order),
-                                         None if comp is None else comp[order],
-                                         s2_rows if np.ndim(s2_rows) == 0 else s2_arr[order], settings, want)
+        res, comp, u, last = reweighted_passes(posterior, inputs.take(order), res.take(order),
+                                               None if comp is None else comp[order],
+                                               s2_rows if np.ndim(s2_rows) == 0 else s2_arr[order], settings, want)
         back = np.empty_like(order)
         back[order] = np.arange(order.size)
-        res, u = res.take(back), u[back]
+        res, u, last = res.take(back), u[back], last[back]
         if comp is not None:
             comp = comp[back]
+    comp = posterior.scale_to_stature(res, comp, last, present)
     if settings.noise_scale is not None:
         res.noise_variance = s2_rows
     res.log_marginal_robust = res.log_marginal
@@ -168,14 +171,17 @@ def pass_order(responsibilities: np.ndarray, present: np.ndarray, s2: np.ndarray
 
 
 def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult, comp: np.ndarray | None, s2_rows,
-                      settings: RobustSettings, want: bool) -> tuple[InferenceResult, np.ndarray | None, np.ndarray]:
+                      settings: RobustSettings, want: bool
+                      ) -> tuple[InferenceResult, np.ndarray | None, np.ndarray, np.ndarray]:
     """``settings.iterations`` reweighted passes from the Gaussian pass ``res`` (and its component means ``comp``)
     of ``inputs`` at noise ``s2_rows`` (a float or (N,)); each pass on the frames whose reconstruction still moved
-    :data:`SETTLED_PX` in the pass before. Returns the last pass's result, component means and point weights
-    (N, K, n)."""
+    :data:`SETTLED_PX` in the pass before. Returns the last pass's result, component means, point weights
+    (N, K, n) and the contours (N, K, n, 2) px each frame's last pass was given (``inputs.contours`` without a
+    pass). The passes' joints are those of a 1.75 m person (``Posterior.infer``'s ``stature`` False)."""
     c_mod, present = inputs.contours, inputs.present
     s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
     u = np.zeros(present.shape + (c_mod.shape[2],))
+    last = c_mod if int(settings.iterations) <= 0 else np.empty(c_mod.shape)  # every frame has a first pass
     active = np.arange(len(present))  # frames whose reconstruction still moves
     for it in range(int(settings.iterations)):
         every = active.size == len(present)  # all frames: the arrays themselves, no gathered copies
@@ -184,6 +190,7 @@ def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult
         p_act = present if every else present[active]
         u_act, pseudo = reweighted_observation(c_act, rec, p_act, settings)
         u[active] = u_act
+        last[active] = pseudo
         # the components that matter for each frame: within GATE_NATS of its best in the pass before (all of them
         # when the hypotheses need every component's mean), each component's frames in one product
         # (silpose.model.gated)
@@ -192,7 +199,7 @@ def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult
                        Inputs(p_act, pseudo, inputs.centroid[active], inputs.scale[active]))
         part, part_comp = posterior.infer(step_inputs,
                                           s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
-                                          only=only)
+                                          only=only, stature=False)
         moved = largest_move(part.contours_px, rec)  # px
         if every:
             res, comp = part, part_comp
@@ -203,7 +210,7 @@ def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult
         active = active[moved >= SETTLED_PX]  # settled frames keep this pass's answer (module doc)
         if active.size == 0:
             break
-    return res, comp, u
+    return res, comp, u, last
 
 
 def reweighted_observation(observed: np.ndarray, rec: np.ndarray, present: np.ndarray,
