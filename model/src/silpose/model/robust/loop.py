@@ -73,6 +73,14 @@ merge copied them into a new ~600 MB result: that merge took 2.0-7.0 s of a 15-1
 doubled from 5,000 to 10,000 frames. Each block is now written into the batch's result as soon as it is done and
 its own arrays freed, so the next block reuses their memory: 20,000 benchmark frames (idle, two alternating pairs)
 17.2 / 15.2 s -> 12.5 / 12.8 s; 2,000 and 5,000 frames within the noise. Answers are bit-identical (10,000 frames).
+
+What only a frame's last pass gives is computed once, at the end of :func:`robust_passes`, from the contours that
+pass was given: the stature of the "stature" joint frame (``Posterior.scale_to_stature``; every pass measured its
+own, ~0.8 ms a call, bit-identical answers), and, for hypotheses and the calibrated mixing (``want``), every
+component's weight and mean: the passes are gated then too, where each conditioned every component. Measured on the
+idle machine, alternating with the previous code: a model of the lab rig (M 5), robust batches of 16 frames 8.2-9.9
+-> 6.1-6.5 ms a frame (the stature); robust with top-3 hypotheses, 500 frames of the benchmark's M 60 / M 200 q 40
+mixtures 1.59 -> 0.93 s and 3.13 -> 1.99 s (the gate; joints within 2e-16 m, the lab model's within 2e-11 m).
 """
 
 from __future__ import annotations
@@ -120,34 +128,37 @@ def robust_passes(posterior: Posterior, inputs: Inputs, s2: float, settings: Rob
                   want: bool) -> tuple[InferenceResult, np.ndarray | None]:
     """The Gaussian pass, the adaptive noise, then ``settings.iterations`` reweighted passes; returns the last
     pass's result (with ``log_marginal`` that of the input, ``log_marginal_robust``, ``robust_weights``,
-    ``noise_variance``) and, with ``want``, its component means (``Posterior.infer``)."""
+    ``noise_variance``) and, with ``want``, its component means (``Posterior.infer``). The passes condition only the
+    components that matter for a frame (:mod:`silpose.model.gated`); with ``want`` the contours each frame's last
+    pass was given are conditioned once more at the end on every component, whose weights and means the
+    hypotheses and the calibrated mixing read (a tempered mixing lifts weights the gate would have left at 0)."""
     c_mod, present = inputs.contours, inputs.present
     # the two Gaussian passes share one float32 screen of every component (silpose.model.screen)
     screen: dict = {}
     # the joints of a pass are kept only where it is a frame's last: each frame's stature is measured once, at the
     # end, from the contours its last pass was given (the same values as every pass measuring its own)
-    res, comp = posterior.infer(inputs, s2, components=False, screen=screen, stature=False)
+    res, _ = posterior.infer(inputs, s2, components=False, screen=screen, stature=False)
     observed_lm = res.log_marginal
     if settings.noise_scale is not None:  # adaptive observation noise per frame (silpose.model.robust)
         with np.errstate(invalid="ignore", over="ignore"):
             norm_obs = normalise_contours(c_mod)[0]
         s2_rows = frame_noise_variance(norm_obs, res.contours_norm, present, s2, settings.noise_scale)
-        res, comp = posterior.infer(inputs, s2_rows, components=False, screen=screen, stature=False)
+        res, _ = posterior.infer(inputs, s2_rows, components=False, screen=screen, stature=False)
     else:
         s2_rows = s2
     s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
     order = pass_order(res.responsibilities, present, s2_arr)
     if order is None:
-        res, comp, u, last = reweighted_passes(posterior, inputs, res, comp, s2_rows, settings, want)
+        res, u, last = reweighted_passes(posterior, inputs, res, s2_rows, settings)
     else:  # the passes on the frames sorted by group, then back in the caller's order
-        res, comp, u, last = reweighted_passes(posterior, inputs.take(order), res.take(order),
-                                               None if comp is None else comp[order],
-                                               s2_rows if np.ndim(s2_rows) == 0 else s2_arr[order], settings, want)
+        res, u, last = reweighted_passes(posterior, inputs.take(order), res.take(order),
+                                         s2_rows if np.ndim(s2_rows) == 0 else s2_arr[order], settings)
         back = np.empty_like(order)
         back[order] = np.arange(order.size)
         res, u, last = res.take(back), u[back], last[back]
-        if comp is not None:
-            comp = comp[back]
+    comp = None
+    if want:  # every component's weight and mean, as each frame's last pass gives them ungated (module doc)
+        res, comp = posterior.infer(inputs.with_contours(last), s2_rows, components=True, stature=False)
     comp = posterior.scale_to_stature(res, comp, last, present)
     if settings.noise_scale is not None:
         res.noise_variance = s2_rows
@@ -170,14 +181,13 @@ def pass_order(responsibilities: np.ndarray, present: np.ndarray, s2: np.ndarray
     return None if (order[1:] > order[:-1]).all() else order
 
 
-def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult, comp: np.ndarray | None, s2_rows,
-                      settings: RobustSettings, want: bool
-                      ) -> tuple[InferenceResult, np.ndarray | None, np.ndarray, np.ndarray]:
-    """``settings.iterations`` reweighted passes from the Gaussian pass ``res`` (and its component means ``comp``)
-    of ``inputs`` at noise ``s2_rows`` (a float or (N,)); each pass on the frames whose reconstruction still moved
-    :data:`SETTLED_PX` in the pass before. Returns the last pass's result, component means, point weights
-    (N, K, n) and the contours (N, K, n, 2) px each frame's last pass was given (``inputs.contours`` without a
-    pass). The passes' joints are those of a 1.75 m person (``Posterior.infer``'s ``stature`` False)."""
+def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult, s2_rows,
+                      settings: RobustSettings) -> tuple[InferenceResult, np.ndarray, np.ndarray]:
+    """``settings.iterations`` reweighted passes from the Gaussian pass ``res`` of ``inputs`` at noise ``s2_rows``
+    (a float or (N,)); each pass on the frames whose reconstruction still moved :data:`SETTLED_PX` in the pass
+    before. Returns the last pass's result, point weights (N, K, n) and the contours (N, K, n, 2) px each frame's
+    last pass was given (``inputs.contours`` without a pass). The passes' joints are those of a 1.75 m person
+    (``Posterior.infer``'s ``stature`` False)."""
     c_mod, present = inputs.contours, inputs.present
     s2_arr = np.broadcast_to(np.asarray(s2_rows, dtype=np.float64), (len(present),))
     u = np.zeros(present.shape + (c_mod.shape[2],))
@@ -191,26 +201,22 @@ def reweighted_passes(posterior: Posterior, inputs: Inputs, res: InferenceResult
         u_act, pseudo = reweighted_observation(c_act, rec, p_act, settings)
         u[active] = u_act
         last[active] = pseudo
-        # the components that matter for each frame: within GATE_NATS of its best in the pass before (all of them
-        # when the hypotheses need every component's mean), each component's frames in one product
-        # (silpose.model.gated)
-        only = None if want else (res.responsibilities if every else res.responsibilities[active]) > GATE_WEIGHT
+        # the components that matter for each frame: within GATE_NATS of its best in the pass before, each
+        # component's frames in one product (silpose.model.gated)
+        only = (res.responsibilities if every else res.responsibilities[active]) > GATE_WEIGHT
         step_inputs = (inputs.with_contours(pseudo) if every else  # the active frames' factors, not their contours
                        Inputs(p_act, pseudo, inputs.centroid[active], inputs.scale[active]))
-        part, part_comp = posterior.infer(step_inputs,
-                                          s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], components=want,
-                                          only=only, stature=False)
+        part, _ = posterior.infer(step_inputs, s2_rows if np.ndim(s2_rows) == 0 else s2_arr[active], only=only,
+                                  stature=False)
         moved = largest_move(part.contours_px, rec)  # px
         if every:
-            res, comp = part, part_comp
+            res = part
         else:
             res.put(active, part)
-            if want:
-                comp[active] = part_comp
         active = active[moved >= SETTLED_PX]  # settled frames keep this pass's answer (module doc)
         if active.size == 0:
             break
-    return res, comp, u, last
+    return res, u, last
 
 
 def reweighted_observation(observed: np.ndarray, rec: np.ndarray, present: np.ndarray,

@@ -1,6 +1,6 @@
-"""Robust inference in the "stature" joint frame measures each frame's stature once, at the end, from the contours
-its last reweighting pass was given, where every pass used to measure its own and all but the last were thrown away.
-The reference is that old way: every ``Posterior.infer`` call of the passes scales its own joints."""
+"""What robust inference takes from each frame's last reweighting pass only, computed once at the end: the stature
+(the "stature" joint frame) and, for hypotheses and the calibrated mixing, every component's weight and mean. The
+references are the ways of measuring them in every pass."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import pytest
 
 from silpose.datagen.testing import synthetic_record
 from silpose.model import posterior as posterior_module
+from silpose.model.robust import loop
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.camera import default_rig
 
@@ -62,3 +63,31 @@ def test_each_frames_stature_is_measured_once_with_the_joints_of_measuring_every
     # the joints are the walkers' own size, not the 1.75 m reference's
     height = new.joints[..., 2].max(axis=1) - new.joints[..., 2].min(axis=1)
     assert np.ptp(height) > 0.01
+
+
+def test_hypotheses_come_from_every_component_while_the_passes_condition_only_those_that_matter(
+        stature_model_and_frames, monkeypatch):
+    """With hypotheses the passes condition each frame on the components within the gate and the last pass's
+    contours once more on every component; the reference conditions every component in every pass (a gate that
+    keeps them all). The same hypotheses, weights and joints (to rounding: the gate leaves out < e^-30)."""
+    model, contours, present = stature_model_and_frames
+    gated = []
+    plain = loop.Posterior.infer
+
+    def infer(self, inputs, s2, components=False, only=None, **kw):
+        if only is not None:
+            gated.append(int(np.asarray(only).sum()) < np.asarray(only).size)
+        return plain(self, inputs, s2, components, only, **kw)
+
+    monkeypatch.setattr(loop.Posterior, "infer", infer)
+    new = model.infer(contours, present, robust=True, hypotheses=3)
+    assert any(gated)  # some frame's pass left a component out
+    monkeypatch.setattr(loop, "GATE_WEIGHT", -1.0)  # every component in every pass
+    gated.clear()
+    ref = model.infer(contours, present, robust=True, hypotheses=3)
+    assert not any(gated)
+    np.testing.assert_array_equal(new.hypotheses.probability.argsort(axis=1), ref.hypotheses.probability.argsort(axis=1))
+    np.testing.assert_allclose(new.hypotheses.probability, ref.hypotheses.probability, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(new.hypotheses.joints, ref.hypotheses.joints, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(new.responsibilities, ref.responsibilities, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(new.joints, ref.joints, rtol=0, atol=1e-9)
