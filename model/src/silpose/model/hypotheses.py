@@ -180,18 +180,20 @@ def top_hypotheses(component_joints: np.ndarray, responsibilities: np.ndarray, k
     count = np.zeros(n, dtype=np.intp)
     rows = np.arange(n)
     limit = merge_cm / 100.0
+    kept_rel = np.full((n, k, N_JOINTS, 3), np.nan)  # the kept hypotheses, root-relative (NaN: empty slot)
+    slots = np.arange(k)[None, :]
     for step in range(m):
         cand = order[:, step]
         cand_rel = rel[rows, cand]  # (N, 19, 3)
-        kept_rel = joints - joints[:, :, :1]
         dist = np.linalg.norm(kept_rel - cand_rel[:, None], axis=-1).mean(axis=-1)  # (N, k), NaN in empty slots
-        dist = np.where(np.arange(k)[None, :] < count[:, None], dist, np.inf)
-        near = np.nanargmin(np.where(np.isfinite(dist), dist, np.inf), axis=1)
+        dist = np.where(slots < count[:, None], dist, np.inf)
+        near = np.argmin(np.where(np.isfinite(dist), dist, np.inf), axis=1)  # no NaN left: argmin = nanargmin
         merge = dist[rows, near] < limit
         p = r[rows, cand]
         prob[rows[merge], near[merge]] += p[merge]
         new = ~merge & (count < k)
         slot = count[new]
+        kept_rel[rows[new], slot] = cand_rel[new]
         joints[rows[new], slot] = cj[rows[new], cand[new]]
         prob[rows[new], slot] = p[new]
         comp[rows[new], slot] = cand[new]
