@@ -871,7 +871,7 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
     if len(rows):
         t0 = time.perf_counter()
         c = np.stack([people[i].contours for i in rows])
-        # untangled (simple) contours only matter where they are drawn or written (~1 ms per crossing contour)
+        # untangled (simple) contours only matter where they are drawn or written (~0.2 ms a contour, batched)
         robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
         options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=robust,
                                untangle=draws_overlays(opt.overlays) or opt.contours)
