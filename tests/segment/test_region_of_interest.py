@@ -37,9 +37,24 @@ def _whole_frame_reference(model: BackgroundModel, frame: np.ndarray, cand: np.n
     m = cleanup.median(kept.view(np.uint8) * np.uint8(255), model.median_size)
     out["median"] = m > 0
     m = cleanup.open_close(m, model.open_size, model.close_size)
+    if model.cleanup_guard is not None:
+        strong, weak = _guard_reference(model, frame)
+        near = cv2.dilate(m, np.ones((3, 3), np.uint8)) > 0
+        m = np.where(((kept & strong & near) | (m > 0)) & ~(weak & ~kept), np.uint8(255), np.uint8(0))
     out["morphology"] = m > 0
     out["final"] = (cleanup.largest_blob(m) if model.largest_blob else m) > 0
     return out
+
+
+def _guard_reference(model: BackgroundModel, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The clean-up guard's (strong, weak) (H, W) bool from its float64 definition: the normalised difference
+    (RMS over the channels of colour frames) above / below cleanup_guard times k_sigma."""
+    if frame.ndim == 3:
+        z2 = (((frame - model.colour_mean_) / np.maximum(model.colour_std_, model.min_std)) ** 2).mean(axis=-1)
+    else:
+        z2 = ((frame - model.mean_) / np.maximum(model.std_, model.min_std)) ** 2
+    s, w = model.cleanup_guard
+    return z2 > (s * model.k_sigma) ** 2, z2 < (w * model.k_sigma) ** 2
 
 
 @pytest.mark.parametrize(
@@ -49,6 +64,8 @@ def _whole_frame_reference(model: BackgroundModel, frame: np.ndarray, cand: np.n
         {"ncc_support": "window", "largest_blob": False},
         {"chroma_max": None, "noise_correction": False, "median_size": 5, "open_size": 1, "close_size": 7},
         {"edge_coverage": None, "colour": False},
+        {"cleanup_guard": None},
+        {"cleanup_guard": (1.2, 0.9), "colour": False, "close_size": 7},
     ],
 )
 def test_region_of_interest_gives_the_whole_frame_masks(scene, params):

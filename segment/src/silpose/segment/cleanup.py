@@ -1,5 +1,6 @@
 """Mask clean-up after shadow rejection (paper section 6): median filter, morphological open and
-close with small neighbourhoods, and the largest connected blob.
+close with small neighbourhoods, the guard that keeps them from overruling clear evidence
+(:func:`guard`, an addition: ``silpose.segment.background``, step 5), and the largest connected blob.
 
 All functions take and return one mask (H, W) uint8 with values 0/255 (OpenCV's convention), so
 the steps chain without conversions.
@@ -25,6 +26,9 @@ def median(mask: np.ndarray, size: int) -> np.ndarray:
     return cv2.compare(count, (size * size + 1) // 2, cv2.CMP_GE)  # 255 where count >= half, else 0
 
 
+_SQUARE3 = np.ones((3, 3), np.uint8)  # the 8-neighbourhood
+
+
 def _kernel(size: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
 
@@ -39,6 +43,20 @@ def open_close(mask: np.ndarray, open_size: int, close_size: int) -> np.ndarray:
     if close_size > 1:
         mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, _kernel(close_size))
     return mask
+
+
+def guard(before: np.ndarray, after: np.ndarray, strong: np.ndarray, weak: np.ndarray) -> np.ndarray:
+    """The mask ``after`` a clean-up of ``before`` with the clean-up's changes against clear evidence undone: a
+    pixel the clean-up dropped comes back when it is ``strong`` and touches (8-connected) what the clean-up kept
+    -- a rounded corner or a hand's tip, not a speck the filters were right to remove -- and a pixel it added goes
+    when it is ``weak`` (a pixel ``before`` held is never removed for being weak)::
+
+        (after | (before & strong & dilate_3x3(after))) & ~(weak & ~before)
+
+    All (H, W) uint8 0/255; returns a new mask."""
+    near = cv2.dilate(after, _SQUARE3)
+    out = cv2.bitwise_or(after, cv2.bitwise_and(cv2.bitwise_and(before, strong), near))
+    return cv2.bitwise_and(out, cv2.bitwise_not(cv2.bitwise_and(weak, cv2.bitwise_not(before))))
 
 
 def largest_blob(mask: np.ndarray) -> np.ndarray:
