@@ -44,7 +44,8 @@ in a core's cache (1,024 frames x 4 views: 66 -> 41 CPU ms for the chain), as do
 run on the frames sorted by group (:func:`pass_order`), so that ``Posterior.infer``'s noise groups and the gated
 conditioning's component groups are slices, not gathered copies; the gated conditioning gets ``a P_i`` and
 ``a . mu_a,i`` from one product and, when every frame has one component, writes ``mu_i + x_hat_i W_i^T`` directly;
-medians sort instead of partitioning (numpy's partition took 28 ms for 4,096 rows of 200, its sort 9.6 ms). Outputs
+medians sort instead of partitioning (numpy's partition took 28 ms for 4,096 rows of 200, its sort 9.6 ms; on
+a CPU without AVX-512 it is the other way round, and ``robust.median`` partitions there). Outputs
 equal the previous code's to rounding (300 default-preset test rows, clean, standard noise and "mask strong", every
 view and missing views: joints within 1.7e-9 mm, the same views trimmed and re-indexed; the benchmark's frames within
 1.5e-13 mm). Where the rest goes (2,000 frames, CPU profile at load 11-13): the passes ~45 % (conditioning ~25 %, the
