@@ -203,7 +203,8 @@ def test_large_one_pattern_batches_in_blocks_equal_the_whole_batch_steps(fitted,
     """A batch of >= 2 x MIN_THREAD_FRAMES frames with one present-view pattern is normalised, conditioned and
     denormalised in blocks on threads (``Posterior.infer_in_blocks``): every field equals the whole-batch steps on one
     thread (the reference: the block path and the conditioner's threads switched off), also with an absent view (its
-    given factors kept) and with the component means (hypotheses); an overflowing frame is named by its batch index."""
+    given factors kept, its contours never read) and with the component means (hypotheses); an overflowing frame is
+    named by its batch index and view."""
     import dataclasses
 
     from silpose.model import posterior, threads
@@ -248,3 +249,11 @@ def test_large_one_pattern_batches_in_blocks_equal_the_whole_batch_steps(fitted,
     bad[550, 2, 3] = 1e300  # finite, but its squares overflow
     with pytest.raises(ValueError, match="overflow.*frame 550, view 2"):
         model.infer(bad)
+    # only the present views are normalised: an overflow is named by its view among them, an absent view is never read
+    bad = c_absent.astype(np.float64)
+    bad[550, 2, 3] = 1e300  # the second present view
+    with pytest.raises(ValueError, match="overflow.*frame 550, view 2"):
+        model.infer(bad, views_present=absent, centroid=cen, scale=sc)
+    junk = c_absent.astype(np.float64)
+    junk[:, 1] = 1e300
+    np.testing.assert_array_equal(model.infer(junk, views_present=absent, centroid=cen, scale=sc).joints, got[1].joints)
