@@ -329,6 +329,22 @@ def test_a_grey_reader_takes_the_luma_plane_of_yuv_videos(rig, tools, tmp_path):
         cap.release()
 
 
+def test_luma_to_grey_is_the_table_at_every_level():
+    """The saturating arithmetic that maps a mask video's luma plane to grey levels gives :data:`LUMA_TO_GREY`'s
+    value at each of the 256 levels, in frames of any size (OpenCV's vectorised loops and their tails)."""
+    from silpose.app.recordings.sources import LUMA_TO_GREY, luma_to_grey
+
+    want = np.clip(np.round((np.arange(256) - 16) * 255 / 219), 0, 255)  # BT.601 limited range -> 0..255
+    np.testing.assert_array_equal(LUMA_TO_GREY, want)
+    rng = np.random.default_rng(0)
+    for shape in [(16, 16), (486, 644), (3, 5), (1, 257)]:
+        img = np.arange(np.prod(shape)).reshape(shape).astype(np.uint8) if shape == (16, 16) else \
+            rng.integers(0, 256, shape, dtype=np.uint8)
+        got = luma_to_grey(img)
+        assert got.dtype == np.uint8 and got.shape == shape
+        np.testing.assert_array_equal(got, LUMA_TO_GREY[img])
+
+
 def test_frames_named_without_zero_padding_are_read_in_numeric_order(rig, tmp_path):
     """Exporters that do not zero-pad name frames img1, img2, ..., img10: read in that order, not as strings sort
     (img1, img10, img11, img2, ...); the frame order of ``silpose infer INPUT``'s camera folders is the same."""

