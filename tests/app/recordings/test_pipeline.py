@@ -287,6 +287,20 @@ def test_camera_threads_change_nothing(tiny_model, two_cylinders, tmp_path):
             assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), col
 
 
+def test_the_camera_pool_is_left_out_below_three_cores(monkeypatch):
+    """Without ``threads``: no camera pool on 1 or 2 cores; above, one thread per camera up to the core count (less
+    two when the cameras decode in reader threads of their own)."""
+    import os
+
+    from silpose.app.recordings.pipeline import default_camera_threads
+
+    want = {(1, False): 0, (2, False): 0, (2, True): 0, (3, False): 3, (3, True): 1, (4, False): 4, (4, True): 2,
+            (8, False): 4, (8, True): 4}
+    for (cores, readers), n in want.items():
+        monkeypatch.setattr(os, "cpu_count", lambda c=cores: c)
+        assert default_camera_threads(4, readers) == n, (cores, readers)
+
+
 def _flat(column) -> np.ndarray:
     """A Parquet column's values as one flat numpy array (nested fixed-size lists unrolled)."""
     x = column.combine_chunks()

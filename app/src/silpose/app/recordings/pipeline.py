@@ -19,7 +19,8 @@ then per chunk:
    are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
 
-Threads: the per-camera stages run in a pool of one thread per camera (at most the CPU count) -- except the view
+Threads: on a machine of 3 cores or more (:data:`POOL_MIN_CORES`) the per-camera stages run in a pool of one thread
+per camera (at most the CPU count), on 1-2 cores in the run's thread -- except the view
 stage (3) of mask videos without carving, which runs in the run's thread: it is small numpy calls that hold the
 GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 steps, six alternating runs at
 load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool); there, each camera's next
@@ -132,6 +133,15 @@ from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, ST
 EDGE_M = 0.15
 #: seconds: foreground that stays this long outside every detected person's body box becomes background
 ABSORB_S = 2.0
+#: CPU cores below which the cameras' stages run in the run's thread (no camera pool) unless the options say
+#: otherwise: on 2 cores the pool's threads, the run's own and OpenCV's contend for the cores and the GIL. Mask
+#: videos, the idle project machine (2-core AMD EPYC), alternating runs: the lab recording (150 steps) 67.7 / 69.9 /
+#: 71.6 time steps/s without the pool against 65.5 / 73.4 / 63.7 with 2 threads, played 3x (450 steps) 67.2 / 87.9 /
+#: 84.2 against 65.6 / 77.5 / 55.7, with mp4 overlays 39.9 / 44.2 / 36.4 against 37.0 / 39.6 / 37.2, and 25-35 % less
+#: CPU per step in every pair (15.8-16.3 against 19.1-21.9 ms; the benchmark's "1x single-threaded" row has shown the
+#: same in 4 of its last 5 runs). Under load 5-12 the pool had been faster (module docstring, "Threads"): more runnable
+#: threads take a larger share of a machine others use, at a higher cost in CPU.
+POOL_MIN_CORES = 3
 #: metres: radius of the cylinder around each detected person that is never made background: the body and
 #: the arms' swing (half the view test's 0.9 m, so a box on the floor beside someone's path is absorbed)
 PROTECT_RADIUS_M = 0.45
@@ -150,8 +160,8 @@ class RecordingOptions:
     of a person); overlays: ``"mp4"`` (or True: per-camera overlay videos), ``"png"`` (one tiled PNG per frame,
     :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per
     inference batch; threads:
-    per-camera worker threads (None: one per camera, at most the CPU count, less two with reader threads;
-    0: none, module docstring "Threads"); max_steps: stop after
+    per-camera worker threads (None: one per camera, at most the CPU count, less two with reader threads,
+    none on 1-2 cores, :data:`POOL_MIN_CORES`; 0: none, module docstring "Threads"); max_steps: stop after
     that many steps; segment_params: ``BackgroundModel`` keyword arguments; min_hits / max_misses: tracking, steps
     (:class:`~silpose.app.recordings.tracking.Tracker`; None: :func:`~silpose.app.recordings.tracking.tracker_for_fps`'s
     0.3 s and 4 s).
@@ -376,11 +386,13 @@ class _Person:
     cut: np.ndarray  # (K,) share of the person's blob cut as unsupported by the other views (.hull), NaN: no blob
 
 
-def _default_threads(n_cameras: int, reader_threads: bool) -> int:
+def default_camera_threads(n_cameras: int, reader_threads: bool) -> int:
     """Camera worker threads when the options do not say (module docstring, "Threads"): one per camera, at most the
     CPU count, less two when the cameras decode in reader threads of their own (one core for them, one for the run's
-    thread): 0 on a 2-core machine."""
+    thread); 0 on a machine of at most 2 cores either way (:data:`POOL_MIN_CORES`)."""
     cores = os.cpu_count() or 1
+    if cores < POOL_MIN_CORES:
+        return 0
     return max(0, min(n_cameras, cores - 2 if reader_threads else cores))
 
 
@@ -484,7 +496,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     floor_tracks: dict[int, list] = {}
     pending: list[tuple[int, PersonRows, list[Track], np.ndarray]] = []
     last_heading: dict[int, tuple[int, float]] = {}  # track key -> (step, heading) of its last chosen hypothesis
-    threads = _default_threads(len(cams), threaded) if opt.threads is None else int(opt.threads)
+    threads = default_camera_threads(len(cams), threaded) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
     # mask videos without carving: the view stage in this thread (module docstring, "Threads")
