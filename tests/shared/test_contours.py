@@ -389,7 +389,62 @@ def test_single_blob_contour_gives_extract_contours_points_without_labelling():
             ref = extract_contour(blob, 64).points
             assert np.array_equal(single_blob_contour(blob, 64), ref)
             assert np.allclose(single_blob_contour(blob, 64, offset=(5, -2)), ref + (5, -2), atol=1e-4)
+            # the label image itself (the other components in it too, 16-bit as the recordings' labelling)
+            assert np.array_equal(single_blob_contour(lab.astype(np.uint16), 64, label=label), ref)
             checked += 1
     assert checked > 20
     with pytest.raises(EmptyMaskError):
         single_blob_contour(np.zeros((4, 4), np.uint8), 8)
+
+
+def _start_by_loop(poly: np.ndarray, cx: float):
+    """The farthest-up crossing of a closed polyline with x = cx, edge by edge in Python (first of ties); None
+    without any."""
+    best = None
+    m = len(poly)
+    for i in range(m):
+        a, b = poly[i], poly[(i + 1) % m]
+        if not min(a[0], b[0]) <= cx <= max(a[0], b[0]):
+            continue
+        p = (b if b[1] < a[1] else a) if a[0] == b[0] else a + (cx - a[0]) / (b[0] - a[0]) * (b - a)
+        if best is None or p[1] < best[1][1]:
+            best = (i, p)
+    return best
+
+
+def _resample_by_loop(poly: np.ndarray, edge: int, start: np.ndarray, n: int) -> np.ndarray:
+    """Points k L / n along the closed polyline from ``start`` on edge ``edge``, walking segment by segment."""
+    m = len(poly)
+    path = [start] + [poly[(edge + 1 + k) % m] for k in range(m)] + [start]
+    seg = [float(np.hypot(*(path[k + 1] - path[k]))) for k in range(len(path) - 1)]
+    total = sum(seg)
+    out, k, walked = [], 0, 0.0
+    for t in (np.arange(n) * total / n if total > 0 else np.zeros(n)):
+        while k < len(seg) - 1 and walked + seg[k] < t:
+            walked += seg[k]
+            k += 1
+        f = 0.0 if seg[k] == 0 else (t - walked) / seg[k]
+        out.append(path[k] + min(max(f, 0.0), 1.0) * (path[k + 1] - path[k]))
+    return np.array(out)
+
+
+def test_start_and_resampling_match_a_segment_by_segment_walk():
+    from silpose.shared.contours import _start_on_polyline, resample_closed
+
+    rng = np.random.default_rng(11)
+    crossed = 0
+    for trial in range(300):  # small integer polylines (vertical edges, lines through vertices) and smooth ones
+        m = int(rng.integers(3, 30))
+        poly = (rng.integers(0, 8, (m, 2)).astype(float) if trial % 2 else
+                np.c_[np.cos(np.linspace(0, 2 * np.pi, m, endpoint=False)), np.sin(np.linspace(0, 2 * np.pi, m,
+                      endpoint=False))] * rng.uniform(1, 50) + rng.normal(0, 0.3, (m, 2)))
+        cx = float(rng.integers(0, 8)) if trial % 4 == 1 else float(rng.uniform(poly[:, 0].min(), poly[:, 0].max()))
+        want = _start_by_loop(poly, cx)
+        i, p = _start_on_polyline(poly, cx)
+        if want is not None:
+            crossed += 1
+            assert i == want[0] and np.allclose(p, want[1], atol=1e-12)
+        for n in (1, 7, 64):
+            got = resample_closed(poly, i, p, n)
+            assert np.allclose(got, _resample_by_loop(poly, i, p, n), atol=1e-9)
+    assert crossed > 250

@@ -125,24 +125,23 @@ def _start_on_polyline(poly: np.ndarray, cx: float) -> tuple[int, np.ndarray]:
         Without any crossing (degenerate outlines) the vertex nearest to the line, topmost
         among ties, is returned with its outgoing edge.
     """
-    a = poly
-    b = np.concatenate([poly[1:], poly[:1]])
-    x0, x1 = a[:, 0], b[:, 0]
-    cand = np.flatnonzero((np.minimum(x0, x1) <= cx) & (cx <= np.maximum(x0, x1)))
+    x = poly[:, 0]
+    x_next = np.empty_like(x)  # x of each edge's end vertex
+    x_next[:-1], x_next[-1] = x[1:], x[0]
+    cand = np.flatnonzero((np.minimum(x, x_next) <= cx) & (cx <= np.maximum(x, x_next)))
     if cand.size:
-        ac, bc = a[cand], b[cand]
+        end = cand + 1
+        end[end == len(poly)] = 0
+        ac, bc = poly[cand], poly[end]
         dx = bc[:, 0] - ac[:, 0]
-        vertical = dx == 0
-        t = np.empty(cand.size)
-        # An edge lying on the line: both of its ends are crossings; the upper one counts.
-        t[vertical] = bc[vertical, 1] < ac[vertical, 1]
-        t[~vertical] = (cx - ac[~vertical, 0]) / dx[~vertical]
-        p = ac + t[:, None] * (bc - ac)
-        j = int(np.argmin(p[:, 1]))  # farthest up; first of ties: deterministic
-        return int(cand[j]), p[j]
-    key = np.lexsort((a[:, 1], np.abs(a[:, 0] - cx)))  # nearest in x, then topmost
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # An edge lying on the line: both of its ends are crossings; the upper one counts.
+            t = np.where(dx == 0, bc[:, 1] < ac[:, 1], (cx - ac[:, 0]) / dx)
+        j = int(np.argmin(ac[:, 1] + t * (bc[:, 1] - ac[:, 1])))  # farthest up; first of ties: deterministic
+        return int(cand[j]), ac[j] + t[j] * (bc[j] - ac[j])
+    key = np.lexsort((poly[:, 1], np.abs(x - cx)))  # nearest in x, then topmost
     i = int(key[0])
-    return i, a[i].copy()
+    return i, poly[i].copy()
 
 
 def resample_closed(poly: np.ndarray, start_edge: int, start: np.ndarray, n_points: int) -> np.ndarray:
@@ -158,15 +157,24 @@ def resample_closed(poly: np.ndarray, start_edge: int, start: np.ndarray, n_poin
         polyline's direction (L = perimeter). A zero-length outline gives n copies of ``start``.
     """
     m = len(poly)
-    order = (np.arange(1, m + 1) + start_edge) % m  # vertices after the start, once round
-    path = np.vstack([start[None], poly[order], start[None]])
-    seg = np.hypot(*np.diff(path, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
+    # the start, the vertices after it once round (start_edge + 1 .. m - 1, then 0 .. start_edge), the start again
+    path = np.empty((m + 2, 2))
+    path[0] = start
+    path[1 : m - start_edge] = poly[start_edge + 1 :]
+    path[m - start_edge : m + 1] = poly[: start_edge + 1]
+    path[m + 1] = start
+    step = path[1:] - path[:-1]
+    s = np.empty(m + 2)  # arc length at each path vertex
+    s[0] = 0.0
+    np.cumsum(np.hypot(step[:, 0], step[:, 1]), out=s[1:])
     total = s[-1]
     if not total > 0:
         return np.repeat(start[None].astype(np.float64), n_points, axis=0)
     targets = np.arange(n_points) * (total / n_points)
-    return np.stack([np.interp(targets, s, path[:, 0]), np.interp(targets, s, path[:, 1])], axis=1)
+    out = np.empty((n_points, 2))
+    out[:, 0] = np.interp(targets, s, path[:, 0])
+    out[:, 1] = np.interp(targets, s, path[:, 1])
+    return out
 
 
 def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
@@ -221,13 +229,14 @@ def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
     )
 
 
-def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int) -> tuple[np.ndarray, float]:
-    """Resampled outer contour (n_points, 2) float64 in image px and raw perimeter of the one 8-connected blob
-    of ``blob`` ((h, w) uint8 {0, 1}, an empty pixel on every side); ``offset`` (x, y): image position of
-    ``blob``'s pixel (0, 0); ``cx``: the blob's area centroid x in image px."""
+def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int,
+           with_length: bool = True) -> tuple[np.ndarray, float]:
+    """Resampled outer contour (n_points, 2) float64 in image px and raw perimeter (NaN unless ``with_length``) of
+    the one 8-connected blob of ``blob`` ((h, w) uint8 {0, 1}, an empty pixel on every side); ``offset`` (x, y):
+    image position of ``blob``'s pixel (0, 0); ``cx``: the blob's area centroid x in image px."""
     found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     raw = max(found, key=len)  # one outer contour for an 8-connected blob
-    length = float(cv2.arcLength(raw, closed=True))
+    length = float(cv2.arcLength(raw, closed=True)) if with_length else float("nan")
     # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down).
     if cv2.contourArea(raw, oriented=True) < 0:  # make it clockwise on screen
         raw = raw[::-1]
@@ -237,19 +246,23 @@ def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int) 
 
 
 def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tuple[int, int] = (0, 0),
-                        centroid_x: float | None = None) -> np.ndarray:
+                        centroid_x: float | None = None, label: int | None = None) -> np.ndarray:
     """:func:`extract_contour`'s points for a mask known to hold ONE 8-connected blob (a labelled component
     cut out of a label image), without labelling it again: (n_points, 2) float32 px, ``offset`` (x, y) added
     (the image position of ``blob``'s pixel (0, 0)). The area centroid comes from ``cv2.moments`` (the mean
     of the blob's pixel centres, as the labelling's), or is ``centroid_x`` (x in ``blob``'s pixels, when the
     caller's labelling gave it). Raises EmptyMaskError on an empty mask.
 
-    blob: (h, w) bool or uint8 {0, 1}."""
+    blob: (h, w) bool or uint8 {0, 1}; or, with ``label``, a label image (any integer type) whose pixels equal to
+    ``label`` are the blob (a crop of a labelling, compared as it is copied: no mask of its own)."""
     if int(n_points) < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
     h, w = blob.shape
     padded = np.zeros((h + 2, w + 2), np.uint8)
-    padded[1:-1, 1:-1] = blob
+    if label is None:
+        padded[1:-1, 1:-1] = blob
+    else:
+        np.equal(blob, label, out=padded[1:-1, 1:-1].view(bool))
     if centroid_x is None:
         m = cv2.moments(padded, binaryImage=True)
         if m["m00"] <= 0:
@@ -259,7 +272,7 @@ def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tupl
         if not cv2.countNonZero(padded):
             raise EmptyMaskError(f"mask of shape {blob.shape} has no foreground pixel")
         cx = float(centroid_x) + offset[0]
-    pts, _ = _trace(padded, (offset[0] - 1, offset[1] - 1), cx, int(n_points))
+    pts, _ = _trace(padded, (offset[0] - 1, offset[1] - 1), cx, int(n_points), with_length=False)
     return pts.astype(np.float32)
 
 

@@ -80,10 +80,10 @@ def blob_contour(blobs: Blobs, label: int, n_points: int) -> np.ndarray | None:
     None if the blob vanished."""
     x, y, bw, bh = (int(v) for v in blobs.bbox[label])
     ox, oy = blobs.origin
-    crop = (blobs.labels[y - oy : y - oy + bh, x - ox : x - ox + bw] == label).view(np.uint8)
+    crop = blobs.labels[y - oy : y - oy + bh, x - ox : x - ox + bw]
     try:
         # one component: no labelling again (extract_contour's points), its centroid the labelling's
-        c = single_blob_contour(crop, n_points, centroid_x=float(blobs.centroid[label, 0]) - x)
+        c = single_blob_contour(crop, n_points, centroid_x=float(blobs.centroid[label, 0]) - x, label=label)
     except EmptyMaskError:
         return None
     return c.astype(np.float64) + (x, y)
