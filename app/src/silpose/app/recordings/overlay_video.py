@@ -11,10 +11,14 @@ Each frame shows, over the dimmed mask (or colour frame):
 - the person's id at the head (``?`` while a track is not yet a person), with the view's status when
   the view was not used; the frame number and camera name at the top left.
 
-Each camera's frames are drawn and encoded in a thread of its own (:meth:`OverlayVideos.draw`; OpenCV's drawing
-and encoder release the GIL): the run's thread only lists what each frame shows, so on a machine with a core to
-spare the overlays cost the run little of its time (``benchmarks/recordings.py`` reports their share against the
-same run without them).
+Threads: the frames are drawn and encoded beside the run's thread (:meth:`OverlayVideos.draw`; OpenCV's drawing
+and encoder release the GIL), which only lists what each frame shows: one thread per camera, at most the CPU count
+less one (:func:`overlay_threads`), each serving its cameras' frames in the order they come. On the 2-core machine
+that is one thread for every camera: four threads taking turns at the GIL and the second core had cost more than
+they gave (lab recording, 4 x 644x486 mask videos, 150 steps, five alternating pairs on the idle machine: 60.0 /
+57.6 / 48.1 / 55.7 / 58.4 time steps/s with one thread against 48.7 / 41.3 / 46.8 / 50.4 / 48.8 with four, the same
+videos byte for byte; 72-90 without overlays).
+``benchmarks/recordings.py`` reports the overlays' share against the same run without them.
 
 The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` and moved into
 ``<out>/overlays/`` when the run ends (OpenCV picks the container from the file suffix, so the
@@ -132,77 +136,100 @@ def draw_frame(background: np.ndarray | None, size: tuple[int, int], camera: str
     return img
 
 
-class _Encoder:
-    """One camera's video writer, drawing and encoding in its own thread (OpenCV's drawing and encoder release
-    the GIL): the run's thread only lists what to draw. A queued item is an image, or the arguments of
-    :func:`draw_frame` (a tuple). ``depth`` items are queued at most."""
+def overlay_threads(n_cameras: int) -> int:
+    """Drawing-and-encoding threads for ``n_cameras`` overlay videos: one per camera, at most the CPU count less one
+    (the run's thread keeps a core; module docstring, "Threads"), at least one."""
+    return max(1, min(int(n_cameras), (os.cpu_count() or 1) - 1))
 
-    def __init__(self, writer, depth: int = 24):
-        self.writer = writer
-        self.queue: queue.Queue = queue.Queue(maxsize=depth)
+
+class _Encoder:
+    """The video writers of some cameras, drawing and encoding in one thread of their own (OpenCV's drawing and
+    encoder release the GIL): the run's thread only lists what to draw. A queued item is ``(camera, image)`` or
+    ``(camera, the arguments of`` :func:`draw_frame` ``as a tuple)``, drawn and written in the order queued (each
+    camera's frames in order). ``depth`` items per camera are queued at most."""
+
+    def __init__(self, writers: dict, depth: int = 24):
+        self.writers = writers
+        self.queue: queue.Queue = queue.Queue(maxsize=depth * max(1, len(writers)))
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, name="overlay-encoder", daemon=True)
         self.thread.start()
 
     def _run(self) -> None:
         while True:
-            img = self.queue.get()
-            if img is None:
+            item = self.queue.get()
+            if item is None:
                 return
             if self.error is None:
+                camera, img = item
                 try:
-                    self.writer.write(draw_frame(*img) if isinstance(img, tuple) else img)
+                    self.writers[camera].write(draw_frame(*img) if isinstance(img, tuple) else img)
                 except BaseException as exc:  # raised by the next write or by finish
                     self.error = exc
 
-    def write(self, img: np.ndarray) -> None:
+    def write(self, camera: str, img) -> None:
         if self.error is not None:
             raise self.error
-        self.queue.put(img)
+        self.queue.put((camera, img))
 
     def finish(self) -> None:
         self.queue.put(None)
         self.thread.join()
-        self.writer.release()
+        for w in self.writers.values():
+            w.release()
         if self.error is not None:
             raise self.error
 
 
 class OverlayVideos:
     """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` or ``draw(camera,
-    ...)`` per frame (drawn and encoded in a thread per camera), ``close()`` moves the finished videos into ``<out>/overlays/``, ``abort()`` drops
-    them."""
+    ...)`` per frame (drawn and encoded in the camera's thread, :func:`overlay_threads`), ``close()`` moves the
+    finished videos into ``<out>/overlays/``, ``abort()`` drops them."""
 
     def __init__(self, out: Path, cameras, sizes: dict, fps: float):
         self.final = Path(out) / "overlays"
         self.tmp = Path(out) / f".overlays.{os.getpid()}.tmp"
         shutil.rmtree(self.tmp, ignore_errors=True)
         self.tmp.mkdir(parents=True)
-        self.writers = {}
-        for cam in cameras:
-            path = self.tmp / f"{cam}.mp4"
-            w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps if fps > 0 else 25.0, sizes[cam])
-            if not w.isOpened():
-                self.abort()
-                raise OSError(f"{path}: OpenCV cannot write {FOURCC} video")
-            self.writers[cam] = _Encoder(w)
+        self.cameras = list(cameras)
+        self.encoders: list[_Encoder] = []
+        self.encoder_of: dict[str, _Encoder] = {}
+        writers = {}
+        try:
+            for cam in self.cameras:
+                path = self.tmp / f"{cam}.mp4"
+                w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps if fps > 0 else 25.0, sizes[cam])
+                if not w.isOpened():
+                    raise OSError(f"{path}: OpenCV cannot write {FOURCC} video")
+                writers[cam] = w
+        except BaseException:
+            for w in writers.values():
+                w.release()
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            raise
+        n = overlay_threads(len(self.cameras))
+        for g in range(n):  # cameras dealt round the threads
+            group = {c: writers[c] for c in self.cameras[g::n]}
+            enc = _Encoder(group)
+            self.encoders.append(enc)
+            self.encoder_of.update(dict.fromkeys(group, enc))
         self.n_frames = 0
 
     def write(self, camera: str, image: np.ndarray) -> None:
-        self.writers[camera].write(image)
+        self.encoder_of[camera].write(camera, image)
 
     def draw(self, camera: str, background: np.ndarray | None, size: tuple[int, int], frame: int,
              people: list[dict]) -> None:
         """Queue the frame :func:`draw_frame` ``(background, size, camera, frame, people)`` draws: it is drawn and
         encoded in the camera's thread (``background`` must not change afterwards)."""
-        self.writers[camera].write((background, size, camera, frame, people))
+        self.encoder_of[camera].write(camera, (background, size, camera, frame, people))
 
     def close(self) -> list[Path]:
-        for w in self.writers.values():
-            w.finish()
+        for enc in self.encoders:
+            enc.finish()
         self.final.mkdir(parents=True, exist_ok=True)
         out = []
-        for cam in self.writers:
+        for cam in self.cameras:
             dst = self.final / f"{cam}.mp4"
             os.replace(self.tmp / f"{cam}.mp4", dst)
             out.append(dst)
@@ -210,9 +237,9 @@ class OverlayVideos:
         return out
 
     def abort(self) -> None:
-        for w in self.writers.values():
+        for enc in self.encoders:
             try:
-                w.finish()
+                enc.finish()
             except BaseException:  # noqa: BLE001 - aborting: the files are dropped anyway
                 pass
         shutil.rmtree(self.tmp, ignore_errors=True)
