@@ -4,7 +4,7 @@ against an independent computation, the per-person model, and a crossing that mo
 import numpy as np
 
 from silpose.app.recordings.appearance import (CAP, COLOUR_SD, HIST_BINS, MEMORY, STATURE_SD_M, WIDTH_SD, Look,
-                                               PersonLooks, UPPER_SHARE, colour_histograms, observe)
+                                               PersonLooks, UPPER_SHARE, blob_histograms, colour_histograms, observe)
 from silpose.app.recordings.blobs import find_blobs
 from silpose.app.recordings.tracking import Tracker, tracker_for_fps
 
@@ -58,6 +58,28 @@ def test_colour_histograms_against_numpy_histogramdd():
     for i, sel in enumerate((upper, ~upper)):
         ref = np.histogramdd(px[sel].astype(float), bins=edges)[0].ravel()
         assert np.allclose(h[i], ref / ref.sum())
+
+
+def test_blob_histograms_are_those_of_the_blobs_own_pixels():
+    import cv2
+
+    rng = np.random.default_rng(5)
+    checked = 0
+    for trial in range(30):  # smooth random blobs (several per mask, some 1 px tall), a random colour frame
+        m = (cv2.GaussianBlur(rng.random((60, 70)).astype(np.float32), (0, 0), 2.5) > 0.55).astype(np.uint8)
+        big = np.zeros((80, 90), np.uint8)
+        big[7:67, 11:81] = m
+        big[75, 3:9] = 1  # a one-row blob
+        frame = rng.integers(0, 256, big.shape + (3,), dtype=np.uint8)
+        blobs = find_blobs(big, 1)
+        for label in range(1, len(blobs.area)):
+            x, y, w, h = blobs.bbox[label]
+            ys, xs = np.nonzero(blobs.labels == label)  # the blob's pixels, in the labelled box's coordinates
+            ys, xs = ys + blobs.origin[1], xs + blobs.origin[0]
+            want = colour_histograms(frame[ys, xs], ys - y < UPPER_SHARE * h)
+            np.testing.assert_array_equal(blob_histograms(frame, blobs, label), want)
+            checked += 1
+    assert checked > 60
 
 
 def test_model_means_and_distance_by_hand():
