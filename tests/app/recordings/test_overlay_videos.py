@@ -77,3 +77,28 @@ def test_overlay_threads_leave_a_core_to_the_run(monkeypatch):
     for cores, cams, want in ((1, 4, 1), (2, 4, 1), (3, 4, 2), (8, 4, 4), (8, 1, 1)):
         monkeypatch.setattr(overlay_video.os, "cpu_count", lambda c=cores: c)
         assert overlay_threads(cams) == want
+
+
+def test_a_camera_whose_video_cannot_be_opened_leaves_nothing(tmp_path, monkeypatch):
+    real = overlay_video.cv2.VideoWriter
+    released = []
+
+    class Writer:
+        def __init__(self, path, *args):
+            self.inner = real(path, *args) if "cam2" not in str(path) else None
+            self.path = path
+
+        def isOpened(self):
+            return self.inner is not None
+
+        def release(self):
+            released.append(self.path)
+            if self.inner is not None:
+                self.inner.release()
+
+    monkeypatch.setattr(overlay_video.cv2, "VideoWriter", Writer)
+    cams = [f"cam{i}" for i in range(4)]
+    with pytest.raises(OSError, match="cam2.mp4"):
+        OverlayVideos(tmp_path, cams, {c: (64, 48) for c in cams}, 25.0)
+    assert len(released) == 2  # the two writers opened before it
+    assert not any(tmp_path.iterdir())  # no working folder, no overlays folder
