@@ -74,6 +74,28 @@ def test_a_track_beyond_the_workspace_becomes_a_person_only_after_walking(rig):
     inside.alone = True
     assert may_be_person(inside, grid)
     assert grid.in_workspace(np.array([[0.0, 0.0], [0.0, y1 + 0.1]])).tolist() == [True, False]
+    # in the margin around the workspace, seen alone: a person only once tracked for ``wait`` steps
+    beside = Track(2, np.array([0.0, y1 + 0.3]), first=10, last=10, alone=True)
+    assert not static_clutter(beside, grid)
+    assert may_be_person(beside, grid) and not may_be_person(beside, grid, wait=5)
+    beside.last = 14
+    assert not may_be_person(beside, grid, wait=5)
+    beside.last = 15
+    assert may_be_person(beside, grid, wait=5)
+    inside.first, inside.last = 10, 10
+    assert may_be_person(inside, grid, wait=5)  # in the workspace: at once
+
+
+def test_the_tracker_confirms_at_the_end_what_a_longer_rule_would_have_waited_for():
+    tr = Tracker(min_hits=2, gate=0.3, reid_gate=3.0, contact=0.8)
+    tr.may_confirm = lambda t: False  # nothing is confirmed during the run
+    for step in range(4):
+        tr.update(step, np.array([[0.0, 0.0], [0.6, 0.0]]))
+    assert tr.n_persons == 0
+    tr.finish(3, lambda t: t.position[0] > 0.3)  # only the second
+    assert [t.person for t in sorted(tr.tracks, key=lambda t: t.key)] == [0, 1]
+    tr.finish(3, lambda t: True)  # then the first, a new id: the person seen at the last step is not lost
+    assert [t.person for t in sorted(tr.tracks, key=lambda t: t.key)] == [2, 1]
 
 
 def test_the_tracker_vouches_for_detections_where_a_person_seen_lately_is_predicted():

@@ -29,7 +29,8 @@ room      before (main d1d2ea4)        uncut (b4d0303)  visual hull (branch hull
 lighting  0 %, 6 ids (all foreground)  100 %, 1 id      100 %, 1 id                     100 %, 1 id
 prop      0 %, 1 id                    92 %, 1 id       100 %, 1 id (all: 75 -> 100 %)  100 %, 1 id
 platform                               100 %, 1 id      100 %, 1 id                     100 %, 1 id
-still     0 %, 4 ids                   42 %, 2 ids      45 %, 2 ids; then 0 %, 4 ids    100 %, 1 id; 31 %, 3 ids (*)
+still     0 %, 4 ids                   42 %, 2 ids      45 %, 2 ids; then 0 %, 4 ids    100 %, 1 id; 31 %, 3 ids (*);
+                                                                                        100 %, 1 id (**)
 lamp                                   8 %, 1 id        100 %, 1 id                     100 %, 1 id
 nudged                                                                                  100 %, 1 id
 ========  ===========================  ===============  ==============================  =============================
@@ -54,7 +55,14 @@ imported workspace is 1.5 m x 0.7 m, and its two people stand up to 0.4 m outsid
 clutter is now what stands beyond the workspace *and the 0.5 m margin* the floor grid searches around it
 (``floor.MARGIN_M``): the demo then gives 2 ids and 80 / 64 / 48 % of person-frames with >= 1 / 2 / 3 views (the
 most yet), but here the people at the back, who stand 1.1-1.2 m beyond the workspace, are detected 0.2-0.9 m
-beyond it (cameras on one wall judge depth poorly), inside the margin: 31 %, 3 ids (xfail).
+beyond it (cameras on one wall judge depth poorly), inside the margin: 31 %, 3 ids.
+
+(**) A track in the margin now becomes a person only once it has outlived the absorption of static clutter (2 s,
+then the steps a tentative track lasts unseen), or when the recording ends before that: the people at the back are
+background after 2 s again (100 %, 1 id), and the people of a clip shorter than that, such as Pose2Sim's 1.7 s demo,
+are still people (``test_someone_beside_the_workspace_...``). The price: someone who stays in the margin moving in
+place (not walking 1 m) is not protected for those 2 s, so the pixels they always cover (their trunk) become
+background and they are found late or not at all; in the workspace nothing changes.
 """
 
 from __future__ import annotations
@@ -164,11 +172,7 @@ EXPECTED = {"lighting": (1, 0.8), "prop": (1, 0.6), "still": (1, 0.8), "platform
 
 
 @pytest.mark.parametrize("kind", [
-    "lighting", "prop", "platform", "lamp", "nudged",
-    pytest.param("still", marks=pytest.mark.xfail(strict=True, reason=(
-        "the people at the back are detected within the workspace margin (depth from cameras on one wall), where "
-        "standing people are people, not clutter: 31 %, 3 ids; 100 %, 1 id when clutter began at the workspace "
-        "edge, which lost both people of Pose2Sim's two-person demo")))])
+    "lighting", "prop", "platform", "lamp", "nudged", "still"])
 def test_a_room_keeps_three_usable_views(half_model, tools, tmp_path, kind):
     videos, empty = _room(tmp_path, half_model.rig_, tools, kind)
     s = run_recording(half_model, videos, tmp_path / "out", RecordingOptions(background=empty, overlays=False))
@@ -187,6 +191,40 @@ def test_a_room_keeps_three_usable_views(half_model, tools, tmp_path, kind):
     if kind == "lamp":  # the lamp is cut off the walker's blob in cam0 and cam1 (view_cut), nothing in cam2, cam3
         cut = np.nanmedian(np.array(t.column("view_cut").to_pylist(), float)[found], axis=0)
         assert cut[0] > 0.05 and cut[1] > 0.05 and cut[2] < 0.02 and cut[3] < 0.02, cut
+
+
+#: metres: a person standing beside the workspace, in the margin the floor grid searches around it (0.3 m beyond its
+#: side, where cameras on one wall judge the position well)
+BESIDE_XY = (1.8, 0.0)
+
+
+@pytest.mark.parametrize("n_frames, ids", [
+    (12, 2),  # 1.2 s, shorter than the 2 s after which static clutter becomes background: too short to tell
+    (N_FRAMES, 1),  # standing still all along: background, not a person (main before this: 2 ids)
+])
+def test_someone_beside_the_workspace_is_a_person_unless_they_stand_still_long_enough_to_become_background(
+        half_model, tools, tmp_path, n_frames, ids):
+    """Pose2Sim's demos: two people up to 0.4 m outside an imported 1.5 m x 0.7 m workspace for 1.7 s, both
+    subjects; a lab's bystanders stand as close. A track in the margin becomes a person once it has outlived the
+    absorption of static clutter, or when the recording ends before that (``pipeline.may_be_person``)."""
+    rig = half_model.rig_
+    walker = tools.walk((-1.1, -0.5), (1.1, 0.2), n_frames)
+    (tmp_path / "colour").mkdir()
+    (tmp_path / "empty").mkdir()
+    for k, cam in enumerate(rig):
+        size = (cam.width, cam.height)
+        frames = [composite_frame(tools.cylinder_masks(rig, [walker[f], BESIDE_XY])[k] > 0, k, f) for f in range(n_frames)]
+        tools.write_video(tmp_path / "colour" / f"{cam.name}.mp4", np.stack(frames), fps=FPS)
+        tools.write_video(tmp_path / "empty" / f"{cam.name}.mp4", background_frames(k, size, 8), fps=FPS)
+    s = run_recording(half_model, tmp_path / "colour", tmp_path / "out",
+                      RecordingOptions(background=tmp_path / "empty", overlays=False))
+    t = pq.read_table(tmp_path / "out" / "joints.parquet")
+    person = np.array(t.column("person").to_pylist())
+    floor = np.c_[t.column("floor_x").to_pylist(), t.column("floor_y").to_pylist()].astype(float)
+    beside = person[np.linalg.norm(floor - BESIDE_XY, axis=1) < 0.5]
+    assert s.n_persons == ids and len(np.unique(beside)) == ids - 1, (s.n_persons, np.unique(beside))
+    if ids == 2:  # found from the first frames on (their rows held until the end decided), not only at the end
+        assert len(beside) >= n_frames - 4, len(beside)
 
 
 def test_steps_ahead_give_the_plain_loops_joints_when_clutter_becomes_background(half_model, tools, tmp_path,

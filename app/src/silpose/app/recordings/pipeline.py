@@ -71,11 +71,16 @@ by their box, however still they stand; clutter touching a person's box is absor
 again fits their box. Tentative tracks and the floor grid's ghosts protect nothing (a newcomer's pixels age for the
 0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`may_be_person`, the
 tracker's ``may_confirm``; mask videos absorb nothing, so there every track the tracker confirms is one): a track
-that has walked :data:`~.tracking.TRAVEL_M`, or, in the workspace or the margin the floor grid searches around it
-(:data:`.floor.MARGIN_M`), one that some camera has seen alone (a usable view of its own; a ghost lives on other
-people's blobs). A track beyond both that has not walked (:func:`static_clutter`) takes no views -- a blob it shares
+that has walked :data:`~.tracking.TRAVEL_M`, or one that some camera has seen alone (a usable view of its own; a
+ghost lives on other people's blobs) -- in the workspace at once; in the margin the floor grid searches around it
+(:data:`.floor.MARGIN_M`) once it has outlived the absorption (:func:`margin_wait`: clutter standing there has become
+background by then and its track has ended), or when the recording ends first (a clip too short to tell, such as
+Pose2Sim's 1.7 s demo, whose two people stand up to 0.4 m outside its imported workspace). Rows are held back that
+long. A track beyond both that has not walked (:func:`static_clutter`) takes no views -- a blob it shares
 with a person is the person's -- and never protects: someone who stands still at the back all along becomes
-background, not a person ("persistent static blobs become background, not people"). Before any of this, the floor grid's ghosts are explained away by the
+background, not a person ("persistent static blobs become background, not people"; cameras on one wall may place
+them in the margin, ``tests/app/recordings/test_rooms.py``, ``still``). The price: someone who stays in the margin
+moving in place is unprotected for those seconds, and the pixels they always cover become background. Before any of this, the floor grid's ghosts are explained away by the
 people found before them (:mod:`.ghosts`): where clutter is absorbed, a ghost that lasts protects it and shares
 the people's blobs. Not in mask videos, where nothing is absorbed: on the four-walker lab recording
 (:data:`silpose.datagen.lab.FOUR_WALKERS`, 200 frames, masks) explaining away took the rows off every true person
@@ -471,9 +476,10 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
     tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)
     absorb = 0 if opt.masks or opt.absorb_s <= 0 else max(1, int(round(opt.absorb_s * (fps or 25.0))))
+    wait = margin_wait(absorb, tracker) if absorb > 0 else 0
     if absorb > 0:  # static clutter becomes background, never a person (module docstring)
-        tracker.may_confirm = lambda t: may_be_person(t, grid)
-    lag = tracker.decided_within
+        tracker.may_confirm = lambda t: may_be_person(t, grid, wait)
+    lag = tracker.decided_within + wait  # a track in the margin is decided after ``wait`` steps: its rows held as long
     cams = {c: _Camera(readers[c], silhouettes,
                        min_blob_area(rig[names.index(c)], work[names.index(c)], workspace.center, opt.min_area),
                        keep_frame=not opt.masks,
@@ -578,9 +584,13 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
                             first_frame)
                 timings["overlays"] += time.perf_counter() - t0
             t0 = time.perf_counter()
+            if done and absorb > 0:  # a recording too short to tell: who stood alone in the margin is a person
+                tracker.finish(step - 1, lambda t: may_be_person(t, grid))
             pending = _emit(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
             timings["write"] += time.perf_counter() - t0
         t0 = t_loop_end = time.perf_counter()
+        if absorb > 0:  # (as above, when the loop ended on an empty chunk)
+            tracker.finish(step - 1, lambda t: may_be_person(t, grid))
         _emit(pending, writer, step, views_hist, floor_tracks, final=True)
         writer.close()
         files = [out / "joints.parquet", out / "joints.csv"]
@@ -851,11 +861,26 @@ def static_clutter(track: Track, grid: FloorGrid) -> bool:
     return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position, MARGIN_M)[0])
 
 
-def may_be_person(track: Track, grid: FloorGrid) -> bool:
-    """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or,
-    in the workspace or its margin, once some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which
-    live on other people's blobs, never have one)."""
-    return track.travel >= TRAVEL_M or (track.alone and bool(grid.in_workspace(track.position, MARGIN_M)[0]))
+def may_be_person(track: Track, grid: FloorGrid, wait: int = 0) -> bool:
+    """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or once
+    some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which live on other people's
+    blobs, never have one) -- in the workspace at once, in the margin around it (:data:`.floor.MARGIN_M`) only when
+    it has been tracked for ``wait`` steps (:func:`margin_wait`: it outlived the absorption of static clutter, so it
+    moves) or when the recording ends before that (:meth:`~.tracking.Tracker.finish`: too short to tell)."""
+    if track.travel >= TRAVEL_M:
+        return True
+    if not track.alone:
+        return False
+    if bool(grid.in_workspace(track.position)[0]):
+        return True
+    return bool(grid.in_workspace(track.position, MARGIN_M)[0]) and track.last - track.first >= wait
+
+
+def margin_wait(absorb: int, tracker: Tracker) -> int:
+    """Steps a track in the workspace's margin waits before it may become a person (:func:`may_be_person`): the
+    ``absorb`` steps after which static clutter becomes background, then the steps a tentative track lasts unseen
+    and the hits it needs (a track that still stands there was not absorbed: someone moving, not clutter)."""
+    return int(absorb) + tracker.decided_within
 
 
 def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,

@@ -33,7 +33,9 @@ A detection still left starts a tentative track when the caller allows it (the p
 detections whose feet some camera sees start one, :func:`silpose.app.recordings.views.grounded`; only those
 count toward a tentative track's hits). A tentative track becomes a person after ``min_hits`` hits -- and, when
 the caller sets ``may_confirm``, once that allows it (the pipeline, colour videos: a track that has travelled
-:data:`TRAVEL_M` from where it started, :attr:`Track.travel`, or one in the workspace that a camera has seen alone;
+:data:`TRAVEL_M` from where it started, :attr:`Track.travel`, or one in the workspace that a camera has seen alone,
+or in the margin around it once it has outlived the absorption of static clutter, :meth:`Tracker.finish` when the
+recording ends first;
 someone who stands still beyond the workspace all along is static clutter that becomes background, not a person;
 such a track may become a person later than ``decided_within``, and its rows before that are not written) -- and is
 dropped after ``tentative_misses`` consecutive misses (the floor grid's ghosts, between and behind real
@@ -306,6 +308,17 @@ class Tracker:
             self._reidentified.clear()
         self.tracks = keep
         return out
+
+    def finish(self, step: int, may_confirm: Callable[[Track], bool]) -> None:
+        """At the end of a recording: the tentative tracks with ``min_hits`` hits that ``may_confirm`` (instead of
+        :attr:`may_confirm`) allows become persons (:meth:`_confirm`; in the order they began), for a rule that
+        waits longer than the recording lasted. ``step``: the last step (persons detected then are not lost)."""
+        for t in sorted((t for t in self.tracks if not t.person and t.hits >= self.min_hits), key=lambda t: t.first):
+            if may_confirm(t):
+                self._confirm(t, self.tracks, step)
+        if self._reidentified:
+            self.tracks = [t for t in self.tracks if t.key not in self._reidentified]
+            self._reidentified.clear()
 
     def vouched(self, positions: np.ndarray, step: int) -> np.ndarray:
         """(D,) bool: detections ``positions`` (D, 2) metres of ``step`` within the gate of a person's track seen in
