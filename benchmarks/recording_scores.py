@@ -12,7 +12,9 @@ true pelvis), pairs more than ``gate`` metres apart left unpaired. Then:
 - errors, on paired rows with joints (status ``ok``): the root error (pelvis, metres), the world-frame
   joint error (mean over the 19 joints of the Euclidean distance, no alignment) and the root-relative
   joint error (the paper's protocol);
-- views: among paired rows, the fraction with at least 1, 2, 3, 4 usable views.
+- views: among paired rows, the fraction with at least 1, 2, 3, 4 usable views;
+- joints inside silhouettes (:func:`joints_inside`): the share of a paired row's 19 joints that project inside
+  the true person's own silhouette (their clean mask, dilated by ``tolerance_px``) in each view the row used.
 
 :func:`clean_reference` is the comparison the tests and benchmark make: the same people inferred from
 each person's own clean masks in every view, through the same floor grid, model and placement.
@@ -87,6 +89,47 @@ def score_rows(rows: dict, truth: np.ndarray, gate: float = 0.5) -> dict:
         "views_at_least": {k: float((nv >= k).mean()) if len(nv) else float("nan") for k in (1, 2, 3, 4)},
         "per_row": {"paired": paired, "world_error_m": world_err, "root_error_m": root_err},
     }
+
+
+def read_view_status(path: Path) -> np.ndarray:
+    """(R, K) str: ``view_status`` of every row of a ``joints.parquet``."""
+    return np.array(pq.read_table(path, columns=["view_status"]).column("view_status").to_pylist(), dtype=object)
+
+
+def joints_inside(rows: dict, view_status: np.ndarray, paired: np.ndarray, masks: np.ndarray, cameras,
+                  tolerance_px: int = 2) -> dict:
+    """The share of joints inside the true silhouettes (module docstring).
+
+    Args:
+        rows: :func:`read_rows`; view_status: (R, K) :func:`read_view_status`; paired: (R,) true person of each row
+            or -1 (:func:`score_rows`' ``per_row``).
+        masks: (T, P, K, H, W) bool, each true person's clean mask per camera.
+        cameras: the K cameras (``project``).
+        tolerance_px: a joint within this many pixels of the mask counts as inside.
+    Returns:
+        {"share": inside / joints tested, "joints": joints tested, "per_joint": (19,) shares}.
+    """
+    import cv2
+
+    kernel = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
+    inside = np.zeros(19)
+    tested = np.zeros(19)
+    for i in np.flatnonzero((paired >= 0) & (rows["status"] == "ok")):
+        f, p = int(rows["frame"][i]), int(paired[i])
+        for k, cam in enumerate(cameras):
+            if view_status[i][k] != "ok":
+                continue
+            grown = cv2.dilate(masks[f, p, k].view(np.uint8), kernel) > 0
+            u = np.round(cam.project(rows["joints"][i])).astype(int)
+            h, w = grown.shape
+            seen = (u[:, 0] >= 0) & (u[:, 0] < w) & (u[:, 1] >= 0) & (u[:, 1] < h)
+            hit = np.zeros(19, bool)
+            hit[seen] = grown[u[seen, 1], u[seen, 0]]
+            inside += hit
+            tested += 1
+    total = tested.sum()
+    return {"share": float(inside.sum() / total) if total else float("nan"), "joints": int(total),
+            "per_joint": np.where(tested > 0, inside / np.maximum(tested, 1), np.nan)}
 
 
 def clean_reference(model, masks: np.ndarray, noise_variance: float | None = None) -> dict:

@@ -19,12 +19,15 @@ Rows:
   1x single-threaded, 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
   share against the 1x run, :func:`_overlay_shares`), 1x carved (``carve=True``: views cut to the people's visual
   hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
-  are the ratios against the 1x run); and (``colour``) the first ``colour_frames`` steps as colour videos
+  are the ratios against the 1x run), 1x without the silhouette fit (``silhouette_fit=False``,
+  :mod:`silpose.app.recordings.silhouette_fit`); and (``colour``) the first ``colour_frames`` steps as colour videos
   at ``colour_scale`` x the lab's size (:func:`_colour_recording`), without and with overlays, next to their
   references in the same run (row ``reference``, :func:`decode_reference`: decoding alone, OpenCV's MOG2 alone,
   and the pipeline's shrinking to the working size and segmentation alone, CPU ms per step).
-- ``accuracy``: the 1x run (and the 1x carved run) against the truth (:mod:`benchmarks.recording_scores`): people, identity switches,
-  person-frames with >= 1..4 usable views, root / world-frame / root-relative errors; and the same walkers
+- ``accuracy``: the 1x run (and the 1x carved run, and the run without the silhouette fit) against the truth
+  (:mod:`benchmarks.recording_scores`): people, identity switches, person-frames with >= 1..4 usable views, root /
+  world-frame / root-relative errors, the share of joints inside the walker's own silhouette in the views used
+  (``joints_inside``, 2 px); and the same walkers
   inferred from clean per-person masks.
 - ``floor``: finding people on the floor, the occupancy grid (:mod:`silpose.app.recordings.floor`) vs the
   blobs' foot points through each camera's floor homography (:func:`foot_points`, the alternative): per
@@ -218,7 +221,8 @@ def peak_rss_bytes() -> int:
 
 
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,
-            background: str | None = None, work_person_px: int | None = None, carve: bool | None = None) -> dict:
+            background: str | None = None, work_person_px: int | None = None, carve: bool | None = None,
+            silhouette_fit: bool = True) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -242,7 +246,8 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     cpu0, t0 = time.process_time(), time.perf_counter()
     extra = {} if work_person_px is None else {"work_person_px": work_person_px}
     s = run_recording(m, videos, out, RecordingOptions(masks=background is None, background=background, overlays=overlays,
-                                                       threads=threads, robust=robust, carve=carve, **extra))
+                                                       threads=threads, robust=robust, carve=carve,
+                                                       silhouette_fit=silhouette_fit, **extra))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
@@ -369,7 +374,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
     import numpy as np
 
     from silpose.datagen.lab import make_lab_recording, unpack_masks
-    from benchmarks.recording_scores import clean_reference, read_rows, score_reference, score_rows
+    from benchmarks.recording_scores import (clean_reference, joints_inside, read_rows, read_view_status, score_reference,
+                                             score_rows)
     from silpose.model.persistence import load_model
 
     with tempfile.TemporaryDirectory(prefix="silpose-bench-recordings-") as tmp:
@@ -385,7 +391,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
                 ("1x single-threaded", lab / "masks", False, 0, None, {}),
                 ("1x with overlays", lab / "masks", True, threads, None, {}),
-                ("1x carved", lab / "masks", False, threads, None, {"carve": True})]
+                ("1x carved", lab / "masks", False, threads, None, {"carve": True}),
+                ("1x without the silhouette fit", lab / "masks", False, threads, None, {"silhouette_fit": False})]
         if wanted("colour"):
             videos, clips, big_model = _colour_recording(lab, tmp / "big", colour_scale, model, colour_frames)
             size = f"{colour_scale * 644}x{colour_scale * 486}"
@@ -397,7 +404,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
             rows.append({"name": "reference", "run": f"colour 4 x {size}: decode / MOG2 / shrink + segment alone, 1 thread",
                          **ref.value})
-        first = carved = None
+        first = carved = unfitted = None
         for label, videos, overlays, thr, robust, extra in plan:
             if not (wanted(label) or (label.startswith("colour") and wanted("colour"))):
                 continue
@@ -405,7 +412,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             res = subproc.call(__name__, "measure", dict(model=extra.get("model", model), videos=str(videos), out=str(out),
                                                           overlays=overlays, threads=thr, robust=robust,
                                                           background=extra.get("background"),
-                                                          carve=extra.get("carve")))
+                                                          carve=extra.get("carve"),
+                                                          silhouette_fit=extra.get("silhouette_fit", True)))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})
@@ -413,6 +421,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 first = out
             if label == "1x carved":
                 carved = out
+            if label == "1x without the silhouette fit":
+                unfitted = out
         _overlay_shares(rows)
         runs_by = {r["run"]: r for r in rows if r.get("name") == "run"}
         if "1x" in runs_by and "1x carved" in runs_by:
@@ -429,17 +439,22 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
             return rows
         truth = np.load(lab / "truth.npz")
         ref = score_reference(clean_reference(load_model(model), unpack_masks(truth)), truth["joints"])
-        for label, folder in (("recording (lossy mask videos)", first), ("recording, carved", carved)):
+        cameras = list(load_model(model).rig_)
+        for label, folder in (("recording (lossy mask videos)", first), ("recording, carved", carved),
+                              ("recording, without the silhouette fit", unfitted)):
             if folder is None:
                 continue
-            sc = score_rows(read_rows(folder / "joints.parquet"), truth["joints"])
+            got = read_rows(folder / "joints.parquet")
+            sc = score_rows(got, truth["joints"])
+            inside = joints_inside(got, read_view_status(folder / "joints.parquet"), sc["per_row"]["paired"],
+                                   unpack_masks(truth), cameras)
             rows.append({"name": "accuracy", "input": label, "frames": n_frames,
                          "persons": sc["persons"], "identity_switches": sc["identity_switches"],
                          "person_frames": sc["person_frames"], "paired": sc["paired"], "with_joints": sc["with_joints"],
                          "false_rows": sc["false_rows"],
                          **{f"views_ge_{k}": v for k, v in sc["views_at_least"].items()},
                          "root_cm": sc["root_error_cm"], "world_cm": sc["world_error_cm"],
-                         "relative_cm": sc["relative_error_cm"]})
+                         "relative_cm": sc["relative_error_cm"], "joints_inside": inside["share"]})
         rows.append({"name": "accuracy", "input": "clean per-person masks, every view", "frames": n_frames,
                      "with_joints": ref["with_joints"], "root_cm": ref["root_error_cm"], "world_cm": ref["world_error_cm"],
                      "relative_cm": ref["relative_error_cm"]})

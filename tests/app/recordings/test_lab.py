@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 
 from silpose.app.recordings.pipeline import RecordingOptions, run_recording
 from silpose.datagen.lab import LAB_TRANSFORM, unpack_masks
-from benchmarks.recording_scores import clean_reference, read_rows, score_reference, score_rows
+from benchmarks.recording_scores import (clean_reference, joints_inside, read_rows, read_view_status, score_reference,
+                                         score_rows)
 from silpose.model.persistence import load_model
 from silpose.shared.cli import build_app
 
@@ -103,6 +104,32 @@ def test_world_frame_error_within_a_measured_bound_of_clean_masks(scores, refere
     assert scores["world_error_cm"] <= reference["world_error_cm"] + WORLD_MARGIN_CM
     assert scores["root_error_cm"] <= ROOT_BOUND_CM
     assert scores["views_at_least"][1] >= 0.9
+
+
+def test_joints_fitted_inside_the_silhouettes_of_the_views_used(run, scores, truth, lab, lab_model, reference,
+                                                                tmp_path):
+    """The silhouette fit (``silpose.app.recordings.silhouette_fit``, on by default) against the same run without it
+    (``--no-silhouette-fit``), scored against each walker's own clean masks in the views each row used (2 px): more
+    joints inside, and the world-frame error no worse. Measured here (50 frames, the small model): 0.845 -> 0.990 of
+    the joints inside, world error 14.60 -> 14.24 cm."""
+    out = run[0]
+    plain = tmp_path / "plain"
+    res = CliRunner().invoke(build_app(), ["infer", str(lab_model), "--videos", str(lab / "masks"), "--masks",
+                                           "--out", str(plain), "--no-progress", "--no-silhouette-fit",
+                                           "--overlays", "none"])
+    assert res.exit_code == 0, res.output
+    plain_rows = read_rows(plain / "joints.parquet")
+    plain_scores = score_rows(plain_rows, truth["joints"])
+    cameras = list(load_model(lab_model).rig_)
+    fitted = joints_inside(run[2], read_view_status(out / "joints.parquet"), scores["per_row"]["paired"],
+                           truth["masks"], cameras)
+    before = joints_inside(plain_rows, read_view_status(plain / "joints.parquet"), plain_scores["per_row"]["paired"],
+                           truth["masks"], cameras)
+    print("inside", before["share"], "->", fitted["share"], "world cm", plain_scores["world_error_cm"], "->",
+          scores["world_error_cm"])
+    assert fitted["joints"] == before["joints"] > 500  # the same rows and views: only the joints moved
+    assert fitted["share"] >= before["share"] + 0.03 and fitted["share"] >= 0.95
+    assert scores["world_error_cm"] <= plain_scores["world_error_cm"] + 0.2
 
 
 def test_joints_in_the_calibration_frame(lab, lab_model, tmp_path):

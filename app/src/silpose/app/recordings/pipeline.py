@@ -15,8 +15,8 @@ then per chunk:
 4. the model infers every detected person's root-relative joints from their usable views, missing views
    marginalised (:func:`silpose.app.inference.infer_rows`, as for one person, :mod:`.one_person`); a person
    with no usable view gets no joints;
-5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`); joints
-   are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
+5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`), each
+   joint moved inside the person's outline in every used view (:mod:`.silhouette_fit`); joints are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
 
 Threads: on a machine of 3 cores or more (:data:`POOL_MIN_CORES`) the per-camera stages run in a pool of one thread
@@ -124,6 +124,7 @@ from .ghosts import explain_away
 from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
+from .silhouette_fit import fit_to_silhouettes
 from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
@@ -191,6 +192,8 @@ class RecordingOptions:
     47 and 92 without -- a mask frame decodes in ~1 ms, and the extra threads only contend for the cores).
     align_plates: register each empty-room clip to the recording's own view of the room before its background
     is learnt (:mod:`silpose.segment.align`: a camera nudged or a video rescaled since the plate).
+    silhouette_fit: move each placed joint, as little as its posterior standard deviation allows, inside the
+    outlines of the views used (:mod:`.silhouette_fit`).
     """
 
     masks: bool = False
@@ -217,6 +220,7 @@ class RecordingOptions:
     overlay_dir: Path | None = None
     align_plates: bool = True
     carve: bool | None = None
+    silhouette_fit: bool = True
 
 
 @dataclass
@@ -932,6 +936,9 @@ def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, 
         floor = np.stack([people[i].floor for i in rows])
         r = place_roots(pose, res.centroid, res.views_present, cams, floor)
         joints[rows] = pose + r[:, None]
+        if opt.silhouette_fit:  # each joint moved inside the outlines of the views used (.silhouette_fit)
+            joints[rows] = fit_to_silhouettes(joints[rows], res.joint_std, c, used[rows], list(rig))
+            r = joints[rows, 0].copy()  # the root is the pelvis joint
         std[rows] = res.joint_std
         root[rows] = r
         contours[rows] = place_contours(res, r, cams)
