@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from silpose.app.recordings.silhouette_fit import (MARGIN_M, fit_to_silhouettes, inside_far_from_outline, joint_margins,
-                                                 signed_distance)
+                                                 orientations, signed_distance)
 from silpose.datagen.lab import lab_rig
 from silpose.shared.skeleton import JOINT_INDEX, N_JOINTS, TERMINAL_JOINTS
 
@@ -22,16 +22,43 @@ def _star(rng, n=60, centre=(100.0, 80.0)):
 
 def test_signed_distance_matches_opencv():
     rng = np.random.default_rng(0)
-    polys = np.stack([_star(rng) for _ in range(5)])  # (B, n, 2)
-    pts = rng.uniform([20, 0], [180, 160], size=(5, 300, 2))
-    s, near = signed_distance(pts, polys)
-    for b in range(5):
-        contour = polys[b].astype(np.float32).reshape(-1, 1, 2)
-        ref = np.array([cv2.pointPolygonTest(contour, (float(x), float(y)), True) for x, y in pts[b]])
+    for _ in range(5):
+        poly = _star(rng)  # a simple polygon (star-shaped about its centre), edges of very different lengths
+        pts = rng.uniform([20, 0], [180, 160], size=(300, 2))
+        s, near, edge = signed_distance(pts, np.broadcast_to(poly, (300,) + poly.shape))
+        contour = poly.astype(np.float32).reshape(-1, 1, 2)
+        ref = np.array([cv2.pointPolygonTest(contour, (float(x), float(y)), True) for x, y in pts])
         on_edge = np.abs(ref) < 1e-3
-        assert np.allclose(-s[b][~on_edge], ref[~on_edge], atol=1e-3)  # OpenCV: positive inside
-        assert np.allclose(np.linalg.norm(pts[b] - near[b], axis=1), np.abs(s[b]), atol=1e-9)
-    assert (s < 0).any() and (s > 0).any()
+        assert np.allclose(-s[~on_edge], ref[~on_edge], atol=1e-3)  # OpenCV: positive inside
+        assert np.allclose(np.linalg.norm(pts - near, axis=1), np.abs(s), atol=1e-9)
+        assert (s < 0).any() and (s > 0).any()
+        # a point's nearest point lies on its edge
+        a, b = poly[edge], poly[(edge + 1) % len(poly)]
+        cross = (b[:, 0] - a[:, 0]) * (near[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (near[:, 0] - a[:, 0])
+        assert np.allclose(cross, 0.0, atol=1e-6)
+
+
+def test_a_window_around_the_last_nearest_edge_finds_it_again_after_a_small_move():
+    rng = np.random.default_rng(2)
+    ang = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    poly = np.stack([100 + 50 * np.cos(ang), 80 + 80 * np.sin(ang)], axis=1)  # edges ~2 px, as a contour's
+    polys = np.broadcast_to(poly, (500, 200, 2))
+    pts = rng.uniform([40, -10], [160, 170], size=(4000, 2))
+    s0, _, e0 = signed_distance(pts, np.broadcast_to(poly, (4000, 200, 2)))
+    near_outline = np.abs(s0) < 6.0  # the joints the fit moves: outside, or within a margin of the outline
+    pts, e0 = pts[near_outline][:500], e0[near_outline][:500]
+    assert len(pts) == 500
+    moved = pts + rng.normal(0, 3, size=pts.shape)
+    full = signed_distance(moved, polys)
+    windowed = signed_distance(moved, polys, around=e0, window=12)
+    for f, w in zip(full, windowed):
+        assert np.allclose(f, w)
+    shared = signed_distance(moved, poly[None], which=np.zeros(len(moved), int), around=e0, window=12,
+                             orientation=orientations(poly[None]))
+    for f, w in zip(full, shared):
+        assert np.array_equal(f, w)
+    far = signed_distance(pts + 80.0, polys, around=e0, window=2)[0]  # far from the window: a wrong (larger) distance, not a crash
+    assert np.all(np.abs(far) >= np.abs(signed_distance(pts + 80.0, polys)[0]) - 1e-9)
 
 
 BOX = np.array([[x, y, z] for x in (-0.2, 0.2) for y in (-0.15, 0.15) for z in (0.0, 1.7)])
@@ -52,7 +79,7 @@ def _outlines(cameras, box=BOX, n=120):
 
 def _inside_by(cameras, outlines, used, x):
     """(K,) px: how far inside each used outline the point x (3,) projects (negative: outside)."""
-    return np.array([-signed_distance(cam.project(x[None])[None], outlines[0, k][None])[0][0, 0]
+    return np.array([-signed_distance(cam.project(x[None]), outlines[0, k][None])[0][0]
                      for k, cam in enumerate(cameras) if used[0, k]])
 
 
@@ -131,7 +158,9 @@ def test_the_screen_only_settles_points_inside_by_more_than_the_margin():
     polys = np.stack(polys)
     pts = rng.uniform([20, 0], [180, 160], size=(4, 400, 2))
     margin = rng.uniform(0, 6, size=(4, 400))
-    settled = inside_far_from_outline(pts, polys, margin)
-    s, _ = signed_distance(pts, polys)
+    settled, vertex = inside_far_from_outline(pts, polys, margin)
+    s = np.stack([signed_distance(pts[b], np.broadcast_to(polys[b], (400, 200, 2)))[0] for b in range(4)])
     assert settled.sum() > 100  # it settles many
     assert np.all(s[settled] < -margin[settled])  # and never one within the margin of the outline, or outside
+    brute = np.linalg.norm(pts[:, :, None, :] - polys[:, None, :, :], axis=3).argmin(axis=2)
+    assert np.array_equal(vertex, brute)  # the nearest vertex, where the fit first looks for the nearest edge

@@ -19,7 +19,8 @@ X0 the placed answer and D = diag(std^2) its posterior variance per axis (the mo
 :data:`MIN_STD_M`): a Gaussian prior times a one-sided Gaussian likelihood of the outline. Joints already inside
 every outline by the margin do not move. Gauss-Newton, at most :data:`N_STEPS` steps (until no joint moves
 :data:`SETTLED_M`), the residual's gradient ``u_k^T J_k`` (u_k the outward unit normal at the nearest outline
-point, J_k the projection's 2 x 3 Jacobian by finite differences), every joint of every row at once; a step that
+point, found among :data:`WINDOW` edges either side of where it was last, first from the nearest vertex; J_k the
+projection's 2 x 3 Jacobian by finite differences), every joint of every row at once; a step that
 would raise a joint's E is halved (at most :data:`HALVINGS` times, then that joint stays), and a joint stops once
 its step is below :data:`SETTLED_M`. Without that, a step
 that carried a joint past the margin of every view left only the prior, whose full step took it back where it
@@ -36,7 +37,7 @@ world-frame / root-relative joint error, and the median over rows of the world-f
 =====================================================  ==============  =========================================
 recording                                              inside          world / relative / median world
 =====================================================  ==============  =========================================
-four walkers crossing (``benchmarks.identities``),     0.896 -> 0.937  12.11 / 10.00 / 5.27 -> 11.83 / 9.81 / 5.04
+four walkers crossing (``benchmarks.identities``),     0.896 -> 0.936  12.11 / 10.00 / 5.27 -> 11.83 / 9.81 / 5.04
 mask videos, 200 frames
 the same, colour videos against empty-room clips       0.886 -> 0.925  13.09 / 10.75 / 6.16 -> 13.02 / 10.78 / 6.01
 two walkers (``benchmarks.recordings``), mask videos,  0.982 -> 1.000  4.42 / 3.77 / 4.15 -> 4.27 / 3.72 / 4.00
@@ -44,14 +45,11 @@ two walkers (``benchmarks.recordings``), mask videos,  0.982 -> 1.000  4.42 / 3.
 =====================================================  ==============  =========================================
 
 The price, on the two walkers' mask videos (three alternating pairs of runs, idle 2-core machine): the placement
-stage's share of the run's stage time 4.3-4.7 % -> 18.0-18.7 %, about 2 ms of CPU per step of two people
-(15.1 / 15.5 / 19.0 -> 17.6 / 16.8 / 16.1 CPU ms per step; the runs' own spread is as large); 21 % of the joints
-take part there, the rest settled by :func:`inside_far_from_outline`. ``--no-silhouette-fit`` skips it.
-
-A first version gave every joint the 2 cm margin: the head top and the toes, which lie at the body's surface,
-were pulled 2 cm in (head top 7.5 -> 7.8 cm on the first recording) and the root-relative error rose (10.75 ->
-10.85 on colour, 3.77 -> 3.83 on the two walkers). The benchmark ``recordings`` reports the figure with and
-without the fit (``accuracy`` rows, ``joints_inside``).
+stage's share of the run's stage time 4.7-5.0 % -> 11.3-11.5 %, about 1 ms of CPU per step of two people (CPU ms
+per step 15.97 / 16.06 / 15.24 without, 14.98 / 15.46 / 15.90 with: within the runs' own spread); 21 % of the
+joints take part there, the rest settled by :func:`inside_far_from_outline`. A first version searched every edge of
+the outline at every step, ran every projection apart and gathered the outlines per step: 2 ms per step (share
+18 %). ``--no-silhouette-fit`` skips the fit.
 """
 
 from __future__ import annotations
@@ -60,7 +58,7 @@ import numpy as np
 
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
-__all__ = ["MARGIN_M", "SIGMA_PX", "MIN_STD_M", "N_STEPS", "SETTLED_M", "HALVINGS", "joint_margins", "signed_distance", "inside_far_from_outline",
+__all__ = ["MARGIN_M", "SIGMA_PX", "MIN_STD_M", "N_STEPS", "SETTLED_M", "HALVINGS", "WINDOW", "joint_margins", "orientations", "signed_distance", "inside_far_from_outline",
            "fit_to_silhouettes"]
 
 #: metres: a joint should lie at least this far inside each outline (about a wrist's radius); the joints at the end
@@ -76,7 +74,11 @@ N_STEPS = 3
 SETTLED_M = 5e-4
 #: halvings of a step that would raise a joint's energy before that joint stops
 HALVINGS = 2
+#: edges searched either side of a joint's last nearest edge (first: the edge from its nearest vertex): a step moves
+#: a joint's image a few px, a contour's edges are 2-3 px long at a person's working size
+WINDOW = 12
 _EPS = 1e-4
+_STENCIL = np.vstack([np.zeros(3), _EPS * np.eye(3)])  # (4, 3) metres
 
 
 def joint_margins(n_joints: int = N_JOINTS) -> np.ndarray:
@@ -86,47 +88,81 @@ def joint_margins(n_joints: int = N_JOINTS) -> np.ndarray:
     return m
 
 
-def signed_distance(points: np.ndarray, polygons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distance of points to closed polygons, and the nearest polygon point.
+def orientations(polygons: np.ndarray) -> np.ndarray:
+    """(U,) +1 or -1: the sign of each closed polygon's (U, n, 2) shoelace area (0 for a degenerate one)."""
+    x, y = polygons[..., 0], polygons[..., 1]
+    return np.sign((x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1))
+
+
+def _edge_normals(polygons: np.ndarray, which: np.ndarray, edges: np.ndarray, orientation: np.ndarray) -> np.ndarray:
+    """(M, E, 2) outward unit normals of edges ``edges`` (M, E) of polygons ``which`` (M,) of ``polygons`` (U, n, 2),
+    whose orientations are ``orientation`` (U,) (:func:`orientations`); 0 for a zero-length edge."""
+    n = polygons.shape[1]
+    w = which[:, None]
+    d = polygons[w, (edges + 1) % n] - polygons[w, edges % n]
+    length = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+    scale = np.where(length > 0, orientation[w] / np.where(length > 0, length, 1.0), 0.0)
+    return np.stack([d[..., 1] * scale, -d[..., 0] * scale], axis=-1)
+
+
+def signed_distance(points: np.ndarray, polygons: np.ndarray, which: np.ndarray | None = None,
+                    around: np.ndarray | None = None, window: int = 0,
+                    orientation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signed distance of points to closed, simple polygons, the nearest polygon point and its edge.
+
+    The nearest point of the edges searched (all of them, or with ``around`` only edges ``around - window`` ..
+    ``around + window``: where a point that moved a little finds its nearest edge again) and its side: the outward
+    normal of its edge, or at a vertex the sum of the two edges' normals (the pseudo-normal: the side it gives is
+    exact for the nearest point of a simple polygon).
 
     Args:
-        points: (B, P, 2) px.
-        polygons: (B, n, 2) px, one closed outline per batch entry (edges i -> i + 1, n - 1 -> 0).
+        points: (M, 2) px.
+        polygons: (U, n, 2) px, closed outlines (edges i -> i + 1, n - 1 -> 0).
+        which: (M,) int, each point's outline in ``polygons`` (None: point i, outline i).
+        around: (M,) int edge indices, or None: every edge.
+        window: edges searched either side of ``around``.
+        orientation: (U,) the outlines' :func:`orientations` when known.
     Returns:
-        (s (B, P) px, positive outside the polygon (even-odd rule); nearest (B, P, 2) px, the nearest point of its
-        edges).
+        (s (M,) px, positive outside; nearest (M, 2) px; edge (M,) int, the nearest point's edge).
     """
     pts = np.asarray(points, float)
     poly = np.asarray(polygons, float)
-    nxt = np.roll(poly, -1, axis=1)
-    ax, ay = poly[:, None, :, 0], poly[:, None, :, 1]  # (B, 1, n)
-    abx, aby = nxt[:, None, :, 0] - ax, nxt[:, None, :, 1] - ay
-    inv = 1.0 / np.maximum(abx * abx + aby * aby, 1e-12)
-    px, py = pts[:, :, None, 0], pts[:, :, None, 1]  # (B, P, 1)
-    apx, apy = px - ax, py - ay  # (B, P, n)
-    t = (apx * abx + apy * aby) * inv
+    n = poly.shape[1]
+    which = np.arange(len(pts)) if which is None else np.asarray(which)
+    w = which[:, None]
+    if around is None:
+        cand = np.broadcast_to(np.arange(n), (len(pts), n))
+        a = poly[which]
+        b = np.roll(a, -1, axis=1)
+    else:
+        cand = (np.asarray(around)[:, None] + np.arange(-window, window + 1)) % n  # (M, E)
+        a, b = poly[w, cand], poly[w, (cand + 1) % n]  # (M, E, 2)
+    abx, aby = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
+    apx, apy = pts[:, None, 0] - a[..., 0], pts[:, None, 1] - a[..., 1]
+    t = (apx * abx + apy * aby) / np.maximum(abx * abx + aby * aby, 1e-12)
     np.clip(t, 0.0, 1.0, out=t)
-    dx = apx - t * abx
-    dy = apy - t * aby
-    d2 = dx * dx + dy * dy
-    e = d2.argmin(axis=2)  # (B, P): the nearest edge
-    bi = np.arange(len(pts))[:, None]
-    te = np.take_along_axis(t, e[..., None], axis=2)[..., 0]
-    near = np.stack([poly[bi, e, 0] + te * abx[bi, 0, e], poly[bi, e, 1] + te * aby[bi, 0, e]], axis=-1)
-    dist = np.sqrt(np.take_along_axis(d2, e[..., None], axis=2)[..., 0])
-    # even-odd rule: edges crossing the horizontal line through the point, to its right (apx < the crossing's x - ax)
-    straddle = (ay > py) != (ay + aby > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        right = apx * aby < apy * abx  # apx < apy * abx / aby, multiplied through by aby ...
-    right ^= aby < 0  # ... whose sign flips the inequality
-    inside = (np.count_nonzero(straddle & right, axis=2) % 2) == 1
-    return np.where(inside, -dist, dist), near
+    dx, dy = apx - t * abx, apy - t * aby
+    k = (dx * dx + dy * dy).argmin(axis=1)[:, None]  # (M, 1): the nearest candidate
+    edge = np.take_along_axis(cand, k, axis=1)[:, 0]
+    te = np.take_along_axis(t, k, axis=1)[:, 0]
+    near = np.stack([np.take_along_axis(a[..., 0] + t * abx, k, axis=1)[:, 0],
+                     np.take_along_axis(a[..., 1] + t * aby, k, axis=1)[:, 0]], axis=-1)
+    off = pts - near
+    dist = np.sqrt(off[:, 0] ** 2 + off[:, 1] ** 2)
+    orient = orientations(poly) if orientation is None else np.asarray(orientation)
+    normals = _edge_normals(poly, which, edge[:, None] + np.array([-1, 0, 1]), orient)  # (M, 3, 2)
+    normal = normals[:, 1] + np.where((te <= 0.0)[:, None], normals[:, 0], 0.0) + np.where((te >= 1.0)[:, None],
+                                                                                          normals[:, 2], 0.0)
+    outside = (off * normal).sum(axis=1) > 0
+    return np.where(outside, dist, -dist), near, edge
 
 
-def inside_far_from_outline(points: np.ndarray, polygons: np.ndarray, margin: np.ndarray) -> np.ndarray:
+def inside_far_from_outline(points: np.ndarray, polygons: np.ndarray,
+                            margin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(B, P) bool: the points (B, P, 2) px lie inside their closed polygon (B, n, 2) px by more than ``margin``
     (B, P) px -- a cheap test that settles most joints without the nearest edge: inside by the even-odd rule, and
-    farther than the margin from every edge, since an edge is no nearer than its nearer end less half its length."""
+    farther than the margin from every edge, since an edge is no nearer than its nearer end less half its length;
+    and (B, P) int, each point's nearest vertex (where :func:`signed_distance` looks for the nearest edge)."""
     # relative to each polygon's first vertex, in float32 (a screen: 1e-3 px is far below the margins compared)
     poly = np.asarray(polygons, float)
     origin = poly[:, :1, :]
@@ -140,9 +176,11 @@ def inside_far_from_outline(points: np.ndarray, polygons: np.ndarray, margin: np
     straddle = (ay > py) != (ay + aby > py)
     right = (apx * aby < apy * abx) ^ (aby < 0)  # the edge crosses the point's row to its right (signed_distance)
     inside = (np.count_nonzero(straddle & right, axis=2) % 2) == 1
-    nearest_vertex = np.sqrt((apx * apx + apy * apy).min(axis=2))  # (B, P)
+    d2 = apx * apx + apy * apy
+    vertex = d2.argmin(axis=2)  # (B, P)
+    nearest_vertex = np.sqrt(np.take_along_axis(d2, vertex[..., None], axis=2)[..., 0])
     half_edge = 0.5 * np.sqrt(abx * abx + aby * aby).max(axis=2)  # (B, 1)
-    return inside & (nearest_vertex - half_edge - 1e-3 > margin)
+    return inside & (nearest_vertex - half_edge - 1e-3 > margin), vertex
 
 
 def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: np.ndarray, used: np.ndarray,
@@ -150,7 +188,7 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
     """Joints moved inside the outlines of the views used (module doc).
 
     Only the joints that are not already inside every used outline by the margin take part
-    (:func:`inside_far_from_outline` first, then the exact :func:`signed_distance`); the others keep their place.
+    (:func:`inside_far_from_outline` first, then :func:`signed_distance`); the others keep their place.
 
     Args:
         joints: (R, J, 3) metres, silpose's frame: the placed answer X0.
@@ -173,6 +211,7 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
     focal = np.array([float(cam.K[0, 0]) for cam in cameras])
     # the joints that take part: outside, or within the margin of, some used outline
     active = np.zeros((rows.size, nj), bool)
+    vertex = np.zeros((rows.size, nj, len(cameras)), np.intp)  # each joint's nearest outline vertex per camera
     for k, cam in enumerate(cameras):
         sel = np.flatnonzero(used[rows, k])
         if sel.size == 0:
@@ -180,7 +219,8 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
         xs = X0[rows[sel]].reshape(-1, 3)
         depth = cam.to_camera(xs)[:, 2]
         margin = (np.tile(margins_m, sel.size) * focal[k] / np.maximum(depth, 1e-6)).reshape(sel.size, nj)
-        settled = inside_far_from_outline(cam.project(xs).reshape(sel.size, nj, 2), contours[rows[sel], k], margin)
+        settled, vertex[sel, :, k] = inside_far_from_outline(cam.project(xs).reshape(sel.size, nj, 2),
+                                                             contours[rows[sel], k], margin)
         active[sel] |= ~settled | (depth <= 0).reshape(sel.size, nj)
     ar, aj = np.nonzero(active)
     if ar.size == 0:
@@ -190,9 +230,18 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
     std = np.asarray(joint_std, float)[row, aj]
     var = np.maximum(np.where(np.isfinite(std), std, MIN_STD_M), MIN_STD_M) ** 2
 
-    def linearised(x: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """E (I,), and its Gauss-Newton Hessian (I, 3, 3) and half gradient (I, 3), of the joints ``idx`` (I,) of
-        those taking part, at x (I, 3)."""
+    n_cams = len(cameras)
+    table = contours.reshape(-1, *contours.shape[2:])  # (R * K, n, 2): outline of row r, camera k at r * K + k
+    orient = np.zeros(len(table))
+    used_rows = np.flatnonzero(used.reshape(-1))
+    orient[used_rows] = orientations(table[used_rows])
+    # per (joint taking part, camera): where its nearest edge was last found (first: its nearest vertex's edge)
+    nearest_edge = vertex[ar, aj].reshape(-1).copy()
+
+    def linearised(x: np.ndarray, idx: np.ndarray):
+        """E (I,), its Gauss-Newton Hessian (I, 3, 3) and half gradient (I, 3), of the joints ``idx`` (I,) of those
+        taking part, at x (I, 3); and (their positions, pair ids, nearest edges) to keep when the caller accepts
+        x. Each pair's nearest edge is searched :data:`WINDOW` edges either side of the last one."""
         d = x - x0[idx]
         v = var[idx]
         energy = (d * d / v).sum(axis=1)
@@ -200,24 +249,27 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
         hess[:, [0, 1, 2], [0, 1, 2]] = 1.0 / v
         grad_half = d / v
         # every (joint, used view) pair at once: projections per camera, then one distance computation
-        ats, p0s, jacs, polys, margins = [], [], [], [], []
+        ats, p0s, jacs, polys, margins, pair_ids = [], [], [], [], [], []
         for k, cam in enumerate(cameras):
             at = np.flatnonzero(used[row[idx], k])
             if at.size == 0:
                 continue
             xs = x[at]
-            p0 = cam.project(xs)
+            uv = cam.project(xs[:, None, :] + _STENCIL)  # (m, 4, 2): the joint, then a step along each axis
+            p0 = uv[:, 0]
             depth = cam.to_camera(xs)[:, 2]
             ats.append(at)
             p0s.append(p0)
-            jacs.append(np.stack([(cam.project(xs + _EPS * e) - p0) / _EPS for e in np.eye(3)], axis=2))  # (m, 2, 3)
-            polys.append(contours[row[idx[at]], k])
+            jacs.append(((uv[:, 1:] - p0[:, None]) / _EPS).transpose(0, 2, 1))  # (m, 2, 3) by finite differences
+            polys.append(row[idx[at]] * n_cams + k)
             margins.append(np.where(depth > 0, margins_m[aj[idx[at]]] * focal[k] / np.maximum(depth, 1e-6), np.nan))
+            pair_ids.append(idx[at] * n_cams + k)
         if not ats:
-            return energy, hess, grad_half
+            return energy, hess, grad_half, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp))
         at, p0, jac = np.concatenate(ats), np.concatenate(p0s), np.concatenate(jacs)
-        s, near = signed_distance(p0[:, None, :], np.concatenate(polys))
-        s, near = s[:, 0], near[:, 0]
+        pairs = np.concatenate(pair_ids)
+        s, near, edge = signed_distance(p0, table, np.concatenate(polys), nearest_edge[pairs], WINDOW, orient)
+        found = (at, pairs, edge)
         res = (s + np.concatenate(margins)) / SIGMA_PX  # NaN behind the camera
         act = (res > 0) & np.isfinite(res)
         if act.any():
@@ -230,11 +282,18 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
             np.add.at(energy, at, res * res)
             np.add.at(hess, at, gk[:, :, None] * gk[:, None, :])
             np.add.at(grad_half, at, res[:, None] * gk)
-        return energy, hess, grad_half
+        return energy, hess, grad_half, found
+
+    def keep_edges(found, accepted: np.ndarray) -> None:
+        """Remember the nearest edges of the pairs of the accepted joints (positions ``accepted`` (I,) bool)."""
+        at, pairs, edge = found
+        ok = accepted[at]
+        nearest_edge[pairs[ok]] = edge[ok]
 
     x = x0.copy()
     every = np.arange(len(x))
-    energy, hess, grad_half = linearised(x, every)
+    energy, hess, grad_half, found = linearised(x, every)
+    keep_edges(found, np.ones(len(x), bool))
     alive = every  # joints still moving
     for _ in range(N_STEPS):
         step = np.linalg.solve(hess[alive], -grad_half[alive][..., None])[..., 0]
@@ -242,8 +301,9 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
         moved = np.zeros(alive.size, bool)
         for _ in range(HALVINGS + 1):  # backtracking: each joint's energy must not rise
             who = alive[todo]
-            e, h, g = linearised(x[who] + step[todo], who)
+            e, h, g, found = linearised(x[who] + step[todo], who)
             ok = e <= energy[who] * (1 + 1e-12)
+            keep_edges(found, ok)
             took = who[ok]
             x[took] += step[todo[ok]]
             energy[took], hess[took], grad_half[took] = e[ok], h[ok], g[ok]
