@@ -19,7 +19,8 @@ X0 the placed answer and D = diag(std^2) its posterior variance per axis (the mo
 :data:`MIN_STD_M`): a Gaussian prior times a one-sided Gaussian likelihood of the outline. Joints already inside
 every outline by the margin do not move. Gauss-Newton, at most :data:`N_STEPS` steps (until no joint moves
 :data:`SETTLED_M`), the residual's gradient ``u_k^T J_k`` (u_k the outward unit normal at the nearest outline
-point, found among :data:`WINDOW` edges either side of where it was last, first from the nearest vertex; J_k the
+point, found among :data:`WINDOW` edges either side of where it was last -- first from the nearest vertex, and
+among every edge after a move beyond :data:`REACH` of the window; J_k the
 projection's 2 x 3 Jacobian by finite differences), every joint of every row at once; a step that
 would raise a joint's E is halved (at most :data:`HALVINGS` times, then that joint stays), and a joint stops once
 its step is below :data:`SETTLED_M`. Without that, a step
@@ -45,8 +46,8 @@ two walkers (``benchmarks.recordings``), mask videos,  0.982 -> 1.000  4.42 / 3.
 =====================================================  ==============  =========================================
 
 The price, on the two walkers' mask videos (three alternating pairs of runs, idle 2-core machine): the placement
-stage's share of the run's stage time 4.7-5.0 % -> 11.3-11.5 %, about 1 ms of CPU per step of two people (CPU ms
-per step 15.97 / 16.06 / 15.24 without, 14.98 / 15.46 / 15.90 with: within the runs' own spread); 21 % of the
+stage's share of the run's stage time 4.6-5.1 % -> 12.1-12.8 %, about 1 ms of CPU per step of two people (CPU ms
+per step 15.67 / 15.10 / 14.35 without, 15.96 / 15.01 / 15.59 with: within the runs' own spread); 21 % of the
 joints take part there, the rest settled by :func:`inside_far_from_outline`. A first version searched every edge of
 the outline at every step, ran every projection apart and gathered the outlines per step: 2 ms per step (share
 18 %). ``--no-silhouette-fit`` skips the fit.
@@ -58,7 +59,7 @@ import numpy as np
 
 from silpose.shared.skeleton import N_JOINTS, TERMINAL_JOINTS
 
-__all__ = ["MARGIN_M", "SIGMA_PX", "MIN_STD_M", "N_STEPS", "SETTLED_M", "HALVINGS", "WINDOW", "joint_margins", "orientations", "signed_distance", "inside_far_from_outline",
+__all__ = ["MARGIN_M", "SIGMA_PX", "MIN_STD_M", "N_STEPS", "SETTLED_M", "HALVINGS", "WINDOW", "REACH", "joint_margins", "orientations", "signed_distance", "inside_far_from_outline",
            "fit_to_silhouettes"]
 
 #: metres: a joint should lie at least this far inside each outline (about a wrist's radius); the joints at the end
@@ -77,6 +78,12 @@ HALVINGS = 2
 #: edges searched either side of a joint's last nearest edge (first: the edge from its nearest vertex): a step moves
 #: a joint's image a few px, a contour's edges are 2-3 px long at a person's working size
 WINDOW = 12
+#: a joint whose image moved farther than this share of the window's edges (the outline's longest) since its nearest
+#: edge was found is searched on every edge: near the outline the nearest edge can jump across a gap (between the
+#: legs) for a small move. Pose2Sim's single-person demo (full HD, a model unsure of the pose: joints moved 15 cm
+#: in the median), joints inside the used outlines (2 px): every edge at every step 0.885; 0.5: 0.865; 0.25: 0.881;
+#: 0.1: 0.885
+REACH = 0.1
 _EPS = 1e-4
 _STENCIL = np.vstack([np.zeros(3), _EPS * np.eye(3)])  # (4, 3) metres
 
@@ -212,6 +219,7 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
     # the joints that take part: outside, or within the margin of, some used outline
     active = np.zeros((rows.size, nj), bool)
     vertex = np.zeros((rows.size, nj, len(cameras)), np.intp)  # each joint's nearest outline vertex per camera
+    seen_px = np.zeros((rows.size, nj, len(cameras), 2))  # and where it projected
     for k, cam in enumerate(cameras):
         sel = np.flatnonzero(used[rows, k])
         if sel.size == 0:
@@ -219,8 +227,8 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
         xs = X0[rows[sel]].reshape(-1, 3)
         depth = cam.to_camera(xs)[:, 2]
         margin = (np.tile(margins_m, sel.size) * focal[k] / np.maximum(depth, 1e-6)).reshape(sel.size, nj)
-        settled, vertex[sel, :, k] = inside_far_from_outline(cam.project(xs).reshape(sel.size, nj, 2),
-                                                             contours[rows[sel], k], margin)
+        seen_px[sel, :, k] = cam.project(xs).reshape(sel.size, nj, 2)
+        settled, vertex[sel, :, k] = inside_far_from_outline(seen_px[sel, :, k], contours[rows[sel], k], margin)
         active[sel] |= ~settled | (depth <= 0).reshape(sel.size, nj)
     ar, aj = np.nonzero(active)
     if ar.size == 0:
@@ -235,13 +243,19 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
     orient = np.zeros(len(table))
     used_rows = np.flatnonzero(used.reshape(-1))
     orient[used_rows] = orientations(table[used_rows])
-    # per (joint taking part, camera): where its nearest edge was last found (first: its nearest vertex's edge)
+    # per (joint taking part, camera): its nearest edge when last found (first: its nearest vertex's edge), and where
+    # it projected then; a joint whose image moved farther than REACH of the window's edges is searched on every edge
     nearest_edge = vertex[ar, aj].reshape(-1).copy()
+    found_at = seen_px[ar, aj].reshape(-1, 2).copy()
+    reach = np.full(len(table), np.inf)  # px a joint's image may move before the window may miss its nearest edge
+    loop = np.concatenate([table[used_rows], table[used_rows, :1]], axis=1)
+    reach[used_rows] = REACH * WINDOW * np.sqrt((np.diff(loop, axis=1) ** 2).sum(axis=2)).max(axis=1)
 
     def linearised(x: np.ndarray, idx: np.ndarray):
         """E (I,), its Gauss-Newton Hessian (I, 3, 3) and half gradient (I, 3), of the joints ``idx`` (I,) of those
         taking part, at x (I, 3); and (their positions, pair ids, nearest edges) to keep when the caller accepts
-        x. Each pair's nearest edge is searched :data:`WINDOW` edges either side of the last one."""
+        x. Each pair's nearest edge is searched :data:`WINDOW` edges either side of the last one (every edge when the
+        joint's image moved farther than :data:`REACH` of the window's longest edges since)."""
         d = x - x0[idx]
         v = var[idx]
         energy = (d * d / v).sum(axis=1)
@@ -265,11 +279,15 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
             margins.append(np.where(depth > 0, margins_m[aj[idx[at]]] * focal[k] / np.maximum(depth, 1e-6), np.nan))
             pair_ids.append(idx[at] * n_cams + k)
         if not ats:
-            return energy, hess, grad_half, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp))
+            return energy, hess, grad_half, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp),
+                                             np.zeros((0, 2)))
         at, p0, jac = np.concatenate(ats), np.concatenate(p0s), np.concatenate(jacs)
-        pairs = np.concatenate(pair_ids)
-        s, near, edge = signed_distance(p0, table, np.concatenate(polys), nearest_edge[pairs], WINDOW, orient)
-        found = (at, pairs, edge)
+        pairs, which = np.concatenate(pair_ids), np.concatenate(polys)
+        s, near, edge = signed_distance(p0, table, which, nearest_edge[pairs], WINDOW, orient)
+        far = np.flatnonzero(np.linalg.norm(p0 - found_at[pairs], axis=1) > reach[which])
+        if far.size:  # moved beyond the window's reach: every edge
+            s[far], near[far], edge[far] = signed_distance(p0[far], table, which[far], orientation=orient)
+        found = (at, pairs, edge, p0)
         res = (s + np.concatenate(margins)) / SIGMA_PX  # NaN behind the camera
         act = (res > 0) & np.isfinite(res)
         if act.any():
@@ -286,9 +304,10 @@ def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: n
 
     def keep_edges(found, accepted: np.ndarray) -> None:
         """Remember the nearest edges of the pairs of the accepted joints (positions ``accepted`` (I,) bool)."""
-        at, pairs, edge = found
+        at, pairs, edge, px = found
         ok = accepted[at]
         nearest_edge[pairs[ok]] = edge[ok]
+        found_at[pairs[ok]] = px[ok]
 
     x = x0.copy()
     every = np.arange(len(x))
