@@ -253,6 +253,11 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
     idr = _row(ids, input="mask videos", tracker="appearance")
     out.append(("4 walkers crossing (mask videos): ids / identity switches",
                 idr and f"{idr['ids']} / {idr['identity_switches']} over {idr['frames']} steps"))
+    fit = _row(rec, name="accuracy", input="recording (lossy mask videos)")
+    unfit = _row(rec, name="accuracy", input="recording, without the silhouette fit")
+    out.append(("2 walkers (mask videos): joints inside their own silhouette in the views used, fitted / not",
+                fit and unfit and fit.get("joints_inside") is not None and unfit.get("joints_inside") is not None
+                and f"{fit['joints_inside']:.3f} / {unfit['joints_inside']:.3f}"))
     out.append(("segmentation, 320×240, vs OpenCV's MOG2 on the same frames",
                 _segmentation_cell(seg, "BackgroundModel.segment (streaming)")))
     out.append(("segmentation, full HD shrunk to the working size, vs MOG2 at that size",

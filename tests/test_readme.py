@@ -107,7 +107,9 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
     bench.mkdir(parents=True)
     rows_rec = [{"name": "run", "run": "3x", "steps": 90, "steps_per_s": 101.26, "steady_steps_per_s": 140.2},
                 {"name": "run", "run": "colour 4 x 1932x1458", "steps": 30, "steps_per_s": 9.04,
-                 "steady_steps_per_s": 22.0, "setup_s": 1.83}]
+                 "steady_steps_per_s": 22.0, "setup_s": 1.83},
+                {"name": "accuracy", "input": "recording (lossy mask videos)", "joints_inside": 0.9987},
+                {"name": "accuracy", "input": "recording, without the silhouette fit", "joints_inside": 0.9291}]
     rows_seg = [{"method": "ref", "iou": 0.99},
                 {"method": "BackgroundModel.segment (streaming)", "iou": 0.9, "same_size_mog2": "ref",
                  "time_vs_same_size_mog2": 1.234},
@@ -131,6 +133,8 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
     assert "| 3.2× / 41.0× (1,000 / 99 frames/s) |" in block
     assert "| segmentation, 320×240, frames rendered by Blender (textured room, shadows), vs MOG2 | 1.36× MOG2's " \
            "CPU time, IoU 0.920 vs 0.880 |" in block
+    assert "| 2 walkers (mask videos): joints inside their own silhouette in the views used, fitted / not | " \
+           "0.999 / 0.929 |" in block
     assert block.count("not measured") == 5  # overlays, ids, two full-HD segmentation rows, single frame
     assert "### Summary" in (tmp_path / "r.md").read_text()
     assert "`just bench --quick`:" in block  # the quick defaults: no arguments named
