@@ -1,7 +1,7 @@
 """The shortcuts of robust inference's repairs and blocks give the straightforward computation's results.
 
 Each fast path is compared with an independent, plain form of the same computation: the batched Cholesky solve of
-the slide fits with ``np.linalg.solve``, the staged search for far contour points with every point's distance to
+the slide fits with ``np.linalg.solve``, the compiled search for far contour points with every point's distance to
 every edge in its index window (and, when only the runs that may be excursions are wanted, with the runs of that
 search filtered one by one), robust inference of a batch in blocks with the same batch at once, and its blocks on
 threads with the blocks one after the other.
@@ -56,13 +56,13 @@ def _brute_far(points, polygon, limit):
     return far
 
 
-def test_staged_far_point_search_is_the_definition():
+def test_far_point_search_is_the_definition():
     rng = np.random.default_rng(1)
     v, n = 8, 80
     t = 2 * np.pi * np.arange(n) / n
     outline = np.stack([30 * np.cos(t), 50 * np.sin(t)], -1) + 100
     polygon = outline + rng.normal(0, 0.5, size=(v, n, 2))
-    # observed points slid along the outline by 0 .. 15 points (the stages: 4, 12, then n // 4 = 20 edges), jittered,
+    # observed points slid along the outline by 0 .. 15 points (within n // 4 = 20 edges), jittered,
     # and a stretch pushed out (points far from every edge)
     slides = (0, 2, 5, 9, 13, 15, 3, 14)
     points = np.stack([np.roll(outline, s, axis=0) for s in slides]) + rng.normal(0, 1.0, (v, n, 2))

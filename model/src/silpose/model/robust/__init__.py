@@ -3,6 +3,7 @@
 Modules, lowest first::
 
     median          the median along the last axis (np.median bit for bit, faster on short rows)
+    kernels         compiled loops (numba, imported on first use): the point searches and a pass's weights
     observed_views  the usable observed views of a batch, flattened for per-view repairs
     excursions      loops a shadow, blob or bite adds to an outline, replaced by their chords
     reindex         slides of the points along their outline, undone

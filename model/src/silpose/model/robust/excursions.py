@@ -44,10 +44,6 @@ __all__ = ["ExcursionSettings", "point_to_polygon_distance", "far_points", "excu
 
 #: views per block of :func:`point_to_polygon_distance` (a block holds n x m x 2 floats per view)
 _BLOCK_VIEWS = 32
-#: edges either side of a point's own index that :func:`far_points` tries, stage by stage, before all within n // 4
-_STAGES = (4, 12)
-#: points per block of :func:`_near_any` (a block holds a few (points, edges) arrays)
-_POINTS = 4096
 
 
 @dataclass(frozen=True)
@@ -98,35 +94,32 @@ def far_points(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray,
     polygon is at most that); for those, the edges within ``n // 4`` indices are searched (an index shift of
     a quarter of the outline is beyond any excursion we trim; a point whose nearest edge is farther along
     counts as far, which can only lengthen a run that is already one): a point is far when every one of those
-    edges is farther than the limit (:func:`_segment_distance`). The search widens in stages (:data:`_STAGES`
-    edges either side, then all within n // 4), each on the points the stage before left in question, and a
-    stage settles a point by a vertex first (:func:`_near_any`).
+    edges is farther than the limit (the point-to-segment distance of :func:`_segment_distance`). The search is
+    compiled (:func:`silpose.model.robust.kernels.near_any_edge`): a vertex within the limit settles a point first,
+    then the edges from the point's own index outwards, and the first within the limit ends it.
 
     ``extra`` (V,) px: only the far points that may belong to an excursion are wanted, that is to a run whose
-    ``arc - chord`` exceeds ``extra`` (module doc); before each stage, the points still in question that lie in a
-    run of such points (:func:`excursion_candidates`) too short to exceed it are left out (reported not far), and at
-    the end the far runs that do not exceed it. The far runs reported are then exactly those whose ``arc - chord``
+    ``arc - chord`` exceeds ``extra`` (module doc); before the search, the points in question that lie in a run of
+    such points (:func:`excursion_candidates`) too short to exceed it are left out (reported not far), and after it
+    the far runs that do not exceed it. The far runs reported are then exactly those whose ``arc - chord``
     exceeds ``extra`` (to a margin for rounding), and every point of a view that is far all round.
     """
+    from .kernels import near_any_edge  # numba: imported on first use (module doc of .kernels)
+
     v, n = points.shape[:2]
-    limit = np.asarray(limit, dtype=np.float64)[:, None]
+    limit = np.asarray(limit, dtype=np.float64)
     ex, ey = points[..., 0] - polygon[..., 0], points[..., 1] - polygon[..., 1]  # coordinates apart (module note)
-    maybe = np.sqrt(ex * ex + ey * ey) > limit
+    maybe = np.sqrt(ex * ex + ey * ey) > limit[:, None]
     far = np.zeros((v, n), dtype=bool)
     views, idx = np.nonzero(maybe)
-    w = max(n // 4, 1)
     cum = None if extra is None or views.size == 0 else outline_lengths(points)
-    for reach in [min(r, w) for r in _STAGES if r < w] + [w]:
-        if cum is not None:
-            views, idx = excursion_candidates(points, cum, views, idx, np.asarray(extra, dtype=np.float64))
-        if views.size == 0:
-            break
-        offsets = np.arange(-reach, reach + 1)
-        within = np.zeros(views.size, dtype=bool)
-        for s in range(0, views.size, _POINTS):
-            sl = slice(s, s + _POINTS)
-            within[sl] = _near_any(points, polygon, limit[:, 0], views[sl], idx[sl], offsets)
-        views, idx = views[~within], idx[~within]  # still in question: the next stage's
+    if cum is not None:
+        views, idx = excursion_candidates(points, cum, views, idx, np.asarray(extra, dtype=np.float64))
+    if views.size:
+        pts, poly = np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(polygon, dtype=np.float64)
+        within = near_any_edge(pts, poly, np.ascontiguousarray(limit), views.astype(np.int64), idx.astype(np.int64),
+                               max(n // 4, 1))
+        views, idx = views[~within], idx[~within]
     if cum is not None:  # the far runs themselves
         views, idx = excursion_candidates(points, cum, views, idx, np.asarray(extra, dtype=np.float64))
     far[views, idx] = True
@@ -187,42 +180,6 @@ def excursion_candidates(points: np.ndarray, cum: np.ndarray, views: np.ndarray,
         return views, idx
     keep = ~drop[run]
     return views[keep], idx[keep]
-
-def _near_any(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray, vv: np.ndarray, ii: np.ndarray,
-              offsets: np.ndarray) -> np.ndarray:
-    """(P,) bool: point ``ii`` of view ``vv`` (P,) of ``points`` (V, n, 2) is within ``limit`` (V,) px of one of the
-    edges ``ii + offsets`` (cyclic) of ``polygon`` (V, n, 2) by :func:`_segment_distance`.
-
-    A vertex within ``limit (1 - 1e-9)`` settles it (an edge from that vertex is nearer, rounding aside: a margin far
-    above it); otherwise only the edges whose nearer end is within the limit plus half their length (a point of an
-    edge is within half its length of one of its ends; with a margin for rounding) are measured.
-    """
-    n = points.shape[1]
-    j = (ii[:, None] + np.r_[offsets, offsets[-1] + 1][None, :]) % n  # (P, E + 1) edge starts, then the last end
-    p = points[vv, ii]  # (P, 2)
-    vx = polygon[vv[:, None], j, 0]
-    vy = polygon[vv[:, None], j, 1]
-    gx, gy = vx - p[:, 0, None], vy - p[:, 1, None]
-    d2 = gx * gx + gy * gy  # (P, E + 1) squared distances to the vertices
-    lim = limit[vv]
-    inner = lim * (1.0 - 1e-9)
-    within = d2.min(axis=1) <= inner * inner
-    rest = np.flatnonzero(~within)
-    if rest.size == 0:
-        return within
-    dv = np.sqrt(d2[rest])
-    nearer = np.minimum(dv[:, :-1], dv[:, 1:])
-    ax, ay, bx, by = vx[rest, :-1], vy[rest, :-1], vx[rest, 1:], vy[rest, 1:]
-    lx, ly = bx - ax, by - ay
-    check = nearer - 0.5 * np.sqrt(lx * lx + ly * ly) <= lim[rest, None] * (1.0 + 1e-9) + 1e-12
-    pi, ej = np.nonzero(check)
-    if pi.size:
-        a = np.stack([ax[pi, ej], ay[pi, ej]], axis=-1)
-        b = np.stack([bx[pi, ej], by[pi, ej]], axis=-1)
-        d = _segment_distance(p[rest[pi]], a, b)
-        within[rest[pi[d <= lim[rest[pi]]]]] = True
-    return within
-
 
 def excursion_runs(flags: np.ndarray) -> list[np.ndarray]:
     """Maximal cyclic runs of True in the (n,) bool ``flags``, each as its indices in contour order."""

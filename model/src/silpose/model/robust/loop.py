@@ -68,6 +68,18 @@ other jobs on the 2 shared cores: 2,000 benchmark frames, THREADS 1 vs 2 alterna
 (56x / 39x / 36x the floor) on main, 514 / 487 / 653 frames/s (40x / 28x / 30x) here -- the same throughput, the
 ratios moved with the floor (0.07-0.15 s in these runs). Not shown on an idle machine.
 
+Since (issue "A prior that holds every motion", fourth round): three loops are compiled
+(:mod:`silpose.model.robust.kernels`, numba): the re-indexing's shift search, the excursions' far-point search
+(from a point's own index outwards, stopping at the first edge within the limit, instead of the stages) and a
+reweighting pass's weights and pseudo-observation with index correspondences (the median by selection, view by view,
+without the GIL, so both threads work). Answers are bit-identical (the benchmark's 2,000 frames; 500 default-preset
+test rows clean, standard noise and strong patches, with missing views: joints, contours, views trimmed and
+re-indexed). 2,000 benchmark frames, best of 3, the previous code and this alternating in their own processes at load
+1.3: 0.90 / 0.88 / 0.95 s -> 0.73 / 0.73 / 0.74 s with the two searches, 0.87 / 0.87 -> 0.66 / 0.64 s with the
+pass's kernel too. Where the rest goes (2,000 frames, one thread, CPU profile): the passes' conditioning ~15 %, the
+slide fits ~16 % (their medians half of it), the pass kernel ~12 % (its medians ~70 % of it), excursion trimming's
+per-view work ~15 %.
+
 Fresh memory: on the project's machine the first write to memory the process has not used lately costs ~100 MB/s
 (docs/conventions.md, "Benchmarks"). A batch of 20,000 frames held every block's result (~600 MB in all) until one
 merge copied them into a new ~600 MB result: that merge took 2.0-7.0 s of a 15-17 s call, and the time per frame
@@ -227,7 +239,15 @@ def reweighted_observation(observed: np.ndarray, rec: np.ndarray, present: np.nd
     distances (``point_weights``; 0 in absent views), ``pseudo_observation`` (the observed contour in absent views).
 
     Every step is per frame; they run :data:`CHUNK_FRAMES` frames at a time, so that a chunk's arrays stay in cache
-    from one step to the next (the same values as whole-array steps, ~1.5x faster on blocks of 1,024 frames)."""
+    from one step to the next (the same values as whole-array steps, ~1.5x faster on blocks of 1,024 frames). With
+    index correspondences (``settings.window`` 0, the default) the compiled
+    :func:`~silpose.model.robust.kernels.biweight_pseudo` does all three view by view, with the same values."""
+    if int(settings.window) == 0:
+        from .kernels import biweight_pseudo  # numba: imported on first use (module doc of .kernels)
+
+        return biweight_pseudo(np.ascontiguousarray(observed, dtype=np.float64),
+                               np.ascontiguousarray(rec, dtype=np.float64), np.ascontiguousarray(present, dtype=bool),
+                               float(settings.threshold), float(settings.scale_floor_px))
     n = len(observed)
     u = np.empty(observed.shape[:3])
     pseudo = np.empty(observed.shape)

@@ -60,10 +60,6 @@ __all__ = ["ReindexSettings", "index_offsets", "fit_slide", "fit_slides", "solve
 
 #: views per block of :func:`fit_slides` in :func:`reindex_contours`
 _BLOCK_VIEWS = 256
-#: views per block of :func:`index_offsets` (one shift at a time: a few (views, n) arrays that stay in cache)
-_MATCH_VIEWS = 256
-#: views from which :func:`index_offsets` goes one shift at a time (fewer: all 2w + 1 shifts in one gather)
-_SHIFT_VIEWS = 64
 
 
 @dataclass(frozen=True)
@@ -100,7 +96,8 @@ class ReindexSettings:
 
 
 def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
-    """For every observed point i, the nearest reconstructed point among indices i - window .. i + window.
+    """For every observed point i, the nearest reconstructed point among indices i - window .. i + window (the first
+    of equally near ones), by the compiled search :func:`silpose.model.robust.kernels.nearest_shifts`.
 
     Args:
         observed, recon: (V, n, 2) px.
@@ -108,47 +105,11 @@ def index_offsets(observed: np.ndarray, recon: np.ndarray, window: int) -> tuple
     Returns:
         (offsets (V, n) int, the index difference j - i; distances (V, n) px).
     """
-    o = np.asarray(observed, dtype=np.float64)
-    r = np.asarray(recon, dtype=np.float64)
-    n = o.shape[-2]
-    if len(o) < _SHIFT_VIEWS:  # few views: every candidate at once, (V, n, 2w + 1) (one call per step)
-        shifts = np.arange(-window, window + 1)
-        idx = (np.arange(n)[:, None] + shifts[None, :]) % n  # (n, 2w+1)
-        dx = o[:, :, None, 0] - r[:, idx, 0]
-        dy = o[:, :, None, 1] - r[:, idx, 1]
-        dist = np.sqrt(dx * dx + dy * dy)
-        best = dist.argmin(axis=-1)
-        return shifts[best], np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
-    # coordinates apart (no reductions over an axis of 2), the reconstruction padded by ``window`` points either side
-    # so that shift k is the slice [window + k, window + k + n) (np.roll's values without its copies), in blocks of
-    # _MATCH_VIEWS views that stay in cache; the first nearest shift is kept (argmin), compared by squared distance
-    # (the square root is monotonic: the same shift unless two squares 1 ulp apart round to one root), the root
-    # taken once at the end
-    best_k = np.empty(o.shape[:2], dtype=np.int64)
-    best_d = np.empty(o.shape[:2])
-    for s in range(0, len(o), _MATCH_VIEWS):
-        ox, oy = np.ascontiguousarray(o[s:s + _MATCH_VIEWS, :, 0]), np.ascontiguousarray(o[s:s + _MATCH_VIEWS, :, 1])
-        b = len(ox)
-        rx = np.concatenate([r[s:s + b, n - window:, 0], r[s:s + b, :, 0], r[s:s + b, :window, 0]], axis=1)
-        ry = np.concatenate([r[s:s + b, n - window:, 1], r[s:s + b, :, 1], r[s:s + b, :window, 1]], axis=1)
-        bd, bk = best_d[s:s + b], best_k[s:s + b]
-        dx, dy, d2 = np.empty((b, n)), np.empty((b, n)), np.empty((b, n))
-        closer = np.empty((b, n), dtype=bool)
-        for k in range(-window, window + 1):
-            at = slice(window + k, window + k + n)
-            np.subtract(ox, rx[:, at], out=dx)
-            np.subtract(oy, ry[:, at], out=dy)
-            np.multiply(dx, dx, out=dx)
-            np.multiply(dy, dy, out=dy)
-            np.add(dx, dy, out=d2)
-            if k == -window:
-                bd[...], bk[...] = d2, k
-            else:
-                np.less(d2, bd, out=closer)
-                np.copyto(bd, d2, where=closer)
-                np.copyto(bk, k, where=closer)
-        np.sqrt(bd, out=bd)
-    return best_k, best_d
+    from .kernels import nearest_shifts  # numba: imported on first use (module doc of .kernels)
+
+    o = np.ascontiguousarray(observed, dtype=np.float64)
+    r = np.ascontiguousarray(recon, dtype=np.float64)
+    return nearest_shifts(o, r, int(window))
 
 
 def _basis(n: int, harmonics: int) -> np.ndarray:
