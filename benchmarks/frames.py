@@ -82,7 +82,8 @@ def _measure(src: inputs.Inputs, frames_dir: Path, n_frames: int, n_background: 
     rows = []
     labels = {"background": f"background fit ({n_background} frames x {k} cameras)", "read": "read PNG frames",
               "segment": "segmentation (BackgroundModel.segment)", "contours": "blobs and contour extraction",
-              "infer": "inference (ShapeStructureModel.infer)"}
+              "infer": "inference (ShapeStructureModel.infer)",
+              "place": "placement in the room and the silhouette fit"}
     for key, label in labels.items():
         sec = t[key]
         per = n_background * k if key == "background" else n

@@ -116,7 +116,9 @@ def _reference(model, frames, drop=()):
 
 def test_frames_cli_writes_joints_equal_to_a_hand_made_pipeline(model_path, frames_dir, tmp_path):
     out = tmp_path / "j.parquet"
-    res = _invoke("infer", model_path, "--frames", frames_dir, "--out", out, "--contours", "--no-progress")
+    # the model's answer as it is (the silhouette fit, on by default, moves joints: tests/app/recordings/test_one_person_room.py)
+    res = _invoke("infer", model_path, "--frames", frames_dir, "--out", out, "--contours", "--no-progress",
+                  "--no-silhouette-fit")
     assert res.exit_code == 0, res.output
     table, got = _joints(out)
     assert list(table["frame"]) == [f"{i:05d}" for i in range(N_TEST)]
@@ -134,7 +136,7 @@ def test_missing_camera_folder_is_a_missing_view(model_path, frames_dir, tmp_pat
     shutil.copytree(frames_dir, partial)
     shutil.rmtree(partial / "frames" / "cam2")
     out = tmp_path / "j.json"
-    res = _invoke("infer", model_path, "--frames", partial, "--out", out, "--no-progress")
+    res = _invoke("infer", model_path, "--frames", partial, "--out", out, "--no-progress", "--no-silhouette-fit")
     assert res.exit_code == 0, res.output
     doc = json.loads(out.read_text())
     assert all(f["views_present"] == ["cam0", "cam1", "cam3"] for f in doc["frames"])

@@ -9,6 +9,9 @@
   model has no calibration), ``views_trimmed`` (the views whose outline robust inference cut a shadow,
   blob or hole from, ``silpose.model.robust.excursions``; comma-separated, empty when none), ``views_reindexed``
   (the views whose points it slid back along their outline, ``silpose.model.robust.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
+  from cameras (one person: ``--people 1``, ``--frames``), the answer placed in the room: ``root_x/_y/_z``
+  (metres, silpose's frame: z up, floor z = 0; the joints above are then relative to it) and ``<joint>_cal_x``
+  ... (the joints in the calibration's own frame and units);
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - view status per (frame, camera): ``<out stem>.segmentation.json`` (one person from cameras: ``--people 1``,
   ``--frames``; :mod:`silpose.app.recordings.one_person`).
@@ -34,6 +37,9 @@ from silpose.shared.skeleton import JOINT_NAMES
 from .view_status import VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_OK, VIEW_TOO_SMALL
 
 UNITS = "metres, root-relative (pelvis at the origin), world orientation"
+#: the units of the root and the calibration-frame joints of a placed answer (``write_joints``'s ``world``)
+PLACED_UNITS = ("root_x/_y/_z: metres, silpose's frame (z up, floor z = 0); <joint>_cal_x/_y/_z: the joints in the "
+                "calibration's own frame and units (metadata 'transform')")
 
 
 def sibling(out: Path, suffix: str) -> Path:
@@ -99,7 +105,8 @@ def _optional(a, n: int, fill=np.nan) -> np.ndarray:
     return np.full(n, fill) if a is None else np.asarray(a, dtype=np.float64)
 
 
-def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "", status=None) -> None:
+def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "", status=None,
+                 world=None, transform=None) -> None:
     """Write the joints of an InferenceResult of N frames (module doc).
 
     Args:
@@ -108,11 +115,21 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         rig_names: the rig's camera names (None: views are named by their indices).
         sample_id: optional (N,) dataset sample ids; model_path: recorded in the file.
         status: optional (N,) str frame statuses (``silpose.app.inference.frame_status``).
+        world: optional (N, 19, 3) metres, silpose's frame: the answer placed in the room (NaN rows: not placed);
+            the file's joints are then its joints relative to its root, and the root is written too.
+        transform: with ``world``, the rig's ``WorldTransform`` (silpose's frame -> the calibration's).
     """
     path = Path(path)
     n = len(frames)
     names = _view_names(result, rig_names)
     joints = answer_joints(result)
+    root = cal = None
+    if world is not None:
+        world = np.asarray(world, dtype=np.float64)
+        placed = np.isfinite(world).all(axis=(1, 2))
+        root = world[:, 0].copy()
+        joints = np.where(placed[:, None, None], world - root[:, None], joints)
+        cal = transform.to_calibration(world.reshape(-1, 3)).reshape(world.shape)
     head = np.degrees(heading(joints))
     plaus = _optional(result.plausibility, n)
     hyp = result.hypotheses
@@ -122,6 +139,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         doc = {
             "model": model_path,
             "units": UNITS,
+            **({} if root is None else {"root_units": PLACED_UNITS, "transform": transform.to_dict()}),
             "joint_names": list(JOINT_NAMES),
             "views": names,
             "frames": [
@@ -135,6 +153,9 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
                     "plausibility": None if not np.isfinite(plaus[i]) else float(plaus[i]),
                     "heading_deg": None if not np.isfinite(head[i]) else float(head[i]),
                     "joints": joints[i].round(6).tolist(),
+                    **({} if root is None else {
+                        "root": None if not np.isfinite(root[i]).all() else root[i].round(6).tolist(),
+                        "joints_calibration": None if not np.isfinite(cal[i]).all() else cal[i].round(6).tolist()}),
                     "joint_std": result.joint_std[i].round(6).tolist(),
                     "log_marginal": float(result.log_marginal[i]),
                     "component": int(np.argmax(result.responsibilities[i])),
@@ -174,7 +195,16 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
     for j, jn in enumerate(JOINT_NAMES):
         for a, axis in enumerate("xyz"):
             cols[f"{jn}_{axis}_std"] = pa.array(result.joint_std[:, j, a].astype(np.float32))
+    if root is not None:
+        for a, axis in enumerate("xyz"):
+            cols[f"root_{axis}"] = pa.array(root[:, a].astype(np.float32))
+        for j, jn in enumerate(JOINT_NAMES):
+            for a, axis in enumerate("xyz"):
+                cols[f"{jn}_cal_{axis}"] = pa.array(cal[:, j, a])
     meta = {"model": model_path, "units": UNITS, "joint_names": list(JOINT_NAMES), "views": names}
+    if root is not None:
+        meta["root_units"] = PLACED_UNITS
+        meta["transform"] = transform.to_dict()
     table = pa.table(cols).replace_schema_metadata({b"silpose_infer": json.dumps(meta).encode()})
     with atomic_path(path) as tmp:
         pq.write_table(table, tmp, compression="zstd")

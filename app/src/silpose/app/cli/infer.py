@@ -49,7 +49,7 @@ def infer(
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     carve: Annotated[Optional[bool], typer.Option(help="Several people: cut each person's views down to their visual hull (the part of each blob the other cameras support) before the views are judged, so clutter touching a person in one camera (a prop, a lamp, someone standing still) is cut off (column view_cut). Default: on for colour videos, off for --masks.")] = None,
     temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
-    silhouette_fit: Annotated[bool, typer.Option(help="Several people: move each joint, as little as its posterior uncertainty allows, inside the person's outline in every view used (the model's answer can put a wrist or an ankle beside the limb the cameras saw).")] = True,
+    silhouette_fit: Annotated[bool, typer.Option(help="Cameras: move each joint, as little as its posterior uncertainty allows, inside the person's outline in every view used (the model's answer can put a wrist or an ankle beside the limb the cameras saw).")] = True,
     max_people: Annotated[Optional[int], typer.Option("--max-people", min=1, help="Several people: at most N ids (the head count, if known). A new person beyond N takes the id of the lost person who looks most alike (stature, build, clothing colours), wherever they were lost. Default: no limit.")] = None,
 ) -> None:
     """Infer 3D joints (and reconstruct every view's contour) from multi-view silhouettes or cameras.
@@ -65,7 +65,9 @@ def infer(
     person's joints inferred from the views where their silhouette is theirs alone, placed in the room and
     written in silpose's frame and in the calibration's; --out is a folder: joints.parquet, joints.csv,
     overlays/, floorplan.png, summary.json. --people 1: one person, each view's largest blob (no floor
-    tracking); joints root-relative in the --out file, each view's status in <out stem>.segmentation.json.
+    tracking), placed in the room by the views alone; joints root-relative in the --out file with the root
+    (root_x/_y/_z) and the joints in the calibration's frame (<joint>_cal_x ...), each view's status in
+    <out stem>.segmentation.json.
     --frames DIR is --videos DIR --people 1 for a frames folder.
 
     A camera without a video is a missing view; an empty or tiny segmentation is a missing view for that frame.
@@ -100,8 +102,6 @@ def infer(
         fail("infer", "--min-hits is for several people (floor tracking); --people 1 and --frames track nobody")
     if one and max_people is not None:
         fail("infer", "--max-people is for several people (omit --people 1 / --frames)")
-    if one and not silhouette_fit:
-        fail("infer", "--no-silhouette-fit is for several people (omit --people 1 / --frames)")
     shown = (overlays.value if overlays is not None else "none" if one else "mp4")
     if overlay_dir is not None and shown == "none":
         fail("infer", "--overlay-dir needs --overlays png or mp4")

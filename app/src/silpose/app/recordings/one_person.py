@@ -18,9 +18,11 @@ blob kept, no per-frame gain), the segmentation ``silpose infer --frames`` has a
 Inference runs per chunk of time steps (:func:`silpose.app.inference.infer_rows`: robust inference, the top-3
 hypotheses, untangled contours; a step without a usable view gets NaN joints); at the end, with ``temporal``,
 each step's single answer is chosen among its hypotheses along the whole sequence (one track, the Viterbi path:
-:func:`silpose.app.inference.apply_temporal`). The joints are root-relative (the room placement of several
-people needs their floor positions); the overlays place the skeleton for drawing only (:func:`.placement.place_roots`
-with the workspace centre as the floor prior).
+:func:`silpose.app.inference.apply_temporal`). The answer is then put in the room (:func:`place_in_room`): the
+views alone place its root, there being no floor grid (:func:`.placement.place_without_floor`), and with
+``opt.silhouette_fit`` each joint moves inside the person's outline in every view used (:mod:`.silhouette_fit`), as
+for several people. The joints file holds the root-relative joints of that placed answer and the root, in silpose's
+frame, and the joints in the calibration's frame and units; the overlays draw the same skeleton.
 
 :func:`run_one_person` is the library entry (evaluation and benchmarks hook into its chunks);
 :func:`run_one_person_inference` is the command: the joints file, ``<out stem>.segmentation.json``,
@@ -51,7 +53,8 @@ from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import draws_overlays, overlay_sink
 from .overlay_video import draw_frame
 from .pipeline import RecordingOptions, check_background_options, make_silhouettes
-from .placement import place_roots
+from .placement import place_without_floor
+from .silhouette_fit import fit_to_silhouettes
 from .resolution import min_blob_area, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import at_size
 from .sources import CameraReader, open_recording, parse_offsets
@@ -59,7 +62,7 @@ from .sources import CameraReader, open_recording, parse_offsets
 #: BackgroundModel arguments for one person (module docstring); ``RecordingOptions.segment_params`` override them
 ONE_PERSON_SEGMENT = {"largest_blob": True, "gain": False}
 #: the stages timed (seconds, summed over cameras)
-STAGES = ("background", "read", "segment", "contours", "infer", "overlays")
+STAGES = ("background", "read", "segment", "contours", "infer", "place", "overlays")
 
 
 def largest_view(blobs: Blobs, n_points: int) -> tuple[np.ndarray | None, str, int]:
@@ -95,7 +98,8 @@ class OnePersonResult:
     """A whole run, N time steps, K rig cameras: frames (N,) str; cameras (K,); contours (N, K, n, 2) rig px;
     present (N, K); status (N, K) str; area (N, K) px of the used (or too small) blob in the rig camera's pixels;
     min_area {camera: px at the working resolution}; result: InferenceResult over the modelled views (temporal
-    choice applied); timings: seconds per stage (:data:`STAGES`); warnings."""
+    choice applied); joints_world (N, 19, 3) metres, silpose's frame: the answer placed in the room
+    (:func:`place_in_room`; NaN without a usable view); timings: seconds per stage (:data:`STAGES`); warnings."""
 
     frames: np.ndarray
     cameras: tuple
@@ -105,6 +109,7 @@ class OnePersonResult:
     area: np.ndarray
     min_area: dict
     result: object
+    joints_world: np.ndarray
     timings: dict
     warnings: list[str] = field(default_factory=list)
     overlays: list[Path] = field(default_factory=list)
@@ -260,7 +265,7 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
             if overlays is not None:
                 t0 = time.perf_counter()
                 _draw(overlays, rig, work, names, modelled, n0 + first_frame, frames_kept, status[-1], res,
-                      silhouettes.grey)
+                      silhouettes.grey, cs, ps, opt.silhouette_fit)
                 timings["overlays"] += time.perf_counter() - t0
             if on_chunk is not None:
                 chunk_names = [_frame_name(frame_names, first_frame, i) for i in range(n0, step)]
@@ -291,8 +296,39 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
     if temporal:
         apply_temporal(result)
     frames = np.array([_frame_name(frame_names, first_frame, i) for i in range(step)])
-    return OnePersonResult(frames, tuple(names), np.concatenate(contours), np.concatenate(present),
-                           np.concatenate(status), np.concatenate(area), min_area, result, timings, warnings, files)
+    all_contours, all_present = np.concatenate(contours), np.concatenate(present)
+    t0 = time.perf_counter()
+    world = place_in_room(single_answer(result.joints, result.hypotheses), result, rig, all_contours, all_present,
+                          opt.silhouette_fit)
+    timings["place"] = time.perf_counter() - t0
+    return OnePersonResult(frames, tuple(names), all_contours, all_present, np.concatenate(status),
+                           np.concatenate(area), min_area, result, world, timings, warnings, files)
+
+
+def place_in_room(pose: np.ndarray, result, rig, contours: np.ndarray, present: np.ndarray, fit: bool) -> np.ndarray:
+    """(N, 19, 3) metres, silpose's frame: one person's answer put in the room (module docstring).
+
+    Args:
+        pose: (N, 19, 3) root-relative joints, metres (the single answer of ``result``).
+        result: the InferenceResult (``centroid``, ``views_present``, ``views``: modelled views; ``joint_std``).
+        rig: the rig; contours: (N, K, n, 2) rig px, every rig camera's observed outline; present: (N, K) bool,
+            the views used.
+        fit: move the joints inside the outlines (:func:`.silhouette_fit.fit_to_silhouettes`).
+    Returns:
+        the placed joints; NaN for rows without a used view or a finite answer.
+    """
+    pose = np.asarray(pose, float)
+    world = np.full(pose.shape, np.nan)
+    ok = np.flatnonzero(result.views_present.any(axis=1) & np.isfinite(pose).all(axis=(1, 2)))
+    if len(ok) == 0:
+        return world
+    cams = [rig[v] for v in result.views]
+    roots = place_without_floor(pose[ok], result.centroid[ok], result.views_present[ok], cams,
+                                np.asarray(rig.workspace.center, float)[:2])
+    world[ok] = pose[ok] + roots[:, None]
+    if fit:
+        world[ok] = fit_to_silhouettes(world[ok], result.joint_std[ok], contours[ok], present[ok], list(rig))
+    return world
 
 
 def f_shape(cam) -> tuple[int, int]:
@@ -305,18 +341,13 @@ def _frame_name(frame_names, first_frame: int, i: int) -> str:
 
 
 def _draw(overlays, rig, work, names, modelled, frame0: int, frames_kept: list[dict], status: np.ndarray, res,
-          grey: bool) -> None:
+          grey: bool, contours: np.ndarray, present: np.ndarray, fit: bool) -> None:
     """Overlay frames of one chunk (:func:`.overlay_video.draw_frame`): the person's blob outline, the reconstructed
-    contours of the used views and the skeleton, placed in the room for drawing (module docstring)."""
-    n = len(frames_kept)
-    pose = single_answer(res.joints, res.hypotheses)
-    roots = np.full((n, 3), np.nan)
-    ok = np.flatnonzero(res.views_present.any(axis=1))
-    if len(ok):
-        prior = np.tile(np.asarray(rig.workspace.center, float)[:2], (len(ok), 1))
-        roots[ok] = place_roots(pose[ok], res.centroid[ok], res.views_present[ok], [rig[v] for v in res.views], prior)
+    contours of the used views and the skeleton of the chunk's answers placed in the room (:func:`place_in_room`;
+    the written joints are chosen along the whole sequence, so a frame's may differ)."""
+    placed = place_in_room(single_answer(res.joints, res.hypotheses), res, rig, contours, present, fit)
     for i, seen in enumerate(frames_kept):
-        world = pose[i] + roots[i]
+        world = placed[i]
         for k, c in enumerate(names):
             cam, wcam = rig[k], work[k]
             v = seen.get(c)
@@ -345,7 +376,8 @@ def run_one_person_inference(model_path: Path, source: Path, *, out: Path, opt: 
                         progress=progress, warn=warn)
     rig_names = list(model.rig_.names)
     status = frame_status(fr.result)
-    write_joints(out, fr.frames, fr.result, rig_names, None, str(model_path), status=status)
+    write_joints(out, fr.frames, fr.result, rig_names, None, str(model_path), status=status, world=fr.joints_world,
+                 transform=model.rig_.transform)
     seg_path = sibling(out, ".segmentation.json")
     areas = sorted(set(fr.min_area.values()))
     write_segmentation(seg_path, fr, source, "/".join(str(a) for a in areas) + " px at the working resolution")
