@@ -138,3 +138,10 @@ def test_joints_file_holds_the_root_and_the_calibration_frame(walker, lab_model,
     assert np.allclose(cal[ok], LAB_TRANSFORM.to_calibration(world.reshape(-1, 3)).reshape(world.shape), atol=0.5)
     assert (cal[ok][..., 2] < 50).all() and (cal[ok][..., 2] > -2200).all()  # mm, z down: above the floor
     assert np.allclose(world[:, 0], walker[1][ok, 0], atol=0.2)  # metres: the true pelvis
+    if suffix == ".parquet":  # silpose export reads the placed joints, in either frame
+        from silpose.app.export.motion import read_motion
+
+        room, lab_frame = read_motion(out, "silpose"), read_motion(out, "calibration")
+        assert not room.root_relative and room.units == "m" and lab_frame.units == "mm"
+        assert np.allclose(room.joints[ok], world, atol=1e-5)
+        assert np.allclose(lab_frame.joints[ok], cal[ok])

@@ -10,7 +10,9 @@ Inputs (recognised by their metadata, not their names):
   rate from the ``time`` column;
 - ``silpose infer``'s joints file of a dataset or a folder of silhouette images (Parquet with metadata
   ``silpose_infer``): one row per frame, ``<joint>_x/_y/_z`` root-relative (pelvis at the origin) in metres,
-  world orientation; it has no calibration frame and no frame rate (``fps``, default 30).
+  world orientation; it has no calibration frame and no frame rate (``fps``, default 30). One person's from
+  cameras (``--people 1``) also holds the root placed in the room (``root_x/_y/_z``) and the joints in the
+  calibration's frame (``<joint>_cal_x`` ...; the transform in the metadata): exported in the room, either frame.
 
 Frames without joints (a person not detected, every view missing) stay in the motion as NaN rows: each
 exporter says how it writes them.
@@ -153,15 +155,26 @@ def _csv(path: Path, frame: str, person: int | None, fps: float | None) -> Motio
 def _infer_file(path: Path, frame: str, fps: float | None) -> Motion:
     import pyarrow.parquet as pq
 
-    if frame == "calibration":
+    table = pq.read_table(path)
+    placed = "root_x" in table.column_names  # one person from cameras: the root placed in the room
+    if frame == "calibration" and not placed:
         raise ExportInputError(f"{path}: joints of a dataset or image folder are root-relative in silpose's frame; "
                                "there is no calibration frame to export (--frame silpose)")
-    table = pq.read_table(path)
-    cols = [f"{j}_{a}" for j in JOINT_NAMES for a in "xyz"]
-    joints = np.stack([table.column(c).to_numpy(zero_copy_only=False).astype(float) for c in cols], 1)
+
+    def stack(cols):
+        return np.stack([table.column(c).to_numpy(zero_copy_only=False).astype(float) for c in cols], 1)
+
     frames = np.arange(table.num_rows, dtype=np.int64)
-    return Motion(joints.reshape(-1, N_JOINTS, 3), frames, float(fps or DEFAULT_FPS), "m", "+z", "silpose", True,
-                  str(path))
+    fps = float(fps or DEFAULT_FPS)
+    if not placed:
+        joints = stack([f"{j}_{a}" for j in JOINT_NAMES for a in "xyz"]).reshape(-1, N_JOINTS, 3)
+        return Motion(joints, frames, fps, "m", "+z", "silpose", True, str(path))
+    if frame == "calibration":
+        joints = stack([f"{j}_cal_{a}" for j in JOINT_NAMES for a in "xyz"]).reshape(-1, N_JOINTS, 3)
+    else:
+        rel = stack([f"{j}_{a}" for j in JOINT_NAMES for a in "xyz"]).reshape(-1, N_JOINTS, 3)
+        joints = rel + stack([f"root_{a}" for a in "xyz"])[:, None]
+    return _recording_motion(path, _meta(path, b"silpose_infer") or {}, joints, frames, frame, fps)
 
 
 def read_motion(path: str | Path, frame: str = "silpose", person: int | None = None,
