@@ -251,8 +251,12 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
     out.append(("overlay videos' share of a run's time: masks / colour", ov_m and ov_c and
                 f"{100 * ov_m['overlay_share_wall']:.0f} % / {100 * ov_c['overlay_share_wall']:.0f} %"))
     idr = _row(ids, input="mask videos", tracker="appearance")
-    out.append(("4 walkers crossing (mask videos): ids / identity switches",
-                idr and f"{idr['ids']} / {idr['identity_switches']} over {idr['frames']} steps"))
+    apart = _row(ids, input="mask videos, walkers apart", tracker="appearance")
+    out.append(("4 walkers, mask videos: ids / identity switches passing through each other; walking apart "
+                "(joints inside their own silhouette)",
+                idr and f"{idr['ids']} / {idr['identity_switches']} over {idr['frames']} steps"
+                + (f"; {apart['ids']} / {apart['identity_switches']} ({apart['joints_inside']:.3f})"
+                   if apart and apart.get("joints_inside") is not None else "")))
     fit = _row(rec, name="accuracy", input="recording (lossy mask videos)")
     unfit = _row(rec, name="accuracy", input="recording, without the silhouette fit")
     out.append(("2 walkers (mask videos): joints inside their own silhouette in the views used, fitted / not",

@@ -121,7 +121,12 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
                 {"case": "batched, 4 views, robust (8 reweighting passes)", "over_floor": 41.0, "value": 99.0}]
     data = {"quick": True, "machine": {"cpu_count": 2, "load_average": [0.5]},
             "sections": [{"section": "recordings", "rows": rows_rec}, {"section": "segmentation", "rows": rows_seg},
-                         {"section": "inference", "rows": rows_inf}]}
+                         {"section": "inference", "rows": rows_inf},
+                         {"section": "identities", "rows": [
+                             {"name": "identities", "input": "mask videos", "tracker": "appearance", "ids": 5,
+                              "identity_switches": 11, "frames": 200},
+                             {"name": "identities", "input": "mask videos, walkers apart", "tracker": "appearance",
+                              "ids": 4, "identity_switches": 4, "frames": 200, "joints_inside": 0.9941}]}]}
     (bench / "bench.json").write_text(json.dumps(data))
     readme = tmp_path / "README.md"
     shutil.copy(README, readme)
@@ -135,7 +140,8 @@ def test_speed_block_comes_from_the_bench_report(tmp_path):
            "CPU time, IoU 0.920 vs 0.880 |" in block
     assert "| 2 walkers (mask videos): joints inside their own silhouette in the views used, fitted / not | " \
            "0.999 / 0.929 |" in block
-    assert block.count("not measured") == 5  # overlays, ids, two full-HD segmentation rows, single frame
+    assert "walking apart (joints inside their own silhouette) | 5 / 11 over 200 steps; 4 / 4 (0.994) |" in block
+    assert block.count("not measured") == 4  # overlays, two full-HD segmentation rows, single frame
     assert "### Summary" in (tmp_path / "r.md").read_text()
     assert "`just bench --quick`:" in block  # the quick defaults: no arguments named
 

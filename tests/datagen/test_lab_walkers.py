@@ -4,8 +4,9 @@ stream, clothing colours of their test sample."""
 import numpy as np
 
 from silpose.datagen.frames.scene import draw_appearance
-from silpose.datagen.lab import (FOUR_WALKERS, STATURE_MEAN_M, STATURE_RANGE_M, STATURE_STD_M, Walker,
-                                 walker_clothing_bgr, walker_scene, walker_stature, lab_rig)
+from silpose.datagen.lab import (DEFAULT_WALKERS, FOUR_WALKERS, FOUR_WALKERS_APART, STATURE_MEAN_M, STATURE_RANGE_M, STATURE_STD_M, Walker,
+                                 closest_approach, walker_clothing_bgr, walker_scene, walker_state, walker_stature,
+                                 lab_rig)
 
 
 def test_statures_are_a_pure_function_of_seed_and_index_with_adults_spread():
@@ -30,3 +31,16 @@ def test_clothing_colours_are_the_samples_linear_colours_in_srgb():
         linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)  # the sRGB decoding
         assert bgr.dtype == np.uint8 and bgr.shape == (2, 3)
         assert np.allclose(linear, [look["shirt"], look["trousers"]], atol=0.01)
+
+
+def test_walkers_apart_never_walk_through_each_other():
+    """The identities benchmark's plausible recording keeps people apart; its first one has them pass through each
+    other. Reference: the distance of every pair at every frame, by hand."""
+    frames = 200
+    for walkers, lo, hi in ((FOUR_WALKERS_APART, 0.55, np.inf), (FOUR_WALKERS, 0.0, 0.05), (DEFAULT_WALKERS, 0.5, np.inf)):
+        gap = np.inf
+        for f in range(frames):
+            xy = [np.array(walker_state(w, f / 25.0)[:2]) for w in walkers]
+            gap = min(gap, min(np.linalg.norm(a - b) for i, a in enumerate(xy) for b in xy[i + 1:]))
+        assert lo <= gap < hi and np.isclose(closest_approach(walkers, frames), gap)
+    assert [w.index for w in FOUR_WALKERS_APART] == [w.index for w in FOUR_WALKERS]  # the same people

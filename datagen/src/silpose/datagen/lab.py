@@ -165,6 +165,28 @@ FOUR_WALKERS = (
 )
 
 
+#: the same four paths timed so that nobody walks through anybody: the walkers' pelvises stay at least 0.56 m apart
+#: over the first 8 s (:func:`closest_approach`; ``FOUR_WALKERS`` pass within a centimetre of each other, which real
+#: people never do, and walker 2 is within 0.3 m of another in 23 % of its 200 frames)
+FOUR_WALKERS_APART = (
+    FOUR_WALKERS[0],
+    Walker(index=1, start=(1.35, -0.1), end=(-1.35, -0.35), speed=1.0, delay=1.5),
+    Walker(index=2, start=(-0.7, 1.3), end=(0.8, -1.3), speed=1.2, delay=2.75),
+    Walker(index=3, start=(1.3, 0.95), end=(-1.3, 0.7), speed=1.1, delay=2.5),
+)
+
+
+def closest_approach(walkers, n_frames: int, fps: float = LAB_FPS) -> float:
+    """Metres: the smallest floor distance between two walkers' positions (:func:`walker_state`) over the frames."""
+    if len(walkers) < 2:
+        return float("inf")
+    t = np.arange(int(n_frames)) / float(fps)
+    xy = np.array([[walker_state(w, ti)[:2] for w in walkers] for ti in t])  # (T, P, 2)
+    d = np.linalg.norm(xy[:, :, None] - xy[:, None], axis=3)
+    d[:, np.arange(len(walkers)), np.arange(len(walkers))] = np.inf
+    return float(d.min())
+
+
 def walker_stature(seed: int, walker: Walker) -> float:
     """Metres: ``walker.stature``, or a draw from N(:data:`STATURE_MEAN_M`, :data:`STATURE_STD_M`) clipped to
     :data:`STATURE_RANGE_M`, from ``derive_rng(seed, stream_code("lab stature"), walker.index)``."""
