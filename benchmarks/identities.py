@@ -138,6 +138,9 @@ def measure(model: str, videos: str, out: str, background: str | None, appearanc
     from silpose.datagen.lab import unpack_masks
     from silpose.model.persistence import load_model
 
+    from .recordings import warm_compiled
+
+    warm_compiled()
     t0 = time.perf_counter()
     opt = RecordingOptions(masks=background is None, background=None if background is None else Path(background),
                            overlays=False, hypotheses=0)
