@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from silpose.model.robust.kernels import segment_offset
+
 __all__ = ["nearest_on_outline"]
 
 
@@ -57,19 +59,12 @@ def nearest_on_outline(points: np.ndarray, poly: np.ndarray, which: np.ndarray, 
         for c in range(count):
             e = (first + c) % n
             f = (e + 1) % n
-            ax = poly[u, e, 0]
-            ay = poly[u, e, 1]
-            abx = poly[u, f, 0] - ax
-            aby = poly[u, f, 1] - ay
-            apx = px - ax
-            apy = py - ay
-            t = (apx * abx + apy * aby) / max(abx * abx + aby * aby, 1e-12)
-            t = min(max(t, 0.0), 1.0)
-            dx = apx - t * abx
-            dy = apy - t * aby
+            t, dx, dy = segment_offset(px, py, poly[u, e, 0], poly[u, e, 1], poly[u, f, 0], poly[u, f, 1])
             d2 = dx * dx + dy * dy
             if d2 < best:
-                best, be, bt, bx, by = d2, e, t, ax + t * abx, ay + t * aby
+                best, be, bt = d2, e, t
+                bx = poly[u, e, 0] + t * (poly[u, f, 0] - poly[u, e, 0])
+                by = poly[u, e, 1] + t * (poly[u, f, 1] - poly[u, e, 1])
         ox = px - bx
         oy = py - by
         dist = np.sqrt(ox ** 2 + oy ** 2)

@@ -23,7 +23,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["nearest_shifts", "near_any_edge"]
+__all__ = ["nearest_shifts", "near_any_edge", "segment_offset", "median_of", "biweight_pseudo"]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def segment_offset(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> tuple[float, float, float]:  # pragma: no cover (compiled)
+    """(t, dx, dy): the point ``a + t (b - a)``, t in [0, 1], of the segment a -> b nearest the point p, and the offset
+    ``p - (a + t (b - a))`` px (a zero-length segment: its end a)."""
+    abx = bx - ax
+    aby = by - ay
+    apx = px - ax
+    apy = py - ay
+    t = (apx * abx + apy * aby) / max(abx * abx + aby * aby, 1e-12)
+    t = min(max(t, 0.0), 1.0)
+    return t, apx - t * abx, apy - t * aby
 
 
 @njit(cache=True, nogil=True)
@@ -109,16 +122,7 @@ def near_any_edge(points: np.ndarray, polygon: np.ndarray, limit: np.ndarray, vi
             k = (step + 1) // 2 if step % 2 else -(step // 2)
             j = (i + k) % n
             e = (j + 1) % n
-            ax = polygon[a, j, 0]
-            ay = polygon[a, j, 1]
-            abx = polygon[a, e, 0] - ax
-            aby = polygon[a, e, 1] - ay
-            apx = px - ax
-            apy = py - ay
-            t = (apx * abx + apy * aby) / max(abx * abx + aby * aby, 1e-12)
-            t = min(max(t, 0.0), 1.0)
-            dx = apx - t * abx
-            dy = apy - t * aby
+            _, dx, dy = segment_offset(px, py, polygon[a, j, 0], polygon[a, j, 1], polygon[a, e, 0], polygon[a, e, 1])
             if np.sqrt(dx * dx + dy * dy) <= lim:
                 out[q] = True
                 break
