@@ -16,7 +16,7 @@ Rows:
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
-  1x single-threaded, 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
+  1x single-threaded (no camera pool, no reader threads), 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
   share against the 1x run, :func:`_overlay_shares`), 1x carved (``carve=True``: views cut to the people's visual
   hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
   are the ratios against the 1x run), 1x without the silhouette fit (``silhouette_fit=False``,
@@ -89,12 +89,13 @@ def _ping_pong(src: Path, dst: Path, repeat: int) -> int:
     return n
 
 
-def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: int,
+def _colour_recording(lab: Path, dst: Path, size: tuple[int, int], model: str, n_frames: int,
                       n_background: int = 20) -> tuple[Path, Path, str]:
-    """Colour videos of the lab recording at ``scale`` x the lab cameras' size (3: 1932x1458, more pixels than
-    1080p): the walkers' true masks upscaled and composited over a textured room with floor shadows and
-    noise (:mod:`silpose.segment.composite`), an empty-room clip per camera, and the model with its rig
-    scaled to that size; the first ``n_frames`` frames. Returns (videos, clips, model file)."""
+    """Colour videos of the lab recording at ``size`` (width, height; 1932x1458 is 3x the lab cameras' size, more
+    pixels than 1080p; 1920x1080 stretches the lab's 4:3 pictures to 16:9, a camera with non-square pixels): the
+    walkers' true masks resized and composited over a textured room with floor shadows and noise
+    (:mod:`silpose.segment.composite`), an empty-room clip per camera, and the model with its rig scaled to that
+    size; the first ``n_frames`` frames. Returns (videos, clips, model file)."""
     import cv2
     import numpy as np
 
@@ -108,11 +109,12 @@ def _colour_recording(lab: Path, dst: Path, scale: int, model: str, n_frames: in
     masks = unpack_masks(np.load(lab / "truth.npz")).any(axis=1)[:n_frames]  # (T, K, H, W)
     m = load_model(model)
     rig = m.rig_
-    def scaled(c):  # the camera whose pixels are scale x scale blocks of c's (pixel centres: (x + 0.5) s - 0.5)
+    def scaled(c):  # c's pictures resized to ``size`` (pixel centres: (x + 0.5) s - 0.5 on each axis)
+        s = np.array([size[0] / c.width, size[1] / c.height])
         K = np.array(c.K, float)
-        K[:2] *= scale
-        K[:2, 2] += 0.5 * scale - 0.5
-        return dataclasses.replace(c, K=K, width=scale * c.width, height=scale * c.height)
+        K[:2] *= s[:, None]
+        K[:2, 2] += 0.5 * s - 0.5
+        return dataclasses.replace(c, K=K, width=int(size[0]), height=int(size[1]))
 
     big = [scaled(c) for c in rig]
     videos, clips = dst / "colour", dst / "empty"
@@ -227,17 +229,19 @@ def warm_compiled() -> None:
 
     from silpose.app.recordings.outline_kernels import nearest_on_outline
     from silpose.model.robust import kernels
+    from silpose.shared.contours import single_blob_contour
 
     square = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
     nearest_on_outline(np.zeros((1, 2)), square, np.zeros(1, np.int64), np.full(1, -1, np.int64), 1, np.ones(1))
     kernels.nearest_shifts(square.copy(), square.copy(), 1)
     kernels.near_any_edge(square.copy(), square.copy(), np.ones(1), np.zeros(1, np.int64), np.zeros(1, np.int64), 1)
     kernels.biweight_pseudo(square[None].copy(), square[None].copy(), np.ones((1, 1), bool), 3.0, 0.3)
+    single_blob_contour(np.ones((2, 2), np.uint8), 4)
 
 
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,
             background: str | None = None, work_person_px: int | None = None, carve: bool | None = None,
-            silhouette_fit: bool = True) -> dict:
+            silhouette_fit: bool = True, reader_threads: bool | None = None) -> dict:
     """Child side: one run of the pipeline; returns its figures (module docstring, ``run`` rows)."""
     import time
 
@@ -263,7 +267,8 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
     extra = {} if work_person_px is None else {"work_person_px": work_person_px}
     s = run_recording(m, videos, out, RecordingOptions(masks=background is None, background=background, overlays=overlays,
                                                        threads=threads, robust=robust, carve=carve,
-                                                       silhouette_fit=silhouette_fit, **extra))
+                                                       silhouette_fit=silhouette_fit, reader_threads=reader_threads,
+                                                       **extra))
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - t0
     peak = peak_rss_bytes()
     mb = 2.0**-20
@@ -383,10 +388,12 @@ def _overlay_shares(rows: list[dict]) -> None:
 
 
 def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int = 200, model: str | None = None,
-        threads: int | None = None, colour_scale: int = 3, colour_frames: int = 60, runs: list | None = None) -> list[dict]:
+        threads: int | None = None, colour_scale: int = 3, colour_frames: int = 60, colour_1080p: bool = True,
+        runs: list | None = None) -> list[dict]:
     """Make the inputs, measure (module docstring). ``model``: a model file of the lab rig (None: train one on
-    ``train`` walkers, the full-size hyperparameters when ``train`` >= 400, else tiny ones). ``runs``: the labels
-    of the runs to make (None: all; ``"colour"`` is the colour run and its references)."""
+    ``train`` walkers, the full-size hyperparameters when ``train`` >= 400, else tiny ones). ``colour_1080p``: also
+    a colour run at 1920x1080 (the issue's full HD), without overlays. ``runs``: the labels of the runs to make
+    (None: all; ``"colour"`` is the colour runs and their references)."""
     import numpy as np
 
     from silpose.datagen.lab import make_lab_recording, unpack_masks
@@ -405,16 +412,21 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
         rows = []
         plan = [("1x", lab / "masks", False, threads, None, {}), (f"{repeat}x", tmp / "long", False, threads, None, {}),
                 (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
-                ("1x single-threaded", lab / "masks", False, 0, None, {}),
+                ("1x single-threaded", lab / "masks", False, 0, None, {"reader_threads": False}),
                 ("1x with overlays", lab / "masks", True, threads, None, {}),
                 ("1x carved", lab / "masks", False, threads, None, {"carve": True}),
                 ("1x without the silhouette fit", lab / "masks", False, threads, None, {"silhouette_fit": False})]
         if wanted("colour"):
-            videos, clips, big_model = _colour_recording(lab, tmp / "big", colour_scale, model, colour_frames)
-            size = f"{colour_scale * 644}x{colour_scale * 486}"
+            big = (colour_scale * 644, colour_scale * 486)
+            videos, clips, big_model = _colour_recording(lab, tmp / "big", big, model, colour_frames)
+            size = f"{big[0]}x{big[1]}"
             plan += [(f"colour 4 x {size}", videos, False, threads, None, {"background": str(clips), "model": big_model}),
                      (f"colour 4 x {size} with overlays", videos, True, threads, None,
                       {"background": str(clips), "model": big_model})]
+            if colour_1080p:
+                hd_videos, hd_clips, hd_model = _colour_recording(lab, tmp / "hd", (1920, 1080), model, colour_frames)
+                plan.append(("colour 4 x 1920x1080", hd_videos, False, threads, None,
+                             {"background": str(hd_clips), "model": hd_model}))
             ref = subproc.call(__name__, "decode_reference", dict(videos=str(videos), clips=str(clips), model=big_model))
             if ref.error:
                 raise RuntimeError(f"recordings: decode reference failed ({ref.error})")
@@ -429,7 +441,8 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                                                           overlays=overlays, threads=thr, robust=robust,
                                                           background=extra.get("background"),
                                                           carve=extra.get("carve"),
-                                                          silhouette_fit=extra.get("silhouette_fit", True)))
+                                                          silhouette_fit=extra.get("silhouette_fit", True),
+                                                          reader_threads=extra.get("reader_threads")))
             if res.error:
                 raise RuntimeError(f"recordings: run {label} failed ({res.error})")
             rows.append({"name": "run", "run": label, **res.value})

@@ -448,3 +448,31 @@ def test_start_and_resampling_match_a_segment_by_segment_walk():
             got = resample_closed(poly, i, p, n)
             assert np.allclose(got, _resample_by_loop(poly, i, p, n), atol=1e-9)
     assert crossed > 250
+
+
+def test_compiled_outline_of_a_traced_chain_matches_the_segment_walk():
+    """chain_outline (what tracing runs: OpenCV's chain read forwards or backwards, moved, started, resampled) against
+    the reversal and offset done in numpy and the Python walks above; and the fallback without a crossing."""
+    from silpose.shared.contour_kernels import chain_outline
+
+    rng = np.random.default_rng(5)
+    checked = 0
+    for trial in range(60):
+        m = (cv2.GaussianBlur(rng.random((40, 50)).astype(np.float32), (0, 0), 2.5) > 0.5).astype(np.uint8)
+        found, _ = cv2.findContours(np.pad(m, 1), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        for raw in found:
+            chain = raw.reshape(-1, 2)
+            reverse, (ox, oy) = bool(trial % 2), rng.integers(-20, 20, 2)
+            poly = (chain[::-1] if reverse else chain).astype(float) + (ox, oy)
+            cx = float(rng.uniform(poly[:, 0].min(), poly[:, 0].max())) if trial % 3 else float(poly[0, 0])
+            i, p = _start_by_loop(poly, cx)
+            for n in (1, 5, 100):
+                got = chain_outline(chain, reverse, float(ox), float(oy), cx, n)
+                assert got.shape == (n, 2)
+                assert np.allclose(got, _resample_by_loop(poly, i, p, n), atol=1e-9)
+            checked += 1
+    assert checked > 60
+    # no crossing: the vertex nearest the line, topmost among ties (a line right of a vertical segment)
+    seg = np.array([[3, 5], [3, 1], [2, 1], [2, 5]], np.int32)
+    got = chain_outline(seg, False, 0.0, 0.0, 7.0, 4)
+    assert np.array_equal(got[0], [3.0, 1.0])

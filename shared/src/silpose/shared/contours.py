@@ -125,23 +125,10 @@ def _start_on_polyline(poly: np.ndarray, cx: float) -> tuple[int, np.ndarray]:
         Without any crossing (degenerate outlines) the vertex nearest to the line, topmost
         among ties, is returned with its outgoing edge.
     """
-    x = poly[:, 0]
-    x_next = np.empty_like(x)  # x of each edge's end vertex
-    x_next[:-1], x_next[-1] = x[1:], x[0]
-    cand = np.flatnonzero((np.minimum(x, x_next) <= cx) & (cx <= np.maximum(x, x_next)))
-    if cand.size:
-        end = cand + 1
-        end[end == len(poly)] = 0
-        ac, bc = poly[cand], poly[end]
-        dx = bc[:, 0] - ac[:, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # An edge lying on the line: both of its ends are crossings; the upper one counts.
-            t = np.where(dx == 0, bc[:, 1] < ac[:, 1], (cx - ac[:, 0]) / dx)
-        j = int(np.argmin(ac[:, 1] + t * (bc[:, 1] - ac[:, 1])))  # farthest up; first of ties: deterministic
-        return int(cand[j]), ac[j] + t[j] * (bc[j] - ac[j])
-    key = np.lexsort((poly[:, 1], np.abs(x - cx)))  # nearest in x, then topmost
-    i = int(key[0])
-    return i, poly[i].copy()
+    from .contour_kernels import start_on_polyline  # numba: imported when the first contour is traced
+
+    i, p = start_on_polyline(np.ascontiguousarray(poly, dtype=np.float64), float(cx))
+    return int(i), p
 
 
 def resample_closed(poly: np.ndarray, start_edge: int, start: np.ndarray, n_points: int) -> np.ndarray:
@@ -154,27 +141,13 @@ def resample_closed(poly: np.ndarray, start_edge: int, start: np.ndarray, n_poin
         n_points: number of output points.
     Returns:
         (n_points, 2) float64; point k at arc length ``k L / n_points`` from the start, in the
-        polyline's direction (L = perimeter). A zero-length outline gives n copies of ``start``.
+        polyline's direction (L = perimeter), linearly interpolated. A zero-length outline gives
+        n copies of ``start``.
     """
-    m = len(poly)
-    # the start, the vertices after it once round (start_edge + 1 .. m - 1, then 0 .. start_edge), the start again
-    path = np.empty((m + 2, 2))
-    path[0] = start
-    path[1 : m - start_edge] = poly[start_edge + 1 :]
-    path[m - start_edge : m + 1] = poly[: start_edge + 1]
-    path[m + 1] = start
-    step = path[1:] - path[:-1]
-    s = np.empty(m + 2)  # arc length at each path vertex
-    s[0] = 0.0
-    np.cumsum(np.hypot(step[:, 0], step[:, 1]), out=s[1:])
-    total = s[-1]
-    if not total > 0:
-        return np.repeat(start[None].astype(np.float64), n_points, axis=0)
-    targets = np.arange(n_points) * (total / n_points)
-    out = np.empty((n_points, 2))
-    out[:, 0] = np.interp(targets, s, path[:, 0])
-    out[:, 1] = np.interp(targets, s, path[:, 1])
-    return out
+    from .contour_kernels import resample_closed as compiled
+
+    return compiled(np.ascontiguousarray(poly, dtype=np.float64), int(start_edge),
+                    np.ascontiguousarray(start, dtype=np.float64), int(n_points))
 
 
 def extract_contour(mask: np.ndarray, n_points: int = N_POINTS) -> Contour:
@@ -237,12 +210,12 @@ def _trace(blob: np.ndarray, offset: tuple[int, int], cx: float, n_points: int,
     found, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     raw = max(found, key=len)  # one outer contour for an 8-connected blob
     length = float(cv2.arcLength(raw, closed=True)) if with_length else float("nan")
-    # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down).
-    if cv2.contourArea(raw, oriented=True) < 0:  # make it clockwise on screen
-        raw = raw[::-1]
-    poly = raw.reshape(-1, 2).astype(np.float64) + offset
-    i, start = _start_on_polyline(poly, cx)
-    return resample_closed(poly, i, start, n_points), length
+    from .contour_kernels import chain_outline  # numba: imported when the first contour is traced
+
+    # cv2.contourArea(oriented=True) has the sign of the shoelace formula in (x, y-down): read backwards when
+    # negative, to make it clockwise on screen; then started (_start_on_polyline) and resampled (resample_closed)
+    reverse = bool(cv2.contourArea(raw, oriented=True) < 0)
+    return chain_outline(raw.reshape(-1, 2), reverse, float(offset[0]), float(offset[1]), float(cx), n_points), length
 
 
 def single_blob_contour(blob: np.ndarray, n_points: int = N_POINTS, offset: tuple[int, int] = (0, 0),
