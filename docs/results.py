@@ -240,12 +240,12 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
     out.append(("4 mask videos, 644×486 → joints, no overlays", masks and
                 f"{masks['steps_per_s']:.1f} time steps/s over {masks['steps']} steps "
                 f"({masks['steady_steps_per_s']:.0f} after the set-up)"))
-    colour = next((r for r in rec if r.get("name") == "run" and str(r.get("run", "")).startswith("colour")
-                   and "overlays" not in str(r.get("run"))), None)
-    size = str(colour["run"]).split()[-1].replace("x", "×") if colour else ""
-    out.append((f"4 colour videos, {size} → joints, no overlays",
-                colour and f"{colour['steps_per_s']:.1f} time steps/s over {colour['steps']} steps "
-                f"({colour['steady_steps_per_s']:.0f} after the {colour['setup_s']:.1f} s set-up)"))
+    for colour in (r for r in rec if r.get("name") == "run" and str(r.get("run", "")).startswith("colour")
+                   and "overlays" not in str(r.get("run"))):
+        size = str(colour["run"]).split()[-1].replace("x", "×")
+        out.append((f"4 colour videos, {size} → joints, no overlays",
+                    f"{colour['steps_per_s']:.1f} time steps/s over {colour['steps']} steps "
+                    f"({colour['steady_steps_per_s']:.0f} after the {colour['setup_s']:.1f} s set-up)"))
     ov_m = _row(rec, name="run", run="1x with overlays")
     ov_c = next((r for r in rec if str(r.get("run", "")).startswith("colour") and "overlays" in str(r.get("run"))), None)
     out.append(("overlay videos' share of a run's time: masks / colour", ov_m and ov_c and

@@ -301,6 +301,18 @@ def test_the_camera_pool_is_left_out_below_three_cores(monkeypatch):
         assert default_camera_threads(4, readers) == n, (cores, readers)
 
 
+def test_mask_videos_decode_in_reader_threads_only_on_two_cores(monkeypatch):
+    """Without ``reader_threads``: colour videos always decode in reader threads; mask videos only where a second
+    core is free and no camera pool decodes ahead (2 cores)."""
+    import os
+
+    from silpose.app.recordings.pipeline import default_reader_threads
+
+    for cores, masks in ((1, False), (1, True), (2, True), (3, True), (8, True), (2, False), (8, False)):
+        monkeypatch.setattr(os, "cpu_count", lambda c=cores: c)
+        assert default_reader_threads(masks) == (not masks or cores == 2), (cores, masks)
+
+
 def _flat(column) -> np.ndarray:
     """A Parquet column's values as one flat numpy array (nested fixed-size lists unrolled)."""
     x = column.combine_chunks()

@@ -20,7 +20,8 @@ then per chunk:
 6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
 
 Threads: on a machine of 3 cores or more (:data:`POOL_MIN_CORES`) the per-camera stages run in a pool of one thread
-per camera (at most the CPU count), on 1-2 cores in the run's thread -- except the view
+per camera (at most the CPU count), on 1-2 cores in the run's thread (on 2 cores with each camera decoding in a
+reader thread of its own, :data:`READER_MIN_CORES`) -- except the view
 stage (3) of mask videos without carving, which runs in the run's thread: it is small numpy calls that hold the
 GIL, and a pool round trip per stage cost more than it gave (lab recording, 90 steps, six alternating runs at
 load ~5: 19.2 CPU ms per step and 49 steps/s on average, 21.1 and 47 through the pool); there, each camera's next
@@ -148,6 +149,12 @@ ABSORB_S = 2.0
 #: same in 4 of its last 5 runs). Under load 5-12 the pool had been faster (module docstring, "Threads"): more runnable
 #: threads take a larger share of a machine others use, at a higher cost in CPU.
 POOL_MIN_CORES = 3
+#: CPU cores from which mask videos, too, decode in reader threads of their own (:func:`default_reader_threads`):
+#: a mask frame decodes in ~0.3 ms, which on one core only takes turns with the run's thread. The lab recording played
+#: 3x (450 steps, lossy 644x486 mask videos), the idle 2-core project machine, three alternating runs: 100.1 / 100.1 /
+#: 101.0 time steps/s with them against 91.5 / 90.8 / 91.1 without (12.4 against 11.6 CPU ms per step); beside two
+#: busy processes 59.6 / 60.1 against 56.0 / 56.9, the same joints.csv.
+READER_MIN_CORES = 2
 #: metres: radius of the cylinder around each detected person that is never made background: the body and
 #: the arms' swing (half the view test's 0.9 m, so a box on the floor beside someone's path is absorbed)
 PROTECT_RADIUS_M = 0.45
@@ -187,9 +194,8 @@ class RecordingOptions:
     clutter it cuts comes from background plates older than the recording; on the lab's mask videos it changed no
     joint and cost 1.24-1.96x the CPU per step, benchmark ``recordings``). reader_threads:
     decode each camera in its own thread, frames ahead
-    (:class:`~.sources.ThreadedReader`); None = for colour videos only (measured on 4 walkers' 644x486 mask
-    videos, 200 steps, loaded 2-core machine, two alternating runs each: 27 and 50 steps/s with reader threads,
-    47 and 92 without -- a mask frame decodes in ~1 ms, and the extra threads only contend for the cores).
+    (:class:`~.sources.ThreadedReader`); None = :func:`default_reader_threads` (colour videos; mask videos on 2
+    cores).
     align_plates: register each empty-room clip to the recording's own view of the room before its background
     is learnt (:mod:`silpose.segment.align`: a camera nudged or a video rescaled since the plate).
     silhouette_fit: move each placed joint, as little as its posterior standard deviation allows, inside the
@@ -395,6 +401,15 @@ class _Person:
     cut: np.ndarray  # (K,) share of the person's blob cut as unsupported by the other views (.hull), NaN: no blob
 
 
+def default_reader_threads(masks: bool) -> bool:
+    """Whether each camera decodes in a reader thread of its own when the options do not say: colour videos always
+    (their decoding is most of a step); mask videos on :data:`READER_MIN_CORES` cores or more where there is no camera
+    pool (:data:`POOL_MIN_CORES`: with one, each camera's next step, its decoding included, already runs ahead in the
+    pool)."""
+    cores = os.cpu_count() or 1
+    return (not masks) or READER_MIN_CORES <= cores < POOL_MIN_CORES
+
+
 def default_camera_threads(n_cameras: int, reader_threads: bool) -> int:
     """Camera worker threads when the options do not say (module docstring, "Threads"): one per camera, at most the
     CPU count, less two when the cameras decode in reader threads of their own (one core for them, one for the run's
@@ -445,7 +460,7 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
     sources = {c: at_size(s, (work[names.index(c)].width, work[names.index(c)].height))
                for c, s in recording.sources.items()}
     start = first_step(opt)
-    threaded = (not opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
+    threaded = default_reader_threads(opt.masks) if opt.reader_threads is None else bool(opt.reader_threads)
     reader = (lambda r: ThreadedReader(r)) if threaded else (lambda r: r)  # noqa: E731
     # the cameras' readers open (and, in threads, decode ahead) while the backgrounds are learnt, and the floor grid
     # is built meanwhile: neither needs a background (module docstring, "Set-up")

@@ -127,7 +127,8 @@ def grounded(cam, blobs: Blobs, xy: np.ndarray) -> np.ndarray:
     if blobs.empty or not len(xy):
         return out
     lab = _column_labels(cam, blobs, xy)
-    feet = np.c_[xy, np.zeros(len(xy))]
+    feet = np.zeros((len(xy), 3))  # the floor points (z = 0)
+    feet[:, :2] = xy
     foot_px = cam.project(feet)
     depth = cam.to_camera(feet)[:, 2]
     ox, oy = blobs.origin
