@@ -229,6 +229,7 @@ def warm_compiled() -> None:
 
     from silpose.app.recordings.outline_kernels import nearest_on_outline
     from silpose.model.robust import kernels
+    from silpose.segment import colour_kernels
     from silpose.shared.contours import single_blob_contour
 
     square = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
@@ -237,6 +238,9 @@ def warm_compiled() -> None:
     kernels.near_any_edge(square.copy(), square.copy(), np.ones(1), np.zeros(1, np.int64), np.zeros(1, np.int64), 1)
     kernels.biweight_pseudo(square[None].copy(), square[None].copy(), np.ones((1, 1), bool), 3.0, 0.3)
     single_blob_contour(np.ones((2, 2), np.uint8), 4)
+    colour_kernels.normalise_and_score(np.zeros((1, 3), np.uint8), np.ones(3, np.float32), np.zeros((1, 3), np.float32),
+                                       np.ones((1, 3), np.float32), np.float32(1), np.empty((1, 3), np.uint8),
+                                       np.empty((1, 1), np.float32), np.empty((1, 1), np.float32), np.empty((1, 1), bool))
 
 
 def measure(model: str, videos: str, out: str, overlays: bool, threads: int | None, robust: bool | None = None,

@@ -65,7 +65,8 @@ the NCC is computed at the candidates only, after a quick integer test of the br
 (:mod:`.ncc`); the colour test runs
 on the candidates that are not NCC seeds and fall within per-channel uint8 bounds every shadow-like
 pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared colour differences;
-the gain divides the frame channel by channel (cv2.convertScaleAbs). The masks equal those of the former
+the gain's division and the colour candidates are one compiled pass over the frame
+(:mod:`.colour_kernels`, OpenCV's arithmetic bit for bit). The masks equal those of the former
 whole-frame pipeline (``tests/segment/test_region_of_interest.py``). Measured with
 ``benchmarks/segmentation.py``'s ``--quick`` sizes, the former and this pipeline alternating in one
 process (2 rounds, a shared 2-core machine at load 3-4; CPU time per frame, fastest of 3 passes, over
@@ -417,6 +418,8 @@ class BackgroundModel:
                 self._like_lo = np.clip(np.ceil(lo * cm - self.chroma_max) - 1, 0, 255).astype(np.uint8)
                 self._like_hi = np.clip(np.floor(hi * cm + self.chroma_max) + 1, 0, 255).astype(np.uint8)
             self._inv_var = (1.0 / np.maximum(np.maximum(self.colour_std_, self.min_std), 1e-6) ** 2).astype(np.float32)
+            h, w = self.colour_mean_.shape[:2]
+            self._cmean_rows, self._inv_var_rows = self._cmean32.reshape(h, 3 * w), self._inv_var.reshape(h, 3 * w)
             self._cthr = np.float32(3.0 * self.k_sigma**2)
             if self.cleanup_guard is not None:  # the guard's squared thresholds on the same score
                 self._cguard = tuple(np.float32(3.0 * (float(v) * self.k_sigma) ** 2) for v in self.cleanup_guard)
@@ -587,9 +590,13 @@ class BackgroundModel:
         After the candidates, each frame is processed on its region of interest only: the candidates'
         bounding box grown by :meth:`_roi_margin` pixels (clipped to the frame). Every later step gives there
         the values it gives on the whole frame, and nothing outside it (see :meth:`_roi_margin`)."""
-        if self.gain:
-            stack = self._normalise_gain(stack)
         use_colour = stack.ndim == 4 and self._inv_var is not None
+        if use_colour:  # each frame's gain division and candidates in one compiled pass (_colour_candidates)
+            divided = np.empty_like(stack)
+            scored = [self._colour_candidates(f, divided[i]) for i, f in enumerate(stack)]
+            stack = divided
+        elif self.gain:
+            stack = self._normalise_gain(stack)
         if not use_colour:
             # Graylevel, vectorised over the stack: |f - mean| > k sigma, for integer f exactly
             # f > floor(mean + k sigma) or f < ceil(mean - k sigma) (bounds precomputed in _finalise).
@@ -600,7 +607,7 @@ class BackgroundModel:
         h, w = stack.shape[1:3]
         margin = self._roi_margin()
         for i in range(stack.shape[0]):
-            cand, sq, score = self._colour_candidates(stack[i]) if use_colour else (cand_all[i], None, None)
+            cand, sq, score = scored[i] if use_colour else (cand_all[i], None, None)
             if stages:
                 out["candidates"][i] = cand
             x, y, bw, bh = cv2.boundingRect(cand.view(np.uint8))
@@ -619,18 +626,23 @@ class BackgroundModel:
                 out[k][i][roi] = m
         return out
 
-    def _colour_candidates(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """Colour candidates of one frame (H, W, 3) uint8 (float32 in OpenCV, ~10x numpy's speed) -> (H, W) bool,
-        the squared colour difference from the background mean ``sum_c (f_c - mean_c)^2`` (H, W) float32 that
-        the edge rule uses (None when it is off), and the candidates' score ``sum_c (f_c - mean_c)^2 / std_c^2``
-        (H, W) float32 (above ``3 k_sigma^2``: a candidate) that the clean-up's guard reads."""
-        d = frame.astype(np.float32)  # then in place: a third faster than cv2.subtract(..., dtype=CV_32F), same values
-        cv2.subtract(d, self._cmean32, dst=d)
-        cv2.multiply(d, d, dst=d)
-        sq = cv2.transform(d, _SUM3) if self.edge_coverage is not None else None  # sum over channels
-        cv2.multiply(d, self._inv_var, dst=d)
-        score = cv2.transform(d, _SUM3)
-        return score > self._cthr, sq, score
+    def _colour_candidates(self, frame: np.ndarray, out: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """One colour frame (H, W, 3) uint8 divided by its gain (``gain``; else copied) into ``out`` (H, W, 3) uint8,
+        and its candidates (H, W) bool, the squared colour difference from the background mean
+        ``sum_c (f_c - mean_c)^2`` (H, W) float32 that the edge rule uses (None when it is off), and the candidates'
+        score ``sum_c (f_c - mean_c)^2 / std_c^2`` (H, W) float32 (above ``3 k_sigma^2``: a candidate) that the
+        clean-up's guard reads, all of the divided frame: one compiled pass (:mod:`.colour_kernels`, the arithmetic
+        of ``cv2.convertScaleAbs`` and of float32 ``cv2.subtract`` / ``multiply`` / ``transform``, bit for bit)."""
+        from .colour_kernels import normalise_and_score  # numba: imported when the first colour frame is segmented
+
+        h, w = frame.shape[:2]
+        inv = np.ones(3, np.float32)
+        if self.gain:
+            inv = (1.0 / np.maximum(self.frame_gain(frame), 1e-3)).astype(np.float32)
+        sq, score, cand = np.empty((h, w), np.float32), np.empty((h, w), np.float32), np.empty((h, w), bool)
+        normalise_and_score(np.ascontiguousarray(frame).reshape(h, 3 * w), np.tile(inv, w), self._cmean_rows,
+                            self._inv_var_rows, self._cthr, out.reshape(h, 3 * w), sq, score, cand)
+        return cand, (sq if self.edge_coverage is not None else None), score
 
     def _guard_masks(self, region: np.ndarray, roi) -> tuple[np.ndarray, np.ndarray]:
         """The clean-up's guard on a region of interest ``roi`` (module docstring, step 5): (strong, weak) (h, w)
