@@ -118,6 +118,22 @@ def test_statistics_equal_numpy_and_partial_fit_in_chunks():
     np.testing.assert_allclose(model.mean_, gray[:3].mean(axis=0), rtol=1e-12)
 
 
+def test_chunks_added_without_finalising_give_the_same_model_and_segment_only_once_finalised():
+    rng = np.random.default_rng(2)
+    frames = rng.integers(0, 256, (9, 13, 11, 3), dtype=np.uint8)
+    whole = BackgroundModel().fit(frames)
+    chunked = BackgroundModel()
+    chunked.partial_fit(frames[:4], finalise=False)
+    chunked.partial_fit(frames[4:7], finalise=False)
+    with pytest.raises(SegmentError, match="finalise=False"):
+        chunked.segment(frames[0])
+    chunked.partial_fit(frames[7:])
+    for name in ("mean_", "std_", "colour_mean_", "colour_std_"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
+    probe = rng.integers(0, 256, (13, 11, 3), dtype=np.uint8)
+    np.testing.assert_array_equal(chunked.segment(probe), whole.segment(probe))
+
+
 def test_statistics_stay_exact_for_long_backgrounds():
     """400 nearly constant frames: sum-of-squares formulas in floating point would cancel badly."""
     rng = np.random.default_rng(1)

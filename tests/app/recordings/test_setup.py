@@ -89,3 +89,26 @@ def test_readers_opened_before_the_backgrounds_are_closed_when_learning_fails(ti
         run_recording(tiny_model, videos, tmp_path / "out", RecordingOptions(background=empty, overlays=False))
     left = {t for t in threading.enumerate() if t.name.startswith("read-") and t.is_alive()} - before
     assert not left, f"reader threads left running: {sorted(t.name for t in left)}"
+
+
+def test_a_plate_longer_than_a_chunk_is_fitted_once_and_is_the_model_of_all_its_frames(rig, tools, tmp_path,
+                                                                                      monkeypatch):
+    """A 70-frame empty-room clip is read in chunks of 32: the statistics are computed once, at the end (each costs
+    as much as adding tens of frames), and the model is the one of all 70 frames fitted at once (as decoded)."""
+    from silpose.segment import BackgroundModel
+
+    (tmp_path / "empty").mkdir()
+    size = (322, 242)  # the lab rig's aspect, read at its own size
+    for k, cam in enumerate(rig):
+        tools.write_video(tmp_path / "empty" / f"{cam.name}.mp4", background_frames(k, size, 70))
+    finalised = []
+    real = BackgroundModel._finalise
+    monkeypatch.setattr(BackgroundModel, "_finalise", lambda self: (finalised.append(self.n_frames_seen_), real(self)))
+    models = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names}).models
+    assert finalised == [70] * len(rig.names)
+    for k, cam in enumerate(rig):
+        cap = cv2.VideoCapture(str(tmp_path / "empty" / f"{cam.name}.mp4"))
+        decoded = np.stack([cap.read()[1] for _ in range(70)])
+        cap.release()
+        np.testing.assert_allclose(models[cam.name].colour_mean_, decoded.astype(np.float64).mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(models[cam.name].colour_std_, decoded.astype(np.float64).std(axis=0), rtol=1e-12)

@@ -289,11 +289,14 @@ class BackgroundModel:
             self.__dict__.pop(attr, None)
         return self.partial_fit(stack)
 
-    def partial_fit(self, frames) -> BackgroundModel:
+    def partial_fit(self, frames, finalise: bool = True) -> BackgroundModel:
         """Add background frames (N, H, W) or (N, H, W, 3) uint8 to the running sums. Returns self.
 
-        The statistics (``mean_``, ``std_``) are updated after each call once 2 frames or more
-        have been seen; frames must all have the size of the first chunk.
+        The statistics (``mean_``, ``std_``) and the segmentation's thresholds are updated after each call once 2
+        frames or more have been seen; frames must all have the size of the first chunk. ``finalise=False``: more
+        chunks follow at once, so only the sums grow (the statistics of a 922x519 colour background cost as much
+        as adding 40 frames); the model cannot segment until a call with ``finalise=True``. The sums are exact, so
+        the model is the same however the frames were split.
         """
         self._check_params()
         stack = as_frame_stack(frames, "frames")
@@ -324,7 +327,8 @@ class BackgroundModel:
             add_sums(stack, self._c1, self._c2)
         add_sums(gray, self._s1, self._s2)
         self.n_frames_seen_ += gray.shape[0]
-        if self.n_frames_seen_ >= 2:
+        self._stale = not finalise
+        if finalise and self.n_frames_seen_ >= 2:
             self._finalise()
         return self
 
@@ -340,6 +344,7 @@ class BackgroundModel:
         self.frame_shape_ = gray.shape[1:]
         self.n_frames_seen_ = int(stack.shape[0])
         self._s1 = self._s2 = None  # no running sums: partial_fit refuses
+        self._stale = False
         self._c1 = self._c2 = None
 
         def med_mad(x):
@@ -490,6 +495,9 @@ class BackgroundModel:
     def _check_fitted(self) -> None:
         if not hasattr(self, "n_frames_seen_"):
             raise SegmentError("BackgroundModel: not fitted; call fit(background_frames) before segmenting")
+        if getattr(self, "_stale", False):
+            raise SegmentError("BackgroundModel: frames were added with partial_fit(finalise=False); finish with "
+                               "partial_fit(frames) before segmenting")
         if self.n_frames_seen_ < 2:
             raise SegmentError(
                 f"BackgroundModel: the background has {self.n_frames_seen_} frame; at least 2 are needed"

@@ -107,11 +107,13 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
     (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
     and the model's ``min_std`` is raised to the spread of the plate's differences from that view
     (:func:`silpose.segment.plate_mismatch_std`). ``view``: gives that room view (e.g. a future's result, computed
-    elsewhere), asked for once the first chunk of the plate is read; None: :func:`room_view` of ``room`` here."""
+    elsewhere), asked for once the first chunk of the plate is read; None: :func:`room_view` of ``room`` here.
+    The model's statistics are computed once, after the last chunk (``partial_fit(..., finalise=False)`` before)."""
     model = BackgroundModel(**{**SEGMENT_DEFAULTS, **params})
     reader = CameraReader(source, grey=False)
     seen = 0
     warp = None
+    held: list[np.ndarray] = []  # the last chunk read: fitted with finalise=True once no other follows
     try:
         while seen < n:
             frames = []
@@ -130,8 +132,12 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
                     model.min_std = max(model.min_std, plate_mismatch_std(aligned, seen_room))
             if warp is not None:
                 frames = [warp_plate(f, warp) for f in frames]
-            model.partial_fit(np.stack(frames))
+            if held:  # another chunk follows it: only its sums (the statistics once, at the end)
+                model.partial_fit(np.stack(held), finalise=False)
+            held = frames
             seen += len(frames)
+        if held:
+            model.partial_fit(np.stack(held))
     except SegmentError as exc:
         raise RecordingError(f"{source.path}: {exc}") from None
     finally:
