@@ -157,6 +157,7 @@ def decode_reference(videos: str, clips: str, n_background: int = 20, model: str
     from silpose.segment import BackgroundModel
 
     cv2.setNumThreads(1)
+    warm_compiled()  # the segmentation's compiled pass: numba's import is not a frame's work
     rig = None
     if model:
         from silpose.model.persistence import load_model  # scikit-learn: seconds to import on a loaded machine

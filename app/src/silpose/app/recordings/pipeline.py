@@ -127,6 +127,7 @@ from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
 from .silhouette_fit import fit_to_silhouettes
 from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, work_camera, work_size
+from .pages import ordinary_pages
 from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
                           background_from_first_frames, background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
@@ -430,7 +431,15 @@ def run_recording(model, videos, out, options: RecordingOptions | None = None, *
         videos: the videos folder (:mod:`.sources`). out: output folder (created).
         options: :class:`RecordingOptions`. progress: called with (steps done, total or -1).
         warn: called with each warning line when it is found (also in the summary).
+    numpy allocates in ordinary pages during the run (:func:`.pages.ordinary_pages`).
     """
+    with ordinary_pages():
+        return _run(model, videos, out, options, progress=progress, warn=warn, model_path=model_path)
+
+
+def _run(model, videos, out, options: RecordingOptions | None, *, progress: Callable[[int, int], None] | None,
+         warn: Callable[[str], None] | None, model_path: str) -> RecordingSummary:
+    """:func:`run_recording`'s work."""
     t_start = time.perf_counter()
     opt = options or RecordingOptions()
     if isinstance(model, (str, Path)):
