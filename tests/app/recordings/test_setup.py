@@ -91,12 +91,22 @@ def test_readers_opened_before_the_backgrounds_are_closed_when_learning_fails(ti
     assert not left, f"reader threads left running: {sorted(t.name for t in left)}"
 
 
-def test_a_plate_longer_than_a_chunk_is_fitted_once_and_is_the_model_of_all_its_frames(rig, tools, tmp_path,
-                                                                                      monkeypatch):
-    """A 70-frame empty-room clip is read in chunks of 32: the statistics are computed once, at the end (each costs
-    as much as adding tens of frames), and the model is the one of all 70 frames fitted at once (as decoded)."""
+def _decoded(path, first, n):
+    cap = cv2.VideoCapture(str(path))
+    frames = [cap.read()[1] for _ in range(first + n)][first:]
+    cap.release()
+    return np.stack(frames).astype(np.float64)
+
+
+def test_a_plate_longer_than_a_chunk_is_fitted_once_from_the_frames_around_its_middle(rig, tools, tmp_path,
+                                                                                    monkeypatch):
+    """A 70-frame empty-room clip gives its middle PLATE_FRAMES (60: frames 5-64), read in chunks of 32: the
+    statistics are computed once, at the end (each costs as much as adding tens of frames), and the model is the one
+    of those frames fitted at once (as decoded one after the other)."""
+    from silpose.app.recordings.silhouettes import PLATE_FRAMES
     from silpose.segment import BackgroundModel
 
+    assert PLATE_FRAMES == 60  # the frames below
     (tmp_path / "empty").mkdir()
     size = (322, 242)  # the lab rig's aspect, read at its own size
     for k, cam in enumerate(rig):
@@ -105,10 +115,31 @@ def test_a_plate_longer_than_a_chunk_is_fitted_once_and_is_the_model_of_all_its_
     real = BackgroundModel._finalise
     monkeypatch.setattr(BackgroundModel, "_finalise", lambda self: (finalised.append(self.n_frames_seen_), real(self)))
     models = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names}).models
-    assert finalised == [70] * len(rig.names)
+    assert finalised == [60] * len(rig.names)
+    for cam in rig:
+        decoded = _decoded(tmp_path / "empty" / f"{cam.name}.mp4", 5, 60)
+        np.testing.assert_allclose(models[cam.name].colour_mean_, decoded.mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(models[cam.name].colour_std_, decoded.std(axis=0), rtol=1e-12)
+
+
+def test_a_long_plate_leaves_out_whoever_started_and_stopped_the_camera(rig, tools, tmp_path):
+    """A 130-frame clip whose first and last 30 frames show someone (the operator walking out of the picture and
+    back to stop the camera): the background is learnt from the 60 frames around its middle, sought to (not decoded
+    up to), so the operator's pixels hold the room, not a mix of the room and the operator; the statistics are those
+    of frames 35-94 decoded one after the other."""
+    (tmp_path / "empty").mkdir()
+    size = (322, 242)
     for k, cam in enumerate(rig):
-        cap = cv2.VideoCapture(str(tmp_path / "empty" / f"{cam.name}.mp4"))
-        decoded = np.stack([cap.read()[1] for _ in range(70)])
-        cap.release()
-        np.testing.assert_allclose(models[cam.name].colour_mean_, decoded.astype(np.float64).mean(axis=0), rtol=1e-12)
-        np.testing.assert_allclose(models[cam.name].colour_std_, decoded.astype(np.float64).std(axis=0), rtol=1e-12)
+        frames = background_frames(k, size, 130)
+        frames[:30, 60:200, 20:80] = (40, 200, 40)  # the operator, beside the room's props
+        frames[100:, 60:200, 240:300] = (40, 200, 40)
+        tools.write_video(tmp_path / "empty" / f"{cam.name}.mp4", frames)
+    models = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names}).models
+    for k, cam in enumerate(rig):
+        clean = room(k, size).astype(np.float64)
+        mean = models[cam.name].colour_mean_
+        for box in (np.s_[60:200, 20:80], np.s_[60:200, 240:300]):
+            assert np.abs(mean[box] - clean[box]).mean() < 4.0  # the room, within the noise and the codec
+        decoded = _decoded(tmp_path / "empty" / f"{cam.name}.mp4", 35, 60)
+        np.testing.assert_allclose(mean, decoded.mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(models[cam.name].colour_std_, decoded.std(axis=0), rtol=1e-12)
