@@ -5,8 +5,10 @@ check what the workflow finds, writes and refuses, not the poses (``test_lab.py`
 """
 
 import json
+import threading
 
 import cv2
+
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -169,6 +171,39 @@ def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, t
     floor = np.c_[t.column("floor_x").to_numpy(), t.column("floor_y").to_numpy()]
     truth = where[np.array(r["frame"]) - 6]
     assert np.linalg.norm(floor - truth, axis=1).max() < 0.1
+
+
+def test_colour_segmentation_started_in_the_reader_threads_changes_nothing(rig, tiny_model, tools, tmp_path,
+                                                                         monkeypatch):
+    """Colour videos: each frame's first segmentation steps run in its camera's reader thread
+    (``ColourSegmenter.candidates``); the joints file is the one of a run without reader threads, where the run's
+    thread does every step."""
+    from silpose.app.recordings.silhouettes import ColourSegmenter
+    from silpose.segment.composite import background_frames, composite_frame, room
+
+    videos = tmp_path / "v"
+    videos.mkdir()
+    where = tools.walk((-0.8, 0.2), (0.8, 0.2), 12)
+    for k, cam in enumerate(rig):
+        size = (cam.width, cam.height)
+        clean = room(k, size)
+        people = [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]
+        tools.write_video(videos / f"{cam.name}.mp4", np.concatenate([background_frames(k, size, 6), np.stack(people)]))
+    threads = set()
+    real = ColourSegmenter.candidates
+    monkeypatch.setattr(ColourSegmenter, "candidates",
+                        lambda self, c, img: threads.add(threading.current_thread().name) or real(self, c, img))
+    tables = []
+    for i, readers in enumerate((True, False)):
+        run_recording(tiny_model, videos, tmp_path / f"o{i}",
+                      RecordingOptions(background_frames=6, overlays=False, reader_threads=readers))
+        tables.append(pq.read_table(tmp_path / f"o{i}" / "joints.parquet"))
+        if readers:
+            assert threads and all(t.startswith("read-") for t in threads)
+    assert tables[0].num_rows == tables[1].num_rows > 0
+    for col in tables[0].column_names:
+        a, b = _flat(tables[0].column(col)), _flat(tables[1].column(col))
+        assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), col
 
 
 def test_colour_videos_with_the_recordings_own_median_as_background(rig, tiny_model_file, tools, tmp_path):

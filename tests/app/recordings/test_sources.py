@@ -2,6 +2,8 @@
 
 import dataclasses
 
+import threading
+
 import numpy as np
 import pytest
 
@@ -200,6 +202,32 @@ def test_threaded_reader_gives_the_frames_in_order_then_none(rig, tools, tmp_pat
     got = [_frame_index(r.read()) for _ in range(9)]
     assert got == list(range(9)) and r.read() is None and r.read() is None and r.summary() is None
     r.close()
+
+
+def test_threaded_reader_hands_each_frame_with_what_its_thread_computed_of_it(rig, tools, tmp_path):
+    """``after`` runs in the reader's thread on each decoded frame; ``read_with`` hands its result over with that
+    frame (None for frames decoded before it was set, and at the end)."""
+    from silpose.app.recordings.sources import ThreadedReader
+
+    tools.write_video(tmp_path / "cam0.mp4", _numbered(9))
+    rec = open_recording(tmp_path, rig)
+    threads = set()
+
+    def after(img):
+        threads.add(threading.current_thread().name)
+        return _frame_index(img) * 10
+
+    r = ThreadedReader(CameraReader(rec.sources["cam0"], grey=True), depth=2, after=after)
+    got = [r.read_with() for _ in range(9)]
+    assert [(_frame_index(f), x) for f, x in got] == [(i, 10 * i) for i in range(9)]
+    assert r.read_with() == (None, None) and threads == {"read-cam0"}
+    r.close()
+    late = ThreadedReader(CameraReader(rec.sources["cam0"], grey=True), depth=2)
+    late.after = after  # set while the thread runs: the frames it decoded before have None
+    got = [late.read_with() for _ in range(9)]
+    late.close()
+    assert [_frame_index(f) for f, _ in got] == list(range(9))
+    assert all(x is None or x == 10 * _frame_index(f) for f, x in got) and got[-1][1] == 80
 
 
 def test_a_video_a_codec_block_narrower_is_the_calibrations_picture(rig, tools, tmp_path):

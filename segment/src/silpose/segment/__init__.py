@@ -14,7 +14,7 @@ benchmark is ``benchmarks/segmentation.py`` at the repository root.
 """
 
 from .validate import SegmentError
-from .background import STAGES, BackgroundModel
+from .background import STAGES, BackgroundModel, Candidates
 from .align import plate_alignment, plate_mismatch_std, warp_plate
 
-__all__ = ["STAGES", "BackgroundModel", "SegmentError", "plate_alignment", "plate_mismatch_std", "warp_plate"]
+__all__ = ["STAGES", "BackgroundModel", "Candidates", "SegmentError", "plate_alignment", "plate_mismatch_std", "warp_plate"]

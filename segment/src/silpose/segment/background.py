@@ -66,7 +66,9 @@ the NCC is computed at the candidates only, after a quick integer test of the br
 on the candidates that are not NCC seeds and fall within per-channel uint8 bounds every shadow-like
 pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared colour differences;
 the gain's division and the colour candidates are one compiled pass over the frame
-(:mod:`.colour_kernels`, OpenCV's arithmetic bit for bit). The masks equal those of the former
+(:mod:`.colour_kernels`, OpenCV's arithmetic bit for bit), which :meth:`BackgroundModel.candidates` also gives on its
+own: it changes nothing in the model, so another thread may run it on the next frames (:class:`Candidates`, handed
+to :meth:`BackgroundModel.segment`, which computes them again if the statistics changed since). The masks equal those of the former
 whole-frame pipeline (``tests/segment/test_region_of_interest.py``). Measured with
 ``benchmarks/segmentation.py``'s ``--quick`` sizes, the former and this pipeline alternating in one
 process (2 rounds, a shared 2-core machine at load 3-4; CPU time per frame, fastest of 3 passes, over
@@ -83,6 +85,8 @@ the paper's graylevel rules and the former cleanup (median 5, open 3, close 7), 
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -102,6 +106,22 @@ _BATCH_CHUNK = 64  # frames per vectorised chunk in segment_batch (bounds the te
 SUM_FRAMES = 65_000
 _GAIN_STEP = 4  # every 4th row and column are the pixels the gain is measured on
 _GAIN_MIN_LEVEL = 16.0  # graylevels: darker background pixels say little about the gain
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """A colour frame's whole-frame steps (the gain's division and step 2), as :meth:`BackgroundModel.candidates`
+    gives them -- possibly in another thread, while the model segments earlier frames: the frame divided by its gain
+    ``divided`` (H, W, 3) uint8, the candidates ``mask`` (H, W) bool, the squared colour differences ``sq`` (H, W)
+    float32 (None when the edge rule is off) and the normalised ``score`` (H, W) float32, computed against the
+    model's statistics of ``version`` (:attr:`BackgroundModel.version`; the model ignores them once its statistics
+    changed since)."""
+
+    divided: np.ndarray
+    mask: np.ndarray
+    sq: np.ndarray | None
+    score: np.ndarray
+    version: int
 
 
 def add_sums(frames: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> None:
@@ -395,7 +415,9 @@ class BackgroundModel:
         self._prepare(colour)
 
     def _prepare(self, colour: tuple[np.ndarray, np.ndarray] | None) -> None:
-        """Thresholds and window statistics from ``mean_``, ``std_`` and the colour (mean, std) or None."""
+        """Thresholds and window statistics from ``mean_``, ``std_`` and the colour (mean, std) or None. A new
+        :attr:`version` first: :class:`Candidates` computed meanwhile, or before, are out of date."""
+        self._version = getattr(self, "_version", 0) + 1
         thr = self.k_sigma * np.maximum(self.std_, self.min_std)
         # Integer bounds, clipped to int16: |f - mean| > thr  <=>  f > floor(mean + thr) or f < ceil(mean - thr).
         self._upper = np.clip(np.floor(self.mean_ + thr), -1, 256).astype(np.int16)
@@ -510,7 +532,28 @@ class BackgroundModel:
                 f"{frame_size_text(self.frame_shape_)}"
             )
 
-    def segment(self, frame, return_stages: bool = False):
+    @property
+    def version(self) -> int:
+        """Counts the changes of the model's statistics (a fit, an absorb): :class:`Candidates` carry the one they
+        were computed against."""
+        self._check_fitted()
+        return self._version
+
+    def candidates(self, frame) -> Candidates | None:
+        """The whole-frame steps of segmenting one colour frame (H, W, 3) uint8 (:class:`Candidates`), for
+        :meth:`segment` to finish: they read the model and change nothing, so another thread may compute them for
+        the next frames while this one segments (the recordings pipeline's reader threads). None for a graylevel
+        model or frame (they have no such step)."""
+        self._check_fitted()
+        arr = as_single_frame(frame, "frame")
+        self._check_shape(arr.shape[:2], "frame")
+        version = self._version
+        if arr.ndim != 3 or self._inv_var is None:
+            return None
+        divided = np.empty_like(arr)
+        return Candidates(divided, *self._colour_candidates(arr, divided), version)
+
+    def segment(self, frame, return_stages: bool = False, candidates: Candidates | None = None):
         """Foreground mask of one frame (streaming API).
 
         Parameters
@@ -518,6 +561,9 @@ class BackgroundModel:
         frame : array (H, W) or (H, W, 3) uint8, same size as the background
         return_stages : bool
             Also return the intermediate masks.
+        candidates : Candidates or None
+            :meth:`candidates` of this frame, computed beforehand (elsewhere); recomputed here when the model's
+            statistics changed since (:attr:`version`). The mask is the same either way.
 
         Returns
         -------
@@ -527,7 +573,10 @@ class BackgroundModel:
         self._check_fitted()
         arr = as_single_frame(frame, "frame")
         self._check_shape(arr.shape[:2], "frame")
-        stages = self._segment(arr[None], return_stages)
+        if candidates is not None and (candidates.version != self._version or arr.ndim != 3
+                                       or candidates.mask.shape != arr.shape[:2]):
+            candidates = None  # out of date (or not this model's kind): computed again below
+        stages = self._segment(arr[None], return_stages, None if candidates is None else [candidates])
         if return_stages:
             return {k: v[0] for k, v in stages.items()}
         return stages["final"][0]
@@ -591,15 +640,20 @@ class BackgroundModel:
                 cv2.convertScaleAbs(f, dst=out[i], alpha=float(1.0 / max(float(g), 1e-3)))
         return out
 
-    def _segment(self, stack: np.ndarray, stages: bool = False) -> dict[str, np.ndarray]:
+    def _segment(self, stack: np.ndarray, stages: bool = False,
+                 given: list[Candidates] | None = None) -> dict[str, np.ndarray]:
         """Pipeline on validated frames (N, H, W) or (N, H, W, 3) uint8 -> {stage: (N, H, W) bool}: every stage
-        of :data:`STAGES` with ``stages``, else only ``"final"``.
+        of :data:`STAGES` with ``stages``, else only ``"final"``; ``given``: the frames' :class:`Candidates`,
+        up to date (colour), instead of computing them.
 
         After the candidates, each frame is processed on its region of interest only: the candidates'
         bounding box grown by :meth:`_roi_margin` pixels (clipped to the frame). Every later step gives there
         the values it gives on the whole frame, and nothing outside it (see :meth:`_roi_margin`)."""
         use_colour = stack.ndim == 4 and self._inv_var is not None
-        if use_colour:  # each frame's gain division and candidates in one compiled pass (_colour_candidates)
+        if use_colour and given is not None:
+            scored = [(c.mask, c.sq, c.score) for c in given]
+            stack = given[0].divided[None] if len(given) == 1 else np.stack([c.divided for c in given])
+        elif use_colour:  # each frame's gain division and candidates in one compiled pass (_colour_candidates)
             divided = np.empty_like(stack)
             scored = [self._colour_candidates(f, divided[i]) for i, f in enumerate(stack)]
             stack = divided

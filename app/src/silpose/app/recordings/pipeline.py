@@ -39,7 +39,13 @@ parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's d
 Colour videos decode in reader threads of their own (:class:`~.sources.ThreadedReader`), which with the run's
 thread keep two cores busy: the camera pool is then one thread per camera, at most the CPU count less two, so
 none on a 2-core machine (the segmentation, the floor and the views in the run's thread, the decoding still beside
-it). Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
+it). Each reader thread also takes the first steps of its frames' segmentation, which release the GIL and change no
+model: the gain's division and the candidates (:meth:`~.silhouettes.ColourSegmenter.candidates`, handed over with
+the frame; the run's thread computes them again when static clutter became background since,
+:attr:`silpose.segment.BackgroundModel.version`). Measured on the benchmark's colour recordings (150 steps, the idle
+2-core machine, alternating runs, the same joints.csv): 1920x1080, 16.0 / 15.9 / 15.0 / 14.6 / 14.2 / 16.3 / 14.4
+time steps/s against 16.7 / 14.3 / 14.3 / 13.1 / 15.8 / 14.2 / 13.7 with the run's thread doing them; 1932x1458,
+16.6 / 14.4 / 16.5 against 14.6 / 14.6 / 14.9. Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
 2-core machine): 15.9 / 15.3 / 16.9 time steps/s and 14.1 / 14.5 / 13.2 CPU s without the pool, 14.0 / 12.8 / 13.4
 and 17.3 / 18.4 / 17.8 with it, the same joints.csv -- six threads that take turns at the GIL cost more than the
 overlap gives (the floor's occupancy map, 0.4 CPU ms of numpy, took 5-6 ms of wall time per step beside them).
@@ -309,14 +315,17 @@ class _Camera:
         """The next frame's mask and blobs (a worker thread; :meth:`tally` counts it, in the run's thread)."""
         if self.ended:
             return _Seen(None, None, VIEW_ENDED)
-        img = self.reader.read()
+        img, ahead = self.reader.read_with() if isinstance(self.reader, ThreadedReader) else (self.reader.read(), None)
         if img is None:
             self.ended = True
             return _Seen(None, None, VIEW_ENDED)
-        return self._segment(img)
+        return self._segment(img, ahead)
 
-    def _segment(self, img: np.ndarray) -> _Seen:
-        mask = self.silhouettes(self.reader.source.camera, img)
+    def _segment(self, img: np.ndarray, ahead=None) -> _Seen:
+        """``ahead``: the frame's segmentation candidates from the reader thread (module docstring, "Threads"), or
+        None."""
+        cam = self.reader.source.camera
+        mask = self.silhouettes(cam, img) if ahead is None else self.silhouettes(cam, img, ahead)
         blobs = find_blobs(mask, self.min_area)
         return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask,
                      int(img.max()) if blobs.empty else 0)
@@ -487,6 +496,10 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
             grid = grid_job.result()
         if rooms:
             readers = {c: reader(r) for c, r in readers.items()}
+        if hasattr(silhouettes, "candidates"):  # colour: each frame's first segmentation steps in its reader thread
+            for c, r in readers.items():
+                if isinstance(r, ThreadedReader):
+                    r.after = lambda img, c=c: silhouettes.candidates(c, img)
         total = recording.n_steps - start if recording.n_steps >= 0 else -1
         if recording.n_steps >= 0 and total <= 0:
             raise RecordingError(f"{videos}: no frames left after the {start} background frames")

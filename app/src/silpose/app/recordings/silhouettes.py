@@ -32,7 +32,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from silpose.segment import BackgroundModel, SegmentError, plate_alignment, plate_mismatch_std, warp_plate
+from silpose.segment import BackgroundModel, Candidates, SegmentError, plate_alignment, plate_mismatch_std, warp_plate
 
 from ..errors import RecordingError
 from .sources import CameraReader, CameraSource, open_recording
@@ -103,11 +103,23 @@ class ColourSegmenter:
     def __init__(self, models: dict[str, BackgroundModel]):
         self.models = models
 
-    def __call__(self, camera: str, frame: np.ndarray) -> np.ndarray:
+    def __call__(self, camera: str, frame: np.ndarray, candidates: Candidates | None = None) -> np.ndarray:
+        """The mask of ``frame``; ``candidates``: :meth:`candidates` of it, computed beforehand (e.g. in the camera's
+        reader thread), or None."""
         try:
-            return self.models[camera].segment(frame).view(np.uint8)
+            return self.models[camera].segment(frame, candidates=candidates).view(np.uint8)
         except SegmentError as exc:
             raise RecordingError(f"camera {camera!r}: {exc}") from None
+
+    def candidates(self, camera: str, frame: np.ndarray) -> Candidates | None:
+        """The whole-frame first steps of segmenting ``frame`` (:meth:`silpose.segment.BackgroundModel.candidates`):
+        they change no model, so a camera's reader thread computes them for the frames it decodes ahead, beside the
+        run's thread (:class:`~.sources.ThreadedReader`, ``after``); None where they cannot be (the run's thread then
+        reports the error)."""
+        try:
+            return self.models[camera].candidates(frame)
+        except SegmentError:
+            return None
 
 
 def plate_start(source: CameraSource, n: int) -> int:

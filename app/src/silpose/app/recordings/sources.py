@@ -69,6 +69,7 @@ import os
 import queue
 import threading
 import tomllib
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -598,11 +599,17 @@ class CameraReader:
 class ThreadedReader:
     """A :class:`CameraReader` decoding in its own thread, ``depth`` frames ahead: the camera's decoding
     (FFmpeg releases the GIL) overlaps the other cameras' and the segmentation. Same ``read`` / ``summary``
-    / ``close`` as the reader it wraps; an exception in the thread is raised by the next ``read``."""
+    / ``close`` as the reader it wraps; an exception in the thread is raised by the next ``read``.
 
-    def __init__(self, reader: CameraReader, depth: int = 4):
+    ``after`` (settable while the thread runs; None: nothing): a function of a decoded frame whose result
+    :meth:`read_with` hands over with it, computed in this thread too (the pipeline: the frame's segmentation
+    candidates, :meth:`~.silhouettes.ColourSegmenter.candidates`, which release the GIL; None for frames decoded
+    before it was set)."""
+
+    def __init__(self, reader: CameraReader, depth: int = 4, after: Callable[[np.ndarray], object] | None = None):
         self.reader = reader
         self.source = reader.source
+        self.after = after
         self._queue: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"read-{reader.source.camera}", daemon=True)
@@ -612,7 +619,8 @@ class ThreadedReader:
         try:
             while not self._stop.is_set():
                 img = self.reader.read()
-                self._put(img)
+                after = self.after
+                self._put((img, None if img is None or after is None else after(img)))
                 if img is None:
                     return
         except BaseException as exc:  # handed to the consumer
@@ -627,8 +635,12 @@ class ThreadedReader:
                 continue
 
     def read(self) -> np.ndarray | None:
+        return self.read_with()[0]
+
+    def read_with(self) -> tuple[np.ndarray | None, object]:
+        """(the next frame or None at the end, ``after`` of it or None)."""
         if not self._thread.is_alive() and self._queue.empty():
-            return None
+            return None, None
         item = self._queue.get()
         if isinstance(item, BaseException):
             raise item
