@@ -91,3 +91,39 @@ def test_a_refit_changes_the_version_and_graylevel_has_no_candidates(scene):
     assert BackgroundModel().fit(grey).candidates(grey[0]) is None  # a graylevel model
     assert _model(scene).candidates(grey[0]) is None  # a graylevel frame on a colour model
     assert BackgroundModel(colour=False).fit(scene.background).candidates(scene.frames[0]) is None
+
+
+def test_candidates_computed_while_the_model_absorbs_are_those_of_the_version_they_name(scene):
+    """A thread computes candidates over and over while this one absorbs (new statistics each time): every result
+    equals the candidates of the statistics of the version it names -- never half of one and half of another."""
+    model = _model(scene)
+    frames = scene.frames[:3]
+    ref = {model.version: [model.candidates(f) for f in frames]}
+    got, errors, stop = [], [], threading.Event()
+
+    def work():
+        i = 0
+        try:
+            while not stop.is_set():
+                got.append((i % 3, model.candidates(frames[i % 3])))
+                i += 1
+        except BaseException as exc:  # noqa: BLE001 -- reported below
+            errors.append(exc)
+
+    t = threading.Thread(target=work)
+    t.start()
+    rng = np.random.default_rng(0)
+    h, w = frames.shape[1:3]
+    for _ in range(12):
+        where = np.zeros((h, w), bool)
+        y, x = rng.integers(0, h - 40), rng.integers(0, w - 40)
+        where[y:y + 40, x:x + 40] = True
+        model.absorb(frames[rng.integers(3)], where)
+        ref[model.version] = [model.candidates(f) for f in frames]
+    stop.set()
+    t.join()
+    assert not errors and len({c.version for _, c in got}) >= 2, (errors, len(got))
+    for i, c in got:
+        r = ref[c.version][i]
+        for name in ("divided", "mask", "sq", "score"):
+            np.testing.assert_array_equal(getattr(c, name), getattr(r, name), err_msg=name)

@@ -86,6 +86,7 @@ the paper's graylevel rules and the former cleanup (median 5, open 3, close 7), 
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import cv2
@@ -296,6 +297,8 @@ class BackgroundModel:
         self.gain = gain
         self.edge_coverage = edge_coverage
         self.cleanup_guard = cleanup_guard
+        self._stats_lock = threading.Lock()  # the statistics' derived arrays change under it (_prepare)
+        self._version = 0
 
     # ------------------------------------------------------------------ fitting
     def fit(self, frames) -> BackgroundModel:
@@ -415,9 +418,14 @@ class BackgroundModel:
         self._prepare(colour)
 
     def _prepare(self, colour: tuple[np.ndarray, np.ndarray] | None) -> None:
-        """Thresholds and window statistics from ``mean_``, ``std_`` and the colour (mean, std) or None. A new
-        :attr:`version` first: :class:`Candidates` computed meanwhile, or before, are out of date."""
-        self._version = getattr(self, "_version", 0) + 1
+        """Thresholds and window statistics from ``mean_``, ``std_`` and the colour (mean, std) or None (:meth:`_derive`),
+        then a new :attr:`version`, under the statistics' lock: :meth:`candidates` computed in another thread
+        meanwhile never read half of them, and those computed before are out of date."""
+        with self._stats_lock:
+            self._derive(colour)
+            self._version += 1
+
+    def _derive(self, colour: tuple[np.ndarray, np.ndarray] | None) -> None:
         thr = self.k_sigma * np.maximum(self.std_, self.min_std)
         # Integer bounds, clipped to int16: |f - mean| > thr  <=>  f > floor(mean + thr) or f < ceil(mean - thr).
         self._upper = np.clip(np.floor(self.mean_ + thr), -1, 256).astype(np.int16)
@@ -547,11 +555,11 @@ class BackgroundModel:
         self._check_fitted()
         arr = as_single_frame(frame, "frame")
         self._check_shape(arr.shape[:2], "frame")
-        version = self._version
-        if arr.ndim != 3 or self._inv_var is None:
-            return None
-        divided = np.empty_like(arr)
-        return Candidates(divided, *self._colour_candidates(arr, divided), version)
+        with self._stats_lock:  # the statistics of one version throughout
+            if arr.ndim != 3 or self._inv_var is None:
+                return None
+            divided = np.empty_like(arr)
+            return Candidates(divided, *self._colour_candidates(arr, divided), self._version)
 
     def segment(self, frame, return_stages: bool = False, candidates: Candidates | None = None):
         """Foreground mask of one frame (streaming API).
