@@ -45,7 +45,10 @@ the frame; the run's thread computes them again when static clutter became backg
 :attr:`silpose.segment.BackgroundModel.version`). Measured on the benchmark's colour recordings (150 steps, the idle
 2-core machine, alternating runs, the same joints.csv): 1920x1080, 16.0 / 15.9 / 15.0 / 14.6 / 14.2 / 16.3 / 14.4
 time steps/s against 16.7 / 14.3 / 14.3 / 13.1 / 15.8 / 14.2 / 13.7 with the run's thread doing them; 1932x1458,
-16.6 / 14.4 / 16.5 against 14.6 / 14.6 / 14.9. Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
+16.6 / 14.4 / 16.5 against 14.6 / 14.6 / 14.9. Mask videos keep their whole camera stage in the run's thread: with
+each frame binarised in its reader thread, the lab recording played 3x (450 steps, three alternating pairs) ran at
+95.0 / 97.3 / 80.4 time steps/s against 109.2 / 105.0 / 113.5 (binarised and labelled there: 87.7 / 78.4 / 72.8
+against 112.0 / 115.9 / 90.0), the threads taking turns at the GIL. Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
 2-core machine): 15.9 / 15.3 / 16.9 time steps/s and 14.1 / 14.5 / 13.2 CPU s without the pool, 14.0 / 12.8 / 13.4
 and 17.3 / 18.4 / 17.8 with it, the same joints.csv -- six threads that take turns at the GIL cost more than the
 overlap gives (the floor's occupancy map, 0.4 CPU ms of numpy, took 5-6 ms of wall time per step beside them).
@@ -321,9 +324,14 @@ class _Camera:
             return _Seen(None, None, VIEW_ENDED)
         return self._segment(img, ahead)
 
+    def ahead(self, img: np.ndarray):
+        """What the camera's reader thread computes of a colour frame it decoded (module docstring, "Threads"): its
+        segmentation candidates (:meth:`~.silhouettes.ColourSegmenter.candidates`); None for mask videos."""
+        candidates = getattr(self.silhouettes, "candidates", None)
+        return None if candidates is None else candidates(self.reader.source.camera, img)
+
     def _segment(self, img: np.ndarray, ahead=None) -> _Seen:
-        """``ahead``: the frame's segmentation candidates from the reader thread (module docstring, "Threads"), or
-        None."""
+        """``ahead``: the frame's segmentation candidates from the reader thread (:meth:`ahead`), or None."""
         cam = self.reader.source.camera
         mask = self.silhouettes(cam, img) if ahead is None else self.silhouettes(cam, img, ahead)
         blobs = find_blobs(mask, self.min_area)
@@ -496,10 +504,6 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
             grid = grid_job.result()
         if rooms:
             readers = {c: reader(r) for c, r in readers.items()}
-        if hasattr(silhouettes, "candidates"):  # colour: each frame's first segmentation steps in its reader thread
-            for c, r in readers.items():
-                if isinstance(r, ThreadedReader):
-                    r.after = lambda img, c=c: silhouettes.candidates(c, img)
         total = recording.n_steps - start if recording.n_steps >= 0 else -1
         if recording.n_steps >= 0 and total <= 0:
             raise RecordingError(f"{videos}: no frames left after the {start} background frames")
@@ -526,6 +530,9 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
                        keep_frame=not opt.masks,
                        cam=work[names.index(c)], absorb_frames=absorb)
             for c, s in sources.items()}
+    for c in cams.values():  # colour: each reader thread starts its frames' segmentation (module docstring)
+        if isinstance(c.reader, ThreadedReader) and not opt.masks:
+            c.reader.after = c.ahead
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {
