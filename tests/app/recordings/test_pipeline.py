@@ -154,17 +154,24 @@ def test_people_beyond_a_small_workspace_are_found(rig, tiny_model, tools, tmp_p
     assert len(xy) >= 2 * 8 and np.all(np.abs(xy).max(axis=1) > 0.7)  # all beyond the workspace plus the margin
 
 
-def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, tmp_path):
+def _colour_walk(rig, tools, videos, n: int) -> np.ndarray:
+    """Colour videos in ``videos``: 6 empty-room frames, then a cylinder walking across in ``n`` frames, composited over
+    each camera's textured room; returns the (n, 2) floor points walked."""
     from silpose.segment.composite import background_frames, composite_frame, room
 
-    videos = tmp_path / "v"
     videos.mkdir()
-    where = tools.walk((-0.8, 0.2), (0.8, 0.2), 8)
+    where = tools.walk((-0.8, 0.2), (0.8, 0.2), n)
     for k, cam in enumerate(rig):
         size = (cam.width, cam.height)
         clean = room(k, size)
         people = [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]
         tools.write_video(videos / f"{cam.name}.mp4", np.concatenate([background_frames(k, size, 6), np.stack(people)]))
+    return where
+
+
+def test_colour_videos_with_first_frames_as_background(rig, tiny_model, tools, tmp_path):
+    videos = tmp_path / "v"
+    where = _colour_walk(rig, tools, videos, 8)
     s = run_recording(tiny_model, videos, tmp_path / "o", RecordingOptions(background_frames=6, overlays=False))
     t, r = _rows(tmp_path / "o")
     assert s.n_persons == 1 and s.n_steps == 8 and min(r["frame"]) >= 6  # frames keep the video's numbering
@@ -179,16 +186,9 @@ def test_colour_segmentation_started_in_the_reader_threads_changes_nothing(rig, 
     (``ColourSegmenter.candidates``); the joints file is the one of a run without reader threads, where the run's
     thread does every step."""
     from silpose.app.recordings.silhouettes import ColourSegmenter
-    from silpose.segment.composite import background_frames, composite_frame, room
 
     videos = tmp_path / "v"
-    videos.mkdir()
-    where = tools.walk((-0.8, 0.2), (0.8, 0.2), 12)
-    for k, cam in enumerate(rig):
-        size = (cam.width, cam.height)
-        clean = room(k, size)
-        people = [composite_frame(tools.cylinder_masks(rig, [p])[k] > 0, k, i, clean=clean) for i, p in enumerate(where)]
-        tools.write_video(videos / f"{cam.name}.mp4", np.concatenate([background_frames(k, size, 6), np.stack(people)]))
+    _colour_walk(rig, tools, videos, 12)
     threads = set()
     real = ColourSegmenter.candidates
     monkeypatch.setattr(ColourSegmenter, "candidates",
