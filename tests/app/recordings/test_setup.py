@@ -143,3 +143,30 @@ def test_a_long_plate_leaves_out_whoever_started_and_stopped_the_camera(rig, too
         decoded = _decoded(tmp_path / "empty" / f"{cam.name}.mp4", 35, 60)
         np.testing.assert_allclose(mean, decoded.mean(axis=0), rtol=1e-12)
         np.testing.assert_allclose(models[cam.name].colour_std_, decoded.std(axis=0), rtol=1e-12)
+
+
+def test_a_cut_plate_whose_middle_is_gone_is_learnt_from_its_first_frames(rig, tmp_path):
+    """An empty-room clip cut to a third of its bytes (MJPG: the frames before the cut still decode, the header still
+    announces them all): its middle is not there, so its background is learnt from the frames that are, from the
+    first -- not refused for having fewer than 2 frames after the seek."""
+    (tmp_path / "empty").mkdir()
+    size = (322, 242)
+    decodable = {}
+    for k, cam in enumerate(rig):
+        path = tmp_path / "empty" / f"{cam.name}.avi"
+        w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, size)
+        for f in background_frames(k, size, 200):
+            w.write(f)
+        w.release()
+        path.write_bytes(path.read_bytes()[: path.stat().st_size // 3])
+        cap = cv2.VideoCapture(str(path))
+        assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 200  # the header still says 200
+        n = 0
+        while cap.read()[0]:
+            n += 1
+        decodable[cam.name] = n
+    assert all(2 <= n < 70 for n in decodable.values()), decodable  # the middle 60 (frames 70-129) are gone
+    models = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names}).models
+    for k, cam in enumerate(rig):
+        assert models[cam.name].n_frames_seen_ == min(decodable[cam.name], 60)
+        assert np.abs(models[cam.name].colour_mean_ - room(k, size)).mean() < 4.0

@@ -133,7 +133,8 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
                 room: CameraSource | CameraReader | None = None, view: Callable[[], np.ndarray | None] | None = None,
                 start: int = 0) -> BackgroundModel:
     """A BackgroundModel fitted on ``n`` frames of ``source`` from frame ``start`` on (streamed in chunks; a start
-    within :data:`SEEK_GAP` frames is decoded up to, a farther one sought); with ``room`` (the
+    within :data:`SEEK_GAP` frames is decoded up to, a farther one sought; when fewer than ``n`` follow it -- a cut file
+    whose header announces more -- the frames from the first instead); with ``room`` (the
     recording this is the background of), the frames are first registered to the recording's own view of the room
     (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
     and the model's ``min_std`` is raised to the spread of the plate's differences from that view
@@ -177,6 +178,8 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
         raise RecordingError(f"{source.path}: {exc}") from None
     finally:
         reader.close()
+    if start > 0 and seen < n:  # the clip ended before its header said (a cut file): its frames from the first
+        return _fit_stream(source, n, params, chunk, room, view, start=0)
     if seen < 2:
         raise RecordingError(f"{source.path}: a background needs at least 2 frames, found {seen}")
     model.plate_warp = warp
