@@ -39,7 +39,11 @@ parallel loops (``cv2.setNumThreads(1)``, restored after the run) and FFmpeg's d
 Colour videos decode in reader threads of their own (:class:`~.sources.ThreadedReader`), which with the run's
 thread keep two cores busy: the camera pool is then one thread per camera, at most the CPU count less two, so
 none on a 2-core machine (the segmentation, the floor and the views in the run's thread, the decoding still beside
-it). Each reader thread also takes the first steps of its frames' segmentation, which release the GIL and change no
+it). Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
+2-core machine): 15.9 / 15.3 / 16.9 time steps/s and 14.1 / 14.5 / 13.2 CPU s without the pool, 14.0 / 12.8 / 13.4
+and 17.3 / 18.4 / 17.8 with it, the same joints.csv -- six threads that take turns at the GIL cost more than the
+overlap gives (the floor's occupancy map, 0.4 CPU ms of numpy, took 5-6 ms of wall time per step beside them).
+Each reader thread also takes the first steps of its frames' segmentation, which release the GIL and change no
 model: the gain's division and the candidates (:meth:`~.silhouettes.ColourSegmenter.candidates`, handed over with
 the frame; the run's thread computes them again when static clutter became background since,
 :attr:`silpose.segment.BackgroundModel.version`). Measured on the benchmark's colour recordings (150 steps, the idle
@@ -48,10 +52,7 @@ time steps/s against 16.7 / 14.3 / 14.3 / 13.1 / 15.8 / 14.2 / 13.7 with the run
 16.6 / 14.4 / 16.5 against 14.6 / 14.6 / 14.9. Mask videos keep their whole camera stage in the run's thread: with
 each frame binarised in its reader thread, the lab recording played 3x (450 steps, three alternating pairs) ran at
 95.0 / 97.3 / 80.4 time steps/s against 109.2 / 105.0 / 113.5 (binarised and labelled there: 87.7 / 78.4 / 72.8
-against 112.0 / 115.9 / 90.0), the threads taking turns at the GIL. Measured on the benchmark's colour recording (4 x 1932x1458, 150 steps, three alternating runs on the idle
-2-core machine): 15.9 / 15.3 / 16.9 time steps/s and 14.1 / 14.5 / 13.2 CPU s without the pool, 14.0 / 12.8 / 13.4
-and 17.3 / 18.4 / 17.8 with it, the same joints.csv -- six threads that take turns at the GIL cost more than the
-overlap gives (the floor's occupancy map, 0.4 CPU ms of numpy, took 5-6 ms of wall time per step beside them).
+against 112.0 / 115.9 / 90.0), the threads taking turns at the GIL.
 
 Set-up (before the first step; ``setup`` of the run's timings): the videos are probed a thread each
 (:func:`~.sources.probe_all`); each camera's reader is opened -- and, in its thread, decodes its first frames --
