@@ -148,7 +148,7 @@ def test_a_long_plate_leaves_out_whoever_started_and_stopped_the_camera(rig, too
 def test_a_cut_plate_whose_middle_is_gone_is_learnt_from_its_first_frames(rig, tmp_path):
     """An empty-room clip cut to a third of its bytes (MJPG: the frames before the cut still decode, the header still
     announces them all): its middle is not there, so its background is learnt from the frames that are, from the
-    first -- not refused for having fewer than 2 frames after the seek."""
+    first -- not refused for having fewer than 2 frames after the seek -- and the run says so."""
     (tmp_path / "empty").mkdir()
     size = (322, 242)
     decodable = {}
@@ -166,7 +166,30 @@ def test_a_cut_plate_whose_middle_is_gone_is_learnt_from_its_first_frames(rig, t
             n += 1
         decodable[cam.name] = n
     assert all(2 <= n < 70 for n in decodable.values()), decodable  # the middle 60 (frames 70-129) are gone
-    models = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names}).models
+    segmenter = background_from_clips(tmp_path / "empty", rig, list(rig.names), {}, {c: size for c in rig.names})
     for k, cam in enumerate(rig):
-        assert models[cam.name].n_frames_seen_ == min(decodable[cam.name], 60)
-        assert np.abs(models[cam.name].colour_mean_ - room(k, size)).mean() < 4.0
+        assert segmenter.models[cam.name].n_frames_seen_ == min(decodable[cam.name], 60)
+        assert np.abs(segmenter.models[cam.name].colour_mean_ - room(k, size)).mean() < 4.0
+    # the user is told, one line per camera, in the rig's order
+    assert len(segmenter.warnings) == len(rig.names)
+    for cam, line in zip(rig, segmenter.warnings):
+        assert line.startswith(str(tmp_path / "empty" / f"{cam.name}.avi"))
+        assert "of the 200 its header announced" in line and f"its first {min(decodable[cam.name], 60)} frames" in line
+
+
+def test_a_run_reports_a_cut_background_clip(tiny_model, tools, tmp_path):
+    """``silpose infer --videos``: the line about a background clip cut short reaches the run's warnings (and so
+    the terminal and summary.json)."""
+    videos, empty = _nudged_room(tiny_model.rig_, tools, tmp_path, n=4)
+    clip = empty / "cam1.mp4"
+    size = (322, 242)
+    clip.unlink()
+    w = cv2.VideoWriter(str(empty / "cam1.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, size)
+    for f in background_frames(1, size, 200):
+        w.write(f)
+    w.release()
+    cut = empty / "cam1.avi"
+    cut.write_bytes(cut.read_bytes()[: cut.stat().st_size // 3])
+    s = run_recording(tiny_model, videos, tmp_path / "out", RecordingOptions(background=empty, overlays=False))
+    lines = [w for w in s.warnings if "empty-room clip stops decoding" in w]
+    assert len(lines) == 1 and lines[0].startswith(str(cut)) and "camera 'cam1'" in lines[0]

@@ -503,6 +503,10 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
                                     search=capture_bounds(rig, workspace.bounds))  # not the workspace alone
             silhouettes, start = make_silhouettes(opt, rig, readers if rooms else sources, work)
             grid = grid_job.result()
+        for line in getattr(silhouettes, "warnings", []):  # a background clip cut short (.silhouettes)
+            warnings.append(line)
+            if warn:
+                warn(line)
         if rooms:
             readers = {c: reader(r) for c, r in readers.items()}
         total = recording.n_steps - start if recording.n_steps >= 0 else -1

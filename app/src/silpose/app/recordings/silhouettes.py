@@ -100,8 +100,9 @@ class ColourSegmenter:
 
     grey = False
 
-    def __init__(self, models: dict[str, BackgroundModel]):
+    def __init__(self, models: dict[str, BackgroundModel], warnings: list[str] | None = None):
         self.models = models
+        self.warnings = list(warnings or [])  # lines for the user about the backgrounds' clips (a cut clip)
 
     def __call__(self, camera: str, frame: np.ndarray, candidates: Candidates | None = None) -> np.ndarray:
         """The mask of ``frame``; ``candidates``: :meth:`candidates` of it, computed beforehand (e.g. in the camera's
@@ -131,10 +132,11 @@ def plate_start(source: CameraSource, n: int) -> int:
 
 def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
                 room: CameraSource | CameraReader | None = None, view: Callable[[], np.ndarray | None] | None = None,
-                start: int = 0) -> BackgroundModel:
+                start: int = 0, notes: dict[str, str] | None = None) -> BackgroundModel:
     """A BackgroundModel fitted on ``n`` frames of ``source`` from frame ``start`` on (streamed in chunks; a start
     within :data:`SEEK_GAP` frames is decoded up to, a farther one sought; when fewer than ``n`` follow it -- a cut file
-    whose header announces more -- the frames from the first instead); with ``room`` (the
+    whose header announces more -- the frames from the first instead, with a line for the user in ``notes``
+    {camera: line}); with ``room`` (the
     recording this is the background of), the frames are first registered to the recording's own view of the room
     (:func:`room_view`, :func:`silpose.segment.plate_alignment`; the warp, or None, is the model's ``plate_warp``)
     and the model's ``min_std`` is raised to the spread of the plate's differences from that view
@@ -179,7 +181,13 @@ def _fit_stream(source: CameraSource, n: int, params: dict, chunk: int = 32,
     finally:
         reader.close()
     if start > 0 and seen < n:  # the clip ended before its header said (a cut file): its frames from the first
-        return _fit_stream(source, n, params, chunk, room, view, start=0)
+        model = _fit_stream(source, n, params, chunk, room, view, start=0)
+        if notes is not None:
+            notes[source.camera] = (
+                f"{source.path}: this empty-room clip stops decoding at frame {reader.ended_at} of the {source.n_frames}"
+                f" its header announced (a cut or corrupt file): camera {source.camera!r}'s background is learnt from "
+                f"its first {model.n_frames_seen_} frames, not its middle")
+        return model
     if seen < 2:
         raise RecordingError(f"{source.path}: a background needs at least 2 frames, found {seen}")
     model.plate_warp = warp
@@ -268,11 +276,14 @@ def background_from_clips(folder: Path, rig, cameras, params: dict | None = None
         raise RecordingError(f"{folder}: no empty-room clip for camera(s) {', '.join(absent)} (expected "
                              f"{folder / (absent[0] + '.mp4')})")
     sources = {c: at_size(clips.sources[c], (sizes or {}).get(c)) for c in cameras}
-    return ColourSegmenter(_fit_all(sources, PLATE_FRAMES, params or {}, recording, middle=True))
+    notes: dict[str, str] = {}
+    return ColourSegmenter(_fit_all(sources, PLATE_FRAMES, params or {}, recording, middle=True, notes=notes),
+                           [notes[c] for c in cameras if c in notes])
 
 
 def _fit_all(sources: dict[str, CameraSource], n: int, params: dict,
-             rooms: dict[str, CameraSource | CameraReader] | None = None, middle: bool = False) -> dict[str, BackgroundModel]:
+             rooms: dict[str, CameraSource | CameraReader] | None = None, middle: bool = False,
+             notes: dict[str, str] | None = None) -> dict[str, BackgroundModel]:
     """{camera: :func:`_fit_stream` of its source}: its first ``n`` frames, or with ``middle`` the ``n`` around its
     middle (:func:`plate_start`); in a pool of threads (at most the CPU count): decoding,
     resizing and summing release the GIL, so the cameras' backgrounds are learnt side by side; the models are those
@@ -284,12 +295,13 @@ def _fit_all(sources: dict[str, CameraSource], n: int, params: dict,
     workers = max(1, min(len(sources), os.cpu_count() or 1))
     starts = {c: plate_start(sources[c], n) if middle else 0 for c in sources}
     if workers == 1:
-        return {c: _fit_stream(sources[c], n, params, room=rooms.get(c), start=starts[c]) for c in sources}
+        return {c: _fit_stream(sources[c], n, params, room=rooms.get(c), start=starts[c], notes=notes) for c in sources}
     with ThreadPoolExecutor(max_workers=workers) as pool:
         # the room views first: a plate's task then finds its view computed (or being computed) when it asks for it
         views = {c: pool.submit(room_view, rooms[c]) for c in sources if c in rooms}
         fits = [pool.submit(_fit_stream, sources[c], n, params, room=rooms.get(c),
-                            view=views[c].result if c in views else None, start=starts[c]) for c in sources]
+                            view=views[c].result if c in views else None, start=starts[c], notes=notes)
+                for c in sources]
         fitted = [f.result() for f in fits]
     return dict(zip(sources, fitted))
 
