@@ -12,7 +12,10 @@ enough to meet (a k-d tree of the edge midpoints) for a proper crossing (orienta
 points p_i+1 .. p_j are visited in reverse order, which replaces the two edges by (p_i, p_j) and
 (p_i+1, p_j+1) -- uncrossed and strictly shorter (triangle inequality), so the loop ends. Points
 keep their positions; only the order of a twisted stretch is reversed, and the first point (the
-contour's start, docs/conventions.md, "Contours") stays first.
+contour's start, docs/conventions.md, "Contours") stays first. The moves are a compiled loop per polygon
+(:mod:`.untangle_kernels`: its first crossing pair searched for edge by edge, boxes first), 7x faster than rounds of
+:func:`batch_crossings` over the batch (the lab recording's 1,160 reconstructed contours: 26 against 190-200 us a
+contour), with the same orders.
 """
 
 from __future__ import annotations
@@ -89,22 +92,15 @@ def self_intersecting(contours: np.ndarray) -> np.ndarray:
 
 def untangle_orders(polygons: np.ndarray) -> np.ndarray:
     """(B, n) point orders that make each closed polygon of ``polygons`` (B, n, 2) simple by 2-opt moves
-    (module doc): in each round every polygon that still crosses reverses the stretch of its first crossing
-    pair (:func:`batch_crossings`'s order), so a polygon's moves are those it would make alone; the identity
-    for a simple polygon; at most :data:`MAX_MOVES` moves each."""
-    p = np.asarray(polygons, dtype=np.float64)
-    order = np.tile(np.arange(p.shape[1]), (len(p), 1))
-    active = np.arange(len(p))
-    for _ in range(MAX_MOVES):
-        hits = batch_crossings(np.take_along_axis(p[active], order[active][..., None], axis=1))
-        if len(hits) == 0:
-            break
-        first = np.r_[True, hits[1:, 0] != hits[:-1, 0]]  # each polygon's first pair
-        for b, i, j in hits[first]:
-            row = order[active[b]]
-            row[i + 1 : j + 1] = row[i + 1 : j + 1][::-1]
-        active = active[hits[first, 0]]
-    return order
+    (module doc): each polygon, again and again, reverses the stretch of its first crossing pair (the smallest i,
+    then j: :func:`batch_crossings`'s order); the identity for a simple polygon and for one with NaN points; at most
+    :data:`MAX_MOVES` moves each. Compiled (:mod:`.untangle_kernels`, imported on the first call)."""
+    from .untangle_kernels import untangle_orders_compiled
+
+    p = np.ascontiguousarray(polygons, dtype=np.float64)
+    if p.ndim != 3 or p.shape[-1] != 2:
+        raise ValueError(f"polygons must have shape (B, n, 2), got {p.shape}")
+    return untangle_orders_compiled(p, MAX_MOVES)
 
 
 def untangle_order(points: np.ndarray) -> np.ndarray:
@@ -120,17 +116,17 @@ def untangle(contours: np.ndarray, *others: np.ndarray) -> tuple[np.ndarray, ...
 
     Returns (untangled contours, *reordered others), new arrays. ``others`` have the same leading
     shape and n (e.g. the same reconstructions in pixels while ``contours`` are normalised: crossings
-    are invariant to a similarity transform). Polygons with NaN are left as they are. All polygons are
-    untangled together (:func:`untangle_orders`).
+    are invariant to a similarity transform). Polygons with NaN are left as they are (:func:`untangle_orders`).
     """
     c = np.array(contours, dtype=np.float64)
     outs = [np.array(o, dtype=np.float64) for o in others]
     lead, n = c.shape[:-2], c.shape[-2]
     flat = c.reshape(-1, n, 2)
     flat_others = [o.reshape(-1, n, o.shape[-1]) for o in outs]
-    tangled = np.unique(batch_crossings(flat)[:, 0])
+    order = untangle_orders(flat)
+    tangled = np.flatnonzero((order != np.arange(n)).any(axis=1))
     if len(tangled):
-        order = untangle_orders(flat[tangled])
+        order = order[tangled]
         flat[tangled] = np.take_along_axis(flat[tangled], order[..., None], axis=1)
         for o in flat_others:
             o[tangled] = np.take_along_axis(o[tangled], order[..., None], axis=1)
