@@ -1,5 +1,5 @@
-"""OverlayVideos: each camera's frames in order in its own video, whatever threads serve the cameras; errors and
-aborts leave nothing behind."""
+"""OverlayVideos: each camera's frames in order in its own video, whatever threads or worker processes serve the
+cameras (the same bytes either way); errors and aborts leave nothing behind."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def _levels(path) -> list[float]:
 def test_every_camera_gets_its_own_frames_in_order(tmp_path, monkeypatch, cores):
     monkeypatch.setattr(overlay_video.os, "cpu_count", lambda: cores)
     cams = [f"cam{i}" for i in range(4)]
-    videos = OverlayVideos(tmp_path, cams, {c: (64, 48) for c in cams}, 25.0)
+    videos = OverlayVideos(tmp_path, cams, {c: (64, 48) for c in cams}, 25.0, processes=False)
     assert len(videos.encoders) == overlay_threads(4) == min(4, cores - 1)
     for k in range(5):
         for i, c in enumerate(cams):  # images and drawn frames mixed, as the pipeline's callers do
@@ -62,7 +62,7 @@ def test_a_failing_writer_is_raised_and_abort_drops_everything(tmp_path, monkeyp
         return real(background, size, camera, frame, people)
 
     monkeypatch.setattr(overlay_video, "draw_frame", draw)
-    videos = OverlayVideos(tmp_path, ["a", "b"], {"a": (64, 48), "b": (64, 48)}, 25.0)
+    videos = OverlayVideos(tmp_path, ["a", "b"], {"a": (64, 48), "b": (64, 48)}, 25.0, processes=False)
     videos.write("a", _frame(0, 0))
     videos.draw("b", None, (64, 48), 0, [])  # fails in the encoder thread
     with pytest.raises(ValueError, match="cannot draw b"):
@@ -99,6 +99,69 @@ def test_a_camera_whose_video_cannot_be_opened_leaves_nothing(tmp_path, monkeypa
     monkeypatch.setattr(overlay_video.cv2, "VideoWriter", Writer)
     cams = [f"cam{i}" for i in range(4)]
     with pytest.raises(OSError, match="cam2.mp4"):
-        OverlayVideos(tmp_path, cams, {c: (64, 48) for c in cams}, 25.0)
+        OverlayVideos(tmp_path, cams, {c: (64, 48) for c in cams}, 25.0, processes=False)
     assert len(released) == 2  # the two writers opened before it
     assert not any(tmp_path.iterdir())  # no working folder, no overlays folder
+
+
+def _people(rng, k: int) -> list[dict]:
+    """Drawing items of two people, as the pipeline lists them: outlines, reconstructions, joints, a missing view."""
+    ring = np.stack([np.cos(np.linspace(0, 2 * np.pi, 40)), np.sin(np.linspace(0, 2 * np.pi, 40))], 1)
+    return [{"person": 1, "status": "ok", "outline": 20 + 8 * ring + rng.normal(0, 0.5, (40, 2)),
+             "recon": 20 + 7 * ring, "joints_px": rng.uniform(5, 40, (19, 2)), "anchor_px": np.array([20.0, 5.0])},
+            {"person": 2 + k % 2, "status": "merged", "outline": None, "recon": 40 + 6 * ring, "joints_px": None,
+             "anchor_px": np.array([44.0, 9.0])}]
+
+
+def _write_all(videos, cams, rng) -> list:
+    mask = (rng.random((48, 64)) < 0.3).astype(np.uint8)
+    colour = rng.integers(0, 255, (48, 64, 3), dtype=np.uint8)
+    for k in range(6):
+        for i, c in enumerate(cams):
+            if k == 3:
+                videos.write(c, _frame(i, k))
+            else:
+                videos.draw(c, mask if k % 2 else (colour if k == 2 else None), (64, 48), k, _people(rng, k))
+    return videos.close()
+
+
+@pytest.mark.parametrize("cores", [2, 3])
+def test_worker_processes_write_the_same_videos_as_threads(tmp_path, monkeypatch, cores):
+    """The frames drawn and encoded in worker processes (their arguments sent down a pipe) are the frames the
+    in-process threads make: the same files, byte for byte."""
+    import hashlib
+
+    monkeypatch.setattr(overlay_video.os, "cpu_count", lambda: cores)
+    cams = ["cam0", "cam1", "cam2"]
+    got = {}
+    for processes in (False, True):
+        videos = OverlayVideos(tmp_path / str(processes), cams, {c: (64, 48) for c in cams}, 25.0, processes=processes)
+        assert len(videos.encoders) == cores - 1
+        paths = _write_all(videos, cams, np.random.default_rng(0))
+        got[processes] = [hashlib.md5(p.read_bytes()).hexdigest() for p in paths]
+        assert len(_levels(paths[0])) == 6
+        assert not list((tmp_path / str(processes)).glob(".overlays.*"))
+    assert got[True] == got[False]
+
+
+def test_a_worker_that_dies_is_raised_and_abort_drops_everything(tmp_path):
+    videos = OverlayVideos(tmp_path, ["a", "b"], {"a": (64, 48), "b": (64, 48)}, 25.0, processes=True)
+    videos.write("a", _frame(0, 0))
+    videos.encoders[0].proc.kill()
+    with pytest.raises(OSError, match="overlay videos of a, b failed"):
+        for _ in range(200):  # raised by a later write (or by close)
+            videos.write("a", _frame(0, 1))
+        videos.close()
+    videos.abort()
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_worker_that_cannot_open_a_video_says_so(tmp_path):
+    """OpenCV refuses a 0 x 0 video: the worker's one line reaches the caller."""
+    videos = OverlayVideos(tmp_path, ["a"], {"a": (0, 0)}, 25.0, processes=True)
+    with pytest.raises(OSError, match=r"a\.mp4: OpenCV cannot write"):
+        for _ in range(50):
+            videos.write("a", _frame(0, 0))
+        videos.close()
+    videos.abort()
+    assert not any(tmp_path.iterdir())

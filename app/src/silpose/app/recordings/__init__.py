@@ -13,6 +13,7 @@ view's largest blob. One concept per module, in data-path order::
     placement      the root in the room (floor position, stature, silhouettes) and missing views' contours
     writers        joints.parquet + joints.csv, streamed
     overlay_video  per-camera overlay videos
+    overlay_messages, overlay_worker  the frames to draw sent down a pipe to the worker process that draws them
     overlay_png    overlays as one tiled PNG per frame; ``--overlays png|mp4|none``
     floorplan      the tracks seen from above
     pipeline       the run of several people: ``run_recording``

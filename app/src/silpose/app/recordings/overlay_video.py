@@ -11,14 +11,21 @@ Each frame shows, over the dimmed mask (or colour frame):
 - the person's id at the head (``?`` while a track is not yet a person), with the view's status when
   the view was not used; the frame number and camera name at the top left.
 
-Threads: the frames are drawn and encoded beside the run's thread (:meth:`OverlayVideos.draw`; OpenCV's drawing
-and encoder release the GIL), which only lists what each frame shows: one thread per camera, at most the CPU count
-less one (:func:`overlay_threads`), each serving its cameras' frames in the order they come. On the 2-core machine
-that is one thread for every camera: four threads taking turns at the GIL and the second core had cost more than
-they gave (lab recording, 4 x 644x486 mask videos, 150 steps, five alternating pairs on the idle machine: 60.0 /
-57.6 / 48.1 / 55.7 / 58.4 time steps/s with one thread against 48.7 / 41.3 / 46.8 / 50.4 / 48.8 with four, the same
-videos byte for byte; 72-90 without overlays).
-``benchmarks/recordings.py`` reports the overlays' share against the same run without them.
+Processes: the frames are drawn and encoded beside the run, which only lists what each frame shows
+(:meth:`OverlayVideos.draw`): on a machine with two cores or more (:func:`overlay_processes`) in worker processes
+(:mod:`.overlay_worker`), each frame's arguments sent down a pipe (:mod:`.overlay_messages`; a thread of the run's
+process writes them), else in threads of the run's process. One worker (or thread) per camera, at most the CPU count
+less one (:func:`overlay_threads`), each serving its cameras' frames in the order they come: on the 2-core machine
+one for every camera. Both give the same videos byte for byte. Why processes: a thread drawing beside the run's
+thread takes turns with it at the GIL (every OpenCV call releases it and waits to take it back), so the overlay thread
+fell behind and the run waited for it. Measured on the lab recording played 3x (4 x 644x486 mask videos, 450 steps,
+the idle 2-core machine, three alternating rounds): 72.4 / 68.5 / 72.4 time steps/s with the worker process against
+53.8 / 58.4 / 62.4 with the thread, and 89.1 / 86.0 / 99.8 without overlays -- the overlays' share of the run 19-27 %
+against 32-40 %. A worker starts in about 0.2 s (a fresh Python importing OpenCV and numpy, on the other core while
+the run sets up). Four threads instead of one on this machine had cost more than they gave (five alternating pairs:
+60.0 / 57.6 / 48.1 / 55.7 / 58.4 time steps/s with one thread against 48.7 / 41.3 / 46.8 / 50.4 / 48.8 with four).
+``benchmarks/recordings.py`` reports the overlays' share against the same run without them, the workers' CPU
+included.
 
 The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` and moved into
 ``<out>/overlays/`` when the run ends (OpenCV picks the container from the file suffix, so the
@@ -27,9 +34,12 @@ The videos are written into a temporary folder ``<out>/.overlays.<pid>.tmp/`` an
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import shutil
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -38,6 +48,7 @@ import numpy as np
 
 from silpose.shared.skeleton import BONES
 
+from .overlay_messages import END, pack, pack_image
 from .views import VIEW_OK
 
 #: BGR colours of persons 1, 2, ... (cycled); tentative tracks are grey
@@ -142,6 +153,12 @@ def overlay_threads(n_cameras: int) -> int:
     return max(1, min(int(n_cameras), (os.cpu_count() or 1) - 1))
 
 
+def overlay_processes() -> bool:
+    """Whether the overlay videos are drawn and encoded in worker processes (module docstring, "Processes"): on
+    every machine with two cores or more."""
+    return (os.cpu_count() or 1) >= 2
+
+
 class _Encoder:
     """The video writers of some cameras, drawing and encoding in one thread of their own (OpenCV's drawing and
     encoder release the GIL): the run's thread only lists what to draw. A queued item is ``(camera, image)`` or
@@ -181,24 +198,120 @@ class _Encoder:
             raise self.error
 
 
+class _Process:
+    """The video writers of some cameras in a worker process of its own (module docstring, "Processes";
+    :mod:`.overlay_worker`), with :class:`_Encoder`'s ``write`` / ``finish``: the run's thread queues each frame's
+    message (:func:`~.overlay_worker.pack`), a thread of this process writes it into the worker's pipe (the GIL
+    released while the pipe takes it), ``depth`` messages per camera at most. The worker's error line, if any,
+    is raised as OSError by the next ``write`` or by ``finish``."""
+
+    def __init__(self, folder: Path, sizes: dict, fps: float, depth: int = 24):
+        self.cameras = list(sizes)
+        self.log_path = folder / f".worker-{self.cameras[0]}.log"
+        spec = {"sizes": {c: list(map(int, s)) for c, s in sizes.items()}, "fps": float(fps), "fourcc": FOURCC}
+        with open(self.log_path, "wb") as log:
+            self.proc = subprocess.Popen([sys.executable, "-m", "silpose.app.recordings.overlay_worker", str(folder),
+                                          json.dumps(spec)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                         stderr=log)
+        self.queue: queue.Queue = queue.Queue(maxsize=depth * max(1, len(sizes)))
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="overlay-pipe", daemon=True)
+        self.thread.start()
+
+    def _failure(self) -> OSError:
+        try:
+            self.proc.wait(timeout=10)
+            line = self.log_path.read_text(errors="replace").strip().splitlines()[-1:]
+        except (OSError, subprocess.TimeoutExpired):
+            line = []
+        why = line[0] if line else f"exit status {self.proc.returncode}"
+        return OSError(f"the overlay videos of {', '.join(self.cameras)} failed: {why}")
+
+    def _run(self) -> None:
+        pipe = self.proc.stdin
+        while True:
+            msg = self.queue.get()
+            if msg is None:
+                return
+            if self.error is None:
+                try:
+                    for part in msg:
+                        pipe.write(part if isinstance(part, bytes) else memoryview(part).cast("B"))
+                except (BrokenPipeError, OSError, ValueError):
+                    self.error = self._failure()
+
+    def write(self, camera: str, img) -> None:
+        if self.error is not None:
+            raise self.error
+        if isinstance(img, tuple):  # draw_frame's arguments: (background, size, camera, frame, people)
+            background, size, _, frame, people = img
+            self.queue.put(pack(camera, background, size, frame, people))
+        else:
+            self.queue.put(pack_image(camera, img))
+
+    def finish(self) -> None:
+        self.queue.put([END])
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is None:
+            try:
+                self.proc.stdin.close()
+            except OSError:
+                pass
+            if self.proc.wait() != 0:
+                self.error = self._failure()
+        if self.error is not None:
+            raise self.error
+
+    def kill(self) -> None:
+        """Stop the worker now (an abort: its videos are dropped) and the thread feeding it."""
+        self.proc.kill()
+        self.proc.wait()
+        while True:  # what was still queued is dropped; the thread sees the end
+            try:
+                self.queue.get_nowait()
+            except queue.Empty:
+                break
+        self.queue.put(None)
+        self.thread.join()
+        try:
+            self.proc.stdin.close()
+        except OSError:
+            pass
+
+
 class OverlayVideos:
     """Writers of the per-camera overlay videos (module docstring). ``write(camera, image)`` or ``draw(camera,
     ...)`` per frame (drawn and encoded in the camera's thread, :func:`overlay_threads`), ``close()`` moves the
     finished videos into ``<out>/overlays/``, ``abort()`` drops them."""
 
-    def __init__(self, out: Path, cameras, sizes: dict, fps: float):
+    def __init__(self, out: Path, cameras, sizes: dict, fps: float, processes: bool | None = None):
         self.final = Path(out) / "overlays"
         self.tmp = Path(out) / f".overlays.{os.getpid()}.tmp"
         shutil.rmtree(self.tmp, ignore_errors=True)
         self.tmp.mkdir(parents=True)
         self.cameras = list(cameras)
-        self.encoders: list[_Encoder] = []
-        self.encoder_of: dict[str, _Encoder] = {}
+        self.encoders: list[_Encoder | _Process] = []
+        self.encoder_of: dict[str, _Encoder | _Process] = {}
+        fps = fps if fps > 0 else 25.0
+        n = overlay_threads(len(self.cameras))
+        groups = [self.cameras[g::n] for g in range(n)]  # cameras dealt round the threads or processes
+        if overlay_processes() if processes is None else processes:
+            try:
+                for group in groups:
+                    enc = _Process(self.tmp, {c: sizes[c] for c in group}, fps)
+                    self.encoders.append(enc)
+                    self.encoder_of.update(dict.fromkeys(group, enc))
+            except BaseException:
+                self.abort()
+                raise
+            self.n_frames = 0
+            return
         writers = {}
         try:
             for cam in self.cameras:
                 path = self.tmp / f"{cam}.mp4"
-                w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps if fps > 0 else 25.0, sizes[cam])
+                w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps, sizes[cam])
                 if not w.isOpened():
                     raise OSError(f"{path}: OpenCV cannot write {FOURCC} video")
                 writers[cam] = w
@@ -207,10 +320,8 @@ class OverlayVideos:
                 w.release()
             shutil.rmtree(self.tmp, ignore_errors=True)
             raise
-        n = overlay_threads(len(self.cameras))
-        for g in range(n):  # cameras dealt round the threads
-            group = {c: writers[c] for c in self.cameras[g::n]}
-            enc = _Encoder(group)
+        for group in groups:
+            enc = _Encoder({c: writers[c] for c in group})
             self.encoders.append(enc)
             self.encoder_of.update(dict.fromkeys(group, enc))
         self.n_frames = 0
@@ -239,7 +350,7 @@ class OverlayVideos:
     def abort(self) -> None:
         for enc in self.encoders:
             try:
-                enc.finish()
+                enc.kill() if isinstance(enc, _Process) else enc.finish()
             except BaseException:  # noqa: BLE001 - aborting: the files are dropped anyway
                 pass
         shutil.rmtree(self.tmp, ignore_errors=True)
