@@ -11,6 +11,7 @@ it.
 from __future__ import annotations
 
 import json
+import signal
 import sys
 from pathlib import Path
 
@@ -25,6 +26,7 @@ __all__ = ["main"]
 def main(argv: list[str] | None = None) -> int:
     """The worker (module docstring). Returns the exit status."""
     argv = sys.argv[1:] if argv is None else argv
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's: it ends the worker (docs/conventions.md)
     writers: dict = {}
     try:
         folder, spec = Path(argv[0]), json.loads(argv[1])
