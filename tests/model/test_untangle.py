@@ -98,6 +98,18 @@ def _tangled_batch(seed=5, count=24, n=30):
     return polys
 
 
+def _reference_order(poly: np.ndarray) -> np.ndarray:
+    """2-opt moves one pair at a time: always the stretch of the first crossing pair of the exhaustive test."""
+    order = np.arange(len(poly))
+    for _ in range(200):
+        hits = _brute_pairs(poly[order])
+        if not hits:
+            break
+        i, j = hits[0]
+        order[i + 1 : j + 1] = order[i + 1 : j + 1][::-1]
+    return order
+
+
 def test_batch_crossings_are_each_polygons_exhaustive_pairs():
     """One k-d tree for the batch, each polygon in units of its own longest edge: the pairs of every polygon
     alone, from the exhaustive reference, and none between two polygons."""
@@ -115,21 +127,11 @@ def test_untangling_a_batch_makes_each_polygons_own_moves():
     polygon at a time, always reversing the stretch of its first crossing pair from the exhaustive test)."""
     polys = _tangled_batch(seed=11)
 
-    def reference(poly):
-        order = np.arange(len(poly))
-        for _ in range(200):
-            hits = _brute_pairs(poly[order])
-            if not hits:
-                break
-            i, j = hits[0]
-            order[i + 1 : j + 1] = order[i + 1 : j + 1][::-1]
-        return order
-
     fixed = untangle(polys)[0]
     for b, p in enumerate(polys):
         if np.isfinite(p).all():
-            np.testing.assert_array_equal(fixed[b], p[reference(p)])
-            np.testing.assert_array_equal(untangle_order(p), reference(p))
+            np.testing.assert_array_equal(fixed[b], p[_reference_order(p)])
+            np.testing.assert_array_equal(untangle_order(p), _reference_order(p))
         else:
             np.testing.assert_array_equal(fixed[b], p)
     assert self_intersecting(polys).sum() > 5 and not self_intersecting(fixed).any()
@@ -142,20 +144,10 @@ def test_untangling_grid_polygons_with_touching_and_collinear_edges_matches_the_
     does."""
     rng = np.random.default_rng(5)
 
-    def reference(poly):
-        order = np.arange(len(poly))
-        for _ in range(200):
-            hits = _brute_pairs(poly[order])
-            if not hits:
-                break
-            i, j = hits[0]
-            order[i + 1 : j + 1] = order[i + 1 : j + 1][::-1]
-        return order
-
     polys = [rng.integers(0, 4, (n, 2)).astype(float) for n in (4, 5, 6, 8, 12) for _ in range(40)]
     tangled = 0
     for p in polys:
-        want = reference(p)
+        want = _reference_order(p)
         tangled += not np.array_equal(want, np.arange(len(p)))
         np.testing.assert_array_equal(untangle_order(p), want)
     assert tangled > 50  # the grid gives many crossings, not only touching edges
