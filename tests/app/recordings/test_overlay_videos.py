@@ -165,3 +165,14 @@ def test_a_worker_that_cannot_open_a_video_says_so(tmp_path):
         videos.close()
     videos.abort()
     assert not any(tmp_path.iterdir())
+
+
+def test_a_worker_imports_silpose_from_where_the_run_found_it(monkeypatch, tmp_path):
+    """A script that put a source checkout on sys.path starts workers that import the same silpose."""
+    monkeypatch.setattr(overlay_video.sys, "path", [str(tmp_path / "checkout"), "", *overlay_video.sys.path])
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path / "user"))
+    paths = overlay_video.worker_env()["PYTHONPATH"].split(overlay_video.os.pathsep)
+    assert paths[0] == str(tmp_path / "checkout") and "" not in paths
+    assert paths[-1] == str(tmp_path / "user") and len(paths) == len(set(paths))
+    monkeypatch.setattr(overlay_video.sys, "executable", "")
+    assert not overlay_video.overlay_processes()  # no executable to start: threads

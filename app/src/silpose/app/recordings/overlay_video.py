@@ -155,8 +155,18 @@ def overlay_threads(n_cameras: int) -> int:
 
 def overlay_processes() -> bool:
     """Whether the overlay videos are drawn and encoded in worker processes (module docstring, "Processes"): on
-    every machine with two cores or more."""
-    return (os.cpu_count() or 1) >= 2
+    every machine with two cores or more, when this Python knows its own executable."""
+    return (os.cpu_count() or 1) >= 2 and bool(sys.executable)
+
+
+def worker_env() -> dict:
+    """The environment of a worker process: this one's, with this process's ``sys.path`` ahead of ``PYTHONPATH``,
+    so that the worker imports the same silpose however this process found it (an installed package, a source
+    checkout on ``PYTHONPATH``, a path a script added)."""
+    env = dict(os.environ)
+    paths = [p for p in sys.path if p] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
+    return env
 
 
 class _Encoder:
@@ -212,7 +222,7 @@ class _Process:
         with open(self.log_path, "wb") as log:
             self.proc = subprocess.Popen([sys.executable, "-m", "silpose.app.recordings.overlay_worker", str(folder),
                                           json.dumps(spec)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                         stderr=log)
+                                         stderr=log, env=worker_env())
         self.queue: queue.Queue = queue.Queue(maxsize=depth * max(1, len(sizes)))
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, name="overlay-pipe", daemon=True)
