@@ -8,7 +8,7 @@ import numpy as np
 from silpose.app.recordings.blobs import find_blobs
 from silpose.app.recordings.floor import FloorGrid
 from silpose.app.recordings.ghosts import explain_away
-from silpose.app.recordings.pipeline import may_be_person, static_clutter
+from silpose.app.recordings.step_people import may_be_person, static_clutter
 from silpose.app.recordings.tracking import TRAVEL_M, Track, Tracker
 from silpose.app.recordings.views import grounded
 from silpose.shared.rig_frame import DEFAULT_WORKSPACE

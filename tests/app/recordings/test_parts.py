@@ -7,7 +7,7 @@ import pyarrow.parquet as pq
 
 from silpose.app.recordings.blobs import blob_contour, find_blobs
 from silpose.app.recordings.floor import FloorGrid
-from silpose.app.recordings.pipeline import one_row_per_person
+from silpose.app.recordings.chunk_rows import one_row_per_person
 from silpose.app.recordings.placement import body_point, place_contours, place_roots, root_height
 from silpose.app.recordings.silhouettes import binarise
 from silpose.app.recordings.tracking import Tracker

@@ -232,13 +232,13 @@ def test_steps_ahead_give_the_plain_loops_joints_when_clutter_becomes_background
     """Colour videos with camera threads step each camera ahead (silpose.app.recordings.lookahead); where static
     clutter became background after a step had been segmented ahead, that step is segmented again: the joints are
     those of the run without threads, value for value."""
-    from silpose.app.recordings import pipeline
+    from silpose.app.recordings.camera_step import CameraStep
 
     monkeypatch.setitem(globals(), "N_FRAMES", 14)  # a short clip; the prop becomes background after 0.5 s
     videos, empty = _room(tmp_path, half_model.rig_, tools, "prop")
     redone = []
-    plain_resegment = pipeline._Camera.resegment
-    monkeypatch.setattr(pipeline._Camera, "resegment", lambda self, seen: redone.append(1) or plain_resegment(self, seen))
+    plain_resegment = CameraStep.resegment
+    monkeypatch.setattr(CameraStep, "resegment", lambda self, seen: redone.append(1) or plain_resegment(self, seen))
     tables = []
     for threads in (0, 2):
         run_recording(half_model, videos, tmp_path / f"out{threads}",

@@ -16,6 +16,9 @@ view's largest blob. One concept per module, in data-path order::
     overlay_messages, overlay_worker  the frames to draw sent down a pipe to the worker process that draws them
     overlay_png    overlays as one tiled PNG per frame; ``--overlays png|mp4|none``
     floorplan      the tracks seen from above
+    camera_step    one camera step by step: its frame's mask and blobs, static clutter made background
+    step_people    one step's people: floor detection, tracking, visual hulls, each camera's view of each person
+    chunk_rows     a chunk of steps' people -> rows (inference, placement, fit), written one per person; overlays
     pipeline       the run of several people: ``run_recording``
     one_person     the run of one person: ``run_one_person``
 """

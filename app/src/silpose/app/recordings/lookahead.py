@@ -9,9 +9,9 @@ current one has finished), so every camera reads its frames in order and the res
 loop, step for step.
 
 Between two steps the run's thread may change what a camera's next step computes: with colour videos, static
-clutter becomes background (:meth:`~.pipeline._Camera.settle`). The pipeline then first waits for that camera's
+clutter becomes background (:meth:`~.camera_step.CameraStep.settle`). The pipeline then first waits for that camera's
 step started ahead (:meth:`StepAhead.wait`: the background model never changes under a segmentation) and, when it
-is handed over, segments its frame again against the new background (:meth:`~.pipeline._Camera.resegment`) --
+is handed over, segments its frame again against the new background (:meth:`~.camera_step.CameraStep.resegment`) --
 rare (clutter that stays two seconds), and what the plain loop would have computed. ``more`` tells
 :meth:`StepAhead.next` whether another step will be asked for, so no frame is read beyond the run's last step
 (``--max-steps``); the cameras' tallies for their end-of-run diagnoses are taken as the steps are handed over.

@@ -74,20 +74,20 @@ rate, an option) are one-line :class:`~silpose.app.errors.RecordingError`; what 
 Static clutter (colour videos): what the background clip did not hold -- a chair moved since, a bag, someone
 standing still at the back -- is foreground that no person explains. Per camera, a pixel that has been
 foreground outside the image box of every person on the floor (a track the tracker confirmed;
-:func:`~.views.body_box`: the cylinder of radius :data:`PROTECT_RADIUS_M` and height 2.2 m standing at their floor
+:func:`~.views.body_box`: the cylinder of radius :data:`~.camera_step.PROTECT_RADIUS_M` and height 2.2 m standing at their floor
 point) for :data:`ABSORB_S` seconds -- the frames it spends inside a box do not count, but do not reset its count
 either; a frame where it is background does -- becomes
 background (:meth:`silpose.segment.BackgroundModel.absorb`, with its values in that frame). Persons are protected
 by their box, however still they stand; clutter touching a person's box is absorbed outside it, so their blob
 again fits their box. Tentative tracks and the floor grid's ghosts protect nothing (a newcomer's pixels age for the
-0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`may_be_person`, the
+0.3 s before they are confirmed, of the 2 s). Who becomes a person in colour videos (:func:`~.step_people.may_be_person`, the
 tracker's ``may_confirm``; mask videos absorb nothing, so there every track the tracker confirms is one): a track
 that has walked :data:`~.tracking.TRAVEL_M`, or one that some camera has seen alone (a usable view of its own; a
 ghost lives on other people's blobs) -- in the workspace at once; in the margin the floor grid searches around it
 (:data:`.floor.MARGIN_M`) once it has outlived the absorption (:func:`margin_wait`: clutter standing there has become
 background by then and its track has ended), or when the recording ends first (a clip too short to tell, such as
 Pose2Sim's 1.7 s demo, whose two people stand up to 0.4 m outside its imported workspace). Rows are held back that
-long. A track beyond both that has not walked (:func:`static_clutter`) takes no views -- a blob it shares
+long. A track beyond both that has not walked (:func:`~.step_people.static_clutter`) takes no views -- a blob it shares
 with a person is the person's -- and never protects: someone who stands still at the back all along becomes
 background, not a person ("persistent static blobs become background, not people"; cameras on one wall may place
 them in the margin, ``tests/app/recordings/test_rooms.py``, ``still``). The price: someone who stays in the margin
@@ -98,7 +98,7 @@ the people's blobs. Not in mask videos, where nothing is absorbed: on the four-w
 from 8 to 1 but cost an id (5 instead of 4), a switch (11 vs 10) and 12 person-frames found (634 vs 646): walkers
 emerging from the group, hidden behind the others in all but one camera, were found later.
 
-At the end each camera's masks are judged over the run (``_Camera.diagnosis``): a camera with no foreground in
+At the end each camera's masks are judged over the run (:meth:`~.camera_step.CameraStep.diagnosis`): a camera with no foreground in
 90 % of its frames, or foreground over half the image in 90 % of them, gets a warning line naming the likely
 cause -- mask videos storing foreground as 1 instead of 255, inverted masks (people black on white), the wrong
 video or background clip, a lighting change -- since such a run otherwise ends with "nobody was found".
@@ -117,38 +117,30 @@ import cv2
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from silpose.model.hypotheses import online_choice, single_answer
 from silpose.model.persistence import load_model
 from silpose.shared.atomic import write_json_atomic
-from silpose.shared.skeleton import JOINT_NAMES, N_JOINTS
+from silpose.shared.skeleton import JOINT_NAMES
 
 from ..errors import RecordingError
-from ..inference import TOP_K, InferOptions, infer_rows
-from .appearance import PersonLooks, observe
-from .blobs import Blobs, blob_contour, find_blobs
-from .floor import MARGIN_M, FloorGrid, capture_bounds
+from ..inference import TOP_K
+from .camera_step import CameraStep, Seen, shown
+from .chunk_rows import draw_chunk, emit_rows, infer_chunk
+from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
 from .hull import PersonHulls
 from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
-from .ghosts import explain_away
-from .overlay_png import OverlayPngs, draws_overlays, overlay_sink
-from .overlay_video import OverlayVideos
-from .placement import place_contours, place_roots
-from .silhouette_fit import fit_to_silhouettes
-from .resolution import WORK_PERSON_PX, min_blob_area, to_rig_px, to_work_px, work_camera, work_size
+from .overlay_png import overlay_sink
+from .resolution import WORK_PERSON_PX, min_blob_area, work_camera, work_size
 from .pages import ordinary_pages
-from .silhouettes import (MASK_THRESHOLD, MEDIAN, MaskBinariser, at_size, background_from_clips,
-                          background_from_first_frames, background_from_recording)
+from .silhouettes import (MEDIAN, MaskBinariser, at_size, background_from_clips, background_from_first_frames,
+                          background_from_recording)
 from .sources import CameraReader, ThreadedReader, holds_background_clips, open_recording, parse_offsets
-from .tracking import CONFIRM_S, TRAVEL_M, Track, Tracker, tracker_for_fps
-from .views import (VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_NOT_SEEN, VIEW_OK, VIEW_STATUSES,
-                    assign_views, body_box, grounded, person_labels)
-from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
+from .step_people import Person, margin_wait, may_be_person, step_people
+from .tracking import CONFIRM_S, Track, tracker_for_fps
+from .views import VIEW_ENDED, VIEW_NO_VIDEO, VIEW_OK, VIEW_STATUSES
+from .writers import PersonRows, RecordingWriter
 
-#: metres: floor detections this close to the floor grid's outer edge are not people in the room but someone
-#: beyond it (people standing at the back: the rays through them cross the grid's last cells)
-EDGE_M = 0.15
 #: seconds: foreground that stays this long outside every detected person's body box becomes background
 ABSORB_S = 2.0
 #: CPU cores below which the cameras' stages run in the run's thread (no camera pool) unless the options say
@@ -166,12 +158,6 @@ POOL_MIN_CORES = 3
 #: 101.0 time steps/s with them against 91.5 / 90.8 / 91.1 without (12.4 against 11.6 CPU ms per step); beside two
 #: busy processes 59.6 / 60.1 against 56.0 / 56.9, the same joints.csv.
 READER_MIN_CORES = 2
-#: metres: radius of the cylinder around each detected person that is never made background: the body and
-#: the arms' swing (half the view test's 0.9 m, so a box on the floor beside someone's path is absorbed)
-PROTECT_RADIUS_M = 0.45
-#: a camera whose masks are empty, or mostly foreground, in at least this share of its frames gets a warning
-#: naming the likely cause (0/1 or inverted mask videos, a wrong background clip)
-MASK_DIAGNOSIS_SHARE = 0.9
 
 
 @dataclass
@@ -280,144 +266,6 @@ class RecordingSummary:
         lines += [f"wrote {p}" for p in self.files]
         lines.append(f"{self.steps_per_second:.1f} time steps/s; seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.timings.items()))
         return "\n".join(lines)
-
-
-@dataclass
-class _Seen:
-    """One camera at one step: background (mask or frame) for the overlay, blobs, camera status (or None)."""
-
-    background: np.ndarray | None
-    blobs: Blobs | None
-    status: str | None
-    mask: np.ndarray | None = None
-    peak: int = 0  # the frame's highest grey level when its mask came out empty (the diagnosis's hint)
-
-
-def _shown(source) -> str:
-    """How a warning names a camera's video: its file name, with its folder when that is the camera's
-    (``cam1/video.avi``)."""
-    p = source.path
-    return f"{p.parent.name}/{p.name}" if p.parent.name == source.camera else p.name
-
-
-class _Camera:
-    """One camera's reader + mask maker; ``step()`` -> :class:`_Seen` (runs in a worker thread); ``settle()``
-    (main thread, between steps) makes static clutter background (module docstring)."""
-
-    def __init__(self, reader: CameraReader | ThreadedReader, silhouettes, min_area: int, keep_frame: bool,
-                 cam=None, absorb_frames: int = 0):
-        self.reader, self.silhouettes, self.min_area, self.keep_frame = reader, silhouettes, min_area, keep_frame
-        self.cam, self.absorb_frames = cam, int(absorb_frames)
-        self.age: np.ndarray | None = None  # frames each pixel has been foreground outside every person's box
-        self.absorbed = 0  # pixels made background
-        self.ended = False
-        self.frames = self.empty = self.crowded = 0  # frames read, with no foreground, mostly foreground
-        self.brightest_empty = 0  # the highest grey level of a frame whose mask came out empty
-        self.quiesce: Callable[[], None] | None = None  # waits for this camera's step started ahead (.lookahead)
-
-    def step(self) -> _Seen:
-        """The next frame's mask and blobs (a worker thread; :meth:`tally` counts it, in the run's thread)."""
-        if self.ended:
-            return _Seen(None, None, VIEW_ENDED)
-        img, ahead = self.reader.read_with() if isinstance(self.reader, ThreadedReader) else (self.reader.read(), None)
-        if img is None:
-            self.ended = True
-            return _Seen(None, None, VIEW_ENDED)
-        return self._segment(img, ahead)
-
-    def ahead(self, img: np.ndarray):
-        """What the camera's reader thread computes of a colour frame it decoded (module docstring, "Threads"): its
-        segmentation candidates (:meth:`~.silhouettes.ColourSegmenter.candidates`); None for mask videos."""
-        candidates = getattr(self.silhouettes, "candidates", None)
-        return None if candidates is None else candidates(self.reader.source.camera, img)
-
-    def _segment(self, img: np.ndarray, ahead=None) -> _Seen:
-        """``ahead``: the frame's segmentation candidates from the reader thread (:meth:`ahead`), or None."""
-        cam = self.reader.source.camera
-        mask = self.silhouettes(cam, img) if ahead is None else self.silhouettes(cam, img, ahead)
-        blobs = find_blobs(mask, self.min_area)
-        return _Seen(img if self.keep_frame else mask, blobs, VIEW_EMPTY if blobs.empty else None, mask,
-                     int(img.max()) if blobs.empty else 0)
-
-    def resegment(self, seen: _Seen) -> _Seen:
-        """``seen`` segmented again from its frame (colour videos: a step started ahead, before :meth:`settle` made
-        some of the background new)."""
-        return seen if seen.status == VIEW_ENDED or not self.keep_frame else self._segment(seen.background)
-
-    def tally(self, seen: _Seen) -> None:
-        """Count a step's mask for :meth:`diagnosis`."""
-        if seen.blobs is None:
-            return
-        self.frames += 1
-        if seen.blobs.empty:
-            self.empty += 1
-            self.brightest_empty = max(self.brightest_empty, seen.peak)
-        elif 2 * int(seen.blobs.area[1:].sum()) > seen.mask.size:
-            self.crowded += 1
-
-    def settle(self, seen: _Seen, people_xy: np.ndarray) -> bool:
-        """Foreground outside every detected person's body box (:func:`~.views.body_box`, at floor points
-        ``people_xy`` (P, 2)) for ``absorb_frames`` frames in a row becomes background (colour videos only).
-        Returns True if some did (a next step segmented already is then out of date)."""
-        models = getattr(self.silhouettes, "models", None)
-        if self.absorb_frames <= 0 or models is None or seen.mask is None or seen.background is None:
-            return False
-        fg = seen.mask.astype(bool)
-        loose = fg.copy()
-        if len(people_xy):
-            h, w = loose.shape
-            for x0, y0, x1, y1 in body_box(self.cam, people_xy, PROTECT_RADIUS_M):
-                if not np.isfinite([x0, y0, x1, y1]).all():  # beyond this camera's lens model: not in its image
-                    continue
-                a, b = max(0, int(np.floor(x0))), min(w, int(np.ceil(x1)) + 1)
-                c, d = max(0, int(np.floor(y0))), min(h, int(np.ceil(y1)) + 1)
-                if a < b and c < d:
-                    loose[c:d, a:b] = False
-        if self.age is None:
-            self.age = np.zeros(loose.shape, np.uint16)
-        # foreground outside every box ages; inside a box it keeps its age; background starts again from 0
-        # (in place: a few passes over the frame instead of four temporaries)
-        np.multiply(self.age, fg, out=self.age, casting="unsafe")
-        np.minimum(self.age, 65534, out=self.age, where=loose)
-        np.add(self.age, 1, out=self.age, where=loose, casting="unsafe")
-        ready = loose & (self.age >= self.absorb_frames)  # never where a person may be now (their colours)
-        if int(ready.sum()) >= self.min_area:
-            if self.quiesce is not None:  # never change the model under a step that is segmenting ahead
-                self.quiesce()
-            models[self.reader.source.camera].absorb(seen.background, ready)
-            self.absorbed += int(ready.sum())
-            self.age[ready] = 0
-            return True
-        return False
-
-    def diagnosis(self, masks: bool) -> str | None:
-        """One warning line when this camera's masks look wrong over the run (module docstring), else None."""
-        name, n = _shown(self.reader.source), self.frames
-        if n == 0:
-            return None
-        if self.empty >= MASK_DIAGNOSIS_SHARE * n:
-            hint = ("its grey levels never exceeded "
-                    f"{self.brightest_empty}: if foreground is stored as 1 (not 255), rescale the video"
-                    if masks and 0 < self.brightest_empty <= MASK_THRESHOLD else
-                    "check that this is the right video" + (" and the background clip" if not masks else ""))
-            return f"{name}: no foreground in {self.empty} of {n} frames ({hint})"
-        if self.crowded >= MASK_DIAGNOSIS_SHARE * n:
-            what = ("are the masks inverted (people black on white)?" if masks else
-                    "did the lighting change, or the camera move, since the background was learnt?")
-            return f"{name}: foreground covers more than half of the image in {self.crowded} of {n} frames: {what}"
-        return None
-
-
-@dataclass
-class _Person:
-    """A person (track) at one step, before inference."""
-
-    step: int
-    track: Track
-    floor: np.ndarray  # (2,) or NaN
-    status: list  # (K,) view statuses
-    contours: np.ndarray  # (K, n, 2) px, NaN where not used
-    cut: np.ndarray  # (K,) share of the person's blob cut as unsupported by the other views (.hull), NaN: no blob
 
 
 def default_reader_threads(masks: bool) -> bool:
@@ -530,7 +378,7 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     if absorb > 0:  # static clutter becomes background, never a person (module docstring)
         tracker.may_confirm = lambda t: may_be_person(t, grid, wait)
     lag = tracker.decided_within + wait  # a track in the margin is decided after ``wait`` steps: its rows held as long
-    cams = {c: _Camera(readers[c], silhouettes,
+    cams = {c: CameraStep(readers[c], silhouettes,
                        min_blob_area(rig[names.index(c)], work[names.index(c)], workspace.center, opt.min_area),
                        keep_frame=not opt.masks,
                        cam=work[names.index(c)], absorb_frames=absorb)
@@ -581,8 +429,8 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
         t_loop_end = None
         done = False
         while not done:
-            seen_chunk: list[dict[str, _Seen]] = []
-            people: list[_Person] = []
+            seen_chunk: list[dict[str, Seen]] = []
+            people: list[Person] = []
             while len(seen_chunk) < opt.chunk:
                 if total >= 0 and step >= total:
                     done = True
@@ -603,13 +451,13 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
                     if len(gone) == len(seen):  # no camera left: the recording is over
                         done = True
                         break
-                    msg = (f"{', '.join(_shown(recording.sources[c]) for c in ended)} ended after {step} frames"
+                    msg = (f"{', '.join(shown(recording.sources[c]) for c in ended)} ended after {step} frames"
                            + (f" (expected {total})" if total >= 0 else "")
                            + ": a missing view ('video ended') from there on, the other cameras go on")
                     warnings.append(msg)
                     if warn:
                         warn(msg)
-                found, where, n_found = _step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
+                found, where, n_found = step_people(step, seen, rig, work, names, grid, tracker, n_pts, timings,
                                             views_map, hulls,
                                             [cams[c].min_area if c in cams else 1 for c in names], colour=not opt.masks,
                                             explain=absorb > 0)
@@ -628,23 +476,23 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
                     progress(step, total)
             if not seen_chunk:
                 break
-            rows, world = _infer_chunk(model, people, rig, names, modelled, transform, opt, first_frame, timings,
+            rows, world = infer_chunk(model, people, rig, names, modelled, transform, opt, first_frame, timings,
                                        last_heading)
             pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
             if overlays is not None:
                 t0 = time.perf_counter()
-                _draw_chunk(overlays, rig, work, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
+                draw_chunk(overlays, rig, work, names, modelled, step - len(seen_chunk), seen_chunk, people, rows, world,
                             first_frame)
                 timings["overlays"] += time.perf_counter() - t0
             t0 = time.perf_counter()
             if done and absorb > 0:  # a recording too short to tell: who stood alone in the margin is a person
                 tracker.finish(step - 1, lambda t: may_be_person(t, grid))
-            pending = _emit(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
+            pending = emit_rows(pending, writer, step - 1 - lag, views_hist, floor_tracks, final=done)
             timings["write"] += time.perf_counter() - t0
         t0 = t_loop_end = time.perf_counter()
         if absorb > 0:  # (as above, when the loop ended on an empty chunk)
             tracker.finish(step - 1, lambda t: may_be_person(t, grid))
-        _emit(pending, writer, step, views_hist, floor_tracks, final=True)
+        emit_rows(pending, writer, step, views_hist, floor_tracks, final=True)
         writer.close()
         files = [out / "joints.parquet", out / "joints.csv"]
         if overlays is not None:
@@ -748,330 +596,3 @@ def make_silhouettes(opt: RecordingOptions, rig, sources: dict, work) -> tuple:
     else:
         silhouettes = background_from_first_frames(sources, int(opt.background_frames), opt.segment_params)
     return silhouettes, first_step(opt)
-
-
-def _camera_views(cam, work, s: _Seen | None, positions: np.ndarray, n_pts: int,
-                  support: Callable[[], np.ndarray] | None = None, min_area: int = 1,
-                  colour: bool = False) -> tuple[list, np.ndarray, np.ndarray, list]:
-    """One camera's view of the P detected people: (statuses (P,), contours (P, n, 2) in ``cam``'s px, NaN
-    where unused, cut shares (P,), looks (P,) :class:`~.appearance.Look` or None), from the masks at ``work``'s
-    resolution. ``support``: makes the camera's visual-hull support image (:meth:`.hull.PersonHulls.support`),
-    which the mask is cut down to before its blobs (of at least ``min_area`` px) are judged; the cut share is the
-    part of the person's blob it removed (NaN: no blob). ``colour``: colour histograms from the frame. Runs in a
-    worker thread (OpenCV's labelling and contour tracing release the GIL)."""
-    P = len(positions)
-    cont = np.full((P, n_pts, 2), np.nan)
-    cut = np.full(P, np.nan)
-    looks: list = [None] * P
-    if s is None:
-        return [VIEW_NO_VIDEO] * P, cont, cut, looks
-    if s.blobs is None or s.blobs.empty:
-        return [s.status or VIEW_EMPTY] * P, cont, cut, looks
-    blobs = s.blobs
-    if support is not None and P:
-        before = person_labels(work, blobs, positions)
-        blobs = find_blobs(cv2.bitwise_and(s.mask, support()), min_area)
-        after = person_labels(work, blobs, positions)
-        has = before > 0
-        cut[has] = 1.0 - blobs.area[after[has]] * (after[has] > 0) / s.blobs.area[before[has]]
-        if blobs.empty:
-            return [VIEW_NOT_SEEN] * P, cont, cut, looks
-    labels, status = assign_views(work, blobs, positions)
-    for d in range(P):
-        if status[d] == VIEW_OK:
-            pts = blob_contour(blobs, labels[d], n_pts)
-            if pts is None:
-                status[d] = VIEW_EMPTY
-            else:
-                cont[d] = to_rig_px(pts, cam, work)
-                looks[d] = observe(work, blobs, labels[d], positions[d], s.background if colour else None)
-    return status, cont, cut, looks
-
-
-def _detection_looks(work, seen: list, positions: np.ndarray, colour: bool, mapper=map) -> Callable:
-    """The tracker's ``looks``: detection indices (I,) -> I lists of per-camera :class:`~.appearance.Look`
-    (None where the detection is not alone in that view: every camera's views of all ``positions`` (D, 2)
-    assigned at once, when first asked, so a blob two detections share is nobody's)."""
-    cache: list = []
-
-    def one_camera(k: int) -> list:
-        s = seen[k]
-        if s is None or s.blobs is None or s.blobs.empty:
-            return [None] * len(positions)
-        labels, status = assign_views(work[k], s.blobs, positions)
-        return [observe(work[k], s.blobs, labels[d], positions[d], s.background if colour else None)
-                if status[d] == VIEW_OK else None for d in range(len(positions))]
-
-    def looks(idx: np.ndarray) -> list:
-        if not cache:
-            per_cam = list(mapper(one_camera, range(len(work))))
-            cache.append([[per_cam[k][d] for k in range(len(work))] for d in range(len(positions))])
-        return [cache[0][int(d)] for d in idx]
-
-    return looks
-
-
-def _step_people(step, seen: dict, rig, work, names, grid: FloorGrid, tracker: Tracker, n_pts: int, timings,
-                 mapper=map, hulls: PersonHulls | None = None, min_areas=None,
-                 colour: bool = False, explain: bool = False) -> tuple[list[_Person], np.ndarray, int]:
-    """Floor detection, tracking, the people's visual hulls (``hulls``, :mod:`.hull`; None: views uncut) and
-    (per camera, through ``mapper``) view assignment of one step; ``min_areas`` (K,) px: blobs of the cut masks;
-    ``colour``: the people's looks include colour histograms (:mod:`.appearance`); ``explain``: explain the grid's
-    ghosts away (:mod:`.ghosts`; the pipeline: where static clutter becomes background, colour videos).
-
-    Only detections whose feet some camera sees may start a
-    track (:func:`~.views.grounded`); detections no track takes, and static clutter's tracks (:func:`static_clutter`),
-    are dropped before the views are assigned, so neither makes a real person's blob look shared. Returns the
-    step's people, the floor points (P, 2) of the persons whose boxes are protected from becoming background
-    (``_Camera.settle``) and the number of detections."""
-    t0 = time.perf_counter()
-    masks, blobs = [], []
-    for c in names:
-        s = seen.get(c)
-        ok = s is not None and s.blobs is not None and not s.blobs.empty
-        masks.append(s.mask if ok else None)
-        blobs.append(s.blobs if ok else None)
-    det = grid.locate(masks)
-    if len(det.positions):  # a peak on the search area's edge is someone beyond it (their hull reaches in)
-        xy = det.positions
-        inner = ((xy[:, 0] > grid.xs[0] + EDGE_M) & (xy[:, 0] < grid.xs[-1] - EDGE_M)
-                 & (xy[:, 1] > grid.ys[0] + EDGE_M) & (xy[:, 1] < grid.ys[-1] - EDGE_M))
-        det = type(det)(det.positions[inner], det.scores[inner])
-    seen_by = [k for k, b in enumerate(blobs) if b is not None]
-    feet = np.full(len(det.positions), -1)  # cameras in which each detection's blob ends at its feet (-1: not asked)
-
-    def count_feet(idx: np.ndarray) -> np.ndarray:
-        ask = idx[feet[idx] < 0]
-        if len(ask):
-            xy = det.positions[ask]
-            feet[ask] = (np.sum(list(mapper(lambda k: grounded(work[k], blobs[k], xy), seen_by)), axis=0) if seen_by
-                         else 0)
-        return feet[idx]
-
-    if explain and len(det.positions) > 1 and seen_by:  # ghosts explained away by the people found first (.ghosts)
-        # strongest first: where a person seen lately is predicted (within their gate: that person, kept), then
-        # grounded in more cameras (asked only when several others compete), then score
-        tracked = tracker.vouched(det.positions, step)
-        need = np.where(tracked, 0, grid.min_views)
-        if (~tracked).sum() > 1:
-            count_feet(np.flatnonzero(~tracked))
-        order = np.lexsort((-det.scores, -np.maximum(feet, 0), ~tracked))
-        keep = explain_away(work, masks, det.positions, order, need)
-        det, feet = type(det)(det.positions[keep], det.scores[keep]), feet[keep]
-
-    def feet_seen(idx: np.ndarray) -> np.ndarray:  # asked only about detections no person's track took
-        return count_feet(np.asarray(idx, int)) > 0
-
-    looks = _detection_looks(work, [seen.get(c) for c in names], det.positions, colour, mapper)
-    links = tracker.update(step, det.positions, feet_seen, looks if tracker.look_weight > 0 else None)
-    timings["floor"] += time.perf_counter() - t0
-    t0 = time.perf_counter()
-    # static clutter's tracks (colour videos: tracker.may_confirm) take no views (a blob it shares with a person is
-    # the person's) and protect nothing
-    clutter = (lambda t: static_clutter(t, grid)) if tracker.may_confirm is not None else (lambda t: False)
-    taken = [d for t, d in links if d >= 0 and not clutter(t)]
-    where = det.positions[taken]
-    # persons protect their boxes from becoming background (_Camera.settle); tentative tracks and ghosts do not
-    near = det.positions[[d for t, d in links if d >= 0 and t.person]].reshape(-1, 2)
-    kept = boxes = None
-    if hulls is not None and len(where):
-        boxes = hulls.prepare(where)  # and the tiles the threads read
-        # in this thread: a dilation of the people's pixels per camera is less than a pool round trip under load
-        live = [hulls.evidence(k, masks[k], boxes) for k in range(len(names))]
-        if sum(live) >= 2:  # one camera alone supports nothing
-            kept = hulls.keep(live, boxes)
-
-    def views(k: int):
-        sup = None
-        if kept is not None and masks[k] is not None:
-            sup = lambda: hulls.support(k, kept, boxes, masks[k].shape)  # noqa: E731
-        return _camera_views(rig[k], work[k], seen.get(names[k]), where, n_pts, sup,
-                             1 if min_areas is None else int(min_areas[k]), colour)
-
-    per_cam = list(mapper(views, range(len(names))))
-    out = []
-    for track, d in links:
-        if d < 0 or d not in taken:
-            out.append(_Person(step, track, np.full(2, np.nan) if d < 0 else det.positions[d].copy(),
-                               [VIEW_NOT_SEEN] * len(names), np.full((len(names), n_pts, 2), np.nan),
-                               np.full(len(names), np.nan)))
-        else:
-            i = taken.index(d)
-            if tracker.look_weight > 0 or tracker.max_people > 0:  # the person's appearance model learns
-                tracker.learn(track, step, [lk[i] for _, _, _, lk in per_cam], lambda: PersonLooks(len(names)))
-            track.alone = track.alone or any(st[i] == VIEW_OK for st, _, _, _ in per_cam)
-            out.append(_Person(step, track, det.positions[d].copy(), [st[i] for st, _, _, _ in per_cam],
-                               np.stack([c[i] for _, c, _, _ in per_cam]), np.array([u[i] for _, _, u, _ in per_cam])))
-    timings["views"] += time.perf_counter() - t0
-    return out, near, len(det.positions)
-
-
-def static_clutter(track: Track, grid: FloorGrid) -> bool:
-    """A tentative track beyond the workspace and the margin the floor grid searches around it (:data:`.floor.MARGIN_M`)
-    that has not walked (:data:`~.tracking.TRAVEL_M`): someone or something standing there, which becomes background
-    (module docstring, "Static clutter"). Within the margin a person standing still is a person: an imported
-    workspace can be small (Pose2Sim's demo: 1.5 m x 0.7 m, its two people up to 0.4 m outside it)."""
-    return not track.person and track.travel < TRAVEL_M and not bool(grid.in_workspace(track.position, MARGIN_M)[0])
-
-
-def may_be_person(track: Track, grid: FloorGrid, wait: int = 0) -> bool:
-    """The tracker's ``may_confirm``: a track becomes a person once it has walked :data:`~.tracking.TRAVEL_M`, or once
-    some camera has seen it alone (a usable view of its own; the floor grid's ghosts, which live on other people's
-    blobs, never have one) -- in the workspace at once, in the margin around it (:data:`.floor.MARGIN_M`) only when
-    it has been tracked for ``wait`` steps (:func:`margin_wait`: it outlived the absorption of static clutter, so it
-    moves) or when the recording ends before that (:meth:`~.tracking.Tracker.finish`: too short to tell)."""
-    if track.travel >= TRAVEL_M:
-        return True
-    if not track.alone:
-        return False
-    if bool(grid.in_workspace(track.position)[0]):
-        return True
-    return bool(grid.in_workspace(track.position, MARGIN_M)[0]) and track.last - track.first >= wait
-
-
-def margin_wait(absorb: int, tracker: Tracker) -> int:
-    """Steps a track in the workspace's margin waits before it may become a person (:func:`may_be_person`): the
-    ``absorb`` steps after which static clutter becomes background, then the steps a tentative track lasts unseen
-    and the hits it needs (a track that still stands there was not absorbed: someone moving, not clutter)."""
-    return int(absorb) + tracker.decided_within
-
-
-def _infer_chunk(model, people: list[_Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,
-                 timings, last_heading: dict):
-    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3).
-
-    With ``opt.hypotheses``, each row's joints are the hypothesis chosen online along its track
-    (``last_heading``: track key -> (step, heading), updated in place); the root is placed for that pose."""
-    R, K = len(people), len(names)
-    lay = model.fitted_layout()
-    V, n_pts = len(lay.views), lay.n_points
-    nan = lambda *s: np.full((R,) + s, np.nan)  # noqa: E731
-    joints, std, root = nan(N_JOINTS, 3), nan(N_JOINTS, 3), nan(3)
-    contours, logm, plaus, hyp_p = nan(V, n_pts, 2), nan(), nan(), nan()
-    hyp_slot = np.zeros(R, np.int8)
-    status = np.array([STATUS_NOT_DETECTED] * R, dtype=object)
-    view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
-    is_modelled = np.array([c in modelled for c in names])
-    view_status[:, ~is_modelled] = np.where(view_status[:, ~is_modelled] == VIEW_OK, VIEW_NOT_MODELLED,
-                                            view_status[:, ~is_modelled])
-    used = view_status == VIEW_OK
-    detected = np.array([np.all(np.isfinite(p.floor)) for p in people], bool)
-    status[detected] = STATUS_NO_VIEW
-    rows = np.flatnonzero(detected & used.any(axis=1))
-    if len(rows):
-        t0 = time.perf_counter()
-        c = np.stack([people[i].contours for i in rows])
-        # untangled (simple) contours only matter where they are drawn or written (~0.2 ms a contour, batched)
-        robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
-        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=robust,
-                               untangle=draws_overlays(opt.overlays) or opt.contours)
-        res = infer_rows(model, c, used[rows], options=options)
-        pose = res.joints
-        if res.hypotheses is not None:
-            hyp = res.hypotheses
-            for j, i in enumerate(rows):  # people are in step order: a track's rows are chosen in time order
-                key, step = people[i].track.key, people[i].step
-                prev_step, prev = last_heading.get(key, (step, np.nan))
-                one = hyp.take(np.array([j]))
-                hyp.chosen[j] = online_choice(one, np.array([prev]), frame_gap=np.array([max(step - prev_step, 1)],
-                                                                                        float))[0]
-                last_heading[key] = (step, float(hyp.heading[j, hyp.chosen[j]]))
-            pose = single_answer(res.joints, hyp)
-            hyp_slot[rows] = hyp.chosen + 1
-            hyp_p[rows] = hyp.probability[np.arange(len(rows)), hyp.chosen]
-        timings["infer"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        cams = [rig[v] for v in res.views]
-        floor = np.stack([people[i].floor for i in rows])
-        r = place_roots(pose, res.centroid, res.views_present, cams, floor)
-        joints[rows] = pose + r[:, None]
-        if opt.silhouette_fit:  # each joint moved inside the outlines of the views used (.silhouette_fit)
-            joints[rows] = fit_to_silhouettes(joints[rows], res.joint_std, c, used[rows], list(rig))
-            r = joints[rows, 0].copy()  # the root is the pelvis joint
-        std[rows] = res.joint_std
-        root[rows] = r
-        contours[rows] = place_contours(res, r, cams)
-        logm[rows] = res.log_marginal
-        if res.plausibility is not None:
-            plaus[rows] = res.plausibility
-        implausible = np.zeros(len(rows), bool) if res.implausible is None else np.asarray(res.implausible, bool)
-        status[rows] = np.where(implausible, STATUS_IMPLAUSIBLE, STATUS_OK)
-        timings["place"] += time.perf_counter() - t0
-    floor = np.stack([p.floor for p in people]) if R else np.zeros((0, 2))
-    rows_out = PersonRows(
-        frame=np.array([p.step for p in people], np.int64) + first_frame, person=np.zeros(R, np.int32),
-        status=status, floor=floor, view_status=view_status, views_used=used,
-        view_cut=np.stack([p.cut for p in people]) if R else np.zeros((0, K)), log_marginal=logm,
-        plausibility=plaus, hypothesis=hyp_slot, hypothesis_probability=hyp_p, joints=joints,
-        joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,
-        root_calibration=transform.to_calibration(root), contours=contours)
-    return rows_out, joints
-
-
-def one_row_per_person(steps: np.ndarray, person: np.ndarray, began: np.ndarray) -> np.ndarray:
-    """(R,) bool: the rows to write of rows at ``steps`` (R,) of ``person`` ids (R,; 0: not a person), one per id
-    and step: where two tracks hold one id at one step (a track re-identified as a person whose split detection
-    it was, :meth:`~.tracking.Tracker.update`), the row of the track that began first (``began``, (R,) steps)."""
-    keep = np.asarray(person) > 0
-    if len(keep) < 2:
-        return keep
-    order = np.lexsort((began, person, steps))  # by step, then id, then the older track first
-    s, p = steps[order], person[order]
-    repeat = np.r_[False, (s[1:] == s[:-1]) & (p[1:] == p[:-1])]
-    keep[order[repeat]] = False
-    return keep
-
-
-def _emit(pending, writer: RecordingWriter, cutoff: int, views_hist, floor_tracks, final: bool):
-    """Write the held-back chunks whose steps are all <= ``cutoff`` (all of them when ``final``): rows of
-    tracks that became persons, minus not-detected rows after a track's last detection, one per id and step
-    (:func:`one_row_per_person`). Returns the rest."""
-    keep = []
-    for last, rows, tracks, steps in pending:
-        if not final and last > cutoff:
-            keep.append((last, rows, tracks, steps))
-            continue
-        person = np.array([t.person for t in tracks], np.int32)
-        bridged = np.array([t.last > s for t, s in zip(tracks, steps)], bool)  # detected again after this step
-        ok = (person > 0) & ((rows.status != STATUS_NOT_DETECTED) | bridged)
-        ok &= one_row_per_person(steps, np.where(ok, person, 0), np.array([t.first for t in tracks], int))
-        if not ok.any():
-            continue
-        out = rows.take(np.flatnonzero(ok))
-        out.person = person[ok]
-        writer.write(out)
-        for i in np.flatnonzero(out.status != STATUS_NOT_DETECTED):
-            views_hist[int(out.views_used[i].sum())] += 1
-            xy = out.root[i, :2] if np.all(np.isfinite(out.root[i])) else out.floor[i]
-            floor_tracks.setdefault(int(out.person[i]), []).append((out.frame[i], xy[0], xy[1]))
-    return keep
-
-
-def _draw_chunk(overlays: "OverlayVideos | OverlayPngs", rig, work, names, modelled, step0: int, seen_chunk, people, rows: PersonRows,
-                world, first_frame: int) -> None:
-    """Overlay frames of the chunk's steps (module :mod:`.overlay_video`), at the cameras' working size."""
-    by_step: dict[int, list[int]] = {}
-    for i, p in enumerate(people):
-        if np.all(np.isfinite(p.floor)):
-            by_step.setdefault(p.step, []).append(i)
-    # every camera's projections of the chunk's joints and column tops at once (one call per camera, not per item)
-    has_joints = np.all(np.isfinite(world.reshape(len(world), -1)), axis=1) if len(world) else np.zeros(0, bool)
-    tops = np.array([[p.floor[0], p.floor[1], 2.0] for p in people]).reshape(-1, 3)
-    joints_px = [w.project(world[has_joints].reshape(-1, 3)).reshape(-1, N_JOINTS, 2) for w in work]
-    tops_px = [w.project(tops) if len(tops) else np.zeros((0, 2)) for w in work]
-    slot = np.cumsum(has_joints) - 1  # row -> its index among the rows with joints
-    for j, seen in enumerate(seen_chunk):
-        step = step0 + j
-        idx = by_step.get(step, [])
-        for k, c in enumerate(names):
-            cam, wcam = rig[k], work[k]
-            s = seen.get(c)
-            items = []
-            for i in idx:
-                p = people[i]
-                outline = to_work_px(p.contours[k], cam, wcam) if np.all(np.isfinite(p.contours[k])) else None
-                recon = to_work_px(rows.contours[i, modelled.index(c)], cam, wcam) if c in modelled else None
-                jp = joints_px[k][slot[i]] if has_joints[i] else None
-                items.append({"person": p.track.person, "status": rows.view_status[i, k], "outline": outline,
-                              "recon": recon, "joints_px": jp, "anchor_px": tops_px[k][i]})
-            overlays.draw(c, None if s is None else s.background, (wcam.width, wcam.height), step + first_frame, items)

@@ -345,7 +345,7 @@ class Tracker:
         A person still detected after ``t`` began is ``t`` only if last seen within ``contact`` (``gate`` when 0)
         of ``t``: so near, one blob may hold both and the floor grid split one person in two; farther, they are two
         people, and one person is never in two places at once. (The pipeline writes one row per id and step,
-        :func:`~.pipeline.one_row_per_person`.)"""
+        :func:`~.chunk_rows.one_row_per_person`.)"""
         near = self.contact if self.contact > 0 else self.gate
         lost = [u for u in self.tracks if u.person > 0 and u.last < step and u is not t
                 and u.key not in self._reidentified
