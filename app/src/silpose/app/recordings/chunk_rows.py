@@ -4,7 +4,6 @@ silhouette fit; rows written one per person and step once their tracks are decid
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,13 +20,11 @@ from .views import VIEW_NOT_MODELLED, VIEW_OK
 from .step_people import Person
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
-if TYPE_CHECKING:
-    from .pipeline import RecordingOptions
 
-
-def infer_chunk(model, people: list[Person], rig, names, modelled, transform, opt: RecordingOptions, first_frame,
+def infer_chunk(model, people: list[Person], rig, names, modelled, transform, opt, first_frame,
                 timings, last_heading: dict):
-    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3).
+    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3); ``opt``: the
+    run's :class:`~.pipeline.RecordingOptions`.
 
     With ``opt.hypotheses``, each row's joints are the hypothesis chosen online along its track
     (``last_heading``: track key -> (step, heading), updated in place); the root is placed for that pose."""
