@@ -247,3 +247,34 @@ def test_a_dying_worker_is_reported_not_waited_for(tmp_path):
         generate(tiny_config(tmp_path), out, workers=1, render="silpose.datagen.testing:crashing_render_samples",
                  progress=False)
     assert leftovers(out) == [] and not (out / "test-00000-of-00001.parquet").exists()
+
+
+def test_preparing_a_folder_another_run_probes_at_the_same_moment_is_not_refused(tmp_path, monkeypatch):
+    """Two runs started together both probe the folder with the same file: when the other run removes it between
+    this one's write and removal, the folder is still writable (the drill that starts two runs at once had seen
+    'output folder is not writable (No such file or directory)')."""
+    from pathlib import Path
+
+    from silpose.datagen.shards import prepare_folder
+
+    real_write = Path.write_bytes
+
+    def write_then_the_other_run_removes_it(self, data):
+        n = real_write(self, data)
+        if self.name == ".silpose-write-probe":
+            os.unlink(self)
+        return n
+
+    monkeypatch.setattr(Path, "write_bytes", write_then_the_other_run_removes_it)
+    prepare_folder(tmp_path / "ds")
+    assert (tmp_path / "ds").is_dir() and not any((tmp_path / "ds").iterdir())
+    monkeypatch.undo()
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro").chmod(0o500)
+    try:
+        if os.access(tmp_path / "ro", os.W_OK):  # root writes anywhere: nothing to check
+            return
+        with pytest.raises(GenerationError, match="not writable"):
+            prepare_folder(tmp_path / "ro")
+    finally:
+        (tmp_path / "ro").chmod(0o700)

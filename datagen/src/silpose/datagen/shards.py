@@ -55,7 +55,7 @@ def prepare_folder(out: Path) -> None:
     probe = out / ".silpose-write-probe"
     try:
         probe.write_bytes(b"")
-        probe.unlink()
+        probe.unlink(missing_ok=True)  # another run started at the same moment may have removed it first
     except OSError as exc:
         raise GenerationError(f"{out}: output folder is not writable ({exc.strerror or exc})") from None
 
