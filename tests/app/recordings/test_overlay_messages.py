@@ -1,5 +1,5 @@
 """The overlay worker's messages (silpose.app.recordings.overlay_messages): what is packed is read back, field for
-field and bit for bit; a malformed or cut message is refused."""
+field and bit for bit; a malformed or cut message, or a PNG name that leaves its folder, is refused."""
 
 from __future__ import annotations
 
@@ -25,10 +25,10 @@ def test_a_frame_and_an_image_come_back_as_sent():
               {"person": 0, "status": "merged", "outline": None, "recon": rng.normal(size=(5, 2)).astype(np.float32),
                "joints_px": None, "anchor_px": None}]
     image = rng.integers(0, 255, (7, 9, 3), dtype=np.uint8)
-    s = _stream(pack("cam1", mask, (9, 7), 12, people), pack_image("cam0", image), pack("cam0", None, (9, 7), 13, []),
-                [END])
-    camera, (background, size, camera2, frame, items) = read_message(s, {"cam0", "cam1"})
-    assert (camera, camera2, size, frame) == ("cam1", "cam1", (9, 7), 12)
+    s = _stream(pack("cam1", mask, (9, 7), 12, people, "img_0012"), pack_image("cam0", image),
+                pack("cam0", None, (9, 7), 13, []), [END])
+    camera, (background, size, camera2, frame, items), name = read_message(s, {"cam0", "cam1"})
+    assert (camera, camera2, size, frame, name) == ("cam1", "cam1", (9, 7), 12, "img_0012")
     np.testing.assert_array_equal(background, mask)
     assert background.dtype == np.uint8
     for sent, got in zip(people, items):
@@ -38,8 +38,8 @@ def test_a_frame_and_an_image_come_back_as_sent():
                 assert got[key] is None
             else:
                 np.testing.assert_array_equal(got[key], np.asarray(sent[key], np.float64))
-    camera, got_image = read_message(s, {"cam0", "cam1"})
-    assert camera == "cam0"
+    camera, got_image, name = read_message(s, {"cam0", "cam1"})
+    assert camera == "cam0" and name is None
     np.testing.assert_array_equal(got_image, image)
     assert read_message(s, {"cam0"})[1][0] is None
     assert read_message(s, {"cam0"}) is None
@@ -56,6 +56,9 @@ def _raw(header: dict, payload: bytes = b"") -> io.BytesIO:
     ({"camera": "a", "image": {"shape": [1, -1, 3], "dtype": "uint8"}}, "bad array shape"),
     ({"camera": "a", "frame": "1", "size": [1, 1], "people": []}, "needs 'frame'"),
     ({"camera": "a", "frame": 1, "size": [1, 1], "people": [{"person": "1", "status": "ok"}]}, "needs 'person'"),
+    ({"camera": "a", "frame": 1, "size": [1, 1], "people": [], "name": "../x"}, "bad file name"),
+    ({"camera": "a", "frame": 1, "size": [1, 1], "people": [], "name": ".hidden"}, "bad file name"),
+    ({"camera": "a", "image": {"shape": [1, 1, 3], "dtype": "uint8"}, "name": 7}, "bad file name"),
 ])
 def test_a_malformed_message_is_refused(header, error):
     with pytest.raises(ValueError, match=error):

@@ -176,3 +176,35 @@ def test_a_worker_imports_silpose_from_where_the_run_found_it(monkeypatch, tmp_p
     assert paths[-1] == str(tmp_path / "user") and len(paths) == len(set(paths))
     monkeypatch.setattr(overlay_video.sys, "executable", "")
     assert not overlay_video.overlay_processes()  # no executable to start: threads
+
+
+@pytest.mark.parametrize("names", [None, ["a_01", "a_02", "b_07", "b_08", "c", "d"]])
+def test_png_overlays_from_a_worker_process_are_the_threads_files(tmp_path, names):
+    """PNG overlays drawn, tiled and encoded in a worker process: the files (names and bytes) the run's thread
+    writes, a frames folder's names included."""
+    from silpose.app.recordings.overlay_png import OverlayPngs
+
+    cams = ["cam0", "cam1", "cam2"]
+    got = {}
+    for processes in (False, True):
+        empty = OverlayPngs(tmp_path / str(processes), cams, first_frame=40, frame_names=names, processes=processes)
+        assert empty.close() == []  # nothing written: no folder to report
+        pngs = OverlayPngs(tmp_path / str(processes), cams, first_frame=40, frame_names=names, processes=processes)
+        assert _write_all(pngs, cams, np.random.default_rng(1)) == [tmp_path / str(processes)]
+        got[processes] = {p.name: p.read_bytes() for p in sorted((tmp_path / str(processes)).iterdir())}
+    assert list(got[True]) == [f"{n}.png" for n in (names or [f"{40 + i:05d}" for i in range(6)])]
+    assert got[True] == got[False]
+    assert cv2.imdecode(np.frombuffer(got[True][next(iter(got[True]))], np.uint8), cv2.IMREAD_COLOR).shape == (96, 128, 3)
+
+
+def test_a_png_worker_that_dies_is_raised(tmp_path):
+    from silpose.app.recordings.overlay_png import OverlayPngs
+
+    pngs = OverlayPngs(tmp_path / "png", ["a"], processes=True)
+    pngs.write("a", _frame(0, 0))
+    pngs.worker.proc.kill()
+    with pytest.raises(OSError, match="PNG overlays of a failed"):
+        for _ in range(200):
+            pngs.write("a", _frame(0, 1))
+        pngs.close()
+    pngs.abort()

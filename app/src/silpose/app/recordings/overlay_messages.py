@@ -7,8 +7,10 @@ types, and every field is checked on arrival. Headers:
 
 - a frame to draw (:func:`.overlay_video.draw_frame`'s arguments): ``{"camera", "frame", "size": [w, h],
   "background": null | {"shape", "dtype"}, "people": [{"person", "status", "outline", "recon", "joints_px",
-  "anchor_px"}]}``, each array field null or its shape (float64);
-- an image already drawn: ``{"camera", "image": {"shape", "dtype"}}``.
+  "anchor_px"}], "name"}``, each array field null or its shape (float64);
+- an image already drawn: ``{"camera", "image": {"shape", "dtype"}, "name"}``.
+
+``name`` is the PNG file (without ``.png``) the frame is tiled into (PNG overlays), else null.
 """
 
 from __future__ import annotations
@@ -34,9 +36,11 @@ def _spec(a: np.ndarray) -> dict:
     return {"shape": list(a.shape), "dtype": str(a.dtype)}
 
 
-def pack(camera: str, background: np.ndarray | None, size, frame: int, people: list[dict]) -> list:
+def pack(camera: str, background: np.ndarray | None, size, frame: int, people: list[dict],
+         name: str | None = None) -> list:
     """The message of a frame to draw: [length + header bytes, array, array, ...] (the arrays as they are, written
-    by the caller after the header; ``background`` must not change until then)."""
+    by the caller after the header; ``background`` must not change until then). ``name``: the PNG file the frame
+    goes into (PNG overlays), else None."""
     arrays, items = [], []
     if background is not None:
         background = np.ascontiguousarray(background, dtype=np.uint8)
@@ -53,14 +57,14 @@ def pack(camera: str, background: np.ndarray | None, size, frame: int, people: l
                 arrays.append(a)
         items.append(item)
     header = {"camera": str(camera), "frame": int(frame), "size": [int(size[0]), int(size[1])],
-              "background": None if background is None else _spec(background), "people": items}
+              "background": None if background is None else _spec(background), "people": items, "name": name}
     return [_framed(header)] + arrays
 
 
-def pack_image(camera: str, image: np.ndarray) -> list:
-    """The message of an image already drawn ((H, W, 3) uint8 BGR)."""
+def pack_image(camera: str, image: np.ndarray, name: str | None = None) -> list:
+    """The message of an image already drawn ((H, W, 3) uint8 BGR); ``name`` as for :func:`pack`."""
     image = np.ascontiguousarray(image, dtype=np.uint8)
-    return [_framed({"camera": str(camera), "image": _spec(image)}), image]
+    return [_framed({"camera": str(camera), "image": _spec(image), "name": name}), image]
 
 
 def _framed(header: dict) -> bytes:
@@ -93,9 +97,10 @@ def _read_array(stream, spec, dtype=None) -> np.ndarray:
 
 
 def read_message(stream, cameras) -> tuple | None:
-    """The next message on ``stream`` (a binary file): ``(camera, image)`` for an image, ``(camera, (background,
-    size, camera, frame, people))`` for a frame to draw, or None at the end (a message of length 0). ValueError on
-    a malformed message, EOFError when the stream ends inside one."""
+    """The next message on ``stream`` (a binary file): ``(camera, image, name)`` for an image, ``(camera,
+    (background, size, camera, frame, people), name)`` for a frame to draw (``name``: the PNG file's, or None), or
+    None at the end (a message of length 0). ValueError on a malformed message, EOFError when the stream ends inside
+    one."""
     (n,) = _LENGTH.unpack(_read_exactly(stream, _LENGTH.size))
     if n == 0:
         return None
@@ -105,8 +110,12 @@ def read_message(stream, cameras) -> tuple | None:
     camera = header.get("camera") if isinstance(header, dict) else None
     if camera not in cameras:
         raise ValueError(f"overlay message: unknown camera {camera!r}")
+    name = header.get("name")
+    bad_name = not isinstance(name, str) or not name or "/" in name or "\\" in name or name.startswith(".")
+    if name is not None and bad_name:
+        raise ValueError(f"overlay message: bad file name {name!r}")
     if "image" in header:
-        return camera, _read_array(stream, header["image"])
+        return camera, _read_array(stream, header["image"]), name
     frame, size, people = header.get("frame"), header.get("size"), header.get("people")
     if not isinstance(frame, int) or not (isinstance(size, list) and len(size) == 2) or not isinstance(people, list):
         raise ValueError("overlay message: a frame needs 'frame', 'size' and 'people'")
@@ -119,4 +128,4 @@ def read_message(stream, cameras) -> tuple | None:
         for key in ARRAY_FIELDS:
             out[key] = None if item.get(key) is None else _read_array(stream, item[key], np.float64)
         items.append(out)
-    return camera, (background, (int(size[0]), int(size[1])), camera, frame, items)
+    return camera, (background, (int(size[0]), int(size[1])), camera, frame, items), name

@@ -40,6 +40,7 @@ import queue
 import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 from pathlib import Path
 
@@ -208,22 +209,27 @@ class _Encoder:
             raise self.error
 
 
-class _Process:
-    """The video writers of some cameras in a worker process of its own (module docstring, "Processes";
-    :mod:`.overlay_worker`), with :class:`_Encoder`'s ``write`` / ``finish``: the run's thread queues each frame's
-    message (:func:`~.overlay_worker.pack`), a thread of this process writes it into the worker's pipe (the GIL
-    released while the pipe takes it), ``depth`` messages per camera at most. The worker's error line, if any,
-    is raised as OSError by the next ``write`` or by ``finish``."""
+class OverlayWorker:
+    """The overlays of some cameras drawn in a worker process of its own (module docstring, "Processes";
+    :mod:`.overlay_worker`, whose SPEC is ``spec``), with :class:`_Encoder`'s ``write`` / ``finish``: the run's thread
+    queues each frame's message (:func:`~.overlay_messages.pack`), a thread of this process writes it into the
+    worker's pipe (the GIL released while the pipe takes it), ``depth`` messages per camera at most. The worker's
+    error line, if any, is raised as OSError (``what`` of ``cameras`` failed) by the next ``write`` or by ``finish``;
+    its standard error goes to a temporary file, off the terminal."""
 
-    def __init__(self, folder: Path, sizes: dict, fps: float, depth: int = 24):
-        self.cameras = list(sizes)
-        self.log_path = folder / f".worker-{self.cameras[0]}.log"
-        spec = {"sizes": {c: list(map(int, s)) for c, s in sizes.items()}, "fps": float(fps), "fourcc": FOURCC}
-        with open(self.log_path, "wb") as log:
-            self.proc = subprocess.Popen([sys.executable, "-m", "silpose.app.recordings.overlay_worker", str(folder),
-                                          json.dumps(spec)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                         stderr=log, env=worker_env())
-        self.queue: queue.Queue = queue.Queue(maxsize=depth * max(1, len(sizes)))
+    def __init__(self, folder: Path, spec: dict, cameras: list[str], what: str = "overlay videos", depth: int = 24):
+        self.cameras, self.what = list(cameras), what
+        fd, log = tempfile.mkstemp(prefix="silpose-overlays-", suffix=".log")
+        self.log_path = Path(log)
+        try:
+            with os.fdopen(fd, "wb") as stderr:
+                self.proc = subprocess.Popen([sys.executable, "-m", "silpose.app.recordings.overlay_worker",
+                                              str(folder), json.dumps(spec)], stdin=subprocess.PIPE,
+                                             stdout=subprocess.DEVNULL, stderr=stderr, env=worker_env())
+        except BaseException:
+            self.log_path.unlink(missing_ok=True)
+            raise
+        self.queue: queue.Queue = queue.Queue(maxsize=depth * max(1, len(self.cameras)))
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, name="overlay-pipe", daemon=True)
         self.thread.start()
@@ -235,7 +241,7 @@ class _Process:
         except (OSError, subprocess.TimeoutExpired):
             line = []
         why = line[0] if line else f"exit status {self.proc.returncode}"
-        return OSError(f"the overlay videos of {', '.join(self.cameras)} failed: {why}")
+        return OSError(f"the {self.what} of {', '.join(self.cameras)} failed: {why}")
 
     def _run(self) -> None:
         pipe = self.proc.stdin
@@ -250,14 +256,15 @@ class _Process:
                 except (BrokenPipeError, OSError, ValueError):
                     self.error = self._failure()
 
-    def write(self, camera: str, img) -> None:
+    def write(self, camera: str, img, name: str | None = None) -> None:
+        """Queue ``img`` (an image, or :func:`draw_frame`'s arguments) of ``camera``; ``name``: its PNG file."""
         if self.error is not None:
             raise self.error
         if isinstance(img, tuple):  # draw_frame's arguments: (background, size, camera, frame, people)
             background, size, _, frame, people = img
-            self.queue.put(pack(camera, background, size, frame, people))
+            self.queue.put(pack(camera, background, size, frame, people, name))
         else:
-            self.queue.put(pack_image(camera, img))
+            self.queue.put(pack_image(camera, img, name))
 
     def finish(self) -> None:
         self.queue.put([END])
@@ -270,6 +277,7 @@ class _Process:
                 pass
             if self.proc.wait() != 0:
                 self.error = self._failure()
+        self.log_path.unlink(missing_ok=True)
         if self.error is not None:
             raise self.error
 
@@ -288,6 +296,7 @@ class _Process:
             self.proc.stdin.close()
         except OSError:
             pass
+        self.log_path.unlink(missing_ok=True)
 
 
 class OverlayVideos:
@@ -301,15 +310,17 @@ class OverlayVideos:
         shutil.rmtree(self.tmp, ignore_errors=True)
         self.tmp.mkdir(parents=True)
         self.cameras = list(cameras)
-        self.encoders: list[_Encoder | _Process] = []
-        self.encoder_of: dict[str, _Encoder | _Process] = {}
+        self.encoders: list[_Encoder | OverlayWorker] = []
+        self.encoder_of: dict[str, _Encoder | OverlayWorker] = {}
         fps = fps if fps > 0 else 25.0
         n = overlay_threads(len(self.cameras))
         groups = [self.cameras[g::n] for g in range(n)]  # cameras dealt round the threads or processes
         if overlay_processes() if processes is None else processes:
             try:
                 for group in groups:
-                    enc = _Process(self.tmp, {c: sizes[c] for c in group}, fps)
+                    spec = {"kind": "mp4", "sizes": {c: list(map(int, sizes[c])) for c in group}, "fps": float(fps),
+                            "fourcc": FOURCC}
+                    enc = OverlayWorker(self.tmp, spec, group)
                     self.encoders.append(enc)
                     self.encoder_of.update(dict.fromkeys(group, enc))
             except BaseException:
@@ -360,7 +371,7 @@ class OverlayVideos:
     def abort(self) -> None:
         for enc in self.encoders:
             try:
-                enc.kill() if isinstance(enc, _Process) else enc.finish()
+                enc.kill() if isinstance(enc, OverlayWorker) else enc.finish()
             except BaseException:  # noqa: BLE001 - aborting: the files are dropped anyway
                 pass
         shutil.rmtree(self.tmp, ignore_errors=True)
