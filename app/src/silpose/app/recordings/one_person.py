@@ -51,7 +51,6 @@ from ..writers import sibling, write_contours, write_joints, write_segmentation
 from .blobs import Blobs, blob_contour, find_blobs
 from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import draws_overlays, overlay_sink
-from .overlay_video import draw_frame
 from .pipeline import RecordingOptions, check_background_options, make_silhouettes
 from .placement import place_without_floor
 from .silhouette_fit import fit_to_silhouettes
@@ -357,7 +356,7 @@ def _draw(overlays, rig, work, names, modelled, frame0: int, frames_kept: list[d
             item = {"person": 1, "status": status[i, k], "outline": outline, "recon": recon, "joints_px": jp,
                     "anchor_px": None}
             picture = None if v is None else (v[1] if grey else v[0])
-            overlays.write(c, draw_frame(picture, (wcam.width, wcam.height), c, frame0 + i, [item]))
+            overlays.draw(c, picture, (wcam.width, wcam.height), frame0 + i, [item])  # drawn beside the run
 
 
 def run_one_person_inference(model_path: Path, source: Path, *, out: Path, opt: RecordingOptions,
