@@ -1,4 +1,4 @@
-"""The overlay videos' worker pipe (:mod:`.overlay_worker`, :class:`.overlay_video.OverlayVideos`): what a frame to
+"""The overlays' worker pipe (:mod:`.overlay_worker`, :class:`.overlay_video.OverlayWorker`): what a frame to
 draw looks like on it.
 
 A message is: a 4-byte little-endian length ``L``, ``L`` bytes of JSON (the header), then the raw bytes of the

@@ -13,7 +13,8 @@ Each frame shows, over the dimmed mask (or colour frame):
 
 Processes: the frames are drawn and encoded beside the run, which only lists what each frame shows
 (:meth:`OverlayVideos.draw`): on a machine with two cores or more (:func:`overlay_processes`) in worker processes
-(:mod:`.overlay_worker`), each frame's arguments sent down a pipe (:mod:`.overlay_messages`; a thread of the run's
+(:class:`OverlayWorker`, :mod:`.overlay_worker`; PNG overlays too, :mod:`.overlay_png`), each frame's arguments sent
+down a pipe (:mod:`.overlay_messages`; a thread of the run's
 process writes them), else in threads of the run's process. One worker (or thread) per camera, at most the CPU count
 less one (:func:`overlay_threads`), each serving its cameras' frames in the order they come: on the 2-core machine
 one for every camera. Both give the same videos byte for byte. Why processes: a thread drawing beside the run's

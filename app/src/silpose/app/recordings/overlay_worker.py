@@ -1,4 +1,4 @@
-"""The overlay videos' worker process (:class:`.overlay_video.OverlayVideos`, module docstring "Processes").
+"""The overlays' worker process (:class:`.overlay_video.OverlayWorker`, module docstring "Processes").
 
 Run as ``python -m silpose.app.recordings.overlay_worker FOLDER SPEC``, SPEC being JSON:
 
