@@ -271,13 +271,12 @@ class OverlayWorker:
         self.queue.put([END])
         self.queue.put(None)
         self.thread.join()
-        if self.error is None:
-            try:
-                self.proc.stdin.close()
-            except OSError:
-                pass
-            if self.proc.wait() != 0:
-                self.error = self._failure()
+        try:
+            self.proc.stdin.close()  # the worker's end of the stream (its buffered last bytes are written)
+        except (OSError, ValueError):  # a worker that died: the error below says why
+            pass
+        if self.error is None and self.proc.wait() != 0:
+            self.error = self._failure()
         self.log_path.unlink(missing_ok=True)
         if self.error is not None:
             raise self.error
