@@ -334,3 +334,41 @@ def test_fits_pools_em_fits_and_reports_each(dataset, tmp_path):
     assert "pooled: 3 EM fits from seeds 7..9" in out.with_suffix(".report.md").read_text()
     res = _invoke("train", dataset, "--fits", "2", "--streaming", "--no-progress", "--out", tmp_path / "s.npz")
     assert res.exit_code == 2 and "--fits" in res.output and "--streaming" in res.output
+
+
+def _dataset_with_train(folder, train):
+    """The ``dataset`` fixture's samples in a folder whose stored config has ``train`` (``[train]`` of a preset)."""
+    folder.mkdir()
+    rig = default_rig()
+    config = {"name": "trained", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS, "train": train}
+    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
+    for split, n in (("train", 80), ("test", 6)):
+        records = [synthetic_record(config, split, i) for i in range(n)]
+        write_shard(folder / f"{split}-00000-of-00001.parquet", records, meta)
+    (folder / "manifest.json").write_text(json.dumps({"name": "trained"}))
+    return folder
+
+
+def test_a_dataset_config_train_table_sets_the_defaults(tmp_path):
+    """A preset's ``[train]`` (stored in the dataset's config) gives M, q and the pooled fits unless the command line
+    gives its own; streaming cannot pool, so it fits once and says so; a malformed entry is a one-line error."""
+    data = _dataset_with_train(tmp_path / "d", {"components": 3, "latent": 2, "fits": 2})
+    common = ("--max-iter", "10", "--no-progress")
+    res = _invoke("train", data, *common, "--out", tmp_path / "a.npz")
+    assert res.exit_code == 0, res.output
+    hp = read_header(tmp_path / "a.npz")["hyperparameters"]
+    assert (hp["n_components"], hp["n_latent"], hp["n_fits"]) == (3, 2, 2)
+    assert "the dataset's [train] settings (components 3, latent 2, fits 2)" in res.output
+    assert "lowered" not in res.output  # the preset's sizes count as chosen, like the user's
+    res = _invoke("train", data, *common, "-M", "4", "--fits", "1", "--out", tmp_path / "b.npz")
+    assert res.exit_code == 0, res.output
+    hp = read_header(tmp_path / "b.npz")["hyperparameters"]
+    assert (hp["n_components"], hp["n_latent"], hp["n_fits"]) == (4, 2, 1)
+    res = _invoke("train", data, *common, "--streaming", "--out", tmp_path / "c.npz")
+    assert res.exit_code == 0, res.output
+    assert read_header(tmp_path / "c.npz")["hyperparameters"]["n_fits"] == 1
+    assert "fits = 2 not used: pooled fits are made in memory" in res.output
+    bad = _dataset_with_train(tmp_path / "bad", {"fits": 0})
+    res = _invoke("train", bad, *common, "--out", tmp_path / "e.npz")
+    assert res.exit_code != 0 and "config.train.fits' must be an integer >= 1" in res.output
+    assert str(bad) in res.output and not (tmp_path / "e.npz").exists()

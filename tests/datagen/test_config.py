@@ -54,6 +54,16 @@ def test_user_toml_and_worker_config(tmp_path):
     assert load_config(write(tmp_path, BASE), seed=9, renderer="blender").seed == 9
 
 
+def test_train_table_is_stored_but_changes_no_sample(tmp_path):
+    """``[train]`` reaches the dataset's config (where ``silpose train`` reads it) and nothing a sample depends on."""
+    plain = load_config(write(tmp_path, BASE))
+    trained = load_config(write(tmp_path, BASE + "[train]\ncomponents = 25\nfits = 5\n", "trained.toml"))
+    assert trained.train == {"components": 25, "fits": 5} and plain.train is None
+    assert trained.to_dict()["train"] == {"components": 25, "fits": 5} and "train" not in plain.to_dict()
+    assert trained.data_config() == plain.data_config()
+    assert trained.worker_config() == plain.worker_config()
+
+
 def test_uneven_last_shard(tmp_path):
     cfg = load_config(write(tmp_path, BASE.replace("train = 8", "train = 10")))
     tasks = [t for t in plan_shards(cfg) if t.split == "train"]
@@ -75,6 +85,10 @@ def test_uneven_last_shard(tmp_path):
         ("train = 8", "trian = 8", "'splits.trian': unknown split"),
         ("max_redraws = 50", "max_redraws = 50\ncolour = 1", "unknown field(s) colour"),
         ("shard_size = 4\n", "", "'shard_size' missing"),
+        ("test = 4\n", "test = 4\n[train]\nfits = 0\n", "'fits' must be in [1,"),
+        ("test = 4\n", "test = 4\n[train]\ncomponents = 2.5\n", "'components' must be an integer"),
+        ("test = 4\n", "test = 4\n[train]\nepochs = 3\n", "'train.epochs': unknown; known: components, latent, fits"),
+        ("max_redraws = 50", "max_redraws = 50\ntrain = 3", "'train' must be a table"),
     ],
 )
 def test_bad_values_name_file_and_field(tmp_path, old, new, field):

@@ -115,6 +115,19 @@ def test_a_resume_with_another_max_redraws_keeps_the_finished_shards(tmp_path):
     assert any(verdicts)  # the stand-in redraws some samples once
 
 
+def test_a_resume_with_another_train_table_keeps_the_shards(tmp_path):
+    """``[train]`` (``silpose train``'s defaults) is read after generation: a rerun that adds it keeps every shard
+    (shards.RESUME_NEUTRAL) and restamps them, so the trainer finds it in the split's config."""
+    out = tmp_path / "ds"
+    generate(tiny_config(tmp_path), out, workers=1, render=SYNTH, progress=False)
+    kept = {p.name: pq.read_table(p).to_pydict() for p in sorted(out.glob("*.parquet"))}
+    trained = tiny_config(tmp_path, TINY + "[train]\nfits = 3\nlatent = 2\n")
+    manifest = generate(trained, out, workers=1, render=SYNTH, progress=False)
+    assert manifest["timing"]["shards_rendered"] == 0 and manifest["config"]["train"] == {"fits": 3, "latent": 2}
+    assert {p.name: pq.read_table(p).to_pydict() for p in sorted(out.glob("*.parquet"))} == kept
+    assert load_split(out, "train").metadata["config"]["train"] == {"fits": 3, "latent": 2}
+
+
 def test_a_dataset_made_before_an_augmentation_field_existed_resumes_with_it_off(tmp_path):
     """``[motion] part_mix`` / ``limb_swing`` at 0 draw and render what a config without them does
     (shards.MOTION_DEFAULTS): the motions preset's 48,000 samples, made before ``part_mix`` existed, were refused

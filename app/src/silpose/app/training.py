@@ -18,6 +18,10 @@ With ``streaming`` (``silpose train --streaming``) or ``executor="ray"`` the spl
 whole: EM streams over its Parquet shards (``silpose.model.streaming``) and the held-out part is
 scored shard by shard; the held-out rows are the same as in memory.
 
+A dataset whose config has a ``[train]`` table (``silpose.datagen.config``: ``components``, ``latent``,
+``fits``) is fitted with those values unless the command line gives its own (:func:`dataset_training`); the
+``default`` preset pools 5 fits of M 25, q 40 (``configs/default.toml`` says why).
+
 Writes ``<model>.npz`` (:mod:`silpose.model.persistence`) and its training report
 ``<model>.report.md`` / ``.report.json``, each atomically.
 """
@@ -79,6 +83,9 @@ DEFAULT_N_INIT = 1
 #: noise 4.55 -> 3.82 (``silpose.model.augment``, "Mirrored people").
 AUTO_MIRROR_MAX_ROWS = 10_000
 MIRROR_MODES = ("auto", "on", "off")
+#: A dataset config's ``[train]`` fields (``silpose.datagen.config.TRAIN_KEYS``; read from the stored config, so
+#: this package does not import the generator)
+TRAIN_FIELDS = ("components", "latent", "fits")
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
@@ -128,6 +135,25 @@ def supported_size(n_fit: int, m: int, q: int, *, fixed_m: bool = False, fixed_q
     if not fixed_q and n_fit < r * m * q:
         q = max(1, n_fit // (r * m))
     return m, q
+
+
+def dataset_training(metadata: dict, root: Path) -> dict:
+    """The dataset's ``[train]`` settings (``silpose.datagen.config.TRAIN_KEYS``: components, latent, fits), as
+    stored in its config: ``{field: int >= 1}``, ``{}`` for a dataset without them. A malformed entry is a
+    one-line TrainingError naming the dataset and the field."""
+    train = (metadata.get("config") or {}).get("train")
+    if train is None:
+        return {}
+    if not isinstance(train, dict):
+        raise TrainingError(f"{root}: field 'config.train' must be a table, got {type(train).__name__}")
+    out = {}
+    for key, value in train.items():
+        if key not in TRAIN_FIELDS:
+            raise TrainingError(f"{root}: field 'config.train.{key}': unknown; known: {', '.join(TRAIN_FIELDS)}")
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise TrainingError(f"{root}: field 'config.train.{key}' must be an integer >= 1, got {value!r}")
+        out[key] = value
+    return out
 
 
 def resolve_dataset(preset: str, data_root: Path) -> tuple[Path, str]:
@@ -196,7 +222,7 @@ def run_training(
     views: Sequence[int] | None = None,
     max_iter: int = DEFAULT_MAX_ITER,
     n_init: int = DEFAULT_N_INIT,
-    n_fits: int = 1,
+    n_fits: int | None = None,
     tol: float = DEFAULT_TOL,
     seed: int = 0,
     heldout: float = 0.1,
@@ -217,7 +243,9 @@ def run_training(
     and scores the held-out part shard by shard; ``executor="ray"`` (implies streaming) runs each
     shard's EM task on Ray with ``workers`` CPUs when it starts a local Ray instance.
     ``n_fits`` > 1 pools that many EM fits from seeds ``seed``, ``seed + 1``, ... into one mixture
-    (``ShapeStructureModel(n_fits=...)``; in memory only).
+    (``ShapeStructureModel(n_fits=...)``; in memory only); None: the dataset's ``[train] fits``, else 1.
+    ``n_components`` / ``n_latent`` None: the dataset's ``[train]`` values, else the defaults lowered for small data
+    (:func:`supported_size`); with ``select``, the dataset's ``[train]`` is not used.
     ``mirror``: "auto" (the rig's mirror symmetries, as many as keep the fitted samples and their mirrors
     within ``AUTO_MIRROR_MAX_ROWS``; none when streaming), "on" (all of them; an error if the rig has
     none) or "off". ``supported_size`` counts the mirrored samples.
@@ -228,9 +256,9 @@ def run_training(
     if streaming and select:
         raise TrainingError("--select fits its grid in memory; run it without --streaming / --executor ray, "
                             "then train the chosen hyperparameters with streaming")
-    if int(n_fits) < 1:
+    if n_fits is not None and int(n_fits) < 1:
         raise TrainingError(f"--fits must be >= 1, got {n_fits}")
-    if streaming and int(n_fits) > 1:
+    if streaming and n_fits is not None and int(n_fits) > 1:
         raise TrainingError("--fits pools fits made in memory; run it without --streaming / --executor ray")
     if mirror not in MIRROR_MODES:
         raise TrainingError(f"--mirror must be one of {', '.join(MIRROR_MODES)}, got {mirror!r}")
@@ -255,6 +283,19 @@ def run_training(
         n, n_views, n_points = len(split), split.contours.shape[1], split.contours.shape[2]
     if n < 4:
         raise TrainingError(f"{root}: the train split has {n} samples; at least 4 are needed")
+    preset_note = None
+    if not select:  # the dataset's own [train] settings, where the command line gives none
+        preset = dataset_training(metadata, root)
+        n_components = preset.get("components") if n_components is None else n_components
+        n_latent = preset.get("latent") if n_latent is None else n_latent
+        if n_fits is None and preset.get("fits", 1) > 1 and streaming:
+            preset_note = f"the dataset's [train] fits = {preset['fits']} not used: pooled fits are made in memory"
+        elif n_fits is None:
+            n_fits = preset.get("fits")
+        if preset:
+            used = ", ".join(f"{k} {preset[k]}" for k in TRAIN_FIELDS if k in preset)
+            preset_note = preset_note or f"the dataset's [train] settings ({used}) where the command line gives none"
+    n_fits = 1 if n_fits is None else int(n_fits)
     groups = clip_groups(root, "train")
     fit_idx, held_idx = heldout_split(n, heldout, seed, groups)
     if roughness == "auto":
@@ -287,7 +328,7 @@ def run_training(
         )
         print(selection.to_markdown())
         hp = {k: selection.best[k] for k in hp}
-    notes = [mirror_note] if mirror_note else []
+    notes = [note for note in (mirror_note, preset_note) if note]
     if not select:
         m_fit, q_fit = supported_size(n_rows, int(hp["n_components"]), int(hp["n_latent"]),
                                       fixed_m=n_components is not None, fixed_q=n_latent is not None)

@@ -20,6 +20,10 @@ Keys (all validated; errors are one line naming the file and the field)::
     [motion]                    # optional: poses from motion-capture clips (.motion.config)
     source = "bvh"              # "procedural" (default, the walk cycle) | "bvh"
     bvh = ["clips/*.bvh"]
+    [train]                     # optional: how `silpose train` fits this dataset by default
+    components = 25             # mixture components M per fit
+    latent = 40                 # latent dimensions q
+    fits = 5                    # EM fits pooled into one mixture (M x fits components)
 
 Relative rig and clip paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
 workspace (the rig's, or ``[workspace]``); every camera must see it up to a tall person's head
@@ -33,6 +37,10 @@ table is where walkers are placed, so every camera must see it whole. Calibratio
 "bvh"`` config must be prepared (:meth:`GenConfig.with_motion`, done by ``generate``: the clips are
 imported and checked) before its ``to_dict`` and ``worker_config`` exist; a procedural config's
 dicts are exactly those of a config without ``[motion]``.
+
+``[train]`` does not change a sample: it is stored in the dataset's config (``train``), where ``silpose train``
+reads it as its defaults (``silpose.app.training``; command-line options win), and a rerun with another
+``[train]`` keeps the shards (``silpose.datagen.shards.RESUME_NEUTRAL``).
 """
 
 from __future__ import annotations
@@ -56,7 +64,9 @@ SPLITS = ("train", "test")
 #: Height (m) up to which the workspace corners must be seen: a tall person's head top.
 WORKSPACE_CHECK_HEIGHT = PERSON_HEIGHT_M
 _KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig",
-         "workspace", "frames", "motion"}
+         "workspace", "frames", "motion", "train"}
+#: The ``[train]`` table's fields (each optional, an integer >= 1): ``silpose train``'s M, q and pooled fits.
+TRAIN_KEYS = ("components", "latent", "fits")
 #: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames.config`).
 _OTHER_SECTIONS = {"frames"}
 
@@ -98,6 +108,7 @@ class GenConfig:
     placement: Workspace | None = None
     motion: MotionConfig = field(default_factory=MotionConfig, repr=False)
     prepared: PreparedMotion | PreparedLibrary | None = field(default=None, repr=False)
+    train: dict | None = None
 
     def with_motion(self, workers: int | None = None) -> "GenConfig":
         """This config with its motion-capture clips imported and checked (itself if procedural)."""
@@ -133,6 +144,8 @@ class GenConfig:
             out["placement"] = self.placement.to_dict()
         if prepared is not None:
             out["motion"] = prepared.metadata()
+        if self.train is not None:
+            out["train"] = dict(self.train)
         return out
 
     def worker_config(self) -> dict:
@@ -156,7 +169,7 @@ class GenConfig:
     def data_config(self) -> dict:
         """The part of the config the sample content depends on (not shard size or name)."""
         d = self.to_dict()
-        for k in ("name", "shard_size", "splits", "rig_spec", "workspace"):
+        for k in ("name", "shard_size", "splits", "rig_spec", "workspace", "train"):
             d.pop(k, None)
         return d
 
@@ -246,7 +259,18 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
     return GenConfig(name, seed, renderer, engine, shard_size, n_points, max_redraws, splits,
                      _portable_rig_spec(rig_spec), rig, source,
                      workspace_spec=None if workspace_spec is None else rig.workspace.to_dict(),
-                     placement=None if placement is rig.workspace else placement, motion=motion)
+                     placement=None if placement is rig.workspace else placement, motion=motion,
+                     train=parse_train(raw["train"], src) if "train" in raw else None)
+
+
+def parse_train(spec, src: str) -> dict:
+    """The ``[train]`` table (module docstring): ``{field: int >= 1}`` for the :data:`TRAIN_KEYS` it names."""
+    if not isinstance(spec, dict):
+        raise ConfigError(f"{src}: field 'train' must be a table with {', '.join(TRAIN_KEYS)}")
+    unknown = sorted(set(spec) - set(TRAIN_KEYS))
+    if unknown:
+        raise ConfigError(f"{src}: field 'train.{unknown[0]}': unknown; known: {', '.join(TRAIN_KEYS)}")
+    return {k: _int(spec, k, f"{src}: train", 1, 100_000) for k in TRAIN_KEYS if k in spec}
 
 
 def _portable_rig_spec(spec) -> dict:

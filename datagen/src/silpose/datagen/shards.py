@@ -82,8 +82,9 @@ def locked_folder(out: Path, recursive: bool = False) -> Iterator[FolderLock]:
 #: Config fields a finished shard does not depend on, so a rerun with another value keeps it (restamped with
 #: the new config). ``max_redraws``: a sample is its first draw that every view sees whole, each draw a pure
 #: function of (seed, split, index, redraw), so a sample found within 50 draws is the same with 1000 allowed
-#: (a shard whose ``redraws`` exceed a lowered value is rendered again, and fails as this run would).
-RESUME_NEUTRAL = ("max_redraws",)
+#: (a shard whose ``redraws`` exceed a lowered value is rendered again, and fails as this run would). ``train``:
+#: ``silpose train``'s defaults (``[train]``), read after generation.
+RESUME_NEUTRAL = ("max_redraws", "train")
 #: ``[motion]`` augmentation fields whose value here draws and renders exactly what a config without the field
 #: does (``silpose.datagen.motion.mix``): a dataset made before the field existed resumes under a config that
 #: has it at this value.

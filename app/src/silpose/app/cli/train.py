@@ -21,17 +21,18 @@ def train(
     preset: Annotated[str, typer.Argument(help="Preset name (fits on data/<preset>/) or a dataset folder.")] = "default",
     out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Model file (default: models/<name>.npz).")] = None,
     select: Annotated[bool, typer.Option("--select", help="Choose q, M, structure weight and noise on a validation split first.")] = False,
-    n_components: Annotated[Optional[int], typer.Option("--components", "-M", min=1, help="Mixture components M.")] = None,
-    n_latent: Annotated[Optional[int], typer.Option("--latent", "-q", min=1, help="Latent dimension q per component.")] = None,
+    n_components: Annotated[Optional[int], typer.Option("--components", "-M", min=1, help="Mixture components M (default: the dataset config's [train] components, else 60 lowered for small data).")] = None,
+    n_latent: Annotated[Optional[int], typer.Option("--latent", "-q", min=1, help="Latent dimension q per component (default: the dataset config's [train] latent, else 40 lowered for small data).")] = None,
     structure_weight: Annotated[Optional[float], typer.Option(help="Weight of the joint block in the shape vector.")] = None,
     noise_variance: Annotated[Optional[float], typer.Option(min=0.0, help="Observation noise s² at inference (normalised units²).")] = None,
     views: Annotated[Optional[str], typer.Option(help="Views to model, comma-separated rig indices (default: all).")] = None,
     max_iter: Annotated[int, typer.Option(min=1, help="EM iterations per run at most.")] = 200,
     n_init: Annotated[int, typer.Option(min=1, help="EM runs from different k-means starts; the best is kept.")] = 1,
-    fits: Annotated[int, typer.Option(min=1, help="EM fits from seeds seed, seed+1, ... pooled into one mixture "
+    fits: Annotated[Optional[int], typer.Option(min=1, help="EM fits from seeds seed, seed+1, ... pooled into one mixture "
                                       "(the average of their densities): on small data a single fit's error varies "
                                       "about 10 % with its start, 5 fits beat every one of them; inference costs "
-                                      "as much as M x fits components. In memory only.")] = 1,
+                                      "as much as M x fits components. In memory only. Default: the dataset "
+                                      "config's [train] fits (the default preset's: 5), else 1.")] = None,
     tol: Annotated[float, typer.Option(help="EM stops when the mean log-likelihood gains less than this "
                                        "(nats per sample per iteration).")] = 0.1,  # app.training.DEFAULT_TOL
     seed: Annotated[int, typer.Option(help="Seed of the k-means starts and the held-out/validation splits.")] = 0,
