@@ -28,18 +28,23 @@ from silpose.model.hypotheses import single_answer
 N_POINTS = 24
 
 
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("data") / "tiny"
+def write_dataset(root, name="tiny", **config_fields):
+    """A dataset folder of 80 train and 6 test stick-figure samples (default rig); ``config_fields`` join its
+    stored config (e.g. a preset's ``train`` table)."""
     root.mkdir()
     rig = default_rig()
-    config = {"name": "tiny", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS}
+    config = {"name": name, "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS, **config_fields}
     meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
     for split, n in (("train", 80), ("test", 6)):
         records = [synthetic_record(config, split, i) for i in range(n)]
         write_shard(root / f"{split}-00000-of-00001.parquet", records, meta)
-    (root / "manifest.json").write_text(json.dumps({"name": "tiny"}))
+    (root / "manifest.json").write_text(json.dumps({"name": name}))
     return root
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return write_dataset(tmp_path_factory.mktemp("data") / "tiny")
 
 
 @pytest.fixture(scope="module")
@@ -336,23 +341,10 @@ def test_fits_pools_em_fits_and_reports_each(dataset, tmp_path):
     assert res.exit_code == 2 and "--fits" in res.output and "--streaming" in res.output
 
 
-def _dataset_with_train(folder, train):
-    """The ``dataset`` fixture's samples in a folder whose stored config has ``train`` (``[train]`` of a preset)."""
-    folder.mkdir()
-    rig = default_rig()
-    config = {"name": "trained", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS, "train": train}
-    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
-    for split, n in (("train", 80), ("test", 6)):
-        records = [synthetic_record(config, split, i) for i in range(n)]
-        write_shard(folder / f"{split}-00000-of-00001.parquet", records, meta)
-    (folder / "manifest.json").write_text(json.dumps({"name": "trained"}))
-    return folder
-
-
 def test_a_dataset_config_train_table_sets_the_defaults(tmp_path):
     """A preset's ``[train]`` (stored in the dataset's config) gives M, q and the pooled fits unless the command line
     gives its own; streaming cannot pool, so it fits once and says so; a malformed entry is a one-line error."""
-    data = _dataset_with_train(tmp_path / "d", {"components": 3, "latent": 2, "fits": 2})
+    data = write_dataset(tmp_path / "d", "trained", train={"components": 3, "latent": 2, "fits": 2})
     common = ("--max-iter", "10", "--no-progress")
     res = _invoke("train", data, *common, "--out", tmp_path / "a.npz")
     assert res.exit_code == 0, res.output
@@ -368,7 +360,7 @@ def test_a_dataset_config_train_table_sets_the_defaults(tmp_path):
     assert res.exit_code == 0, res.output
     assert read_header(tmp_path / "c.npz")["hyperparameters"]["n_fits"] == 1
     assert "fits = 2 not used: pooled fits are made in memory" in res.output
-    bad = _dataset_with_train(tmp_path / "bad", {"fits": 0})
+    bad = write_dataset(tmp_path / "bad", "trained", train={"fits": 0})
     res = _invoke("train", bad, *common, "--out", tmp_path / "e.npz")
     assert res.exit_code != 0 and "config.train.fits' must be an integer >= 1" in res.output
     assert str(bad) in res.output and not (tmp_path / "e.npz").exists()
