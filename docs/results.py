@@ -111,7 +111,7 @@ def _baselines(h, n):
     by = _get(h, "pose_mean_cm_by_method_and_n_views", str(n))
     if not by:
         return None
-    return " / ".join(_f(by.get(m)) for m in ("mppca", "knn", "ridge", "mlp"))
+    return " / ".join(_f(by.get(m)) for m in ("mppca", "mppca robust", "knn", "ridge", "mlp"))
 
 
 def _mlp_cost(h):
@@ -139,8 +139,9 @@ ROWS = [
      lambda h: None if _noise(h, "standard", "knn") is None else " / ".join(
          _f(_noise(h, n, "knn")) for n in ("standard", "mask mild", "mask strong")), None),
     ("front/back flips, 4 views, standard noise: single answer / best of 3", _flips, None),
-    ("4 views, standard noise: posterior mean / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 4), None),
-    ("1 view, standard noise: posterior mean / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 1), None),
+    ("4 views, standard noise: posterior mean / robust / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 4), None),
+    ("1 view (each view alone, their mean), standard noise: posterior mean / robust / kNN / ridge / MLP (cm)",
+     lambda h: _baselines(h, 1), None),
     ("MLP baseline: fitting time / time per frame", _mlp_cost, None),
     ("chance (a random training pose, cm)",
      lambda h: _f(_get(h, "chance_cm", "mean"), "{:.1f}") if _get(h, "chance_cm") else None,

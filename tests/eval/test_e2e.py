@@ -107,11 +107,14 @@ def test_row_counts_match_the_protocol(evaluated):
     counts = df.groupby("experiment").size().to_dict()
     assert counts["E1"] == 2 * 4 * n + n  # single-view models at equal q and at q / K, and the 4-view model
     assert counts["E2"] == 15 * n
-    # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge + MLP), plus E6's robust MPPCA rows (2 inputs) for
-    # the settings of silpose.eval.e6_inference.ROBUST_SPECS in the sweep (clean, mask strong) and the standard noise
-    assert counts["E3"] == 4 * (2 + 3) * n + 3 * 2 * n
+    # quick sweep: 4 settings x (2 MPPCA inputs + kNN + ridge + MLP), plus E6's robust MPPCA rows for the settings
+    # of silpose.eval.e6_inference.ROBUST_SPECS in the sweep (clean, mask strong: all views and view 0) and the
+    # standard noise (all views and each of the 4 views alone)
+    assert counts["E3"] == 4 * (2 + 3) * n + 2 * 2 * n + 5 * n
     robust = df[(df.experiment == "E3") & (df.method == "mppca robust")]
     assert sorted(robust.noise.unique()) == ["clean", "mask strong", "standard"]
+    alone = robust[robust.n_input_views == 1]
+    assert alone.groupby("noise").input_views.nunique().to_dict() == {"clean": 1, "mask strong": 1, "standard": 4}
     assert counts["E4"] == n + 3 * 15 * n  # chance, kNN, ridge and MLP on every view subset
     e2 = df[df.experiment == "E2"]
     assert sorted(e2.groupby("n_input_views").input_views.nunique().to_dict().items()) == [(1, 4), (2, 6), (3, 4), (4, 1)]

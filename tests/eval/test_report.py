@@ -95,3 +95,26 @@ def test_markdown_rows_hold_the_statistics_of_their_rows():
     assert f"| chance (random training pose) | – | {_cells(chance)} | 29 |" in lines
     ridge = e4[(e4.method == "ridge") & (e4.n_input_views == 1)].pose_cm
     assert f"| ridge regression | 1 | {_cells(ridge)} |  |" in lines
+
+
+def _robust_rows(rng, views, n=30, noise="standard"):
+    return [pd.DataFrame({"experiment": "E3", "method": "mppca robust", "training": "multi-view", "trained_views": "0123",
+                          "input_views": v, "n_input_views": len(v), "noise": noise, "sample_id": np.arange(n),
+                          "pose_cm": rng.gamma(4, 2, n), "pose_pa_cm": rng.gamma(4, 1, n)}) for v in views]
+
+
+def test_robust_figures_beside_the_baselines_need_every_view_alone():
+    """The headline's robust one-view figure is the mean over every view alone (as kNN's is over its one-view
+    subsets), with E2's noise only; with view 0 alone scored (as for the mask noise) there is none."""
+    rng = np.random.default_rng(5)
+    base = _rows(rng)
+    partial = pd.concat([base, *_robust_rows(rng, ("0123", "0"))], ignore_index=True)
+    by = headline(partial)["pose_mean_cm_by_method_and_n_views"]
+    assert "mppca robust" not in by[1]
+    assert by[4]["mppca robust"] == pytest.approx(partial[(partial.method == "mppca robust") & (partial.input_views == "0123")]
+                                                  .pose_cm.mean())
+    rows = _robust_rows(rng, ("0123", "0", "1", "2", "3")) + _robust_rows(rng, ("1", "2", "3"), noise="mask mild")
+    full = pd.concat([base, *rows], ignore_index=True)
+    alone = full[(full.method == "mppca robust") & (full.n_input_views == 1) & (full.noise == "standard")]
+    want = np.mean([alone[alone.input_views == v].pose_cm.mean() for v in "0123"])  # 30 rows each: the plain mean
+    assert headline(full)["pose_mean_cm_by_method_and_n_views"][1]["mppca robust"] == pytest.approx(want)

@@ -14,7 +14,8 @@ contour errors one-sided Chamfer D(true clean -> reconstruction) in px (:mod:`si
   (``infer(consensus=True)``, off by default) and best-of-3 (an oracle: the hypothesis nearest the
   truth; a frame counts as flipped only if all 3 are).
 - **Robust inference** (:mod:`silpose.model.robust`): E3 rows with method ``mppca robust`` (clean,
-  the standard noise and the two mask-level settings; all views and view 0 alone), added to E3's table.
+  the standard noise and the two mask-level settings; all views and view 0 alone, and with the standard noise
+  every view alone, for the one-view headline beside kNN's mean over the views), added to E3's table.
 - **Missing-view contours**: for each view left out, the 4-view model's reconstruction of that view
   from the other three (standard noise) against the nearest training sample's contour of that view
   (Euclidean distance of the observed views' normalised contours), both placed with the view's
@@ -127,8 +128,9 @@ def _pooled_flip_row(name: str, parts: list, truth: np.ndarray) -> dict:
 
 
 def robust_rows(ev) -> dict:
-    """Score robust inference on :data:`ROBUST_SPECS` (all views and view 0); adds E3 rows. Returns the
-    mean 4-view pose error per (setting, method) and the kNN baseline's, for the headline ratios."""
+    """Score robust inference on :data:`ROBUST_SPECS` (all views and view 0; with the evaluation's own noise every
+    view alone); adds E3 rows. Returns the mean 4-view pose error per (setting, method) and the kNN baseline's, for
+    the headline ratios."""
     d, K = ev.data, ev.data.n_views
     specs = {s.label: s for s in ev.config.sweep}
     specs.setdefault(ev.config.noise.label, ev.config.noise)
@@ -138,7 +140,8 @@ def robust_rows(ev) -> dict:
         if spec is None or (spec.needs_masks and d.test_masks is None):
             continue
         noisy = ev.noisy(spec)
-        for views in (tuple(range(K)), (0,)):
+        alone = range(K) if label == ev.config.noise.label else range(1)
+        for views in (tuple(range(K)),) + tuple((k,) for k in alone):
             s = ev.score_model(ev.model, noisy, views, robust=True)
             ev._add(dict(experiment="E3", method="mppca robust", training="multi-view", trained_views=_label(range(K)),
                          input_views=_label(views), n_input_views=len(views), noise=spec.label), **s)

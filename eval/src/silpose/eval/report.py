@@ -101,6 +101,9 @@ def headline(df) -> dict:
             cmp[int(n)] = {m: stats(gg["pose_cm"])["mean"] for m, gg in g.groupby("method")}
             if not e2.empty:
                 cmp[int(n)]["mppca"] = stats(select(e2, n_input_views=n)["pose_cm"])["mean"]
+        robust = _robust_by_n_views(df, e2)
+        for n, v in robust.items():
+            cmp.setdefault(n, {})["mppca robust"] = v
         h["pose_mean_cm_by_method_and_n_views"] = cmp
         if not e2.empty:
             ahead = []
@@ -111,6 +114,24 @@ def headline(df) -> dict:
                               "mppca_best": bool(m < np.nanmin(list(others.values())))})
             h["mppca_vs_baselines_by_subset"] = ahead
     return h
+
+
+def _robust_by_n_views(df, e2) -> dict:
+    """{n views: mean pose cm of robust inference (E6's E3 rows) with E2's noise}, for n = all views and n = 1 (the
+    mean over every view alone, as kNN's one-view figure is; only when E6 scored each view alone)."""
+    e3 = select(df, experiment="E3", method="mppca robust")
+    if e3.empty or e2.empty:
+        return {}
+    e3 = select(e3, noise=str(e2["noise"].iloc[0]))
+    K = int(e2["n_input_views"].max())
+    out = {}
+    every = select(e3, n_input_views=K)
+    if len(every):
+        out[K] = float(every["pose_cm"].mean())
+    alone = select(e3, n_input_views=1)
+    if alone["input_views"].nunique() == K:
+        out[1] = float(alone["pose_cm"].mean())
+    return out
 
 
 def noise_comparison(df) -> dict:
@@ -142,7 +163,8 @@ def _headline_md(df) -> list[str]:
     paper = {4: f"{PAPER['pose_4_views_cm']:.0f}", 1: f"{PAPER['pose_1_view_cm']:.0f}"}
     for n, st in sorted(h.get("pose_cm_by_n_views", {}).items(), key=lambda t: -t[0]):
         by = h.get("pose_mean_cm_by_method_and_n_views", {}).get(n, {})
-        rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–", "–", "–",
+        rows.append([f"{n} view{'s' if n > 1 else ''}, standard contour noise", fmt(st["mean"]), "–",
+                     fmt(by.get("mppca robust", float("nan"))), "–",
                      fmt(by.get("knn", float("nan"))), fmt(by.get("mlp", float("nan"))), paper.get(n, "–")])
     n_all = max(h.get("pose_cm_by_n_views", {0: None}))
     for noise, v in h.get("pose_mean_cm_by_noise_all_views", {}).items():
