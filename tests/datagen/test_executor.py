@@ -127,3 +127,24 @@ def test_spawned_map_answers_every_job_once_and_names_the_job_of_a_dead_worker()
         list(spawned_map(exit_or_square, [("a", (0, 1)), ("b", (5, 2)), ("c", (0, 3))], workers=2))
     assert died.value.key == "b" and died.value.exitcode == 5
     assert workers_alive() == []
+
+
+def test_a_worker_that_dies_before_its_first_job_reaches_it_is_reported_with_that_job(monkeypatch):
+    """The window the SIGKILL drill above hits only sometimes: the process is gone before the driver
+    sends it its first job, so the send fails; the job is reported as the dead worker's, no traceback."""
+    from multiprocessing.context import SpawnProcess
+
+    from silpose.datagen.testing import exit_or_square
+
+    start = SpawnProcess.start
+
+    def start_then_die(process):
+        start(process)
+        process.kill()
+        process.join()
+
+    monkeypatch.setattr(SpawnProcess, "start", start_then_die)
+    with pytest.raises(WorkerDied) as died:
+        list(spawned_map(exit_or_square, [("a", (0, 1)), ("b", (0, 2))], workers=1))
+    assert died.value.key == "a" and died.value.exitcode == -signal.SIGKILL
+    assert workers_alive() == []

@@ -142,7 +142,10 @@ class _Worker:
     def give(self, key, message) -> None:
         self.key, self.busy = key, True
         self.remaining -= 1
-        self.conn.send(message)
+        try:
+            self.conn.send(message)
+        except OSError:  # it died before its job reached it: the wait loop sees its sentinel and reports it
+            pass
 
     def stop(self, kill: bool) -> None:
         """Ask an idle worker to exit (or kill a busy one) and reap it."""
