@@ -26,7 +26,8 @@ end to end against known joints:
   up mid-grey, 30..225, with ~220 grey levels in all) and ``truth.npz`` (joints, roots, and every walker's own clean
   masks, bit-packed).
 - :func:`make_lab_recording`: the driver (never imports bpy): calibration files, then
-  :func:`render_lab` in one spawned process.
+  :func:`render_lab` in one spawned process (:func:`silpose.datagen.executor.spawned_map`: a worker that dies
+  -- a crash in Blender, the OOM killer -- is reported at once with its exit code, never waited for).
 
 Walkers' subjects and gaits come from the sample-draw stream of the test split (docs/conventions.md,
 "Seeds"): walker ``index`` i is test sample i's first draw, so a recording is a pure function of
@@ -36,7 +37,6 @@ stream_code("lab stature"), index)`` (:mod:`silpose.shared.seeds`).
 
 from __future__ import annotations
 
-import multiprocessing as mp
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -48,6 +48,7 @@ from silpose.shared.camera import Camera, Rig, look_at
 from silpose.shared.rig_frame import Workspace, WorldTransform
 from silpose.shared.seeds import derive_rng, stream_code
 
+from .executor import WorkerDied, spawned_map
 from .motion.source import WALK
 from .render import rendering
 from .renderers import renderer_from_config
@@ -305,11 +306,15 @@ def unpack_masks(truth) -> np.ndarray:
 
 
 def make_lab_recording(out: Path, *, walkers=DEFAULT_WALKERS, n_frames: int = 75, fps: float = LAB_FPS, seed: int = 0,
-                       renderer: str = "raster", timeout_s: float = 600.0) -> Path:
+                       renderer: str = "raster") -> Path:
     """Write a lab recording to ``out`` (the driver; never imports bpy). Returns ``out``.
 
     ``out/calibration/<camera>.yml`` (mm, z down, origin at a floor corner), ``out/rig.json`` (the same rig
-    in silpose's frame), ``out/masks/<camera>.mp4`` and ``out/truth.npz`` (:func:`render_lab`).
+    in silpose's frame), ``out/masks/<camera>.mp4`` and ``out/truth.npz`` (:func:`render_lab`, in a spawned worker).
+
+    Raises:
+        LabRenderError: the rendering raised (the message names ``out`` and the error) or its worker died (its
+            exit code).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -319,6 +324,24 @@ def make_lab_recording(out: Path, *, walkers=DEFAULT_WALKERS, n_frames: int = 75
         tmp.write_text(rig.to_json())
     config = {"seed": seed, "rig": rig.to_dict(), "walkers": [asdict(w) for w in walkers], "n_frames": int(n_frames),
               "fps": float(fps), "renderer": renderer}
-    with mp.get_context("spawn").Pool(1) as pool:
-        pool.apply_async(render_lab, (config, str(out))).get(timeout_s)
+    try:
+        for _, error in spawned_map(render_lab_job, [(0, (config, str(out)))], workers=1):
+            if error is not None:
+                raise LabRenderError(f"{out}: rendering the lab recording failed: {error}")
+    except WorkerDied as died:
+        raise LabRenderError(f"{out}: rendering the lab recording failed: {died}") from None
     return out
+
+
+class LabRenderError(RuntimeError):
+    """The lab recording could not be rendered (:func:`make_lab_recording`)."""
+
+
+def render_lab_job(message: tuple[dict, str]) -> str | None:
+    """Worker side of :func:`make_lab_recording`: :func:`render_lab` of ``(config, out)``; returns None, or the
+    error it raised as ``"<type>: <message>"`` (``spawned_map``'s calls return their errors)."""
+    try:
+        render_lab(*message)
+    except Exception as exc:  # noqa: BLE001 - reported by the driver, with the recording's folder
+        return f"{type(exc).__name__}: {exc}"
+    return None
