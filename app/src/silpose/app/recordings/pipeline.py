@@ -17,7 +17,9 @@ then per chunk:
    with no usable view gets no joints;
 5. the root is placed in the room and the missing views' contours are projected (:mod:`.placement`), each
    joint moved inside the person's outline in every used view (:mod:`.silhouette_fit`); joints are written in silpose's frame and in the calibration's (:mod:`.room`, :mod:`.writers`);
-6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`) and ``summary.json``.
+6. overlay videos (:mod:`.overlay_video`); at the end the floor plan (:mod:`.floorplan`; drawn by a worker process
+   started at the set-up when this process has not imported matplotlib yet, :mod:`.floorplan_worker`) and
+   ``summary.json``.
 
 Threads: on a machine of 3 cores or more (:data:`POOL_MIN_CORES`) the per-camera stages run in a pool of one thread
 per camera (at most the CPU count), on 1-2 cores in the run's thread (on 2 cores with each camera decoding in a
@@ -127,6 +129,7 @@ from .camera_step import CameraStep, Seen, shown
 from .chunk_rows import draw_chunk, emit_rows, infer_chunk
 from .floor import FloorGrid, capture_bounds
 from .floorplan import write_floorplan
+from .floorplan_worker import floorplan_process
 from .hull import PersonHulls
 from .lookahead import StepAhead
 from .frames_source import bad_frame, frames_folder_run
@@ -421,6 +424,7 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     blas = threadpool_limits(limits=1, user_api="blas")  # see the module docstring
     cv_threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # the same for OpenCV's own parallel loops (module docstring)
+    plan = floorplan_process()  # matplotlib imported beside the run, not at its end (.floorplan_worker)
     try:
         overlays = overlay_sink(opt.overlays, Path(opt.overlay_dir or out / "overlays"), names,
                                 {c.name: (c.width, c.height) for c in work}, fps, first_frame,
@@ -503,6 +507,8 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
         writer.abort()
         if overlays is not None:
             overlays.abort()
+        if plan is not None:
+            plan.kill()
         raise
     finally:
         blas.restore_original_limits()
@@ -528,8 +534,10 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     n_persons = len(tracks)
     if n_persons == 0:
         warnings.append(nobody_found(detected, step, tracker.min_hits, fps, opt))
-    files.append(write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace,
-                                 f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"))
+    title = f"{Path(*Path(videos).resolve().parts[-2:])}: {n_persons} person(s), {step} frames"
+    if plan is None or not plan.draw(out / "floorplan.png", tracks, rig, title):
+        write_floorplan(out / "floorplan.png", tracks, rig, transform, workspace, title)
+    files.append(out / "floorplan.png")
     timings["total"] = time.perf_counter() - t_start
     timings["finish"] = time.perf_counter() - t_loop_end
     summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
