@@ -8,7 +8,9 @@ render for the raster renderer, OpenCV's MOG2 for segmentation, ``cv2.findContou
 the local pool for Ray -- and every compute kernel (EM iteration, batched inference) next to its
 BLAS floor (:mod:`benchmarks.blas_floor`), so ratios stay meaningful on a shared, noisy machine.
 Output: ``<out>/bench.md`` and ``<out>/bench.json`` (every row, the arguments of each section, the
-machine and the library versions).
+commit and date each section ran at, the machine and the library versions). ``--update`` re-runs the sections
+named by ``--only`` and replaces them in the report already at ``<out>``, keeping the others (and the commit and
+date they were measured at): a change to one part of the code is measured again without an hour of the rest.
 """
 
 from __future__ import annotations
@@ -150,12 +152,56 @@ def parse_set(items: list[str]) -> dict[str, dict]:
 
 
 def run_section(name: str, quick: bool, overrides: dict | None = None, env: dict | None = None) -> dict:
-    """Run one section in a subprocess; returns {section, what, module, kwargs, rows, seconds, error}."""
+    """Run one section in a subprocess; returns {section, what, module, kwargs, rows, seconds, error, commit,
+    date} (the commit checked out and the time the section started)."""
     sec = SECTIONS[name]
     kwargs = {**(sec.quick if quick else sec.full), **(overrides or {})}
+    started = _now()
     res = subproc.call(sec.module, "run", kwargs, env=env)
     return {"section": name, "what": sec.what, "module": sec.module, "kwargs": kwargs,
-            "rows": res.value if res.error is None else [], "seconds": res.seconds, "error": res.error}
+            "rows": res.value if res.error is None else [], "seconds": res.seconds, "error": res.error,
+            "commit": _git_commit(), "date": started}
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%d %H:%M:%S %Z")
+
+
+def load_report(path: Path) -> dict:
+    """A ``bench.json`` this runner wrote, checked: {quick, machine, sections}. Raises ValueError naming the file
+    and the field that is wrong."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no report to update (run without --update first)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a readable JSON report ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    if not isinstance(data.get("quick"), bool):
+        raise ValueError(f"{path}: field 'quick' must be true or false")
+    if not isinstance(data.get("machine"), dict):
+        raise ValueError(f"{path}: field 'machine' must be an object")
+    sections = data.get("sections")
+    if not isinstance(sections, list) or not all(isinstance(s, dict) and s.get("section") in SECTIONS
+                                                   and isinstance(s.get("rows"), list) for s in sections):
+        raise ValueError(f"{path}: field 'sections' must be a list of sections, each with a known 'section' name "
+                         "and a list of 'rows'")
+    return data
+
+
+def merge_sections(old: dict, new: list[dict]) -> list[dict]:
+    """The sections of the report ``old`` with those of ``new`` in place of their namesakes, in the order of
+    :data:`SECTIONS`. Old sections without their own commit and date (reports written before they were recorded)
+    get the old report's machine's."""
+    by_name = {}
+    for sec in old["sections"]:
+        sec = dict(sec)
+        sec.setdefault("commit", old["machine"].get("commit"))
+        sec.setdefault("date", old["machine"].get("date"))
+        by_name[sec["section"]] = sec
+    by_name.update({sec["section"]: sec for sec in new})
+    return [by_name[name] for name in SECTIONS if name in by_name]
 
 
 def _git_commit() -> str | None:
@@ -177,7 +223,7 @@ def machine_info() -> dict:
         "platform": platform.platform(),
         "cpu_count": os.cpu_count(),
         "load_average": [round(x, 2) for x in os.getloadavg()],
-        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "date": _now(),
         "commit": _git_commit(),
         "numpy": numpy.__version__,
     }
@@ -220,8 +266,9 @@ def report_markdown(results: list[dict], info: dict, quick: bool) -> str:
     parts = ["# silpose benchmarks" + (" (quick)" if quick else ""), "",
              "Machine: " + ", ".join(f"{k} {v}" for k, v in info.items()), "", LEGEND]
     for res in results:
+        when = f", commit {res['commit']}, {res['date']}" if res.get("commit") or res.get("date") else ""
         parts += ["", f"## {res['section']}", "", f"{res['what']} (`{res['module']}`, {res['seconds']:.0f} s, "
-                  f"arguments {json.dumps(res['kwargs'])})", ""]
+                  f"arguments {json.dumps(res['kwargs'])}{when})", ""]
         parts.append(f"**failed**: {res['error']}" if res["error"] else rows_markdown(res["rows"]))
     return "\n".join(parts) + "\n"
 
@@ -244,6 +291,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "--set memory.data=data/paper --set 'memory.repeats=[1,2,4]'; repeatable")
     ap.add_argument("--out", type=Path, default=Path("reports/bench"),
                     help="folder for bench.md and bench.json (default: reports/bench)")
+    ap.add_argument("--update", action="store_true",
+                    help="re-run only the --only sections and replace them in the report already in --out, keeping "
+                         "the other sections as they were measured (each keeps its commit and date); the sizes "
+                         "(--quick or not) must match that report's")
     ap.add_argument("--list", action="store_true", help="list the sections and their arguments, then exit")
     return ap
 
@@ -263,6 +314,17 @@ def main(argv: list[str] | None = None) -> int:
         overrides = parse_set(args.overrides)
     except ValueError as exc:
         ap.error(str(exc))
+    old = None
+    if args.update:
+        if not args.only.strip():
+            ap.error("--update needs --only: the sections to measure again")
+        try:
+            old = load_report(args.out / "bench.json")
+        except ValueError as exc:
+            ap.error(str(exc))
+        if old["quick"] != args.quick:
+            ap.error(f"--update: {args.out / 'bench.json'} holds {'--quick' if old['quick'] else 'full-size'} "
+                     f"figures; run with{'' if old['quick'] else 'out'} --quick to update it")
     results = []
     with tempfile.TemporaryDirectory(prefix="silpose-bench-tiny-") as tiny:
         env = {**os.environ, inputs.CACHE_ENV: tiny}  # tiny inputs made once, shared by the sections
@@ -274,6 +336,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {status} ({res['seconds']:.0f} s)", file=sys.stderr, flush=True)
             results.append(res)
     info = machine_info()
+    if old is not None:
+        results = merge_sections(old, results)
     md = report_markdown(results, info, args.quick)
     write_text_atomic(args.out / "bench.md", md)
     write_json_atomic(args.out / "bench.json", {"quick": args.quick, "machine": info, "sections": results})

@@ -70,7 +70,7 @@ def test_unknown_section_is_a_usage_error(tmp_path):
 
 def test_every_option_has_help_text():
     actions = [a for a in runner.build_parser()._actions if a.option_strings]
-    assert {"--quick", "--only", "--set", "--out", "--list"} <= {s for a in actions for s in a.option_strings}
+    assert {"--quick", "--only", "--set", "--out", "--list", "--update"} <= {s for a in actions for s in a.option_strings}
     assert all(a.help and len(a.help) > 10 for a in actions)
 
 
@@ -92,3 +92,43 @@ def test_parse_set_reads_json_values_and_rejects_bad_items():
     for bad in ("em.n", "n=3", "nope.n=3", "em.=3"):
         with pytest.raises(ValueError, match="--set"):
             runner.parse_set([bad])
+
+
+def test_update_replaces_the_named_sections_and_keeps_the_others_with_their_commit_and_date(tmp_path):
+    cheap = ["--set", "contours.n_samples=4", "--set", "contours.repeats=1", "--set", "em.n=400", "--set", "em.d=60",
+             "--set", "em.q=3", "--set", "em.m=2", "--set", "em.iter_runs=3"]
+    assert _bench(tmp_path, "--quick", "--only", "contours,em", *cheap).returncode == 0
+    first = json.loads((tmp_path / "bench.json").read_text())
+    em_before = next(s for s in first["sections"] if s["section"] == "em")
+    assert em_before["commit"] and em_before["date"]
+    # an old report's section without its own commit and date takes the report's machine's
+    del em_before["commit"], em_before["date"]
+    (tmp_path / "bench.json").write_text(json.dumps(first))
+    proc = _bench(tmp_path, "--quick", "--update", "--only", "contours", *cheap)
+    assert proc.returncode == 0, proc.stderr
+    second = json.loads((tmp_path / "bench.json").read_text())
+    assert [s["section"] for s in second["sections"]] == ["contours", "em"]
+    contours, em = second["sections"]
+    assert em["rows"] == em_before["rows"]  # kept as measured
+    assert (em["commit"], em["date"]) == (first["machine"]["commit"], first["machine"]["date"])
+    assert contours["date"] >= first["machine"]["date"] and contours["rows"]
+    assert f"commit {em['commit']}, {em['date']}" in (tmp_path / "bench.md").read_text()
+
+
+@pytest.mark.parametrize("case, message", [
+    ("no --only", "--update needs --only"),
+    ("no report", "no report to update"),
+    ("broken report", "field 'sections'"),
+    ("other size", "holds --quick figures"),
+])
+def test_update_refuses_what_it_cannot_merge_with_one_line(tmp_path, case, message):
+    if case == "broken report":
+        (tmp_path / "bench.json").write_text(json.dumps({"quick": True, "machine": {}, "sections": [{"x": 1}]}))
+    if case == "other size":
+        (tmp_path / "bench.json").write_text(json.dumps({"quick": True, "machine": {}, "sections": []}))
+    args = ["--update"] + ([] if case == "no --only" else ["--only", "contours"])
+    args += [] if case == "other size" else ["--quick"]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    proc = _bench(tmp_path, *args)
+    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written

@@ -114,3 +114,21 @@ def test_noise_correction_lifts_a_noisy_shadow_to_high_correlation_but_not_noise
     corrected = background_window_stats(background, 7, 2.0, np.full((h, w), s * s))
     assert np.median(local_ncc(shadow, plain)[0]) < 0.9 < np.median(local_ncc(shadow, corrected)[0])
     assert np.percentile(np.abs(local_ncc(other, corrected)[0]), 99) < 0.7
+
+
+def test_the_largest_window_on_extreme_graylevels_equals_bruteforce():
+    """Window 63 (the largest allowed) over black and white backgrounds and frames: the exact integer sums do not
+    overflow (their largest products approach 2^62) and give the brute force's NCC and ratio."""
+    rng = np.random.default_rng(63)
+    h, w = 70, 66
+    background = np.where(rng.random((h, w)) < 0.5, 0.0, 255.0)
+    frame = np.where(rng.random((h, w)) < 0.5, 0, 255).astype(np.uint8)
+    frame[:, :30] = (0.5 * background[:, :30] + 3).astype(np.uint8)  # a shadow: NCC 1 over its windows
+    support = rng.random((h, w)) < 0.9
+    noise_var = rng.uniform(0, 255.0**2, (h, w))
+    bg = background_window_stats(background, 63, 1.5, noise_var)
+    ncc, ratio = local_ncc(frame, bg, support, 0.25)
+    ref_ncc, ref_ratio = _bruteforce(frame, background, 63, support, 0.25, 1.5, noise_var)
+    np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
+    np.testing.assert_allclose(ratio, ref_ratio, rtol=1e-4)
+    assert np.ptp(ref_ncc) > 0.1 and np.isfinite(ref_ratio).all()

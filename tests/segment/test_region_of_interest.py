@@ -154,9 +154,9 @@ def test_gain_division_channel_by_channel_equals_dividing_the_frame(scene, colou
 
 
 @pytest.mark.parametrize("gain", [0.25, 0.252, 0.998, 1.0, 1.002])
-def test_quick_brightness_test_keeps_every_shadow_at_the_ratio_bounds(gain):
-    """Frames darkened to near the ratio bounds: the integer brightness test before the NCC drops no pixel the
-    dense computation calls a shadow."""
+def test_shadows_at_the_candidates_near_the_ratio_bounds_are_the_dense_answer(gain):
+    """Frames darkened to near the ratio bounds: asked at the candidates only, the shadow test gives the dense
+    maps' answer there, pixel for pixel (the window sums are exact, whatever the rectangle they run over)."""
     rng = np.random.default_rng(int(gain * 100))
     h, w = 40, 50
     background = cv2.GaussianBlur(rng.uniform(30, 220, (h, w)), (0, 0), 1.0)

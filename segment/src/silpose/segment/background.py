@@ -95,7 +95,7 @@ import numpy as np
 from . import cleanup
 from .validate import SegmentError, as_frame_stack, as_single_frame, frame_size_text, to_gray
 from .chroma import seeded_components, shadow_like
-from .ncc import background_window_stats, shadow_mask
+from .ncc import MAX_NCC_WINDOW, background_window_stats, shadow_mask
 
 STAGES = ("candidates", "shadow_rejected", "edges", "median", "morphology", "final")
 """Names of the masks returned with ``return_stages=True``, in pipeline order."""
@@ -482,8 +482,8 @@ class BackgroundModel:
         if not (np.isscalar(self.min_std) and self.min_std >= 0):
             fail("min_std", self.min_std, "must be a number >= 0 (graylevels)")
         w = self.ncc_window
-        if not (isinstance(w, (int, np.integer)) and w >= 3 and w % 2 == 1):
-            fail("ncc_window", w, "must be an odd integer >= 3")
+        if not (isinstance(w, (int, np.integer)) and 3 <= w <= MAX_NCC_WINDOW and w % 2 == 1):
+            fail("ncc_window", w, f"must be an odd integer in [3, {MAX_NCC_WINDOW}]")
         t = self.ncc_threshold
         if t is not None and not (np.isscalar(t) and -1.0 <= t < 1.0):
             fail("ncc_threshold", t, "must be None or a number in [-1, 1)")

@@ -1,4 +1,4 @@
-"""Local normalised cross-correlation between a frame and the background, with box filters.
+"""Local normalised cross-correlation between a frame and the background, over windows of candidate pixels.
 
 Shadows change the graylevel a lot but keep the background texture: inside a small window the
 shadowed frame is close to ``a * background + c`` and so correlates highly with it (paper
@@ -11,16 +11,13 @@ Paper section 6 correlates "with other candidate pixels in a small neighbourhood
 candidate pixel": the means are then taken over the candidate pixels of the window only,
 ``E_c[x] = box(c x) / box(c)`` with ``c`` the 0/1 candidate mask. This matters at a shadow's
 edge, where a full window mixes lit and shadowed background (two gains, low NCC) but the
-candidates inside it all lie in the shadow (one gain, high NCC). Both variants are plain
-``cv2.boxFilter`` calls (normalised, ``BORDER_REFLECT_101``): 3 per frame over full windows
-(the background terms are computed once, :class:`BackgroundWindowStats`); over candidates, one
-integer count of candidates per window, then 5 float filters (6 with the noise correction) restricted to the bounding box of
-the pixels whose window holds enough candidates (cropped with the window's reach, so the values
-equal those of full-image filtering). The pipeline needs the answer at the candidates only
-(:func:`shadow_mask`'s ``at``): there a quick integer test of the brightness ratio comes first
-(uint8 box sums of the frame and of the background rounded up and down), and the float sums are
-filtered only over the bounding box of the candidates whose window may have darkened within the
-ratio bounds; the NCC is then computed at those pixels alone (1-D arrays).
+candidates inside it all lie in the shadow (one gain, high NCC). Over full windows the means are
+plain ``cv2.boxFilter`` calls (normalised, ``BORDER_REFLECT_101``), 3 per frame (the background terms are
+computed once, :class:`BackgroundWindowStats`). Over candidates they come from exact integer window sums in a
+compiled kernel (:mod:`.ncc_kernel`; the background in quanta of 1 / :data:`QUANTUM` graylevel), taken only over
+the bounding box of the pixels asked for whose window holds enough candidates (one integer box filter counts
+them). The pipeline needs the answer at the candidates only (:func:`shadow_mask`'s ``at``); the sums being exact,
+the answer at a pixel does not depend on which other pixels are asked for or on how the frame is cropped.
 
 Noise correction (optional; an addition to the paper): camera noise of variance ``s^2`` in the
 frame caps the NCC of even a perfect shadow at ``sqrt(1 - s^2 / Var f)``, which falls below a
@@ -51,6 +48,11 @@ import numpy as np
 _CENTER = np.float32(128.0)
 _FLAT_FRAME_VAR = np.float32(1e-4)
 _MIN_RELIABILITY = np.float32(0.5)  # caps the noise correction's gain at sqrt(2)
+QUANTUM = 4096
+"""Quanta per graylevel of the background values in the exact window sums (:mod:`.ncc_kernel`): at most 1.2e-4
+graylevels from the fitted values."""
+MAX_NCC_WINDOW = 63
+"""Largest window side of the exact sums: ``n S_BB`` is at most ``w^4 (128 QUANTUM)^2``, below 2^63 up to it."""
 
 
 @dataclass(frozen=True)
@@ -63,8 +65,9 @@ class BackgroundWindowStats:
     mean : ``E_W[b - 128]``; var : ``Var_W b`` in graylevels^2 (full windows)
     noise_var : per-pixel noise variance ``s^2`` (graylevels^2) or None (no noise correction)
     noise_mean : ``E_W[s^2]`` (full windows) or None
-    floor, ceil : (H, W) uint8, the background rounded down and up (graylevels 0-255), or None: integer
-        bounds on the window sums of the background, for :func:`shadow_mask`'s quick brightness test
+    b_q : (H, W) int32, ``b`` in quanta of 1 / :data:`QUANTUM` graylevel (rounded), and
+    noise_q : (H, W) int64, ``noise_var`` likewise, or None: the exact integer sums of the NCC over candidate
+        windows (:mod:`.ncc_kernel`)
     """
 
     window: int
@@ -75,8 +78,8 @@ class BackgroundWindowStats:
     var: np.ndarray
     noise_var: np.ndarray | None = None
     noise_mean: np.ndarray | None = None
-    floor: np.ndarray | None = None
-    ceil: np.ndarray | None = None
+    b_q: np.ndarray | None = None
+    noise_q: np.ndarray | None = None
 
     def crop(self, rows: slice, cols: slice) -> BackgroundWindowStats:
         """The same statistics on the rectangle ``[rows, cols]`` of the image (views, no copy). The NCC of a
@@ -86,8 +89,8 @@ class BackgroundWindowStats:
             return None if a is None else a[rows, cols]
 
         return BackgroundWindowStats(self.window, self.min_texture, cut(self.b), cut(self.bb), cut(self.mean),
-                                     cut(self.var), cut(self.noise_var), cut(self.noise_mean), cut(self.floor),
-                                     cut(self.ceil))
+                                     cut(self.var), cut(self.noise_var), cut(self.noise_mean), cut(self.b_q),
+                                     cut(self.noise_q))
 
 
 def box(img: np.ndarray, window: int) -> np.ndarray:
@@ -113,14 +116,13 @@ def background_window_stats(
     bb = b * b
     mean = box(b, window)
     var = box(bb, window) - mean * mean
-    nv = nm = None
+    nv = nm = noise_q = None
     if noise_var is not None:
         nv = np.asarray(noise_var, np.float32)
         nm = box(nv, window)
-    level = np.asarray(background, np.float64)
-    floor = np.clip(np.floor(level), 0, 255).astype(np.uint8)
-    ceil = np.clip(np.ceil(level), 0, 255).astype(np.uint8)
-    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var, nv, nm, floor, ceil)
+        noise_q = np.rint(nv.astype(np.float64) * QUANTUM).astype(np.int64)
+    b_q = np.rint((np.asarray(background, np.float64) - float(_CENTER)) * QUANTUM).astype(np.int32)
+    return BackgroundWindowStats(window, float(min_texture), b, bb, mean, var, nv, nm, b_q, noise_q)
 
 
 def local_ncc(
@@ -166,12 +168,8 @@ def shadow_mask(
 
     at : array (H, W) bool or None
         Pixels to test (the candidates: the only pixels whose answer the pipeline uses); None: all.
-        With ``support``, a quick brightness test in integers comes first at those pixels (see
-        :func:`_shadow_at`: it drops only pixels whose ratio is outside ``ratio_bounds``); the window
-        sums are then box-filtered over the bounding box of the pixels left only (a shadow darkens: on
-        a person brighter than the room that is the cast shadow alone), and the NCC computed at those
-        pixels only. Same float32 operations on the same window sums (up to the last bit of a sum,
-        which OpenCV's running box sums take from where the crop starts), so the same answers.
+        With ``support``, the window sums are taken over the bounding box of those pixels only
+        (:func:`_shadow_at`), exactly as for the maps, so the answers are the same.
 
     Returns (H, W) bool: the same values as thresholding :func:`local_ncc`'s maps (False outside
     ``at``), but only the region where the NCC can be defined is touched.
@@ -187,29 +185,21 @@ def shadow_mask(
     return out
 
 
-def _support_crop(support: np.ndarray, w: int, min_support: float):
-    """Candidates per window, counted exactly in integers; the NCC is defined where the count reaches
-    ``min_support`` of the window. Only the bounding box of those pixels (plus the window's reach) is filtered
-    further: isolated noise candidates never qualify.
+def _need(window: int, min_support: float) -> int:
+    """Candidates a window of side ``window`` must hold for a defined NCC: ``ceil(min_support window^2)``, >= 1."""
+    return max(1, int(np.ceil(float(min_support) * window * window - 1e-9)))
 
-    Returns None (no such pixel) or (count, enough, crop, region, inner): count (H, W) uint16 and enough (H, W)
-    bool; crop and region (slice, slice) of the image, the box filters' input (region grown by the window's reach,
-    clipped) and the pixels with a defined NCC's bounding box; inner: region as (slice, slice) of the crop."""
-    h, wd = support.shape
-    need = max(1, int(np.ceil(float(min_support) * w * w - 1e-9)))
+
+def _support_region(support: np.ndarray, w: int, min_support: float):
+    """The bounding box of the pixels with a defined NCC: those whose window holds ``min_support`` of its pixels
+    in candidates, counted exactly in integers (isolated noise candidates never qualify). Returns (slice, slice)
+    of the image, or None (no such pixel)."""
     support8 = np.ascontiguousarray(support, bool).view(np.uint8)
     count = cv2.boxFilter(support8, cv2.CV_16U, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
-    enough = count >= need
-    x, y, bw, bh = cv2.boundingRect(enough.view(np.uint8))
+    x, y, bw, bh = cv2.boundingRect((count >= _need(w, min_support)).view(np.uint8))
     if bw == 0:
         return None
-    r = w // 2
-    y0, y1 = max(y - r, 0), min(y + bh + r, h)  # input crop: the box's reach
-    x0, x1 = max(x - r, 0), min(x + bw + r, wd)
-    crop = (slice(y0, y1), slice(x0, x1))
-    region = (slice(y, y + bh), slice(x, x + bw))
-    inner = (slice(y - y0, y + bh - y0), slice(x - x0, x + bw - x0))
-    return count, enough, crop, region, inner
+    return slice(y, y + bh), slice(x, x + bw)
 
 
 def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
@@ -226,80 +216,45 @@ def _ncc_region(frame, bg: BackgroundWindowStats, support, min_support: float):
         cov = box(f * bg.b, w) - mf * bg.mean
         ncc, ratio = _finish(mf, bg.mean, var_f, bg.var, cov, bg.noise_mean, True, bg.min_texture)
         return (slice(None), slice(None)), ncc, ratio
-    found = _support_crop(support, w, min_support)
-    if found is None:
+    region = _support_region(support, w, min_support)
+    if region is None:
         return None, None, None
-    count, enough, crop, region, (oy, ox) = found
-    f = np.asarray(frame[crop], np.float32) - _CENTER
-    c = support[crop].astype(np.float32)
-    b, bb = bg.b[crop], bg.bb[crop]
-    ok_support = enough[region]
-    inv = np.zeros(ok_support.shape, np.float32)
-    np.divide(np.float32(w * w), count[region], out=inv, where=ok_support)  # 1 / E_W[c]
-    cf = c * f
-    mf = box(cf, w)[oy, ox] * inv
-    mb = box(c * b, w)[oy, ox] * inv
-    var_f = box(cf * f, w)[oy, ox] * inv - mf * mf
-    var_b = box(c * bb, w)[oy, ox] * inv - mb * mb
-    cov = box(cf * b, w)[oy, ox] * inv - mf * mb
-    noise = None if bg.noise_var is None else box(c * bg.noise_var[crop], w)[oy, ox] * inv
-    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, ok_support, bg.min_texture)
-    ratio[~ok_support] = np.nan
-    return region, ncc, ratio
+    ncc, ratio = np.zeros(np.shape(frame), np.float32), np.full(np.shape(frame), np.nan, np.float32)
+    _window_sums(frame, bg, support, min_support, 0.0, (0.0, 0.0), np.ones(np.shape(frame), bool), region,
+                 np.zeros(np.shape(frame), bool), ncc, ratio)
+    return region, ncc[region], ratio[region]
+
+
+def _window_sums(frame, bg: BackgroundWindowStats, support, min_support: float, threshold: float, ratio_bounds,
+                 at, rect, hit, ncc=None, ratio=None) -> None:
+    """The compiled NCC over candidate windows (:func:`.ncc_kernel.window_ncc_at`) at the pixels of ``at`` in the
+    rectangle ``rect`` (slice, slice): writes ``hit`` (H, W) bool and, when given, the ``ncc`` and ``ratio`` maps
+    (H, W) float32 there. numba is imported here, with the first frame that needs it."""
+    from .ncc_kernel import window_ncc_at
+
+    w = bg.window
+    no_map = np.zeros((0, 0), np.float32)
+    window_ncc_at(np.ascontiguousarray(frame, np.uint8), np.ascontiguousarray(support, bool), bg.b_q,
+                  np.zeros((0, 0), np.int64) if bg.noise_q is None else bg.noise_q, float(QUANTUM),
+                  np.ascontiguousarray(at, bool), (rect[0].start, rect[0].stop), (rect[1].start, rect[1].stop), w,
+                  _need(w, min_support), float(max(bg.min_texture, 1e-3)) ** 2, float(_FLAT_FRAME_VAR),
+                  float(threshold), float(ratio_bounds[0]), float(ratio_bounds[1]), hit,
+                  no_map if ncc is None else ncc, no_map if ratio is None else ratio)
 
 
 def _shadow_at(frame, bg: BackgroundWindowStats, support, min_support: float, threshold: float, ratio_bounds, at):
-    """:func:`shadow_mask` at the pixels ``at`` with candidate ``support`` (see there): (H, W) bool.
-
-    1. A quick brightness test at the pixels of ``at`` with enough support, in integers: the window sums of the
-       candidates' graylevels ``S_f`` and of the background rounded up and down (``S_ceil >= S_b >= S_floor``),
-       three uint8 box filters. A shadow's ratio ``S_f / S_b`` lies in ``ratio_bounds``, so it has
-       ``lo S_floor <= S_f <= hi S_ceil`` (with a margin far above float32 rounding): the others are not shadows.
-    2. The window sums of the NCC in float32 (as :func:`local_ncc`) over the bounding box of the pixels left and
-       the windows' reach, the NCC and the exact ratio test there."""
-    w, r = bg.window, bg.window // 2
+    """:func:`shadow_mask` at the pixels ``at`` with candidate ``support`` (see there): (H, W) bool. The compiled
+    window sums run over the bounding box of the pixels of ``at`` whose windows may hold enough candidates."""
     out = np.zeros(np.shape(frame), bool)
-    found = _support_crop(support, w, min_support)
-    if found is None:
+    region = _support_region(support, bg.window, min_support)
+    if region is None:
         return out
-    count, enough, crop, region, inner = found
-    tested = np.zeros(count[crop].shape, bool)  # the pixels of `at` with a defined NCC, in the crop
-    tested[inner] = enough[region] & at[region]
-    c8 = np.ascontiguousarray(support[crop]).view(np.uint8)
-    frame8 = np.asarray(frame[crop], np.uint8)
-    if bg.floor is not None:
-        def window_sum(levels):  # float32 sums of integers below 2^24 (255 w^2): exact
-            return cv2.boxFilter(levels * c8, cv2.CV_32F, (w, w), normalize=False, borderType=cv2.BORDER_REFLECT_101)
-
-        lo, hi = ratio_bounds
-        s_f = window_sum(frame8)
-        # S_f - hi S_ceil <= 0 <= S_f - lo S_floor, with 2 graylevels of slack in the sums against float rounding
-        tested &= cv2.scaleAdd(window_sum(bg.ceil[crop]), -float(hi), s_f) <= np.float32(2.0)
-        tested &= cv2.scaleAdd(window_sum(bg.floor[crop]), -float(lo), s_f) >= np.float32(-2.0)
-    j = np.flatnonzero(tested)  # raster order; flat indices into the crop's arrays
-    if not j.size:
+    x, y, bw, bh = cv2.boundingRect(np.ascontiguousarray(at[region]).view(np.uint8))
+    if bw == 0:
         return out
-    # The window sums over those pixels' bounding box and the windows' reach only (inside the crop, whose edges
-    # are the image's or at least r pixels from any pixel tested).
-    ch, cw = tested.shape
-    rows, cols = np.divmod(j, cw)
-    y0, y1, x0, x1 = max(rows.min() - r, 0), min(rows.max() + r + 1, ch), max(cols.min() - r, 0), min(cols.max() + r + 1, cw)
-    sub = (slice(y0, y1), slice(x0, x1))
-    js = (rows - y0) * (x1 - x0) + (cols - x0)
-    f = frame8[sub].astype(np.float32) - _CENTER
-    c = c8[sub].astype(np.float32)
-    b = bg.b[crop][sub]
-    cf = c * f
-    inv = np.float32(w * w) / np.take(count[crop][sub], js)  # 1 / E_W[c]
-    mf = np.take(box(cf, w), js) * inv
-    mb = np.take(box(c * b, w), js) * inv
-    var_f = np.take(box(cf * f, w), js) * inv - mf * mf
-    var_b = np.take(box(c * bg.bb[crop][sub], w), js) * inv - mb * mb
-    cov = np.take(box(cf * b, w), js) * inv - mf * mb
-    noise = None if bg.noise_var is None else np.take(box(c * bg.noise_var[crop][sub], w), js) * inv
-    ncc, ratio = _finish(mf, mb, var_f, var_b, cov, noise, True, bg.min_texture)
-    hit = (ncc > threshold) & (ratio >= ratio_bounds[0]) & (ratio <= ratio_bounds[1])
-    out[rows[hit] + crop[0].start, cols[hit] + crop[1].start] = True
+    rows = slice(region[0].start + y, region[0].start + y + bh)
+    cols = slice(region[1].start + x, region[1].start + x + bw)
+    _window_sums(frame, bg, support, min_support, threshold, ratio_bounds, at, (rows, cols), out)
     return out
 
 
