@@ -203,9 +203,14 @@ def bench_section(bench: Path) -> list[str]:
             "sizes `just bench` measures" if data.get("quick") else "full sizes")
     if overrides(data):
         size += f"; arguments set for this run: {overrides(data)}"
-    out = [f"Run: {size}.", "", "Machine: " + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
+    commits = {sec.get("commit") for sec in data.get("sections", [])}
+    machine = "Machine: " if len(commits) <= 1 else ("Machine, at the last of the runs (`just bench --update` "
+                                                      "re-measured some sections; each names its commit): ")
+    out = [f"Run: {size}.", "", machine + ", ".join(f"{k} {v}" for k, v in data.get("machine", {}).items()), ""]
     for sec in data.get("sections", []):
-        out += [f"### {sec['section']}", "", sec.get("what", ""), ""]
+        when = f" Measured at commit {sec['commit']}, {sec.get('date', '?')}." if sec.get("commit") else ""
+        what = sec.get("what", "")
+        out += [f"### {sec['section']}", "", (what.rstrip(".") + "." if when else what) + when, ""]
         out.append(f"failed: {sec['error']}" if sec.get("error") else rows_markdown(sec.get("rows", [])))
         out.append("")
     return out

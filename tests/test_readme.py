@@ -162,3 +162,22 @@ def test_speed_block_names_the_arguments_a_bench_was_run_with(tmp_path):
     table = mod.speed_table(bench)
     assert table.splitlines()[0].startswith("| `just bench --quick` (recordings: n_frames 300): 2 cores")
     assert "| 110.0 time steps/s over 450 steps (120 after the set-up) |" in table
+
+
+def test_bench_sections_measured_at_different_commits_each_name_theirs(tmp_path):
+    """After ``just bench --update``, docs/results.md says which commit and date each section was measured at."""
+    mod = _results_module()
+    data = {"quick": False, "machine": {"cpu_count": 2, "commit": "bbb2222"},
+            "sections": [{"section": "em", "what": "EM", "rows": [{"a": 1}], "commit": "aaa1111",
+                          "date": "2026-01-01 10:00:00 UTC"},
+                         {"section": "segmentation", "what": "seg", "rows": [{"a": 2}], "commit": "bbb2222",
+                          "date": "2026-01-02 10:00:00 UTC"}]}
+    bench = tmp_path / "bench.json"
+    bench.write_text(json.dumps(data))
+    text = "\n".join(mod.bench_section(bench))
+    assert "EM. Measured at commit aaa1111, 2026-01-01 10:00:00 UTC." in text
+    assert "seg. Measured at commit bbb2222, 2026-01-02 10:00:00 UTC." in text
+    assert "each names its commit" in text
+    data["sections"][0]["commit"] = "bbb2222"
+    bench.write_text(json.dumps(data))
+    assert "each names its commit" not in "\n".join(mod.bench_section(bench))

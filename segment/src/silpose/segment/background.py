@@ -61,8 +61,8 @@ graylevel statistics and the NCC.
 Speed (issue 24: at most 1.5x OpenCV's MOG2 at the same resolution). Steps 1-2 run on the whole frame;
 steps 3-5 on the frame's region of interest only: the candidates' bounding box grown by a margin that
 keeps every later value what whole-frame processing gives (``BackgroundModel._roi_margin``). Inside it
-the NCC is computed at the candidates only, after a quick integer test of the brightness ratio
-(:mod:`.ncc`); the colour test runs
+the NCC is computed at the candidates only, from exact integer window sums in a compiled kernel
+(:mod:`.ncc`, :mod:`.ncc_kernel`); the colour test runs
 on the candidates that are not NCC seeds and fall within per-channel uint8 bounds every shadow-like
 pixel meets (one ``cv2.inRange``); the edge rule reuses the candidates' squared colour differences;
 the gain's division and the colour candidates are one compiled pass over the frame
