@@ -232,6 +232,7 @@ def warm_compiled() -> None:
     from silpose.model.robust import kernels
     from silpose.model.untangle import untangle_orders
     from silpose.segment import colour_kernels
+    from silpose.segment.ncc import background_window_stats, shadow_mask
     from silpose.shared.contours import single_blob_contour
 
     square = np.array([[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]])
@@ -244,6 +245,10 @@ def warm_compiled() -> None:
     colour_kernels.normalise_and_score(np.zeros((1, 3), np.uint8), np.ones(3, np.float32), np.zeros((1, 3), np.float32),
                                        np.ones((1, 3), np.float32), np.float32(1), np.empty((1, 3), np.uint8),
                                        np.empty((1, 1), np.float32), np.empty((1, 1), np.float32), np.empty((1, 1), bool))
+    for noise in (None, np.ones((9, 9))):  # the shadow test's compiled window sums, with and without noise correction
+        support = np.ones((9, 9), bool)
+        shadow_mask(np.zeros((9, 9), np.uint8), background_window_stats(np.ones((9, 9)), 3, 1.0, noise), support,
+                    0.25, 0.9, (0.25, 1.0), at=support)
 
 
 def cpu_seconds() -> float:

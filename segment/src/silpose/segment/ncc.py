@@ -234,8 +234,10 @@ def _window_sums(frame, bg: BackgroundWindowStats, support, min_support: float, 
 
     w = bg.window
     no_map = np.zeros((0, 0), np.float32)
-    window_ncc_at(np.ascontiguousarray(frame, np.uint8), np.ascontiguousarray(support, bool), bg.b_q,
-                  np.zeros((0, 0), np.int64) if bg.noise_q is None else bg.noise_q, float(QUANTUM),
+    # contiguous arrays throughout (a region of interest's statistics are views): one compiled signature
+    window_ncc_at(np.ascontiguousarray(frame, np.uint8), np.ascontiguousarray(support, bool),
+                  np.ascontiguousarray(bg.b_q),
+                  np.zeros((0, 0), np.int64) if bg.noise_q is None else np.ascontiguousarray(bg.noise_q), float(QUANTUM),
                   np.ascontiguousarray(at, bool), (rect[0].start, rect[0].stop), (rect[1].start, rect[1].stop), w,
                   _need(w, min_support), float(max(bg.min_texture, 1e-3)) ** 2, float(_FLAT_FRAME_VAR),
                   float(threshold), float(ratio_bounds[0]), float(ratio_bounds[1]), hit,
