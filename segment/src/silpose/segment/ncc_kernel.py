@@ -17,17 +17,17 @@ in float64. Exact sums do not depend on where a sum starts, so an answer at a pi
 pixels are asked for or however the frame is cropped around it (the region of interest of :mod:`.background`).
 
 The sums slide: per column, the sum over the window's rows is updated as the window moves down one row (the row
-entering added, the row leaving subtracted); along a row, running totals of those column sums, from the row's first
-pixel asked for to its last, give each window's sums as one difference. About 20 integer operations per pixel of
-the examined rectangle, whatever the window, and no temporary image. Where the brightness ratio is outside its bounds the NCC
-is not computed (no shadow whatever it is) unless its map is asked for. Measured in one process, one thread, the
-same shadow pixels: the seven float32 box filters, products and gathers this replaces took 0.69-0.75 ms per frame
-against 0.23-0.24 ms here (the 32 candidates' regions of ``data/smoke/frames``, Blender renders at 320x240); on 200
-frames of a 1080p colour recording at its working size (50,500-pixel rectangles, 16,000 pixels asked for) 0.61-0.69
-ms sliding the sums along whole rows with the NCC at every pixel, 0.46-0.52 ms sliding them over the pixels asked
-for and skipping the NCC where the ratio rules a shadow out, and 0.52-0.72 ms against 0.58-0.84 for that with the
-running totals (alternating, while another job ran: the totals were faster in every round). Borders are reflect-101, as
-``cv2.BORDER_REFLECT_101``.
+entering added, the row leaving taken away); along a row, the window's sums of those column sums likewise, from the
+row's first pixel asked for to its last. About 30 integer operations per pixel of the examined rectangle, whatever
+the window, and no temporary image. Where the brightness ratio is outside its bounds the NCC is not computed (no
+shadow whatever it is) unless its map is asked for. Measured in one process, one thread, the same shadow pixels:
+the seven float32 box filters, products and gathers this replaces took 0.69-0.75 ms per frame against 0.23-0.24 ms
+here (the 32 candidates' regions of ``data/smoke/frames``, Blender renders at 320x240). On 200 frames of a 1080p
+colour recording at its working size (50,500-pixel rectangles, 16,000 pixels asked for), idle machine: 0.59-0.69 ms
+sliding along whole rows with the NCC at every pixel; 0.46-0.50 ms sliding over the pixels asked for and skipping
+the NCC where the ratio rules a shadow out, with the row updates written out twice; 0.51-0.57 ms as here, each
+update written once (a helper for the rows, one running difference along a row). Running totals along a row instead
+of sliding took 0.52-0.55 ms. Borders are reflect-101, as ``cv2.BORDER_REFLECT_101``.
 """
 
 from __future__ import annotations
@@ -103,51 +103,49 @@ def window_ncc_at(frame: np.ndarray, support: np.ndarray, b_q: np.ndarray, noise
     column = np.empty(width, np.int64)  # image column of each column of the sums (reflected)
     for k in range(width):
         column[k] = _reflect(x0 - r + k, w)
-    sums = np.zeros((width, 7), np.int64)  # per column, over the window's rows: n, S_f, S_ff, S_B, S_BB, S_fB, S_s
-    prefix = np.zeros((width + 1, 7), np.int64)  # along a row: the sums of the columns before each
+    sums = np.zeros((width + 1, 7), np.int64)  # per column, over the window's rows: n, S_f, S_ff, S_B, S_BB, S_fB,
+    # S_s; the last row stays zero (a column taken away before the window is full)
     for entering in range(y0 - r, y1 + r):
         ya = _reflect(entering, h)
         _add_row(frame[ya], support[ya], b_q[ya], noise_q[ya] if has_noise else no_noise, column, 1, sums)
         y = entering - r  # the row whose window (rows y - r .. y + r) the column sums now hold
         if y < y0:
             continue
-        first, last = x1, x0 - 1  # the row's pixels of ``at`` in the rectangle: the sums run over them only
+        first, last = x1, x0 - 1  # the row's pixels of ``at`` in the rectangle: the sums slide over them only
         for x in range(x0, x1):
             if at[y, x]:
                 if first == x1:
                     first = x
                 last = x
-        if first <= last:
-            for k in range(first - x0, last - x0 + window):
-                for j in range(7):
-                    prefix[k + 1, j] = prefix[k, j] + sums[k, j]
-            for x in range(first, last + 1):
-                a, b = x - x0, x - x0 + window  # the window's columns x - r .. x + r
-                s0 = prefix[b, 0] - prefix[a, 0]
-                if not (at[y, x] and s0 >= need):
-                    continue
-                s1 = prefix[b, 1] - prefix[a, 1]
-                s3 = prefix[b, 3] - prefix[a, 3]
-                n = np.float64(s0)
-                ratio = (np.float64(s1) / n + 128.0) / (np.float64(s3) / (n * q) + 128.0)
-                if not (maps or lo <= ratio <= hi):  # no shadow whatever the NCC
-                    continue
-                s2 = prefix[b, 2] - prefix[a, 2]
-                s4 = prefix[b, 4] - prefix[a, 4]
-                var_f = np.float64(s0 * s2 - s1 * s1) / (n * n)
-                var_b = np.float64(s0 * s4 - s3 * s3) / (n * n * q * q)
-                c = 0.0
-                if var_b >= min_var_b and var_f > min_var_f:
-                    s5 = prefix[b, 5] - prefix[a, 5]
-                    cov = np.float64(s0 * s5 - s1 * s3) / (n * n * q)
-                    denom = var_f * var_b
-                    if has_noise:
-                        reliability = 1.0 - np.float64(prefix[b, 6] - prefix[a, 6]) / (n * q) / var_f
-                        denom *= max(reliability, 0.5)
-                    c = min(max(cov / np.sqrt(denom), -1.0), 1.0)
-                hit[y, x] = c > threshold and lo <= ratio <= hi
-                if maps:
-                    ncc_out[y, x] = c
-                    ratio_out[y, x] = ratio
+        s0 = s1 = s2 = s3 = s4 = s5 = s6 = np.int64(0)
+        for x in range(first - window + 1, last + 1):  # the window filled first, then slid
+            k, gone = x - x0 + window - 1, (x - x0 - 1 if x > first else width)  # columns x + r in, x - r - 1 out
+            s0 += sums[k, 0] - sums[gone, 0]
+            s1 += sums[k, 1] - sums[gone, 1]
+            s2 += sums[k, 2] - sums[gone, 2]
+            s3 += sums[k, 3] - sums[gone, 3]
+            s4 += sums[k, 4] - sums[gone, 4]
+            s5 += sums[k, 5] - sums[gone, 5]
+            s6 += sums[k, 6] - sums[gone, 6]
+            if x < first or not (at[y, x] and s0 >= need):
+                continue
+            n = np.float64(s0)
+            ratio = (np.float64(s1) / n + 128.0) / (np.float64(s3) / (n * q) + 128.0)
+            if not (maps or lo <= ratio <= hi):  # no shadow whatever the NCC
+                continue
+            var_f = np.float64(s0 * s2 - s1 * s1) / (n * n)
+            var_b = np.float64(s0 * s4 - s3 * s3) / (n * n * q * q)
+            c = 0.0
+            if var_b >= min_var_b and var_f > min_var_f:
+                cov = np.float64(s0 * s5 - s1 * s3) / (n * n * q)
+                denom = var_f * var_b
+                if has_noise:
+                    reliability = 1.0 - np.float64(s6) / (n * q) / var_f
+                    denom *= max(reliability, 0.5)
+                c = min(max(cov / np.sqrt(denom), -1.0), 1.0)
+            hit[y, x] = c > threshold and lo <= ratio <= hi
+            if maps:
+                ncc_out[y, x] = c
+                ratio_out[y, x] = ratio
         ya = _reflect(y - r, h)  # the row leaving the window
         _add_row(frame[ya], support[ya], b_q[ya], noise_q[ya] if has_noise else no_noise, column, -1, sums)
