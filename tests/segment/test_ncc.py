@@ -132,3 +132,21 @@ def test_the_largest_window_on_extreme_graylevels_equals_bruteforce():
     np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
     np.testing.assert_allclose(ratio, ref_ratio, rtol=1e-4)
     assert np.ptp(ref_ncc) > 0.1 and np.isfinite(ref_ratio).all()
+
+
+@pytest.mark.parametrize("shape", [(3, 4), (2, 9), (1, 6), (5, 1)])
+def test_a_window_larger_than_the_frame_reflects_again_as_bruteforce(shape):
+    """Frames smaller than the window (7 here): the window's reach is reflected as often as it takes (reflect-101,
+    as OpenCV's box filters and numpy's padding), never read outside the frame."""
+    rng = np.random.default_rng(sum(shape))
+    background = rng.uniform(20, 230, shape)
+    frame = np.clip(np.rint(0.5 * background + rng.normal(0, 2, shape) + 3), 0, 255).astype(np.uint8)
+    support = rng.random(shape) < 0.8
+    bg = background_window_stats(background, 7, 0.5, None)
+    ncc, ratio = local_ncc(frame, bg, support, 0.25)
+    ref_ncc, ref_ratio = _bruteforce(frame, background, 7, support, 0.25, 0.5)
+    np.testing.assert_allclose(ncc, ref_ncc, atol=2e-4)
+    np.testing.assert_array_equal(np.isnan(ratio), np.isnan(ref_ratio))
+    defined = np.isfinite(ref_ratio)
+    assert defined.any()
+    np.testing.assert_allclose(ratio[defined], ref_ratio[defined], rtol=1e-4)

@@ -40,12 +40,13 @@ __all__ = ["window_ncc_at"]
 
 @njit(cache=True, nogil=True, boundscheck=False)
 def _reflect(i: int, n: int) -> int:  # pragma: no cover (compiled)
-    """Index ``i`` of a line of ``n`` pixels, reflected at both ends without repeating the edge (reflect-101)."""
-    if i < 0:
-        return -i
-    if i >= n:
-        return 2 * n - 2 - i
-    return i
+    """Index ``i`` of a line of ``n`` pixels, reflected at both ends without repeating the edge (reflect-101), as
+    often as it takes: a window may reach beyond a line shorter than itself."""
+    if n == 1:
+        return 0
+    period = 2 * n - 2
+    i %= period  # Python's sign: 0 <= i < period
+    return i if i < n else period - i
 
 
 @njit(cache=True, nogil=True, boundscheck=False)
