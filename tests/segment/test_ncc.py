@@ -150,3 +150,12 @@ def test_a_window_larger_than_the_frame_reflects_again_as_bruteforce(shape):
     defined = np.isfinite(ref_ratio)
     assert defined.any()
     np.testing.assert_allclose(ratio[defined], ref_ratio[defined], rtol=1e-4)
+
+
+def test_statistics_of_another_size_are_refused_before_the_compiled_loop():
+    from silpose.segment.ncc import shadow_mask
+
+    bg = background_window_stats(np.full((10, 12), 100.0), 5, 1.0, None)
+    support = np.ones((10, 13), bool)
+    with pytest.raises(ValueError, match="one shape"):
+        shadow_mask(np.zeros((10, 13), np.uint8), bg, support, 0.25, 0.9, (0.25, 1.0), at=support)

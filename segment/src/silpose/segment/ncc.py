@@ -232,6 +232,10 @@ def _window_sums(frame, bg: BackgroundWindowStats, support, min_support: float, 
     (H, W) float32 there. numba is imported here, with the first frame that needs it."""
     from .ncc_kernel import window_ncc_at
 
+    shapes = {np.shape(a) for a in (frame, support, at, hit, bg.b_q) + (() if bg.noise_q is None else (bg.noise_q,))
+              + tuple(m for m in (ncc, ratio) if m is not None)}
+    if len(shapes) != 1:  # the compiled loop does not check its indices
+        raise ValueError(f"frame, support, at and the background statistics must have one shape, got {sorted(shapes)}")
     w = bg.window
     no_map = np.zeros((0, 0), np.float32)
     # contiguous arrays throughout (a region of interest's statistics are views): one compiled signature
