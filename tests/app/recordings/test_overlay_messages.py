@@ -52,7 +52,7 @@ def _raw(header: dict, payload: bytes = b"") -> io.BytesIO:
 
 @pytest.mark.parametrize("header, error", [
     ({"camera": "x", "image": {"shape": [1, 1, 3], "dtype": "uint8"}}, "unknown camera 'x'"),
-    ({"camera": "a", "image": {"shape": [1, 1, 3], "dtype": "object"}}, "not uint8 or float64"),
+    ({"camera": "a", "image": {"shape": [1, 1, 3], "dtype": "object"}}, "not uint8, float64 or bits"),
     ({"camera": "a", "image": {"shape": [1, -1, 3], "dtype": "uint8"}}, "bad array shape"),
     ({"camera": "a", "frame": "1", "size": [1, 1], "people": []}, "needs 'frame'"),
     ({"camera": "a", "frame": 1, "size": [1, 1], "people": [{"person": "1", "status": "ok"}]}, "needs 'person'"),
@@ -69,3 +69,17 @@ def test_a_message_cut_short_is_refused():
     s = _raw({"camera": "a", "image": {"shape": [4, 4, 3], "dtype": "uint8"}}, b"\0" * 10)
     with pytest.raises(EOFError, match="38 bytes into a message"):
         read_message(s, {"a"})
+
+
+def test_a_mask_travels_packed_and_a_grey_frame_as_it_is():
+    """A {0, 1} background is sent 8 pixels to a byte (an eighth of its bytes, odd sizes included) and read back
+    bit for bit; a background with other levels is sent whole, unchanged."""
+    rng = np.random.default_rng(5)
+    mask = (rng.random((486, 643)) < 0.2).astype(np.uint8)  # 312,498 pixels: not a multiple of 8
+    grey = rng.integers(0, 255, (486, 643), dtype=np.uint8)
+    for background, payload in ((mask, (mask.size + 7) // 8), (grey, grey.size)):
+        message = pack("a", background, (643, 486), 0, [])
+        assert sum(len(bytes(part)) for part in message[1:]) == payload
+        got = read_message(_stream(message), {"a"})[1][0]
+        assert got.dtype == np.uint8 and got.shape == background.shape
+        np.testing.assert_array_equal(got, background)
