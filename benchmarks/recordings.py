@@ -16,8 +16,10 @@ Rows:
   (``VmHWM`` of ``/proc/self/status``: ``getrusage``'s ``ru_maxrss`` is not reset by ``exec``, so a
   child would report the peak of the process that forked it when that was larger). Runs: 1x and ``repeat`` x without overlays
   (``silpose infer --videos --masks``'s defaults: top-3 hypotheses, no robust inference), ``repeat`` x with ``--robust``,
-  1x single-threaded (no camera pool, no reader threads), 1x with overlay videos (with ``overlay_share_wall`` / ``overlay_share_cpu``: the overlays'
-  share against the 1x run, :func:`_overlay_shares`), 1x carved (``carve=True``: views cut to the people's visual
+  1x single-threaded (no camera pool, no reader threads), 1x and ``repeat`` x with overlay videos (with ``overlay_share_wall`` /
+  ``overlay_share_cpu``: the overlays' share against the plain run of the same length, :func:`_overlay_shares`; the
+  long run spreads the worker's start -- a fresh Python importing OpenCV, ~0.25 CPU s -- over ``repeat`` times the
+  steps), 1x carved (``carve=True``: views cut to the people's visual
   hulls, :mod:`silpose.app.recordings.hull`, off by default for mask videos; its ``steps_vs_1x`` and ``cpu_vs_1x``
   are the ratios against the 1x run), 1x without the silhouette fit (``silhouette_fit=False``,
   :mod:`silpose.app.recordings.silhouette_fit`); and (``colour``) the first ``colour_frames`` steps as colour videos
@@ -436,6 +438,7 @@ def run(n_frames: int = 150, repeat: int = 10, train: int = 400, n_points: int =
                 (f"{repeat}x, --robust", tmp / "long", False, threads, True, {}),
                 ("1x single-threaded", lab / "masks", False, 0, None, {"reader_threads": False}),
                 ("1x with overlays", lab / "masks", True, threads, None, {}),
+                (f"{repeat}x with overlays", tmp / "long", True, threads, None, {}),
                 ("1x carved", lab / "masks", False, threads, None, {"carve": True}),
                 ("1x without the silhouette fit", lab / "masks", False, threads, None, {"silhouette_fit": False})]
         if wanted("colour"):

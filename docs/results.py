@@ -252,13 +252,19 @@ def speed_rows(data: dict) -> list[tuple[str, str | None]]:
         out.append((f"4 colour videos, {size} → joints, no overlays",
                     f"{colour['steps_per_s']:.1f} time steps/s over {colour['steps']} steps "
                     f"({colour['steady_steps_per_s']:.0f} after the {colour['setup_s']:.1f} s set-up)"))
-    ov_m = _row(rec, name="run", run="1x with overlays")
-    ov_c = next((r for r in rec if str(r.get("run", "")).startswith("colour") and "overlays" in str(r.get("run"))), None)
-    # wall: what the overlays add to the run's duration (drawn in a worker process beside it; below 0 is the runs'
-    # noise); CPU: what they cost the machine
-    out.append(("overlay videos' share of a run: wall time (CPU time), masks / colour", ov_m and ov_c and
-                f"{100 * ov_m['overlay_share_wall']:.0f} % ({100 * ov_m['overlay_share_cpu']:.0f} %) / "
-                f"{100 * ov_c['overlay_share_wall']:.0f} % ({100 * ov_c['overlay_share_cpu']:.0f} %)"))
+    ov_m = [r for r in rec if r.get("name") == "run" and re.fullmatch(r"\d+x with overlays", str(r.get("run", "")))
+            and "overlay_share_wall" in r]
+    ov_c = next((r for r in rec if str(r.get("run", "")).startswith("colour") and "overlays" in str(r.get("run"))
+                 and "overlay_share_wall" in r), None)
+
+    def share(r: dict) -> str:
+        # wall: what the overlays add to the run's duration (drawn in a worker process beside it; below 0 is the
+        # runs' noise); CPU: what they cost the machine
+        return f"{100 * r['overlay_share_wall']:.0f} % ({100 * r['overlay_share_cpu']:.0f} %)"
+
+    masks_share = " and ".join(f"{share(r)} over {r['steps']} steps" for r in sorted(ov_m, key=lambda r: r["steps"]))
+    out.append(("overlay videos' share of a run: wall time (CPU time), masks / colour",
+                f"{masks_share} / {share(ov_c)} over {ov_c['steps']} steps" if ov_m and ov_c else None))
     idr = _row(ids, input="mask videos", tracker="appearance")
     apart = _row(ids, input="mask videos, walkers apart", tracker="appearance")
     out.append(("4 walkers, mask videos: ids / identity switches passing through each other; walking apart "

@@ -181,3 +181,20 @@ def test_bench_sections_measured_at_different_commits_each_name_theirs(tmp_path)
     data["sections"][0]["commit"] = "bbb2222"
     bench.write_text(json.dumps(data))
     assert "each names its commit" not in "\n".join(mod.bench_section(bench))
+
+
+def test_the_speed_table_gives_the_overlay_share_of_each_mask_run_with_overlays():
+    """Every mask run with overlays that has its share gets it, shortest first (the long run spreads the worker's
+    start); without a colour run with overlays the row is not measured."""
+    mod = _results_module()
+    runs = [{"name": "run", "run": "10x with overlays", "steps": 1500, "overlay_share_wall": 0.25, "overlay_share_cpu": 0.45},
+            {"name": "run", "run": "1x with overlays", "steps": 150, "overlay_share_wall": 0.31, "overlay_share_cpu": 0.5},
+            {"name": "run", "run": "colour 4 x 9x9 with overlays", "steps": 60, "overlay_share_wall": 0.03,
+             "overlay_share_cpu": 0.09}]
+    label = "overlay videos' share of a run: wall time (CPU time), masks / colour"
+
+    def share(rows):
+        return dict(mod.speed_rows({"sections": [{"section": "recordings", "rows": rows}]}))[label]
+
+    assert share(runs) == "31 % (50 %) over 150 steps and 25 % (45 %) over 1500 steps / 3 % (9 %) over 60 steps"
+    assert share(runs[:2]) is None
