@@ -208,3 +208,16 @@ def test_a_png_worker_that_dies_is_raised(tmp_path):
             pngs.write("a", _frame(0, 1))
         pngs.close()
     pngs.abort()
+
+
+def test_a_worker_starts_one_blas_thread(tmp_path):
+    """The workers multiply no matrices: numpy in a worker's environment reports one BLAS thread (threadpoolctl),
+    whatever the machine's cores."""
+    import subprocess
+    import sys
+
+    code = ("import numpy, threadpoolctl; "
+            "print(max(i['num_threads'] for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas'))")
+    out = subprocess.run([sys.executable, "-c", code], env=overlay_video.worker_env(), capture_output=True, text=True,
+                         check=True, cwd=tmp_path)
+    assert out.stdout.strip() == "1"
