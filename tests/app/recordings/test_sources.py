@@ -391,3 +391,41 @@ def test_frames_named_without_zero_padding_are_read_in_numeric_order(rig, tmp_pa
     assert sorted(names, key=frame_order) == ["f1.png", "F2.png", "f9.png", "f10.png", "f0010b.png", "f00011.png"]
     padded = [f"{i:05d}.png" for i in range(30)]
     assert sorted(padded[::-1], key=frame_order) == padded  # zero-padded names keep their order
+
+
+def test_a_video_whose_codec_cannot_be_decoded_says_so(rig, tools, tmp_path, monkeypatch):
+    """A file that opens, whose header names a codec and frames, but none of whose frames decodes (AV1 videos in
+    the opencv-python wheels: OpenCV's FFmpeg has no AV1 decoder) is named with its codec and a re-encoding
+    command, not called empty; alone, that camera is a missing view; an empty header stays "empty or corrupt"."""
+    import cv2
+
+    from silpose.app.recordings import sources
+
+    real = cv2.VideoCapture
+
+    class Undecodable:  # OpenCV's capture of an AV1 file: opened, its header read, every frame refused
+        def __init__(self, path, *args):
+            self.real = real(path, *args)
+
+        def __getattr__(self, name):
+            return getattr(self.real, name)
+
+        def read(self):
+            return False, None
+
+        def get(self, prop):
+            return float(int.from_bytes(b"AV01", "little")) if prop == cv2.CAP_PROP_FOURCC else self.real.get(prop)
+
+    for cam in ("cam0", "cam1"):
+        tools.write_video(tmp_path / f"{cam}.mp4", _numbered(4))
+    monkeypatch.setattr(sources.cv2, "VideoCapture", Undecodable)
+    with pytest.raises(RecordingError, match=r"cam0.mp4: none of its 4 frames decodes: OpenCV's FFmpeg has no decoder "
+                                             r"for its 'AV01' video, or the file is corrupt; re-encode it, e\.g\. "
+                                             r"ffmpeg -i cam0.mp4 -c:v libx264"):
+        open_recording(tmp_path, rig)
+    monkeypatch.setattr(sources.cv2, "VideoCapture", lambda path, *a: Undecodable(path, *a) if "cam1" in str(path)
+                        else real(path, *a))
+    rec = open_recording(tmp_path, rig)
+    assert "cam1" in rec.missing and "cam0" in rec.sources
+    assert any("cam1.mp4: none of its 4 frames decodes" in w and "a missing view in every frame" in w
+               for w in rec.warnings)

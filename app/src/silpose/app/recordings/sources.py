@@ -309,7 +309,7 @@ def _probe(camera: str, path: Path) -> CameraSource:
         cap.set(cv2.CAP_PROP_ORIENTATION_AUTO, 0.0)  # the stored frames (OpenCV's default differs between builds)
         ok, img = cap.read()
         if not ok or img is None:
-            raise RecordingError(f"{path}: the video has no decodable frame (empty or corrupt)")
+            raise RecordingError(_undecodable(path, cap))
         fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
         rotation = display_rotation(cap)
@@ -317,6 +317,22 @@ def _probe(camera: str, path: Path) -> CameraSource:
         cap.release()
     return CameraSource(camera, path, fps if np.isfinite(fps) and fps > 0 else 0.0, count if count > 0 else -1,
                         img.shape[1], img.shape[0], rotation=rotation)
+
+
+def _undecodable(path: Path, cap) -> str:
+    """Why video ``path``, which OpenCV opened, gave no first frame: a file whose header names a codec and frames
+    is one this OpenCV's FFmpeg cannot decode (AV1, in the opencv-python wheels of this writing) or a corrupt one,
+    and re-encoding it says which; else it is empty or corrupt."""
+    try:
+        codec = _fourcc(cap.get(cv2.CAP_PROP_FOURCC)).strip("\0 ")
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    except (ValueError, OverflowError):  # NaN or out-of-range properties
+        codec, count = "", 0
+    if codec.isprintable() and codec and count > 0:
+        return (f"{path}: none of its {count} frames decodes: OpenCV's FFmpeg has no decoder for its {codec!r} "
+                f"video, or the file is corrupt; re-encode it, e.g. ffmpeg -i {path.name} -c:v libx264 -crf 18 "
+                f"{path.stem}-h264.mp4")
+    return f"{path}: the video has no decodable frame (empty or corrupt)"
 
 
 def _fits(width: int, height: int, want) -> bool:
