@@ -1,4 +1,4 @@
-"""A recording's input: one video (or image folder) per camera, matched to the rig, synchronised by index, streamed.
+"""A recording's input: one video (or image folder) per camera, matched to the rig, synchronised, streamed.
 
 Layout of ``silpose infer MODEL --videos DIR``::
 
@@ -36,14 +36,25 @@ one pixel), then every frame is resized to the camera's size
 sides to blocks of 16 px and players crop them back, so one lab's videos come out 1080 or 1088 px wide for
 one 1088 px calibration, as in Pose2Sim's demo): every frame is cut, or padded by repeating its last column
 or row, to the camera's size, pixel for pixel, with a warning; all videos have
-one frame rate (1 % tolerance; frames are synchronised by index, so different rates would pair frames
-shot at different times). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
+one frame rate (:data:`FPS_TOLERANCE`, 5 %: farther apart, a video is refused, since repeating or dropping
+every tenth frame would no longer be a repair). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
 the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
 camera has a frame to the end of the longest video (videos of unequal length: a warning). A camera whose
 video ends early -- shorter than the others, or a truncated or corrupt file that stops decoding before its
 header's count -- is a missing view with status "video ended" from there on while the other cameras go on;
 the run stops when no camera is left. A camera whose video cannot be opened at all is a missing view in
 every frame (a warning), unless no camera can be read (then the first camera's error).
+
+Time stamps: a video's frames are placed on the recording's time grid (step ``k`` at ``k / fps`` seconds from its
+first frame, ``fps`` the highest of the cameras' rates: OpenCV gives a variable-rate video's average rate, below its
+nominal one, and a camera slower than the grid gives a frame twice rather than one being dropped) by their
+presentation time stamps
+(``CAP_PROP_POS_MSEC``), not by their index. Phones record at a variable frame rate (fewer frames in dim light, a
+frame dropped now and then): read by index, such a video drifts from the others by a frame at every gap and stays
+there. On the grid, a frame whose time rounds to a step already given is dropped, and a step with no frame of its
+own gives the previous frame again; :meth:`CameraReader.summary` counts both. A constant-rate video's time stamps
+round to its indices, so it is read as before, frame for frame. A video whose time stamps do not increase (none
+stored) is read by index.
 
 FFmpeg's own decoder lines (``[mjpeg @ 0x...] overread 8``) never reach the terminal: :func:`quiet_decoders`
 sets ``OPENCV_FFMPEG_LOGLEVEL`` to quiet unless the user set it, and OpenCV's own log to errors, when this
@@ -85,8 +96,9 @@ from .resolution import shrink
 
 #: optional camera -> file mapping inside the videos folder
 MAPPING_FILE = "cameras.toml"
-#: relative frame-rate difference tolerated between cameras
-FPS_TOLERANCE = 0.01
+#: relative frame-rate difference tolerated between cameras: frames are placed by their time stamps (module
+#: docstring, "Time stamps"), so a phone's variable rate (29.2 fps on average for a nominal 30) is kept in time
+FPS_TOLERANCE = 0.05
 #: a video whose sides differ from its camera's calibrated picture by fewer pixels is that picture with its right
 #: and bottom edges cut or padded (encoders round sides to blocks of 16 px; module docstring)
 CODEC_BLOCK = 16
@@ -138,7 +150,9 @@ class CameraSource:
     resized), else None; pad: (columns, rows) added at the right and bottom edges of every decoded frame
     (negative: removed) to give the rig camera's picture (:data:`CODEC_BLOCK`), applied before ``resize_to``;
     rotation: degrees of the video's display rotation (metadata; 0, 90, 180 or 270); upright: frames are read
-    rotated as players show them (``width``, ``height`` are then those of the rotated frames).
+    rotated as players show them (``width``, ``height`` are then those of the rotated frames); grid_fps: the
+    recording's frame rate, on whose time grid the frames are placed by their time stamps (module docstring, "Time
+    stamps"; 0: by index).
     """
 
     camera: str
@@ -153,10 +167,19 @@ class CameraSource:
     pad: tuple[int, int] = (0, 0)
     rotation: int = 0
     upright: bool = False
+    grid_fps: float = 0.0
 
     @property
     def is_video(self) -> bool:
         return self.images is None
+
+    @property
+    def n_steps(self) -> int:
+        """Steps of the recording's time grid the frames span (``n_frames`` at the grid's rate: the duration the
+        header gives, ``n_frames / fps``, times ``grid_fps``; module docstring, "Time stamps"), -1 when unknown."""
+        if self.n_frames < 0 or not (self.grid_fps > 0 and self.fps > 0):
+            return self.n_frames
+        return int(round(self.n_frames * self.grid_fps / self.fps))
 
 
 @dataclass
@@ -165,7 +188,8 @@ class Recording:
 
     sources: {camera: CameraSource} in rig order, cameras with a readable video; missing: rig cameras
     without (no video, or one that cannot be opened); n_steps: time steps (frames of the longest video after
-    offsets; -1 when a header does not say); fps: frames per second (0 when unknown); warnings: one line each.
+    offsets; -1 when a header does not say); fps: frames per second of the time grid, the fastest camera's (0
+    when unknown); warnings: one line each.
     """
 
     root: Path
@@ -440,17 +464,17 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
         if hi > lo * (1 + FPS_TOLERANCE):
             desc = ", ".join(f"{sources[c].path.name} {r:g} fps" for c, r in rates.items())
             raise RecordingError(
-                f"{folder}: the videos' frame rates differ ({desc}); frames are synchronised by index, so "
-                f"re-encode them to one rate")
-        fps = float(np.median(list(rates.values())))
+                f"{folder}: the videos' frame rates differ by more than {100 * FPS_TOLERANCE:g} % ({desc}); "
+                f"re-encode them to one rate (e.g. ffmpeg -i IN -r 30 OUT)")
+        fps = hi  # the grid of the fastest camera: the others give a frame twice rather than lose one
         unknown = [c for c, s in sources.items() if s.fps == 0 and s.is_video]
         if unknown:
             warnings.append(f"no frame rate in {', '.join(sources[c].path.name for c in unknown)}: assuming {fps:g} fps")
     offsets = dict(offsets or {})
     base = min([0] + [offsets.get(c, 0) for c in sources])
     for c, s in sources.items():
-        sources[c] = dataclasses.replace(s, skip=offsets.get(c, 0) - base)
-    lengths = {c: s.n_frames - s.skip for c, s in sources.items() if s.n_frames >= 0}
+        sources[c] = dataclasses.replace(s, skip=offsets.get(c, 0) - base, grid_fps=fps if s.is_video else 0.0)
+    lengths = {c: s.n_steps - s.skip for c, s in sources.items() if s.n_frames >= 0}
     for c, n in lengths.items():
         if n <= 0:
             raise RecordingError(f"{sources[c].path}: has {sources[c].n_frames} frames, fewer than its offset {sources[c].skip}")
@@ -495,6 +519,14 @@ class CameraReader:
         self.cap = None
         self.luma = False  # frames are the decoder's luma plane (LUMA_FORMATS)
         self._ahead: collections.deque = collections.deque()  # frames read by read_ahead, given again by read
+        # the time grid (module docstring, "Time stamps"): the first frame's time, a grabbed frame not yet given
+        # (its step is later), the last frame given (a step without a frame of its own gives it again)
+        self._grid = source.is_video and source.grid_fps > 0
+        self._t0: float | None = None
+        self._t_last = -np.inf
+        self._held: float | None = None  # time stamp of the grabbed frame held back
+        self._last: np.ndarray | None = None
+        self.repeated = self.dropped = 0
         if source.is_video:
             self.cap = self._open(grey)
             if grey and _fourcc(self.cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT)) in LUMA_FORMATS:
@@ -502,9 +534,40 @@ class CameraReader:
             elif grey:
                 self.cap.release()
                 self.cap = self._open(False)
-            for _ in range(self.index):
-                if not self.cap.grab():
+            for k in range(self.index):
+                if self._grab_step(k, skipping=True) is False:
                     break
+
+    def _grab_step(self, step: int, skipping: bool = False) -> bool | None:
+        """Grab the frame of grid step ``step`` (module docstring, "Time stamps"): True when the capture now holds
+        it (:meth:`cv2.VideoCapture.retrieve` decodes it), None when the step has no frame of its own (the
+        previous frame is its frame), False at the end of the video. Without the grid: the next frame. A step
+        with no frame of its own when no frame was decoded before (``self._last`` None: the first step read after
+        skipping, ``skipping`` False) takes the next frame."""
+        if not self._grid:
+            return self.cap.grab()
+        while True:
+            if self._held is None:
+                if not self.cap.grab():
+                    return False
+                t = float(self.cap.get(cv2.CAP_PROP_POS_MSEC)) / 1000.0
+                if not (np.isfinite(t) and t > self._t_last):  # no usable time stamps: by index from here on
+                    self._grid = False
+                    return True
+                self._t_last = t
+                if self._t0 is None:
+                    self._t0 = t
+                self._held = t
+            held = int(round((self._held - self._t0) * self.source.grid_fps))
+            if held < step:  # a second frame for a step already given: dropped
+                self._held = None
+                self.dropped += 1
+                continue
+            if held > step and (skipping or self._last is not None):  # no frame of its own: the previous one
+                self.repeated += 1
+                return None
+            self._held = None
+            return True
 
     def _open(self, luma: bool):
         params = DECODER_PARAMS + ([cv2.CAP_PROP_CONVERT_RGB, 0] if luma else [])
@@ -561,6 +624,9 @@ class CameraReader:
         self._ahead.clear()
         if self.cap is not None:
             self.cap.set(cv2.CAP_PROP_POS_FRAMES, float(self.index))
+            self._held, self._last, self._t_last = None, None, -np.inf
+            if self._t0 is None:
+                self._t0 = 0.0  # OpenCV's time stamps count from the stream's start
 
     def skip(self, n: int) -> None:
         """Move ``n`` frames forward without returning them: a video's frames are decoded (its P-frames need
@@ -571,15 +637,21 @@ class CameraReader:
             self._ahead.popleft()
             n -= 1
         for _ in range(n):
-            if self.cap is not None and not self.cap.grab():
-                break
+            if self.cap is not None:
+                if self._grab_step(self.index, skipping=True) is False:
+                    break
+                self._last = None  # not decoded: a step without a frame of its own after this one takes the next
             self.index += 1
 
     def _next(self) -> np.ndarray | None:
         if self.ended_at is not None:
             return None
         if self.cap is not None:
-            ok, img = self.cap.read()
+            got = self._grab_step(self.index)
+            if got is None:
+                return self._last
+            ok, img = self.cap.retrieve() if got else (False, None)
+            self._last = img if ok else None
             return img if ok else None
         if self.index >= len(self.source.images):
             return None
@@ -593,12 +665,24 @@ class CameraReader:
         return img
 
     def summary(self) -> str | None:
-        """One line when reading stopped before the header's (or folder's) frame count, else None."""
-        n = self.source.n_frames
-        if self.ended_at is None or n < 0 or self.ended_at >= n:
-            return None
+        """One line when reading stopped before the header's (or folder's) frame count, or when frames were
+        repeated or dropped to keep the video on the recording's time grid (module docstring, "Time stamps");
+        else None."""
         p = self.source.path
         name = f"{p.parent.name}/{p.name}" if p.parent.name == self.source.camera else p.name
+        timing = (f"{name}: its frames' time stamps are off the {self.source.grid_fps:g} fps grid of the recording "
+                  f"(a variable frame rate): {self.repeated} step(s) gave the previous frame again and "
+                  f"{self.dropped} frame(s) were dropped, to keep camera {self.source.camera!r} in time"
+                  if self.repeated or self.dropped else None)
+        n = self.source.n_steps
+        # on the grid, the steps are the duration's estimate (CameraSource.n_steps), within a step
+        late = 1 if self._grid and (n != self.source.n_frames or self.repeated or self.dropped) else 0
+        if self.ended_at is None or n < 0 or self.ended_at >= n - late:
+            return timing
+        stopped = self._stopped(name, n)
+        return stopped if timing is None else f"{stopped}; {timing}"
+
+    def _stopped(self, name: str, n: int) -> str:
         return (f"{name}: decoding stopped at frame {self.ended_at} of the {n} its header announced "
                 f"(truncated or corrupt file; set OPENCV_FFMPEG_LOGLEVEL=24 to see FFmpeg's messages): "
                 f"camera {self.source.camera!r} is a missing view ('video ended') from there on"

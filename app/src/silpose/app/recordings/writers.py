@@ -3,7 +3,8 @@
 One row per person per time step (rows ordered by frame, then person). Columns:
 
 =================== ============================================================================
-frame               time step: the frame index of cameras without an offset (int64)
+frame               time step: the frame index of cameras without an offset, on the time grid of the fastest
+                    camera (:mod:`.sources`, "Time stamps") (int64)
 time                seconds, ``frame / fps`` (NaN when no video states its frame rate)
 person              person id, 1, 2, ... (stable over the recording)
 status              ``ok`` (joints inferred), ``implausible`` (joints inferred, but the input is below
