@@ -36,25 +36,24 @@ one pixel), then every frame is resized to the camera's size
 sides to blocks of 16 px and players crop them back, so one lab's videos come out 1080 or 1088 px wide for
 one 1088 px calibration, as in Pose2Sim's demo): every frame is cut, or padded by repeating its last column
 or row, to the camera's size, pixel for pixel, with a warning; all videos have
-one frame rate (:data:`FPS_TOLERANCE`, 5 %: farther apart, a video is refused, since repeating or dropping
-every tenth frame would no longer be a repair). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was shot with
-the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
+one frame rate (:data:`FPS_TOLERANCE`, 5 %; farther apart, giving twice or dropping one frame in twenty is
+no repair, and the videos are refused). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was
+shot with the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
 camera has a frame to the end of the longest video (videos of unequal length: a warning). A camera whose
 video ends early -- shorter than the others, or a truncated or corrupt file that stops decoding before its
 header's count -- is a missing view with status "video ended" from there on while the other cameras go on;
 the run stops when no camera is left. A camera whose video cannot be opened at all is a missing view in
 every frame (a warning), unless no camera can be read (then the first camera's error).
 
-Time stamps: a video's frames are placed on the recording's time grid (step ``k`` at ``k / fps`` seconds from its
-first frame, ``fps`` the highest of the cameras' rates: OpenCV gives a variable-rate video's average rate, below its
-nominal one, and a camera slower than the grid gives a frame twice rather than one being dropped) by their
-presentation time stamps
-(``CAP_PROP_POS_MSEC``), not by their index. Phones record at a variable frame rate (fewer frames in dim light, a
-frame dropped now and then): read by index, such a video drifts from the others by a frame at every gap and stays
-there. On the grid, a frame whose time rounds to a step already given is dropped, and a step with no frame of its
-own gives the previous frame again; :meth:`CameraReader.summary` counts both. A constant-rate video's time stamps
-round to its indices, so it is read as before, frame for frame. A video whose time stamps do not increase (none
-stored) is read by index.
+Time stamps: a video's frames are placed on the recording's time grid by their presentation time stamps
+(``CAP_PROP_POS_MSEC``), not by their index: step ``k`` is ``k / fps`` seconds after the video's first frame,
+``fps`` the highest of the cameras' rates (OpenCV gives a variable-rate video's average rate, below its nominal one;
+and a camera slower than the grid gives a frame twice rather than a faster one dropping frames). Phones record at a
+variable frame rate (fewer frames in dim light, a frame dropped now and then): read by index, such a video drifts
+from the others by a frame at every gap and stays there. On the grid, a frame whose time rounds to a step already
+given is dropped, and a step with no frame of its own gives the previous frame again; :meth:`CameraReader.summary`
+counts both. A constant-rate video's time stamps round to its indices, so it is read as before, frame for frame. A
+video whose time stamps do not increase (none stored) is read by index.
 
 FFmpeg's own decoder lines (``[mjpeg @ 0x...] overread 8``) never reach the terminal: :func:`quiet_decoders`
 sets ``OPENCV_FFMPEG_LOGLEVEL`` to quiet unless the user set it, and OpenCV's own log to errors, when this
