@@ -10,19 +10,22 @@ over farther ones), with an empty-room clip per camera; a model of the lab rig t
 (tiny hyperparameters: the tracker does not depend on the model).
 
 The same four people on the same paths, timed so that nobody walks through anybody
-(:data:`~silpose.datagen.lab.FOUR_WALKERS_APART`: pelvises at least 0.56 m apart; in the first recording walker 2
-is within 0.3 m of another in 23 % of the frames, which real people never are), masks and colour: what a real
-recording of four people walking should give. A further input: the mask videos with walkers hidden from every camera for 1.6-2 s (:data:`HIDDEN`; two at
-once), made from the walkers' own masks. Rows ``identities``, one per input and tracker (``appearance``: with the
-per-person appearance model, :mod:`silpose.app.recordings.appearance`; ``motion only``: without it; on the
-third input also ``appearance, --max-people 4``): ids,
-identity switches, person-frames found, rows off every true person, the share of the joints inside the person's own
-silhouette (2 px) in the views used (:mod:`benchmarks.recording_scores`), time steps/s.
+(:data:`~silpose.datagen.lab.FOUR_WALKERS_APART`: pelvises at least 0.56 m apart; in the first recording walker 2 is
+within 0.3 m of another in 23 % of the frames, which real people never are), masks and colour: what a real recording
+of four people walking should give. Further inputs: the mask videos with walkers hidden from every camera for 1.6-2
+s (:data:`HIDDEN`; two at once), made from the walkers' own masks; and the walkers apart as a real background
+subtraction gives them (:func:`degraded_videos`: holes, bites and stuck-on blobs, a body cut at the waist or without
+its legs in some views, specks of clutter). Rows ``identities``, one per input and tracker (``appearance``: with the
+per-person appearance model, :mod:`silpose.app.recordings.appearance`; ``motion only``: without it; on the third
+input also ``appearance, --max-people 4``): ids, identity switches, person-frames found, rows off every true person,
+the share of the joints inside the person's own silhouette (2 px) in the views used
+(:mod:`benchmarks.recording_scores`), time steps/s.
 
 Measured 2026-12-05 (``python -m benchmarks.identities``, 200 frames, 2-core machine, appearance tracker; ids /
 switches / person-frames paired of 800 / rows off every person / joints inside): walkers passing through each other,
 masks 5 / 11 / 635 / 9 / 0.940, colour 4 / 7 / 582 / 6 / 0.937; walkers apart, masks 4 / 4 / 768 / 0 / 0.987,
-colour 4 / 5 / 728 / 0 / 0.983 (motion only: the same apart, 13 and 5 switches through each other). Apart, the
+colour 4 / 5 / 728 / 0 / 0.983 (motion only: the same apart, 13 and 5 switches through each other); apart and
+degraded, masks 4 / 6 / 753 / 3 / 0.976 (either tracker). Apart, the
 masks' switches are two brief swaps (1 and 2 frames) where walkers 0 and 1 pass 0.6 m apart; colour's are those and
 one lasting swap of walkers 2 and 3 at frame 26.
 """
@@ -65,8 +68,8 @@ def make_inputs(work: Path, n_frames: int = N_FRAMES, train: int = TRAIN) -> tup
 
 
 def make_apart(work: Path, n_frames: int = N_FRAMES) -> Path:
-    """The recording of :data:`~silpose.datagen.lab.FOUR_WALKERS_APART` (with ``colour/`` and ``empty/``) in
-    ``work/apart``, made when missing."""
+    """The recording of :data:`~silpose.datagen.lab.FOUR_WALKERS_APART` (with ``colour/``, ``empty/`` and
+    ``degraded/``) in ``work/apart``, made when missing."""
     from silpose.datagen.lab import FOUR_WALKERS_APART, lab_rig, make_lab_recording
 
     lab = work / "apart"
@@ -74,7 +77,55 @@ def make_apart(work: Path, n_frames: int = N_FRAMES) -> Path:
         make_lab_recording(lab, walkers=FOUR_WALKERS_APART, n_frames=n_frames)
     if not (lab / "colour").is_dir():
         colour_videos(lab, lab_rig())
+    if not (lab / "degraded").is_dir():
+        degraded_videos(lab, lab_rig())
     return lab
+
+
+#: the degraded input (:func:`degraded_videos`): per walker and view, holes biting into the outline and blobs
+#: stuck to it (:func:`silpose.eval.noise.corrupt_mask`: counts, radii px), the share of views cut at the waist or
+#: losing the legs; per image, specks of clutter (mean count, radius px up to)
+DEGRADED = {"holes": 3, "hole_px": 4.0, "blobs": 2, "blob_px": 4.0, "cut": 0.1, "legs": 0.05, "specks": 10, "speck_px": 8}
+
+
+def degraded_videos(lab: Path, rig, seed: int = 0, spec: dict = DEGRADED) -> None:
+    """``lab/degraded/<camera>.mp4``: the lab's walkers as a real background subtraction gives them
+    (:data:`DEGRADED`): each walker's clean mask in each view with holes and stuck-on blobs, in some views cut in
+    two at the waist (a dark belt) or without the legs (trousers the colour of the floor), specks of clutter about
+    the image; then the OR of the walkers, through JPEG and mp4v (:func:`silpose.datagen.lab.lossy`). Seeded."""
+    import cv2
+    import numpy as np
+
+    from silpose.datagen.lab import LAB_FPS, lossy, unpack_masks
+    from silpose.eval.noise import corrupt_mask
+
+    rng = np.random.default_rng(seed)
+    masks = unpack_masks(np.load(lab / "truth.npz"))  # (T, P, K, H, W)
+    (lab / "degraded").mkdir(exist_ok=True)
+    for k, cam in enumerate(rig):
+        w = cv2.VideoWriter(str(lab / "degraded" / f"{cam.name}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), LAB_FPS,
+                            (cam.width, cam.height), isColor=False)
+        for f in range(len(masks)):
+            img = np.zeros((cam.height, cam.width), np.uint8)
+            for m in masks[f, :, k]:
+                if not m.any():
+                    continue
+                m = corrupt_mask(m, rng, n_holes=spec["holes"], hole_radius=spec["hole_px"], n_blobs=spec["blobs"],
+                                 blob_radius=spec["blob_px"])
+                ys = np.flatnonzero(m.any(axis=1))
+                top, height = ys[0], ys[-1] + 1 - ys[0]
+                u = rng.random()
+                if u < spec["cut"]:
+                    waist = int(top + height * rng.uniform(0.4, 0.6))
+                    m[waist:waist + int(rng.integers(2, 6))] = 0
+                elif u < spec["cut"] + spec["legs"]:
+                    m[int(top + 0.55 * height):] = 0
+                img |= m
+            for _ in range(rng.poisson(spec["specks"])):
+                cv2.circle(img, (int(rng.integers(cam.width)), int(rng.integers(cam.height))),
+                           int(rng.integers(1, spec["speck_px"] + 1)), 1, -1)
+            w.write(lossy(img * np.uint8(255)))
+        w.release()
 
 
 def colour_videos(lab: Path, rig, n_background: int = 20) -> None:
@@ -171,7 +222,8 @@ def run(n_frames: int = N_FRAMES, train: int = TRAIN, work: str | None = None, c
         inputs = ([("mask videos", lab / "masks", None)] + ([("colour videos", lab / "colour", lab / "empty")] if colour else [])
                   + [("mask videos, walkers hidden " + ", ".join(f"{p} {a}-{b}" for p, (a, b) in HIDDEN.items()),
                       lab / "hidden", None)]
-                  + [("mask videos, walkers apart", apart / "masks", None)]
+                  + [("mask videos, walkers apart", apart / "masks", None),
+                     ("mask videos, walkers apart, degraded", apart / "degraded", None)]
                   + ([("colour videos, walkers apart", apart / "colour", apart / "empty")] if colour else []))
         for label, videos, background in inputs:
             for tracker in trackers + (("appearance, --max-people 4",) if "hidden" in label else ()):
