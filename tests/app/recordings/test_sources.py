@@ -516,3 +516,27 @@ def test_videos_whose_rates_differ_a_little_are_kept_in_time(rig, tools, tmp_pat
     plain = CameraReader(rec.sources["cam0"], grey=True)
     assert [_frame_index(plain.read()) for _ in range(30)] == list(range(30)) and plain.read() is None
     assert plain.summary() is None
+
+
+def test_offsets_in_seconds_are_steps_of_the_time_grid(rig, tools, tmp_path):
+    """``cam1=0.12s`` is cam1 0.12 s ahead: at 25 fps, 3 steps, as ``cam1=3``; a negative one, the frames of the
+    others that many steps later; in seconds without any frame rate (image folders), a one-line error."""
+    for cam in ("cam0", "cam1"):
+        tools.write_video(tmp_path / f"{cam}.mp4", _numbered(8), fps=25)
+    assert parse_offsets("cam1=0.12s, cam0=2", ["cam0", "cam1"]) == {"cam1": 0.12, "cam0": 2}
+    for text, want in (("cam1=0.12s", {"cam1": 3}), ("cam1=3", {"cam1": 3}), ("cam1=-0.08s", {"cam1": -2})):
+        rec = open_recording(tmp_path, rig, parse_offsets(text, ["cam0", "cam1"]))
+        assert rec.offsets == want
+        readers = {c: CameraReader(s, grey=True) for c, s in rec.sources.items()}
+        first = {c: _frame_index(r.read()) for c, r in readers.items()}
+        lead = want["cam1"]
+        assert first == ({"cam0": 0, "cam1": lead} if lead > 0 else {"cam0": -lead, "cam1": 0})
+    with pytest.raises(RecordingError, match="is not <camera>=<integer frames> or <camera>=<seconds>s"):
+        parse_offsets("cam1=0.1ms", ["cam1"])
+    folders = tmp_path / "folders"
+    (folders / "cam0").mkdir(parents=True)
+    import cv2
+
+    cv2.imwrite(str(folders / "cam0" / "0000.png"), _numbered(1)[0])
+    with pytest.raises(RecordingError, match="offsets in seconds need a frame rate"):
+        open_recording(folders, rig, parse_offsets("cam0=0.5s", ["cam0"]))

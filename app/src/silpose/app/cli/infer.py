@@ -40,7 +40,7 @@ def infer(
     masks: Annotated[bool, typer.Option("--masks", help="The videos are foreground masks (lossy codecs are fine).")] = False,
     background: Annotated[Optional[Path], typer.Option("--background", help="Colour videos: a folder of empty-room clips, one per camera, named like the videos (a frames folder's background/ by default; the 60 frames around each clip's middle are used, each clip registered to its video first, for a camera nudged since); or 'median': the recording's own per-pixel median (nobody stands still).")] = None,
     background_frames: Annotated[Optional[int], typer.Option("--background-frames", min=2, help="Colour videos: learn each camera's background from its first N frames (the empty room).")] = None,
-    offsets: Annotated[Optional[str], typer.Option("--offsets", help="Per-camera frame offsets, e.g. 'cam1=3,cam2=-1' (cam1's frame i+3 was shot with the others' frame i).")] = None,
+    offsets: Annotated[Optional[str], typer.Option("--offsets", help="Per-camera offsets in frames or seconds, e.g. 'cam1=3,cam2=-0.12s' (cam1's frame i+3 was shot with the others' frame i; cam2 started 0.12 s after them).")] = None,
     overlays: Annotated[Optional[Overlays], typer.Option("--overlays", help="Overlays of every frame: one PNG per frame (the cameras tiled) or one mp4 per camera (default: mp4 for several people, none for one).")] = None,
     overlay_dir: Annotated[Optional[Path], typer.Option(help="Folder of the overlays (default <out stem>.overlays/, for several people <out>/overlays/).")] = None,
     min_area: Annotated[Optional[int], typer.Option("--min-area", min=1, help="Blobs with fewer pixels (of the camera) are ignored (default: 3 % of a person's expected silhouette area at the working resolution).")] = None,

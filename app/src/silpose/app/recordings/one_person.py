@@ -168,7 +168,7 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
     total = recording.n_steps - start if recording.n_steps >= 0 else -1
     if opt.max_steps is not None:
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
-    first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
+    first_frame = start - min([0] + list(recording.offsets.values()))
     min_area = {c: min_blob_area(rig[idx[c]], work[idx[c]], rig.workspace.center, opt.min_area) for c in used}
     base = np.array([VIEW_NOT_MODELLED if c in recording.sources and c not in modelled else VIEW_NO_VIDEO
                      for c in names], dtype=object)

@@ -169,7 +169,8 @@ class RecordingOptions:
 
     masks: the videos are foreground masks (else colour, segmented against ``background`` clips -- or the
     recording's own median when ``background`` is ``"median"`` -- or the first ``background_frames`` frames);
-    offsets: ``"cam1=3,..."``; min_area: px of the rig camera (None: :func:`~.resolution.min_blob_area`'s share
+    offsets: ``"cam1=3,cam2=-0.12s,..."`` (frames or seconds); min_area: px of the rig camera (None:
+    :func:`~.resolution.min_blob_area`'s share
     of a person); overlays: ``"mp4"`` (or True: per-camera overlay videos), ``"png"`` (one tiled PNG per frame,
     :mod:`.overlay_png`) or ``"none"`` (or False); noise_variance: the model's s^2 when None; chunk: steps per
     inference batch; threads:
@@ -372,7 +373,7 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     if opt.max_steps is not None:
         total = opt.max_steps if total < 0 else min(total, opt.max_steps)
     # step 0 is this frame of the cameras without an offset (a negative offset makes them skip frames)
-    first_frame = start - min([0] + list(parse_offsets(opt.offsets, names).values()))
+    first_frame = start - min([0] + list(recording.offsets.values()))
     fps = recording.fps
     tracker = tracker_for_fps(fps or 25.0, opt.min_hits, opt.max_misses)
     tracker.look_weight, tracker.max_people = (tracker.look_weight if opt.appearance else 0.0), int(opt.max_people)

@@ -38,7 +38,8 @@ one 1088 px calibration, as in Pose2Sim's demo): every frame is cut, or padded b
 or row, to the camera's size, pixel for pixel, with a warning; all videos have
 one frame rate (:data:`FPS_TOLERANCE`, 5 %; farther apart, giving twice or dropping one frame in twenty is
 no repair, and the videos are refused). Per-camera offsets (``--offsets cam1=3``: cam1's frame ``i + 3`` was
-shot with the other cameras' frame ``i``) shift each video; the recording then runs from the first step every
+shot with the other cameras' frame ``i``; ``cam1=0.12s``: in seconds, as an audio clap gives them, rounded to the
+time grid's steps) shift each video; the recording then runs from the first step every
 camera has a frame to the end of the longest video (videos of unequal length: a warning). A camera whose
 video ends early -- shorter than the others, or a truncated or corrupt file that stops decoding before its
 header's count -- is a missing view with status "video ended" from there on while the other cameras go on;
@@ -188,7 +189,7 @@ class Recording:
     sources: {camera: CameraSource} in rig order, cameras with a readable video; missing: rig cameras
     without (no video, or one that cannot be opened); n_steps: time steps (frames of the longest video after
     offsets; -1 when a header does not say); fps: frames per second of the time grid, the fastest camera's (0
-    when unknown); warnings: one line each.
+    when unknown); warnings: one line each; offsets: {camera: steps} as given (seconds turned into steps).
     """
 
     root: Path
@@ -197,11 +198,18 @@ class Recording:
     n_steps: int
     fps: float
     warnings: list[str] = field(default_factory=list)
+    offsets: dict[str, int] = field(default_factory=dict)
 
 
-def parse_offsets(text: str | None, cameras) -> dict[str, int]:
-    """``"cam1=3,cam2=-1"`` -> {camera: frames}; unknown cameras and malformed items are one-line errors."""
-    out: dict[str, int] = {}
+class Seconds(float):
+    """An offset given in seconds (``--offsets cam1=0.43s``): steps of the recording's time grid once its rate is
+    known (:func:`open_recording`)."""
+
+
+def parse_offsets(text: str | None, cameras) -> dict[str, int | Seconds]:
+    """``"cam1=3,cam2=-1,cam3=0.43s"`` -> {camera: frames, or :class:`Seconds`}; unknown cameras and malformed items
+    are one-line errors."""
+    out: dict[str, int | Seconds] = {}
     if not text:
         return out
     for item in text.split(","):
@@ -209,13 +217,13 @@ def parse_offsets(text: str | None, cameras) -> dict[str, int]:
         if not item:
             continue
         name, sep, value = item.partition("=")
-        name = name.strip()
+        name, value = name.strip(), value.strip()
         try:
-            n = int(value)
+            n = Seconds(value[:-1]) if value.endswith("s") else int(value)
         except ValueError:
             n = None
-        if not sep or n is None:
-            raise RecordingError(f"--offsets: {item!r} is not <camera>=<integer frames>")
+        if not sep or n is None or not np.isfinite(n):
+            raise RecordingError(f"--offsets: {item!r} is not <camera>=<integer frames> or <camera>=<seconds>s")
         if name not in cameras:
             raise RecordingError(f"--offsets: camera {name!r} is not in the rig (cameras {list(cameras)})")
         out[name] = n
@@ -405,7 +413,7 @@ def probe_all(entries: dict[str, Path], cameras) -> list[CameraSource | Recordin
         return list(pool.map(lambda c: _probe_or_error(c, entries[c]), todo))
 
 
-def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str = "video") -> Recording:
+def open_recording(folder, rig, offsets: dict[str, int | Seconds] | None = None, role: str = "video") -> Recording:
     """Match, probe and synchronise the videos of ``folder`` for ``rig`` (module docstring); ``role`` picks the
     video of camera folders that hold several (``"video"``, or ``"background"`` for empty-room clips)."""
     folder = Path(folder)
@@ -470,6 +478,11 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
         if unknown:
             warnings.append(f"no frame rate in {', '.join(sources[c].path.name for c in unknown)}: assuming {fps:g} fps")
     offsets = dict(offsets or {})
+    if any(isinstance(v, Seconds) for v in offsets.values()):
+        if fps <= 0:
+            raise RecordingError(f"{folder}: --offsets in seconds need a frame rate, and no video states one: give "
+                                 "them in frames")
+        offsets = {c: int(round(v * fps)) if isinstance(v, Seconds) else v for c, v in offsets.items()}
     base = min([0] + [offsets.get(c, 0) for c in sources])
     for c, s in sources.items():
         sources[c] = dataclasses.replace(s, skip=offsets.get(c, 0) - base, grid_fps=fps if s.is_video else 0.0)
@@ -482,7 +495,7 @@ def open_recording(folder, rig, offsets: dict[str, int] | None = None, role: str
         warnings.append(
             "videos of unequal length (" + ", ".join(f"{sources[c].path.name} {n}" for c, n in lengths.items())
             + " frames after offsets): a shorter video's camera is a missing view ('video ended') after its last frame")
-    return Recording(folder, sources, missing, n_steps, fps, warnings)
+    return Recording(folder, sources, missing, n_steps, fps, warnings, offsets)
 
 
 def _fourcc(code: float) -> str:
