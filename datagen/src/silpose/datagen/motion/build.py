@@ -1,7 +1,7 @@
-"""Building or extending a motion library from BVH files (``silpose motions import``).
+"""Building or extending a motion library from BVH or ASF/AMC files (``silpose motions import``).
 
-Every file is read by silpose's own importer (Blender's ``io_anim_bvh`` in spawned workers,
-cached by sha256, :mod:`.clips`), mapped onto silpose's roles (:mod:`.joint_maps`, ``"auto"`` or
+Every file is read by silpose's own importer (Blender's ``io_anim_bvh`` for BVH, :mod:`.acclaim`
+for the CMU database's ASF/AMC; in spawned workers, cached by sha256, :mod:`.clips`), mapped onto silpose's roles (:mod:`.joint_maps`, ``"auto"`` or
 a given map), thinned to the library's frame rate and stored in the library's own form
 (:mod:`.library`). A file that fails (not a BVH file, truncated, a skeleton no map fits, no frame
 left) is reported in one line naming the file and skipped; the others go on.
@@ -15,16 +15,17 @@ from pathlib import Path
 import numpy as np
 
 from ..executor import WorkerDied, spawned_map
-from ..manifest import sha256_file
+from .acclaim import CMU_FPS, AcclaimError, clip_sha256, skeleton_of
 from .bvh_check import BvhError, check_structure
-from .clips import cache_root, entry_dir, import_into_cache, read_entry
+from .clips import cache_root, entry_dir, import_into_cache, is_acclaim, read_entry
 from .joint_maps import JointMapError, resolve_map
 from .library import DEFAULT_FPS, Library, LibraryError, check_writable, derive_clip, load_library, write_library
 
 
 @dataclass(frozen=True)
 class ClipSource:
-    """One BVH file to import and what the library records about it (``id`` default: the stem)."""
+    """One BVH or AMC file to import and what the library records about it (``id`` default: the
+    stem). ``amc_fps``: the frame rate of an AMC file (which does not state it; CMU's by default)."""
 
     path: Path
     group: str = "other"
@@ -37,6 +38,7 @@ class ClipSource:
     scale: float = 1.0
     joint_map: str = "auto"
     first: int = 0
+    amc_fps: float = CMU_FPS
 
 
 @dataclass
@@ -61,7 +63,7 @@ def cache_all(paths: list[Path], root: Path, workers: int | None) -> dict[Path, 
         for p in paths:
             if p in errors:
                 continue
-            d = entry_dir(root, sha256_file(p))
+            d = entry_dir(root, clip_sha256(p))
             if not (d / "meta.json").is_file():
                 todo.append((str(p), (str(p), str(d))))
         if not todo:
@@ -71,7 +73,16 @@ def cache_all(paths: list[Path], root: Path, workers: int | None) -> dict[Path, 
                 if error:
                     errors[Path(key)] = error
         except WorkerDied as died:
-            errors[Path(died.key)] = f"{died.key}: Blender's BVH importer crashed on this file ({died})"
+            errors[Path(died.key)] = f"{died.key}: the importer crashed on this file ({died})"
+
+
+def check_clip(path: Path) -> None:
+    """The checks before importing: a BVH file's structure (:func:`.bvh_check.check_structure`), an
+    AMC file's skeleton beside it (:func:`.acclaim.skeleton_of`). Raises BvhError / AcclaimError."""
+    if is_acclaim(path):
+        skeleton_of(path)
+    else:
+        check_structure(path)
 
 
 def _stride(frame_time: float, fps: float) -> int:
@@ -94,9 +105,9 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
     ok_sources = []
     for s in sources:
         try:
-            check_structure(s.path)
+            check_clip(s.path)
             ok_sources.append(s)
-        except BvhError as exc:
+        except (BvhError, AcclaimError) as exc:
             report.skipped.append(str(exc))
     errors = cache_all([s.path for s in ok_sources], root, workers)
     rows, arrays = [], []
@@ -104,9 +115,11 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
         if s.path in errors:
             report.skipped.append(errors[s.path])
             continue
-        sha = sha256_file(s.path)
+        sha = clip_sha256(s.path)
         arr = read_entry(entry_dir(root, sha))
-        meta = arr.meta
+        meta = dict(arr.meta)
+        if is_acclaim(s.path):  # the cache keeps CMU's rate; the rate is the user's to give
+            meta["frame_time"] = 1.0 / s.amc_fps
         try:
             jmap = resolve_map(meta["names"], meta["parents"], meta["rest_heads"], meta["rest_tails"], s.joint_map,
                                str(s.path))

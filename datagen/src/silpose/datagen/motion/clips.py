@@ -1,8 +1,8 @@
 """Motion-capture clips on the driver side: import cache, validation, and the clip table.
 
-Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`) in a spawned worker
-process and its per-frame joint positions are cached by the file's sha256 in
-``<cache>/<sha256>-v<CACHE_VERSION>/`` (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
+Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`), each AMC file
+by :func:`.acclaim.read_clip` (in metres), in a spawned worker process and its per-frame joint positions are cached by the file's sha256 in
+``<cache>/<sha256>-v<CACHE_VERSION>/`` (an AMC file's hash covers its ASF skeleton too) (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
 the file's unit, and ``meta.json``: joint names, parents, frame count, frame time, rest pose,
 importer version; ``meta.json`` is written last, so an entry without it is incomplete and
 redone). The cache folder is ``$SILPOSE_CACHE_DIR`` or ``$XDG_CACHE_HOME/silpose`` (default
@@ -26,10 +26,10 @@ import numpy as np
 from silpose.shared.atomic import atomic_path, write_json_atomic
 
 from ..blender.bvh import import_clip
+from .acclaim import AcclaimError, clip_sha256, read_clip
 from .bvh_check import BvhError
 from ..executor import WorkerDied, spawned_map
 from .joint_maps import ResolvedMap, resolve_map
-from ..manifest import sha256_file
 from .config import ClipSpec, MotionConfig
 
 CACHE_VERSION = 1
@@ -76,14 +76,20 @@ def read_entry(folder: str | Path, mmap: bool = True) -> ClipArrays:
     return ClipArrays(meta, heads, tails)
 
 
+def is_acclaim(path: str | Path) -> bool:
+    """An AMC clip (CMU's own ASF/AMC format, :mod:`.acclaim`) rather than a BVH file."""
+    return Path(path).suffix.lower() == ".amc"
+
+
 def import_into_cache(path: str, dest: str) -> str | None:
-    """Worker task: import ``path`` with Blender and write the cache entry ``dest``.
+    """Worker task: import ``path`` (a BVH file with Blender, an AMC file with :mod:`.acclaim`) and
+    write the cache entry ``dest``.
 
     Returns None, or the one-line error naming the file (never raises: the pool reports it).
     """
     try:
-        meta, heads, tails = import_clip(path)
-    except BvhError as exc:
+        meta, heads, tails = read_clip(path) if is_acclaim(path) else import_clip(path)
+    except (BvhError, AcclaimError) as exc:
         return str(exc)
     except Exception as exc:  # any other failure inside Blender, still one line naming the file
         return f"{path}: import failed ({type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''})"
@@ -107,9 +113,11 @@ def ensure_cached(paths: list[Path], root: Path | None = None, workers: int | No
     out: dict[Path, tuple[str, Path]] = {}
     for p in paths:
         try:
-            sha = sha256_file(Path(p))
+            sha = clip_sha256(Path(p))
         except FileNotFoundError:
-            raise ClipError(f"{p}: BVH file not found") from None
+            raise ClipError(f"{p}: {'AMC' if is_acclaim(p) else 'BVH'} file not found") from None
+        except AcclaimError as exc:
+            raise ClipError(str(exc)) from None
         out[Path(p)] = (sha, entry_dir(root, sha))
     todo = sorted({d: p for p, (_, d) in out.items() if not (d / "meta.json").is_file()}.items())
     if todo:

@@ -36,6 +36,10 @@ detected with ``"auto"`` (the first map whose required joints all exist in the c
   CC_Base_L_ToeBase, ...; twist, share, finger and face bones ignored);
 - ``daz``: the DAZ-friendly BVH conversions of the CMU database (hip, abdomen, chest, neck, head,
   lCollar, lShldr, lForeArm, lHand, lButtock, lThigh, lShin, lFoot; no toe joint);
+- ``cmu-asf``: the CMU database's own ASF skeletons, read from ASF/AMC files (:mod:`.acclaim`):
+  root, lhipjoint, lfemur, ltibia, lfoot, ltoes, lowerback, upperback, thorax, lowerneck,
+  upperneck, head, lclavicle, lhumerus, lradius, lwrist, lhand, ... (the neck is ``lowerneck``,
+  whose head is the thorax's end; the shoulder is ``lhumerus``, whose head is the clavicle's end);
 - ``mocapnet``: the lower-case names of the MocapNET / MakeHuman skeletons (hip, abdomen, chest,
   neck, head, lcollar, lshoulder, lelbow, lhand, lhip, lknee, lfoot; the hip joint's parent is
   ``lbuttock`` or ``lhipjoint``; toes not mapped: their names differ between the variants).
@@ -123,8 +127,15 @@ BUILTIN_MAPS["mocapnet"] = {
              {k: f"r{v}" for k, v in (("shoulder", "shoulder"), ("elbow", "elbow"), ("wrist", "hand"), ("hip", "hip"),
                                        ("knee", "knee"), ("ankle", "foot"))}),
 }
+BUILTIN_MAPS["cmu-asf"] = {
+    "pelvis": "root", "neck": "lowerneck", "head": "head",
+    **_sided({k: f"l{v}" for k, v in (("shoulder", "humerus"), ("elbow", "radius"), ("wrist", "wrist"), ("hip", "femur"),
+                                       ("knee", "tibia"), ("ankle", "foot"), ("toe", "toes"))},
+             {k: f"r{v}" for k, v in (("shoulder", "humerus"), ("elbow", "radius"), ("wrist", "wrist"), ("hip", "femur"),
+                                       ("knee", "tibia"), ("ankle", "foot"), ("toe", "toes"))}),
+}
 #: Order in which ``"auto"`` tries the built-in maps.
-AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz", "mocapnet")
+AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz", "mocapnet", "cmu-asf")
 #: Name of the map ``"auto"`` reads off the skeleton when no built-in map fits (:mod:`.name_match`).
 MATCHED_MAP = "matched"
 
