@@ -269,7 +269,7 @@ def test_the_cache_key_covers_the_skeleton(clip, tmp_path):
     asf = amc.parent / "86.asf"
     asf.write_text(asf.read_text().replace("length 7.5", "length 7.6"))
     assert clip_sha256(amc) != before
-    with pytest.raises(ClipError, match="86_09.amc: AMC file not found"):
+    with pytest.raises(ClipError, match="86_09.amc: clip file not found"):
         ensure_cached([amc.parent / "86_09.amc"], tmp_path / "cache")
 
 

@@ -402,3 +402,29 @@ def synthetic_clip_positions(n_frames: int = 4, seed: int = 0) -> tuple[np.ndarr
         out[f] = P @ to_blender.T
         ends[f] = ends[f] @ to_blender.T
     return out, ends
+
+
+def export_bvh_as(bvh: str, out: str, scale: float = 1.0, offset: tuple = (0.0, 0.0, 0.0), empty: bool = False) -> None:
+    """Tests only, in a process that may import bpy: import ``bvh`` with Blender's BVH importer (as
+    :func:`silpose.datagen.blender.bvh.import_clip` does) and write it with Blender's FBX or glTF
+    exporter (by ``out``'s suffix), the armature object scaled by ``scale`` and moved by ``offset``
+    (metres) first; ``empty`` writes a cube and no armature instead."""
+    import bpy
+    import addon_utils
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    for module in ("io_anim_bvh", "io_scene_fbx", "io_scene_gltf2"):
+        addon_utils.enable(module, default_set=False)
+    if empty:
+        bpy.ops.mesh.primitive_cube_add()
+    else:
+        bpy.ops.import_anim.bvh(filepath=str(bvh), global_scale=1.0, frame_start=1, use_fps_scale=False,
+                                update_scene_fps=True, update_scene_duration=True, rotate_mode="NATIVE",
+                                axis_forward="-Z", axis_up="Y")
+        arm = next(o for o in bpy.data.objects if o.type == "ARMATURE")
+        arm.scale = (scale, scale, scale)
+        arm.location = offset
+    if str(out).lower().endswith(".fbx"):
+        bpy.ops.export_scene.fbx(filepath=str(out), add_leaf_bones=False, bake_anim=True, bake_anim_simplify_factor=0.0)
+    else:
+        bpy.ops.export_scene.gltf(filepath=str(out), export_format="GLB", export_animations=True)

@@ -21,15 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from .scene import quiet_stdout
+from .scene_clip import evaluate_armature, last_line
 from ..motion.bvh_check import BvhError, check_structure
 
 #: the UTF-8 byte-order mark a Windows editor may put before "HIERARCHY"
 UTF8_BOM = b"\xef\xbb\xbf"
-
-
-def _last_line(exc: BaseException) -> str:
-    lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip() and not ln.strip().startswith("Location:")]
-    return lines[-1] if lines else type(exc).__name__
 
 
 def import_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -66,7 +62,7 @@ def import_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
                     axis_forward="-Z", axis_up="Y",
                 )
         except Exception as exc:  # the operator wraps the importer's error in a RuntimeError with its traceback
-            raise BvhError(f"{path}: Blender's BVH importer failed ({_last_line(exc)})") from None
+            raise BvhError(f"{path}: Blender's BVH importer failed ({last_line(exc)})") from None
     arms = [o for o in bpy.data.objects if o.type == "ARMATURE"]
     if len(arms) != 1 or arms[0].animation_data is None or arms[0].animation_data.action is None:
         raise BvhError(f"{path}: Blender's BVH importer made no animated armature")
@@ -75,33 +71,8 @@ def import_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
     n_frames = last - first + 1
     if first != 1 or n_frames != structure.frames:
         raise BvhError(f"{path}: Blender's importer made frames {first}..{last}, the file has {structure.frames}")
-    bones = arm.pose.bones
-    names = [b.name for b in bones]
-    index = {n: i for i, n in enumerate(names)}
-    parents = [index[b.parent.name] if b.parent is not None else -1 for b in bones]
-    M = np.array(arm.matrix_world)
-    rest_heads = np.array([arm.data.bones[n].head_local for n in names]) @ M[:3, :3].T + M[:3, 3]
-    rest_tails = np.array([arm.data.bones[n].tail_local for n in names]) @ M[:3, :3].T + M[:3, 3]
-    B = len(names)
-    heads = np.empty((n_frames, B, 3), np.float32)
-    tails = np.empty((n_frames, B, 3), np.float32)
-    buf = np.empty(B * 3, np.float32)
-    scene = bpy.context.scene
-    for k in range(n_frames):
-        scene.frame_set(first + k)
-        bones.foreach_get("head", buf)
-        heads[k] = buf.reshape(B, 3)
-        bones.foreach_get("tail", buf)
-        tails[k] = buf.reshape(B, 3)
-    heads = (heads.astype(np.float64) @ M[:3, :3].T + M[:3, 3]).astype(np.float32)
-    tails = (tails.astype(np.float64) @ M[:3, :3].T + M[:3, 3]).astype(np.float32)
-    if not (np.all(np.isfinite(heads)) and np.all(np.isfinite(tails))):
-        raise BvhError(f"{path}: the imported motion contains NaN or infinity")
-    meta = {
-        "names": names, "parents": parents, "frames": n_frames, "frame_time": structure.frame_time,
-        "rest_heads": rest_heads.tolist(), "rest_tails": rest_tails.tolist(),
-        "importer": "io_anim_bvh " + ".".join(str(v) for v in io_anim_bvh.bl_info.get("version", ())),
-        "blender": bpy.app.version_string,
-    }
+    meta, heads, tails = evaluate_armature(arm, first, n_frames, path, BvhError)
+    meta.update(frame_time=structure.frame_time,
+                importer="io_anim_bvh " + ".".join(str(v) for v in io_anim_bvh.bl_info.get("version", ())))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return meta, heads, tails

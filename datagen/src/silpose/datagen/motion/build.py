@@ -1,7 +1,7 @@
-"""Building or extending a motion library from BVH or ASF/AMC files (``silpose motions import``).
+"""Building or extending a motion library from BVH, ASF/AMC, FBX or glTF files (``silpose motions import``).
 
-Every file is read by silpose's own importer (Blender's ``io_anim_bvh`` for BVH, :mod:`.acclaim`
-for the CMU database's ASF/AMC; in spawned workers, cached by sha256, :mod:`.clips`), mapped onto silpose's roles (:mod:`.joint_maps`, ``"auto"`` or
+Every file is read by silpose's own importer (Blender's ``io_anim_bvh`` for BVH, its bundled FBX
+and glTF importers for those, :mod:`.acclaim` for the CMU database's ASF/AMC; in spawned workers, cached by sha256, :mod:`.clips`), mapped onto silpose's roles (:mod:`.joint_maps`, ``"auto"`` or
 a given map), thinned to the library's frame rate and stored in the library's own form
 (:mod:`.library`). A file that fails (not a BVH file, truncated, a skeleton no map fits, no frame
 left) is reported in one line naming the file and skipped; the others go on.
@@ -17,7 +17,7 @@ import numpy as np
 from ..executor import WorkerDied, spawned_map
 from .acclaim import CMU_FPS, AcclaimError, clip_sha256, skeleton_of
 from .bvh_check import BvhError, check_structure
-from .clips import cache_root, entry_dir, import_into_cache, is_acclaim, read_entry
+from .clips import cache_root, entry_dir, import_into_cache, is_acclaim, is_scene_clip, read_entry
 from .joint_maps import JointMapError, resolve_map
 from .library import DEFAULT_FPS, Library, LibraryError, check_writable, derive_clip, load_library, write_library
 
@@ -76,12 +76,36 @@ def cache_all(paths: list[Path], root: Path, workers: int | None) -> dict[Path, 
             errors[Path(died.key)] = f"{died.key}: the importer crashed on this file ({died})"
 
 
+def clip_ids(sources: list[ClipSource]) -> dict[Path, str]:
+    """Each source's clip id: its ``id``, else the file's stem; stems shared by several files of one
+    import take their suffix (``idle.fbx``, ``idle.glb``), then their folder (``walk/idle.fbx``)."""
+    def stems(key) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for s in sources:
+            out[key(s)] = out.get(key(s), 0) + 1
+        return out
+
+    by_stem, by_name = stems(lambda s: s.path.stem), stems(lambda s: s.path.name)
+    ids = {}
+    for s in sources:
+        if s.id:
+            ids[s.path] = s.id
+        elif by_stem[s.path.stem] == 1:
+            ids[s.path] = s.path.stem
+        elif by_name[s.path.name] == 1:
+            ids[s.path] = s.path.name
+        else:
+            ids[s.path] = f"{s.path.parent.name}/{s.path.name}"
+    return ids
+
+
 def check_clip(path: Path) -> None:
     """The checks before importing: a BVH file's structure (:func:`.bvh_check.check_structure`), an
-    AMC file's skeleton beside it (:func:`.acclaim.skeleton_of`). Raises BvhError / AcclaimError."""
+    AMC file's skeleton beside it (:func:`.acclaim.skeleton_of`); FBX and glTF files are checked by
+    their importers. Raises BvhError / AcclaimError."""
     if is_acclaim(path):
         skeleton_of(path)
-    else:
+    elif not is_scene_clip(path):
         check_structure(path)
 
 
@@ -110,6 +134,7 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
         except (BvhError, AcclaimError) as exc:
             report.skipped.append(str(exc))
     errors = cache_all([s.path for s in ok_sources], root, workers)
+    ids = clip_ids(ok_sources)
     rows, arrays = [], []
     for s in ok_sources:
         if s.path in errors:
@@ -133,7 +158,7 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
             continue
         d = derive_clip(arr, jmap, s.scale, used)
         src_fps = 1.0 / float(meta["frame_time"]) if float(meta["frame_time"]) > 0 else 0.0
-        cid = s.id or s.path.stem
+        cid = ids[s.path]
         rows.append({"id": cid, "subject": s.subject, "description": s.description, "group": s.group,
                      "split": s.split, "fps": round(src_fps / stride, 3), "source_frames": int(meta["frames"]),
                      "source_fps": round(src_fps, 3), "first": int(s.first), "stride": int(stride),

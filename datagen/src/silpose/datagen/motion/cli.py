@@ -22,19 +22,19 @@ def _subject_order(s: str) -> tuple[int, str]:
     return (int(s), "") if s.isdigit() else (1 << 30, s)
 
 
-#: Clip files ``silpose motions import`` finds in folders: BVH, and the AMC motions of ASF/AMC.
-CLIP_SUFFIXES = (".bvh", ".amc")
+#: Clip files ``silpose motions import`` finds in folders: BVH, the AMC motions of ASF/AMC, FBX and glTF.
+CLIP_SUFFIXES = (".bvh", ".amc", ".fbx", ".glb", ".gltf")
 
 
 def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
-    """Clip files of ``paths`` (folders searched recursively for *.bvh and *.amc, files taken as
-    given), and one line per path that does not exist or holds no clip."""
+    """Clip files of ``paths`` (folders searched recursively for :data:`CLIP_SUFFIXES`, files taken
+    as given), and one line per path that does not exist or holds no clip."""
     files, missing = [], []
     for p in paths:
         if p.is_dir():
             found = sorted(q for q in p.rglob("*") if q.suffix.lower() in CLIP_SUFFIXES and q.is_file())
             if not found:
-                missing.append(f"{p}: no .bvh or .amc file in this folder")
+                missing.append(f"{p}: no clip file ({', '.join(CLIP_SUFFIXES)}) in this folder")
             files += found
         elif p.is_file():
             files.append(p)
@@ -45,22 +45,22 @@ def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
 
 @app.command("import")
 def import_(
-    paths: Annotated[list[Path], typer.Argument(help="BVH or AMC files, or folders (searched recursively for *.bvh and *.amc; an AMC file's skeleton is the .asf beside it).")],
+    paths: Annotated[list[Path], typer.Argument(help="BVH, AMC, FBX or glTF (.glb/.gltf) files, or folders (searched recursively for them; an AMC file's skeleton is the .asf beside it).")],
     library: Annotated[Path, typer.Option("--library", "-l", help="Library folder to create or extend (only silpose's own files may be in it).")] = Path("motion-library"),
     group: Annotated[str, typer.Option(help="Activity group of every imported clip (e.g. walk, dance, sports).")] = "other",
     split: Annotated[str, typer.Option(help="train or test (hold out whole subjects for test).")] = "train",
     subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects).")] = "",
     licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
-    scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions). ASF/AMC clips are read in metres: leave 1.")] = 1.0,
+    scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions). ASF/AMC, FBX and glTF clips are read in metres: leave 1.")] = 1.0,
     joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz, mocapnet, cmu-asf) or a TOML file.")] = "auto",
     first: Annotated[int, typer.Option(min=0, help="First frame kept (1 drops a calibration pose in frame 0).")] = 0,
     fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,
     amc_fps: Annotated[float, typer.Option("--amc-fps", min=1.0, help="Frame rate of AMC files, which do not state it (the CMU database's: 120).")] = 120.0,
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
 ) -> None:
-    """Import BVH or ASF/AMC clips into a motion library (BVH read by Blender's own importer, ASF/AMC by
-    silpose's; stored as bone directions and root motion). A clip that cannot be imported is
-    reported in one line and skipped."""
+    """Import BVH, ASF/AMC, FBX or glTF clips into a motion library (BVH, FBX and glTF read by
+    Blender's own importers, ASF/AMC by silpose's; stored as bone directions and root motion). A clip
+    that cannot be imported is reported in one line and skipped."""
     from .build import ClipSource, import_clips
     from .joint_maps import BUILTIN_MAPS
     from .library import LibraryError
@@ -76,7 +76,7 @@ def import_(
                           joint_map=str(Path(joint_map).resolve()) if Path(joint_map).is_file() else joint_map,
                           first=first, source=str(f), amc_fps=amc_fps) for f in files]
     if not sources:
-        fail("motions import", "no BVH or AMC file to import")
+        fail("motions import", "no clip file to import")
     try:
         report = import_clips(sources, library, fps=fps, workers=workers)
     except LibraryError as exc:

@@ -1,6 +1,7 @@
 """Motion-capture clips on the driver side: import cache, validation, and the clip table.
 
-Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`), each AMC file
+Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`), each FBX or glTF
+file by Blender too (:func:`silpose.datagen.blender.scene_clip.import_scene_clip`, in metres), each AMC file
 by :func:`.acclaim.read_clip` (in metres), in a spawned worker process and its per-frame joint positions are cached by the file's sha256 in
 ``<cache>/<sha256>-v<CACHE_VERSION>/`` (an AMC file's hash covers its ASF skeleton too) (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
 the file's unit, and ``meta.json``: joint names, parents, frame count, frame time, rest pose,
@@ -26,6 +27,7 @@ import numpy as np
 from silpose.shared.atomic import atomic_path, write_json_atomic
 
 from ..blender.bvh import import_clip
+from ..blender.scene_clip import SCENE_SUFFIXES, SceneClipError, import_scene_clip
 from .acclaim import AcclaimError, clip_sha256, read_clip
 from .bvh_check import BvhError
 from ..executor import WorkerDied, spawned_map
@@ -81,15 +83,25 @@ def is_acclaim(path: str | Path) -> bool:
     return Path(path).suffix.lower() == ".amc"
 
 
+def is_scene_clip(path: str | Path) -> bool:
+    """An FBX or glTF clip (Blender's bundled importers, :mod:`silpose.datagen.blender.scene_clip`)."""
+    return Path(path).suffix.lower() in SCENE_SUFFIXES
+
+
 def import_into_cache(path: str, dest: str) -> str | None:
-    """Worker task: import ``path`` (a BVH file with Blender, an AMC file with :mod:`.acclaim`) and
-    write the cache entry ``dest``.
+    """Worker task: import ``path`` (a BVH, FBX or glTF file with Blender, an AMC file with
+    :mod:`.acclaim`) and write the cache entry ``dest``.
 
     Returns None, or the one-line error naming the file (never raises: the pool reports it).
     """
     try:
-        meta, heads, tails = read_clip(path) if is_acclaim(path) else import_clip(path)
-    except (BvhError, AcclaimError) as exc:
+        if is_acclaim(path):
+            meta, heads, tails = read_clip(path)
+        elif is_scene_clip(path):
+            meta, heads, tails = import_scene_clip(path)
+        else:
+            meta, heads, tails = import_clip(path)
+    except (BvhError, AcclaimError, SceneClipError) as exc:
         return str(exc)
     except Exception as exc:  # any other failure inside Blender, still one line naming the file
         return f"{path}: import failed ({type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''})"
@@ -115,7 +127,7 @@ def ensure_cached(paths: list[Path], root: Path | None = None, workers: int | No
         try:
             sha = clip_sha256(Path(p))
         except FileNotFoundError:
-            raise ClipError(f"{p}: {'AMC' if is_acclaim(p) else 'BVH'} file not found") from None
+            raise ClipError(f"{p}: clip file not found") from None
         except AcclaimError as exc:
             raise ClipError(str(exc)) from None
         out[Path(p)] = (sha, entry_dir(root, sha))

@@ -4,8 +4,8 @@
 
     [motion]
     source = "bvh"                 # "procedural" (default: the walk cycle) | "bvh" (motion-capture clips)
-    bvh = ["clips/*.bvh"]          # globs relative to the config file; every match is a clip (.bvh, or
-                                   # .amc of the CMU database's ASF/AMC with its .asf beside it: scale 1)
+    bvh = ["clips/*.bvh"]          # globs relative to the config file; every match is a clip (.bvh; also
+                                   # .fbx/.glb/.gltf, and .amc with its .asf beside it: these in metres, scale 1)
     scale = 0.056444               # metres per BVH unit (defaults for every clip; see below)
     joint_map = "auto"             # "auto" | "cmu" | "mixamo" | "hip-knee" | "bandai" | "cc-base" | "daz" | "mocapnet" | "cmu-asf" | "my_map.toml"
     stride = 1                     # use every stride-th frame
