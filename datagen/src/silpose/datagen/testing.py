@@ -314,25 +314,42 @@ def synthetic_clip_motion(n_frames: int = 4, seed: int = 0) -> tuple[np.ndarray,
     return pos, rot
 
 
-def write_synthetic_bvh(path, scheme: str = "cmu", unit: float = 1.0, n_frames: int = 4, seed: int = 0) -> Path:
+def write_synthetic_bvh(path, scheme: str = "cmu", unit: float = 1.0, n_frames: int = 4, seed: int = 0,
+                        up: str = "y") -> Path:
     """Write :data:`SYNTH_SKELETON` with :func:`synthetic_clip_motion` as a BVH file.
 
     Args:
         scheme: ``"cmu"`` or ``"hip-knee"`` joint names.
         unit: metres per file unit (0.01 writes centimetres).
+        up: ``"y"`` (the BVH convention) or ``"z"``: the same motion written Z up, as some exporters
+            do (every vector p -> A p with A = R_x(90 deg): (x, y, z) -> (x, -z, y); each rotation
+            Rz(a) Rx(b) Ry(c) -> A R A^T = Ry(-a) Rx(b) Rz(c), channels Y X Z).
     """
     col = {"cmu": 0, "hip-knee": 1}[scheme]
     pos, rot = synthetic_clip_motion(n_frames, seed)
     axes = {"X": 0, "Y": 1, "Z": 2}
     lines = ["HIERARCHY"]
+    order_ch = SYNTH_ROT_ORDER
+    if up == "z":
+        def turn(v):
+            return (v[0], -v[2], v[1])
+        pos = np.array([turn(p) for p in pos])
+        z_up = np.stack([-rot[..., 2], rot[..., 0], rot[..., 1]], axis=-1)  # Y, X, Z channel values
+        order_ch, rot = "YXZ", np.zeros_like(rot)
+        rot[..., 1], rot[..., 0], rot[..., 2] = z_up[..., 0], z_up[..., 1], z_up[..., 2]
+    elif up != "y":
+        raise ValueError(f"up must be 'y' or 'z', got {up!r}")
+    assert SYNTH_ROT_ORDER == "ZXY"  # the channel algebra above
 
     def emit(j: int, depth: int) -> None:
         name, off, end = SYNTH_SKELETON[j][col], SYNTH_SKELETON[j][3], SYNTH_SKELETON[j][4]
+        if up == "z":
+            off, end = turn(off), (None if end is None else turn(end))
         pad = "\t" * depth
         lines.append(f"{pad}{'ROOT' if j == 0 else 'JOINT'} {name}")
         lines.append(f"{pad}{{")
         lines.append(f"{pad}\tOFFSET " + " ".join(f"{v / unit:.6f}" for v in off))
-        chans = [f"{a}rotation" for a in SYNTH_ROT_ORDER]
+        chans = [f"{a}rotation" for a in order_ch]
         if j == 0:
             chans = ["Xposition", "Yposition", "Zposition"] + chans
         lines.append(f"{pad}\tCHANNELS {len(chans)} " + " ".join(chans))
@@ -358,7 +375,7 @@ def write_synthetic_bvh(path, scheme: str = "cmu", unit: float = 1.0, n_frames: 
     for f in range(n_frames):
         vals = [v / unit for v in pos[f]]
         for j in order:
-            vals += [rot[f, j, axes[a]] for a in SYNTH_ROT_ORDER]
+            vals += [rot[f, j, axes[a]] for a in order_ch]
         lines.append(" ".join(f"{v:.6f}" for v in vals))
     path = Path(path)
     path.write_text("\n".join(lines) + "\n")

@@ -163,7 +163,8 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
                      "split": s.split, "fps": round(src_fps / stride, 3), "source_frames": int(meta["frames"]),
                      "source_fps": round(src_fps, 3), "first": int(s.first), "stride": int(stride),
                      "source": s.source or str(s.path), "licence": s.licence, "sha256": sha,
-                     "joint_map": jmap.name, "scale": s.scale, "importer": meta.get("importer", "")})
+                     "joint_map": jmap.name, "scale": s.scale, "importer": meta.get("importer", ""),
+                     **({"rest_up": jmap.rest_up} if jmap.rest_up != "+z" else {})})
         arrays.append({"frame": used, **d})
         report.added.append(cid)
     if old is not None:

@@ -24,7 +24,7 @@ from silpose.shared.rig_frame import DEFAULT_WORKSPACE, Workspace
 from silpose.shared.seeds import MOTION_STREAM
 
 from .clips import BVH_FIELDS, read_entry
-from .joint_maps import ResolvedMap
+from .joint_maps import UPRIGHT, ResolvedMap
 from .source import Pose
 from .retarget import clip_points, local_rotations, retarget_frame
 from ..walk import euler_matrix, foot_points
@@ -43,7 +43,9 @@ class ClipSource:
         self.used = np.arange(first, last + 1, stride, dtype=np.int64)
         m = spec["map"]
         self.jmap = ResolvedMap(name=str(m["name"]), index={k: int(v) for k, v in m["index"].items()},
-                                spine_chain=tuple(int(v) for v in m["spine_chain"]), head_tail=bool(m["head_tail"]))
+                                spine_chain=tuple(int(v) for v in m["spine_chain"]), head_tail=bool(m["head_tail"]),
+                                upright=tuple(tuple(float(v) for v in row) for row in m.get("upright", UPRIGHT)),
+                                rest_up=str(m.get("rest_up", "+z")))
 
     def points(self, frame: int, mirror: bool) -> dict[str, np.ndarray]:
         """Role positions of BVH frame ``frame`` in metres (:func:`retarget.clip_points`)."""

@@ -178,6 +178,7 @@ class PreparedClip:
             "frame_time": self.frame_time, "used_frames": [int(self.used[0]), int(self.used[-1]), s.stride],
             "n_used": int(len(self.used)), "weight": s.weight, "scale": s.scale, "joint_map": self.jmap.name,
             "vertical_extent_m": round(self.extent_m, 4), "licence": s.licence, "note": s.note,
+            **({"rest_up": self.jmap.rest_up} if self.jmap.rest_up != "+z" else {}),
         }
 
     def worker(self) -> dict:
@@ -186,7 +187,8 @@ class PreparedClip:
             "name": self.name, "cache": str(self.cache), "scale": self.spec.scale, "weight": self.spec.weight,
             "used": [int(self.used[0]), int(self.used[-1]), self.spec.stride],
             "map": {"name": self.jmap.name, "index": dict(self.jmap.index), "spine_chain": list(self.jmap.spine_chain),
-                    "head_tail": self.jmap.head_tail},
+                    "head_tail": self.jmap.head_tail, "upright": [list(r) for r in self.jmap.upright],
+                    "rest_up": self.jmap.rest_up},
         }
 
 
@@ -233,7 +235,7 @@ def prepare_motion(motion: MotionConfig, workers: int | None = None, root: Path 
                            src, motion.base)
         used = resolve_frames(spec.frames[0], spec.frames[1], spec.stride, int(meta["frames"]), src)
         sample = used[:: max(1, len(used) // 200)]
-        z = np.asarray(arrays.heads[sample][:, :, 2], np.float64) * spec.scale
+        z = np.asarray(arrays.heads[sample], np.float64) @ np.asarray(jmap.upright)[2] * spec.scale  # heights standing
         clips.append(PreparedClip(spec=spec, name=name, sha256=sha, cache=folder, frames=int(meta["frames"]),
                                   frame_time=float(meta["frame_time"]), used=used, jmap=jmap,
                                   extent_m=float(np.max(z.max(axis=1) - z.min(axis=1)))))

@@ -177,6 +177,10 @@ def map_from_spec(spec: str, base: Path | None = None) -> dict[str, str] | None:
     return load_map_file(p)
 
 
+#: No turn: the clip's rest pose stands up the z axis.
+UPRIGHT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
 @dataclass(frozen=True)
 class ResolvedMap:
     """A joint map applied to one clip's skeleton (indices into the clip's BVH joints).
@@ -187,12 +191,44 @@ class ResolvedMap:
         spine_chain: BVH joint indices from the pelvis joint up to the neck joint (both included),
             the chain :mod:`.retarget` places silpose's spine joint on.
         head_tail: use the BVH head bone's tail as the head top (when ``head_top`` is not mapped).
+        upright: 3x3 rotation (rows) applied to the clip's positions before anything else, so that its
+            rest pose stands up +z (:func:`upright_turn`); identity for almost every file.
+        rest_up: the axis (after Blender's Y-up import) the rest pose's spine pointed along: ``+z``,
+            or e.g. ``-y`` for a file written Z up.
     """
 
     name: str
     index: dict[str, int]
     spine_chain: tuple[int, ...]
     head_tail: bool
+    upright: tuple[tuple[float, float, float], ...] = UPRIGHT
+    rest_up: str = "+z"
+
+
+def upright_turn(spine: np.ndarray) -> tuple[tuple[tuple[float, float, float], ...], str]:
+    """The quarter (or half) turn that stands a rest pose whose pelvis -> neck vector is ``spine`` (3,) up +z.
+
+    A file's rest pose (its T- or A-pose) stands; one written with another up axis than its format
+    says (a Z-up BVH, read as Y up, lies along -y) is turned by the smallest rotation taking the
+    world axis nearest its spine to +z. Within 45 degrees of +z nothing is turned, so a clip whose
+    rest pose leans is kept as it is. Returns the rotation (rows) and that axis (``"+z"``, ``"-y"``, ...).
+    """
+    s = np.asarray(spine, float)
+    n = float(np.linalg.norm(s))
+    if n < 1e-12 or s[2] / n >= np.cos(np.pi / 4):
+        return UPRIGHT, "+z"
+    k = int(np.argmax(np.abs(s)))
+    sign = 1.0 if s[k] > 0 else -1.0
+    name = ("+" if sign > 0 else "-") + "xyz"[k]
+    a = np.zeros(3)
+    a[k] = sign
+    if k == 2:  # upside down: half a turn about x
+        R = np.diag([1.0, -1.0, -1.0])
+    else:  # a quarter turn about a x z, taking a to z
+        axis = np.cross(a, [0.0, 0.0, 1.0])
+        K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        R = np.eye(3) + K + K @ K  # Rodrigues' formula at 90 degrees (sin 1, 1 - cos 1)
+    return tuple(tuple(float(v) for v in row) for row in np.round(R, 12)), name
 
 
 def _path_to_ancestor(parents: list[int], child: int, ancestor: int) -> list[int] | None:
@@ -256,4 +292,6 @@ def resolve_map(
     h, n = index["head"], index["neck"]
     heads, tails = np.asarray(rest_heads, float), np.asarray(rest_tails, float)
     head_tail = index["head_top"] < 0 and _angle_ok(tails[h] - heads[h], heads[h] - heads[n])
-    return ResolvedMap(name=name, index=index, spine_chain=tuple(chain), head_tail=bool(head_tail))
+    upright, rest_up = upright_turn(heads[n] - heads[index["pelvis"]])
+    return ResolvedMap(name=name, index=index, spine_chain=tuple(chain), head_tail=bool(head_tail), upright=upright,
+                       rest_up=rest_up)

@@ -161,7 +161,7 @@ def derive_clip(arrays: ClipArrays, jmap: ResolvedMap, scale: float, used: np.nd
     tails = np.asarray(arrays.tails[used], np.float64) * scale
     P = role_positions(heads, tails, jmap)
     root, dirs, lengths = derive(P)
-    z = heads[:, :, 2]
+    z = heads @ np.asarray(jmap.upright)[2]  # heights once the clip stands (joint_maps.upright_turn)
     return {"root": root, "dirs": dirs, "lengths": lengths,
             "extent_m": float(np.max(z.max(axis=1) - z.min(axis=1))) if len(z) else 0.0}
 

@@ -120,6 +120,9 @@ def clip_points(heads: np.ndarray, tails: np.ndarray, jmap: ResolvedMap, mirror:
         heads, tails: (B, 3) world positions of the clip's bone heads and tails in one frame.
     """
     idx = dict(jmap.index)
+    if jmap.rest_up != "+z":  # a file written with another up axis (joint_maps.upright_turn)
+        U = np.asarray(jmap.upright)
+        heads, tails = heads @ U.T, tails @ U.T
     if mirror:
         heads, tails = heads @ _MIRROR.T, tails @ _MIRROR.T
         idx = {(("r" + r[1:]) if r.startswith("l_") else ("l" + r[1:]) if r.startswith("r_") else r): i
