@@ -52,5 +52,6 @@ test *args: setup
     uv run --no-sync pytest -n 2 --dist loadgroup "$@"
 
 # docs/results.md and the README's generated tables, from reports/*/headline.json and reports/bench/bench.json
-results: setup
-    uv run --no-sync python docs/results.py
+# (`just results --only bench`: the benchmark tables alone, after a `just bench` on a machine without the reports)
+results *args: setup
+    uv run --no-sync python docs/results.py "$@"

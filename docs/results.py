@@ -1,6 +1,6 @@
 """Write docs/results.md from the reports, and refresh the README's generated tables.
 
-    python docs/results.py [--reports reports] [--out docs/results.md] [--readme README.md]   (just results)
+    python docs/results.py [--reports reports] [--out docs/results.md] [--readme README.md] [--only bench]   (just results)
 
 Every figure comes from a file a command wrote, never from a hand-copied number:
 ``reports/<preset>/headline.json`` (``silpose eval``), the training report next to the model the evaluation
@@ -438,8 +438,7 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     curve = learning_curve_section(bench.parent.parent)
     if curve:
         parts += ["## Learning curve (posterior mean, standard noise)", ""] + curve
-    parts += ["## Benchmarks", "", "### Summary", "", speed_table(bench), ""] + bench_section(bench)
-    return "\n".join(parts).rstrip() + "\n"
+    return "\n".join(parts).rstrip() + "\n\n" + benchmarks_markdown(bench)
 
 
 def replace_block(text: str, name: str, body: str) -> str:
@@ -450,15 +449,44 @@ def replace_block(text: str, name: str, body: str) -> str:
     return head + start + "\n" + body.strip() + "\n" + end + rest.split(end, 1)[1]
 
 
+#: The heading from which docs/results.md holds the benchmarks (``--only bench`` rewrites from it on).
+BENCH_HEADING = "## Benchmarks"
+
+
+def benchmarks_markdown(bench: Path) -> str:
+    """docs/results.md's benchmark part (from :data:`BENCH_HEADING` to the end) from ``bench.json``."""
+    return "\n".join([BENCH_HEADING, "", "### Summary", "", speed_table(bench), ""] + bench_section(bench)).rstrip() + "\n"
+
+
+def replace_benchmarks(text: str, bench: Path) -> str:
+    """``text`` (docs/results.md) with its benchmark part rewritten from ``bench.json``, the rest kept."""
+    if f"\n{BENCH_HEADING}\n" not in text:
+        raise SystemExit(f"results: docs/results.md has no '{BENCH_HEADING}' heading")
+    return text.split(f"\n{BENCH_HEADING}\n", 1)[0] + "\n" + benchmarks_markdown(bench)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reports", type=Path, default=ROOT / "reports")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results.md")
     ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    ap.add_argument("--only", choices=("all", "bench"), default="all",
+                    help="bench: rewrite only the benchmark tables (docs/results.md from its Benchmarks heading on, "
+                         "the README's speed table) from reports/bench/bench.json, keeping the pose tables made from "
+                         "reports measured elsewhere")
     args = ap.parse_args(argv)
     from silpose.app.rig.formats import formats_table
     from silpose.shared.atomic import write_text_atomic
 
+    bench = args.reports / "bench" / "bench.json"
+    if args.only == "bench":
+        if not bench.is_file():
+            raise SystemExit(f"results: {bench} not found: run `just bench` first")
+        write_text_atomic(args.out, replace_benchmarks(args.out.read_text(encoding="utf-8"), bench))
+        readme = replace_block(args.readme.read_text(encoding="utf-8"), "speed", speed_table(bench))
+        write_text_atomic(args.readme, readme)
+        print(f"wrote the benchmark tables of {args.out} and {args.readme}")
+        return
     reports = load_reports(args.reports)
     write_text_atomic(args.out, results_markdown(reports, args.reports / "bench" / "bench.json"))
     readme = args.readme.read_text(encoding="utf-8")

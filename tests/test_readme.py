@@ -9,6 +9,8 @@ import re
 import shutil
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 
@@ -198,3 +200,29 @@ def test_the_speed_table_gives_the_overlay_share_of_each_mask_run_with_overlays(
 
     assert share(runs) == "31 % (50 %) over 150 steps and 25 % (45 %) over 1500 steps / 3 % (9 %) over 60 steps"
     assert share(runs[:2]) is None
+
+
+def test_only_bench_rewrites_the_benchmark_tables_and_keeps_the_pose_tables(tmp_path):
+    """``--only bench`` (a bench run on a machine without the pose reports): docs/results.md keeps everything before
+    its Benchmarks heading byte for byte, and the README keeps every block but the speed table."""
+    mod = _results_module()
+    out, readme = tmp_path / "results.md", tmp_path / "README.md"
+    shutil.copy(ROOT / "docs" / "results.md", out)
+    shutil.copy(README, readme)
+    before_md, before_readme = out.read_text(), readme.read_text()
+    rows = [{"name": "run", "run": "10x", "steps": 1500, "steps_per_s": 171.25, "steady_steps_per_s": 180.0}]
+    bench = tmp_path / "reports" / "bench" / "bench.json"
+    bench.parent.mkdir(parents=True)
+    bench.write_text(json.dumps({"quick": False, "machine": {"cpu_count": 2},
+                                 "sections": [{"section": "recordings", "what": "recordings", "rows": rows}]}))
+    mod.main(["--reports", str(tmp_path / "reports"), "--out", str(out), "--readme", str(readme), "--only", "bench"])
+    head = before_md.split("\n## Benchmarks\n")[0]
+    assert out.read_text().startswith(head + "\n## Benchmarks\n") and "171.2 time steps/s over 1500 steps" in out.read_text()
+    speed = readme.read_text().split("<!-- speed:start -->")[1].split("<!-- speed:end -->")[0]
+    assert "171.2 time steps/s over 1500 steps (180 after the set-up)" in speed
+    for name in ("results", "formats", "curve"):
+        block = f"<!-- {name}:start -->"
+        assert readme.read_text().split(block)[1].split(f"<!-- {name}:end -->")[0] == \
+            before_readme.split(block)[1].split(f"<!-- {name}:end -->")[0]
+    with pytest.raises(SystemExit, match="not found: run `just bench` first"):
+        mod.main(["--reports", str(tmp_path / "none"), "--out", str(out), "--readme", str(readme), "--only", "bench"])
