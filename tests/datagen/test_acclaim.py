@@ -298,3 +298,19 @@ def test_motions_import_reads_a_cmu_folder_of_asf_and_amc(clip, tmp_path):
     library = load_library(lib)
     rows = library.rows(1 if library.clips[1]["id"] == "86_02" else 0)
     assert np.all(np.isfinite(library.dirs[rows])) and len(library.frame[rows]) == 4
+
+
+def test_import_reports_progress_over_the_files_it_reads_and_none_when_cached(clip, tmp_path):
+    amc, root, values = clip
+    write_amc(amc.parent / "86_02.amc", *motion(3, seed=2))
+    write_amc(amc.parent / "86_03.amc", root, values, skip=(1, "lfoot"))  # fails: still counted
+    from silpose.datagen.motion.build import ClipSource, import_clips
+
+    sources = [ClipSource(path=p, subject="86") for p in sorted(amc.parent.glob("*.amc"))]
+    calls: list[tuple[int, int]] = []
+    report = import_clips(sources, tmp_path / "lib", workers=1, cache=tmp_path / "cache",
+                          progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(0, 3), (1, 3), (2, 3), (3, 3)] and len(report.added) == 2 and len(report.skipped) == 1
+    calls.clear()
+    import_clips(sources[:2], tmp_path / "lib", workers=1, cache=tmp_path / "cache", progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(0, 0)]  # both in the cache: nothing to read

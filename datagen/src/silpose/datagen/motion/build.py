@@ -9,6 +9,7 @@ left) is reported in one line naming the file and skipped; the others go on.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,10 +55,13 @@ def _import_job(args: tuple[str, str]) -> str | None:
     return import_into_cache(*args)
 
 
-def cache_all(paths: list[Path], root: Path, workers: int | None) -> dict[Path, str]:
+def cache_all(paths: list[Path], root: Path, workers: int | None,
+              progress: Callable[[int, int], None] | None = None) -> dict[Path, str]:
     """Import the files not cached yet; ``{path: one-line error}`` for those that failed (a worker
-    crash on one file fails that file only: the rest are retried)."""
+    crash on one file fails that file only: the rest are retried). ``progress(done, total)`` is called
+    with the files to import before the first and after each one (imported or failed)."""
     errors: dict[Path, str] = {}
+    done, total = 0, None
     while True:
         todo = []
         for p in paths:
@@ -66,14 +70,24 @@ def cache_all(paths: list[Path], root: Path, workers: int | None) -> dict[Path, 
             d = entry_dir(root, clip_sha256(p))
             if not (d / "meta.json").is_file():
                 todo.append((str(p), (str(p), str(d))))
+        if total is None:
+            total = len(todo)
+            if progress is not None:
+                progress(0, total)
         if not todo:
             return errors
         try:
             for key, error in spawned_map(_import_job, todo, workers, max_tasks_per_child=8):
                 if error:
                     errors[Path(key)] = error
+                done += 1
+                if progress is not None:
+                    progress(min(done, total), total)
         except WorkerDied as died:
             errors[Path(died.key)] = f"{died.key}: the importer crashed on this file ({died})"
+            done += 1
+            if progress is not None:
+                progress(min(done, total), total)
 
 
 def clip_ids(sources: list[ClipSource]) -> dict[Path, str]:
@@ -114,9 +128,11 @@ def _stride(frame_time: float, fps: float) -> int:
 
 
 def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_FPS, workers: int | None = None,
-                 acknowledgement: str | None = None, cache: Path | None = None) -> ImportReport:
+                 acknowledgement: str | None = None, cache: Path | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> ImportReport:
     """Import ``sources`` into the library ``folder``: a new one, or an existing one extended (a
     clip whose id is already there is replaced). Written atomically (:func:`library.write_library`).
+    ``progress(done, total)``: the files read so far of those not in the import cache (:func:`cache_all`).
 
     Raises:
         LibraryError: ``folder`` holds files silpose did not write, or its library is unreadable.
@@ -133,7 +149,7 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
             ok_sources.append(s)
         except (BvhError, AcclaimError) as exc:
             report.skipped.append(str(exc))
-    errors = cache_all([s.path for s in ok_sources], root, workers)
+    errors = cache_all([s.path for s in ok_sources], root, workers, progress)
     ids = clip_ids(ok_sources)
     rows, arrays = [], []
     for s in ok_sources:

@@ -57,6 +57,7 @@ def import_(
     fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,
     amc_fps: Annotated[float, typer.Option("--amc-fps", min=1.0, help="Frame rate of AMC files, which do not state it (the CMU database's: 120).")] = 120.0,
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar over the files read.")] = True,
 ) -> None:
     """Import BVH, ASF/AMC, FBX or glTF clips into a motion library (BVH, FBX and glTF read by
     Blender's own importers, ASF/AMC by silpose's; stored as bone directions and root motion). A clip
@@ -77,10 +78,27 @@ def import_(
                           first=first, source=str(f), amc_fps=amc_fps) for f in files]
     if not sources:
         fail("motions import", "no clip file to import")
-    try:
-        report = import_clips(sources, library, fps=fps, workers=workers)
-    except LibraryError as exc:
-        fail("motions import", str(exc))
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from silpose.shared.cli import lazy_progress, show_progress
+
+    bar = Progress(TextColumn("[bold]import"), BarColumn(), MofNCompleteColumn(), TextColumn("clips"), TimeElapsedColumn(),
+                   TimeRemainingColumn(), console=Console(stderr=True), disable=not progress)
+    with lazy_progress(bar):
+        job = bar.add_task("import", total=None)
+
+        def advance(done: int, total: int) -> None:
+            if total:
+                show_progress(bar)
+                bar.update(job, completed=done, total=total)
+
+        try:
+            report, error = import_clips(sources, library, fps=fps, workers=workers, progress=advance), None
+        except LibraryError as exc:  # reported once the bar is gone
+            report, error = None, str(exc)
+    if report is None:
+        fail("motions import", error)
         return
     for line in report.skipped:
         typer.echo(f"skipped: {line}", err=True)
