@@ -282,7 +282,7 @@ def test_motions_import_reads_a_cmu_folder_of_asf_and_amc(clip, tmp_path):
     lib = tmp_path / "lib"
     env = {**os.environ, "SILPOSE_CACHE_DIR": str(tmp_path / "cache")}
     r = subprocess.run([sys.executable, "-m", "silpose.shared.cli", "motions", "import", str(tmp_path / "subjects"),
-                        "--library", str(lib), "--subject", "86", "--group", "walk", "-j", "1"],
+                        "--library", str(lib), "--subject", "auto", "--group", "walk", "-j", "1"],
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr
     skipped = [ln for ln in r.stderr.splitlines() if ln.startswith("skipped: ")]
@@ -293,6 +293,7 @@ def test_motions_import_reads_a_cmu_folder_of_asf_and_amc(clip, tmp_path):
     clips = {c["id"]: c for c in m["clips"]}
     assert sorted(clips) == ["86_01", "86_02"]
     assert {c["joint_map"] for c in clips.values()} == {"cmu-asf"}
+    assert {c["subject"] for c in clips.values()} == {"86"}  # --subject auto: the name before '_'
     assert clips["86_02"]["source_fps"] == 120.0 and clips["86_02"]["stride"] == 4  # 120 fps thinned to 30
     assert clips["86_02"]["frames"] == 4  # frames 0, 4, 8, 12 of 13
     library = load_library(lib)
@@ -314,3 +315,12 @@ def test_import_reports_progress_over_the_files_it_reads_and_none_when_cached(cl
     calls.clear()
     import_clips(sources[:2], tmp_path / "lib", workers=1, cache=tmp_path / "cache", progress=lambda d, t: calls.append((d, t)))
     assert calls == [(0, 0)]  # both in the cache: nothing to read
+
+
+def test_subject_auto_reads_the_cmu_name():
+    from pathlib import Path
+
+    from silpose.datagen.motion.cli import subject_of
+
+    assert subject_of(Path("x/02_01.amc")) == "2" and subject_of(Path("143_12.bvh")) == "143"
+    assert subject_of(Path("walk_fast.fbx")) == "walk" and subject_of(Path("idle.glb")) == "idle"

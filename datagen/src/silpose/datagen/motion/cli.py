@@ -26,6 +26,14 @@ def _subject_order(s: str) -> tuple[int, str]:
 CLIP_SUFFIXES = (".bvh", ".amc", ".fbx", ".glb", ".gltf")
 
 
+def subject_of(path: Path) -> str:
+    """``--subject auto``: the file name up to its first ``_`` (the CMU database's ``86_01`` -> ``86``), leading
+    zeros dropped from a number (``02_01`` -> ``2``, as the bundled library writes CMU subjects); the whole stem
+    when it has no ``_``."""
+    head = path.stem.split("_", 1)[0]
+    return str(int(head)) if head.isdigit() else head
+
+
 def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
     """Clip files of ``paths`` (folders searched recursively for :data:`CLIP_SUFFIXES`, files taken
     as given), and one line per path that does not exist or holds no clip."""
@@ -49,7 +57,8 @@ def import_(
     library: Annotated[Path, typer.Option("--library", "-l", help="Library folder to create or extend (only silpose's own files may be in it).")] = Path("motion-library"),
     group: Annotated[str, typer.Option(help="Activity group of every imported clip (e.g. walk, dance, sports).")] = "other",
     split: Annotated[str, typer.Option(help="train or test (hold out whole subjects for test).")] = "train",
-    subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects).")] = "",
+    subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects). "
+                                              "'auto': each file's name up to its first '_' (CMU: 86_01.amc -> 86).")] = "",
     licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
     scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions). ASF/AMC, FBX and glTF clips are read in metres: leave 1.")] = 1.0,
     joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz, mocapnet, cmu-asf) or a TOML file.")] = "auto",
@@ -73,7 +82,8 @@ def import_(
     files, missing = _bvh_files(paths)
     for line in missing:
         typer.echo(f"skipped: {line}", err=True)
-    sources = [ClipSource(path=f.resolve(), group=group, split=split, subject=subject, licence=licence, scale=scale,
+    sources = [ClipSource(path=f.resolve(), group=group, split=split, subject=subject_of(f) if subject == "auto" else subject,
+                          licence=licence, scale=scale,
                           joint_map=str(Path(joint_map).resolve()) if Path(joint_map).is_file() else joint_map,
                           first=first, source=str(f), amc_fps=amc_fps) for f in files]
     if not sources:
