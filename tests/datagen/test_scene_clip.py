@@ -62,11 +62,13 @@ def test_fbx_and_gltf_give_the_bvh_imports_positions_in_the_world(clips, tmp_pat
     assert np.abs(expect[1] - still).max() > 0.05  # the reference moves: frames are not all the rest pose
 
 
-def write_node_gltf(path, n_frames: int = N_FRAMES, fps: float = 30.0):
+def write_node_gltf(path, n_frames: int = N_FRAMES, fps: float = 30.0, lying_first: bool = False):
     """The synthetic motion as an animation-only glTF (nodes, no skin), written from the glTF 2.0
     specification: node translations are the BVH offsets (glTF is Y up, metres, as the BVH), rotations
     the BVH channels as quaternions (scipy), the root's translation animated, End Sites leaf nodes."""
     pos, rot = synthetic_clip_motion(n_frames)
+    if lying_first:  # the first frame lies on its front: the root turned 90 degrees about x
+        rot[0, 0] = (90.0, 0.0, 0.0)
     axes = {"X": 0, "Y": 1, "Z": 2}
     J = len(SYNTH_SKELETON)
     nodes, blobs, accessors, views = [], [], [], []
@@ -126,6 +128,21 @@ def test_an_animation_only_gltf_reads_its_nodes_as_bones(tmp_path):
     assert np.abs(np.asarray(got.tails, np.float64)[:, order[h]] - ends[:, h]).max() < 1e-5
     assert [got.meta["names"][got.meta["parents"][i]] if got.meta["parents"][i] >= 0 else None for i in order] == \
         [names[row[2]] if row[2] >= 0 else None for row in SYNTH_SKELETON]
+
+
+def test_a_gltf_whose_first_frame_lies_is_not_turned(tmp_path):
+    """glTF states Y up, so its clips are not stood up from their rest pose -- which, for nodes, is the first
+    frame: a clip that starts lying (someone getting up) keeps it (a BVH would be judged by its OFFSETs)."""
+    from silpose.datagen.motion.build import ClipSource, import_clips
+    from silpose.datagen.motion.library import load_library
+
+    clip = write_node_gltf(tmp_path / "getting_up.gltf", lying_first=True)
+    import_clips([ClipSource(path=clip, id="up")], tmp_path / "lib", fps=30.0, workers=1, cache=tmp_path / "cache")
+    lib = load_library(tmp_path / "lib")
+    assert "rest_up" not in lib.clips[0]
+    dirs = lib.dirs[lib.rows(0)]
+    spine = dirs[:, 0]  # pelvis -> spine, frame by frame
+    assert abs(spine[0, 2]) < 0.3 and spine[1:, 2].min() > 0.5  # the first frame lies, the others stand
 
 
 def test_a_file_without_an_animated_armature_or_not_fbx_is_a_one_line_error(clips, tmp_path):

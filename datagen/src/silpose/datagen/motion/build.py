@@ -18,7 +18,7 @@ import numpy as np
 from ..executor import WorkerDied, spawned_map
 from .acclaim import CMU_FPS, AcclaimError, clip_sha256, skeleton_of
 from .bvh_check import BvhError, check_structure
-from .clips import cache_root, entry_dir, import_into_cache, is_acclaim, is_scene_clip, read_entry
+from .clips import cache_root, entry_dir, import_into_cache, is_acclaim, is_scene_clip, read_entry, states_axes
 from .joint_maps import JointMapError, resolve_map
 from .library import DEFAULT_FPS, Library, LibraryError, check_writable, derive_clip, load_library, write_library
 
@@ -163,7 +163,7 @@ def import_clips(sources: list[ClipSource], folder: Path, fps: float = DEFAULT_F
             meta["frame_time"] = 1.0 / s.amc_fps
         try:
             jmap = resolve_map(meta["names"], meta["parents"], meta["rest_heads"], meta["rest_tails"], s.joint_map,
-                               str(s.path))
+                               str(s.path), find_up=not states_axes(s.path))
         except JointMapError as exc:
             report.skipped.append(str(exc))
             continue

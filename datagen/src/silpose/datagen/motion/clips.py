@@ -88,6 +88,13 @@ def is_scene_clip(path: str | Path) -> bool:
     return Path(path).suffix.lower() in SCENE_SUFFIXES
 
 
+def states_axes(path: str | Path) -> bool:
+    """A clip file that states its up axis (FBX, glTF: their importers turn it Z up), so its rest pose is not
+    used to find up (:func:`.joint_maps.upright_turn`: BVH and ASF/AMC state none). An animation-only glTF
+    has no rest pose but its first frame, which may lie (a clip of someone getting up)."""
+    return is_scene_clip(path)
+
+
 def import_into_cache(path: str, dest: str) -> str | None:
     """Worker task: import ``path`` (a BVH, FBX or glTF file with Blender, an AMC file with
     :mod:`.acclaim`) and write the cache entry ``dest``.
@@ -232,7 +239,7 @@ def prepare_motion(motion: MotionConfig, workers: int | None = None, root: Path 
         meta = arrays.meta
         src = str(spec.path)
         jmap = resolve_map(meta["names"], meta["parents"], meta["rest_heads"], meta["rest_tails"], spec.joint_map,
-                           src, motion.base)
+                           src, motion.base, find_up=not states_axes(spec.path))
         used = resolve_frames(spec.frames[0], spec.frames[1], spec.stride, int(meta["frames"]), src)
         sample = used[:: max(1, len(used) // 200)]
         z = np.asarray(arrays.heads[sample], np.float64) @ np.asarray(jmap.upright)[2] * spec.scale  # heights standing

@@ -250,7 +250,8 @@ def _angle_ok(a, b, max_deg: float = 45.0) -> bool:
 
 
 def resolve_map(
-    names: list[str], parents: list[int], rest_heads, rest_tails, spec: str, source: str, base: Path | None = None
+    names: list[str], parents: list[int], rest_heads, rest_tails, spec: str, source: str, base: Path | None = None,
+    find_up: bool = True,
 ) -> ResolvedMap:
     """Apply joint map ``spec`` (``"auto"``, a built-in name or a TOML path) to a clip's skeleton.
 
@@ -258,6 +259,8 @@ def resolve_map(
         names, parents: the clip's BVH joints (Blender bones) and their parent indices (-1: root).
         rest_heads, rest_tails: (B, 3) rest-pose bone heads and tails (any unit).
         source: the clip file, for error messages.
+        find_up: stand a clip whose rest pose lies (:func:`upright_turn`); False for files that state their
+            axes (FBX, glTF), whose importers already turned them Z up.
     Raises:
         JointMapError (one line naming ``source``): a required joint is missing, no built-in map
         fits and the names leave a required role unmatched (``auto``), or the neck is not below the
@@ -292,6 +295,6 @@ def resolve_map(
     h, n = index["head"], index["neck"]
     heads, tails = np.asarray(rest_heads, float), np.asarray(rest_tails, float)
     head_tail = index["head_top"] < 0 and _angle_ok(tails[h] - heads[h], heads[h] - heads[n])
-    upright, rest_up = upright_turn(heads[n] - heads[index["pelvis"]])
+    upright, rest_up = upright_turn(heads[n] - heads[index["pelvis"]]) if find_up else (UPRIGHT, "+z")
     return ResolvedMap(name=name, index=index, spine_chain=tuple(chain), head_tail=bool(head_tail), upright=upright,
                        rest_up=rest_up)
