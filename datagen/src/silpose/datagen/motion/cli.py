@@ -116,19 +116,49 @@ def import_(
                f"{report.kept} kept from before")
 
 
+def _library(folder: Optional[Path], command: str):
+    """The library at ``folder`` (None: the bundled one); a one-line error naming it otherwise."""
+    from .library import LibraryError, load_library
+
+    try:
+        return load_library(folder)
+    except LibraryError as exc:
+        fail(command, str(exc))
+
+
+@app.command("show")
+def show(
+    clip: Annotated[str, typer.Argument(help="Clip id, as `silpose motions list` prints it (e.g. cmu_05_12).")],
+    library: Annotated[Optional[Path], typer.Option("--library", "-l", help="Library folder (default: the one bundled with silpose).")] = None,
+    frames: Annotated[int, typer.Option("--frames", "-n", min=1, max=40, help="Frames drawn, evenly spaced over the clip.")] = 8,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="PNG to write (default: <clip>.png here).")] = None,
+) -> None:
+    """Draw a clip of a motion library as stick figures, front and side, feet on the floor: check what an
+    import made of a file (joint map, left and right, up axis) before generating data with it."""
+    from .clip_sheet import write_clip_sheet
+
+    lib = _library(library, "motions show")
+    target = out if out is not None else Path(clip.replace("/", "_") + ".png")
+    if target.suffix.lower() != ".png":
+        fail("motions show", f"{target}: --out must be a .png file")
+    try:
+        written = write_clip_sheet(lib, clip, target, frames)
+    except KeyError as exc:
+        fail("motions show", exc.args[0])
+        return
+    except OSError as exc:
+        fail("motions show", f"{target}: cannot write ({exc.strerror or exc})", 1)
+        return
+    typer.echo(f"wrote {written}")
+
+
 @app.command("list")
 def list_(
     library: Annotated[Optional[Path], typer.Option("--library", "-l", help="Library folder (default: the one bundled with silpose).")] = None,
     clips: Annotated[bool, typer.Option("--clips/--groups", help="One line per clip (default) or per group.")] = True,
 ) -> None:
     """Print a motion library by activity group: clips, subjects, frames, splits and licences."""
-    from .library import LibraryError, load_library
-
-    try:
-        lib = load_library(library)
-    except LibraryError as exc:
-        fail("motions list", str(exc))
-        return
+    lib = _library(library, "motions list")
     m = lib.manifest
     groups = sorted({c["group"] for c in lib.clips}, key=lambda g: (g != "walk", g))
     typer.echo(f"{lib.folder}: {len(lib.clips)} clips, {len({c.get('subject') for c in lib.clips})} subjects, "
