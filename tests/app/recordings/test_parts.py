@@ -302,7 +302,8 @@ def test_writer_streams_parquet_and_csv_and_abort_leaves_nothing(tmp_path, monke
                       hypothesis=np.array([1, 0, 2]), hypothesis_probability=np.array([0.9, np.nan, 0.3]),
                       joints=np.arange(R * 57.0).reshape(R, 19, 3),
                       joints_calibration=np.ones((R, 19, 3)), joint_std=np.zeros((R, 19, 3)), root=np.ones((R, 3)),
-                      root_calibration=np.ones((R, 3)), contours=np.zeros((R, V, n, 2)))
+                      root_calibration=np.ones((R, 3)), contours=np.zeros((R, V, n, 2)),
+                      inside=np.array([0.75, np.nan, 1.0]))
     cams = [f"cam{k}" for k in range(K)]
     w = RecordingWriter(tmp_path / "j.parquet", tmp_path / "j.csv", cams, cams, n, 25.0, {"a": 1}, contours=True)
     w.write(rows)

@@ -57,6 +57,10 @@ def test_cli_writes_joints_overlays_floorplan(tiny_model_file, two_cylinders, tm
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 20 and int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)) == 644
     summary = json.loads((out / "summary.json").read_text())
     assert summary["persons"] == 2 and summary["frames"] == 20 and summary["rows"]["ok"] == r["status"].count("ok")
+    inside = t.column("inside").to_numpy(zero_copy_only=False)
+    assert np.isnan(inside[~ok]).all() and ((inside[ok] >= 0) & (inside[ok] <= 1)).all()
+    assert summary["inside"] == pytest.approx(float(np.nanmean(inside)), abs=1e-4) and summary["inside"] > 0.5
+    assert "joints inside their own silhouettes in the views used" in res.output
 
 
 def test_ids_follow_each_cylinder(tiny_model, two_cylinders, tmp_path):

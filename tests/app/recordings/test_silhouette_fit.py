@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from silpose.app.recordings.silhouette_fit import (MARGIN_M, fit_to_silhouettes, inside_far_from_outline, joint_margins,
-                                                 orientations, signed_distance)
+                                                 orientations, share_inside, signed_distance)
 from silpose.datagen.lab import lab_rig
 from silpose.shared.skeleton import JOINT_INDEX, N_JOINTS, TERMINAL_JOINTS
 
@@ -164,3 +164,29 @@ def test_the_screen_only_settles_points_inside_by_more_than_the_margin():
     assert np.all(s[settled] < -margin[settled])  # and never one within the margin of the outline, or outside
     brute = np.linalg.norm(pts[:, :, None, :] - polys[:, None, :, :], axis=3).argmin(axis=2)
     assert np.array_equal(vertex, brute)  # the nearest vertex, where the fit first looks for the nearest edge
+
+
+def test_share_inside_counts_the_joints_opencv_finds_inside_each_used_outline():
+    """The ``inside`` column: against ``cv2.pointPolygonTest`` on each used view's outline (2 px of tolerance),
+    counted by brute force over rows, views and joints; rows without a used view or joints are NaN."""
+    rng = np.random.default_rng(4)
+    cams = list(lab_rig())
+    R, K = 5, len(cams)
+    joints = rng.normal([0.0, 0.0, 1.0], [0.3, 0.3, 0.4], (R, N_JOINTS, 3))
+    contours = np.stack([[_star(rng, centre=cam.project(joints[r, 0:1])[0]) * 1.0 for cam in cams] for r in range(R)])
+    used = rng.random((R, K)) < 0.7
+    used[3] = False
+    joints[4, 2] = np.nan
+    got = share_inside(joints, contours, used, cams)
+    for r in range(R):
+        if not used[r].any() or not np.isfinite(joints[r]).all():
+            assert np.isnan(got[r])
+            continue
+        hits = total = 0
+        for k in np.flatnonzero(used[r]):
+            c = contours[r, k].astype(np.float32).reshape(-1, 1, 2)
+            for p in cams[k].project(joints[r]):
+                hits += cv2.pointPolygonTest(c, (float(p[0]), float(p[1])), True) >= -2.0
+                total += 1
+        assert got[r] == pytest.approx(hits / total)
+    assert 0 < np.nanmin(got) < np.nanmax(got) <= 1

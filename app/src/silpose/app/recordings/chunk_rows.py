@@ -14,7 +14,7 @@ from ..inference import InferOptions, infer_rows
 from .overlay_png import OverlayPngs, draws_overlays
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
-from .silhouette_fit import fit_to_silhouettes
+from .silhouette_fit import fit_to_silhouettes, share_inside
 from .resolution import to_work_px
 from .views import VIEW_NOT_MODELLED, VIEW_OK
 from .step_people import Person
@@ -33,7 +33,7 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
     V, n_pts = len(lay.views), lay.n_points
     nan = lambda *s: np.full((R,) + s, np.nan)  # noqa: E731
     joints, std, root = nan(N_JOINTS, 3), nan(N_JOINTS, 3), nan(3)
-    contours, logm, plaus, hyp_p = nan(V, n_pts, 2), nan(), nan(), nan()
+    contours, logm, plaus, hyp_p, inside = nan(V, n_pts, 2), nan(), nan(), nan(), nan()
     hyp_slot = np.zeros(R, np.int8)
     status = np.array([STATUS_NOT_DETECTED] * R, dtype=object)
     view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
@@ -74,6 +74,7 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
         if opt.silhouette_fit:  # each joint moved inside the outlines of the views used (.silhouette_fit)
             joints[rows] = fit_to_silhouettes(joints[rows], res.joint_std, c, used[rows], list(rig))
             r = joints[rows, 0].copy()  # the root is the pelvis joint
+        inside[rows] = share_inside(joints[rows], c, used[rows], list(rig))
         std[rows] = res.joint_std
         root[rows] = r
         contours[rows] = place_contours(res, r, cams)
@@ -90,7 +91,7 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
         view_cut=np.stack([p.cut for p in people]) if R else np.zeros((0, K)), log_marginal=logm,
         plausibility=plaus, hypothesis=hyp_slot, hypothesis_probability=hyp_p, joints=joints,
         joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,
-        root_calibration=transform.to_calibration(root), contours=contours)
+        root_calibration=transform.to_calibration(root), contours=contours, inside=inside)
     return rows_out, joints
 
 

@@ -236,7 +236,8 @@ class RecordingSummary:
     by number of usable views (index = views); camera_status: {camera: {status: frames}}; timings: seconds per
     stage (``cameras`` ... ``overlays``, the run's thread), ``setup`` (before the first step: opening the videos,
     learning backgrounds), ``finish`` (after the last step: closing the files, the floor plan) and ``total``;
-    n_steps, n_persons, warnings."""
+    n_steps, n_persons, warnings; inside: the mean share of joints inside their own silhouettes in the views
+    used, over the rows with joints (the ``inside`` column; NaN: none)."""
 
     out: Path
     files: list[Path]
@@ -247,6 +248,7 @@ class RecordingSummary:
     camera_status: dict
     timings: dict
     warnings: list[str] = field(default_factory=list)
+    inside: float = float("nan")
 
     @property
     def steps_per_second(self) -> float:
@@ -267,6 +269,8 @@ class RecordingSummary:
                  + ", ".join(f"{n} rows {s}" for s, n in self.counts.items() if n)]
         if on_floor:
             lines.append("person-frames with >= 1/2/3/4 usable views: " + " / ".join(f"{100 * f:.0f} %" for f in frac[1:5]))
+        if self.inside == self.inside:
+            lines.append(f"joints inside their own silhouettes in the views used: {self.inside:.3f} (the inside column)")
         lines += [f"wrote {p}" for p in self.files]
         lines.append(f"{self.steps_per_second:.1f} time steps/s; seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.timings.items()))
         return "\n".join(lines)
@@ -541,9 +545,11 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     files.append(out / "floorplan.png")
     timings["total"] = time.perf_counter() - t_start
     timings["finish"] = time.perf_counter() - t_loop_end
-    summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings)
+    summary = RecordingSummary(out, files, step, n_persons, dict(writer.counts), views_hist, camera_status, timings, warnings,
+                               writer.inside_mean)
     write_json_atomic(out / "summary.json", {
         "frames": step, "persons": n_persons, "rows": writer.counts, "views_hist": views_hist,
+        "inside": None if summary.inside != summary.inside else round(summary.inside, 4),
         "camera_status": camera_status, "timings_s": timings, "steps_per_second": summary.steps_per_second,
         "warnings": warnings, "files": [str(p) for p in files],
     })

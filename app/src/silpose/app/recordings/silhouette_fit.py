@@ -160,6 +160,41 @@ def inside_far_from_outline(points: np.ndarray, polygons: np.ndarray,
     return inside & (nearest_vertex - half_edge - 1e-3 > margin), vertex
 
 
+#: px: a joint within this distance outside an outline counts as inside it (:func:`share_inside`)
+INSIDE_TOLERANCE_PX = 2.0
+
+
+def share_inside(joints: np.ndarray, contours_px: np.ndarray, used: np.ndarray, cameras,
+                 tolerance_px: float = INSIDE_TOLERANCE_PX) -> np.ndarray:
+    """(R,) the share of each row's (joint, used view) pairs whose joint projects inside the view's outline, or
+    at most ``tolerance_px`` outside it: how well the answer agrees with the silhouettes it came from (the
+    ``inside`` column of ``joints.csv``). NaN for rows without a used view or without joints.
+
+    Args:
+        joints: (R, J, 3) metres, silpose's frame. contours_px: (R, K, n, 2) px, each camera's observed outline.
+        used: (R, K) bool. cameras: K cameras (``project``).
+    """
+    X = np.asarray(joints, float)
+    contours = np.asarray(contours_px, float)
+    used = np.asarray(used, bool) & np.isfinite(contours).all(axis=(2, 3))
+    rows = np.flatnonzero(used.any(axis=1) & np.isfinite(X).all(axis=(1, 2)))
+    out = np.full(len(X), np.nan)
+    if rows.size == 0:
+        return out
+    nj = X.shape[1]
+    hits = np.zeros(rows.size)
+    for k, cam in enumerate(cameras):
+        sel = np.flatnonzero(used[rows, k])
+        if sel.size == 0:
+            continue
+        px = cam.project(X[rows[sel]].reshape(-1, 3))
+        d, _, _ = signed_distance(np.nan_to_num(px, nan=-1e6), contours[rows[sel], k], np.repeat(np.arange(sel.size), nj))
+        ok = np.isfinite(px).all(axis=1) & (d <= tolerance_px)
+        hits[sel] += ok.reshape(sel.size, nj).sum(axis=1)
+    out[rows] = hits / (nj * used[rows].sum(axis=1))
+    return out
+
+
 def fit_to_silhouettes(joints: np.ndarray, joint_std: np.ndarray, contours_px: np.ndarray, used: np.ndarray,
                        cameras) -> np.ndarray:
     """Joints moved inside the outlines of the views used (module doc).

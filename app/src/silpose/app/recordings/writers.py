@@ -23,6 +23,9 @@ plausibility        that density as a percentile (0-100) of held-out training in
 hypothesis          the slot (1-based) of the chosen pose among the top-K hypotheses, chosen online
                     along the person's track (``silpose.model.hypotheses.online_choice``; 0: none)
 hypothesis_probability  its posterior probability
+inside              the share (0-1) of the joints, over the views used, that project inside the person's own
+                    outline there (2 px of tolerance; ``silhouette_fit.share_inside``): how well the answer agrees
+                    with the silhouettes it came from, a check needing no ground truth (NaN without joints)
 joints              (19, 3) metres, silpose's frame (z up, floor z = 0): root placed in the room
 joints_calibration  (19, 3) the same joints in the calibration's own frame and units
 joint_std           (19, 3) metres, the posterior standard deviation per coordinate
@@ -71,7 +74,7 @@ class PersonRows:
 
     frame (R,) int; person (R,) int; status (R,) str; floor (R, 2); view_status (R, K) str; views_used
     (R, K) bool; view_cut (R, K) float; log_marginal, plausibility (R,); hypothesis (R,) int; hypothesis_probability (R,); joints, joints_calibration, joint_std (R, 19, 3); root,
-    root_calibration (R, 3); contours (R, V, n, 2).
+    root_calibration (R, 3); contours (R, V, n, 2); inside (R,) float.
     """
 
     frame: np.ndarray
@@ -91,6 +94,7 @@ class PersonRows:
     root: np.ndarray
     root_calibration: np.ndarray
     contours: np.ndarray
+    inside: np.ndarray
 
     def __len__(self) -> int:
         return len(self.frame)
@@ -128,6 +132,7 @@ class RecordingWriter:
         self.fps = float(fps)
         self.n_rows = 0
         self.counts = dict.fromkeys(ROW_STATUSES, 0)
+        self._inside = [0.0, 0]  # sum and count of the inside column over rows with joints
         self._stack = ExitStack()
         tmp = self._stack.enter_context(atomic_path(parquet))
         self.schema = self._schema().with_metadata({b"silpose_recording": json.dumps(meta).encode()})
@@ -136,7 +141,7 @@ class RecordingWriter:
         head = [("frame", pa.int64()), ("time", pa.float64()), ("person", pa.int32()), ("status", pa.string()),
                 ("n_views", pa.int8()), ("views", pa.string()), ("log_marginal", pa.float64()),
                 ("plausibility", pa.float32()), ("hypothesis", pa.int8()), ("hypothesis_probability", pa.float32()),
-                ("floor_x", pa.float32()), ("floor_y", pa.float32())]
+                ("inside", pa.float32()), ("floor_x", pa.float32()), ("floor_y", pa.float32())]
         flat = [f"root_{a}" for a in "xyz"] + [f"root_cal_{a}" for a in "xyz"]
         for tag in ("", "_cal", "_std"):
             flat += [f"{j}{tag}_{a}" for j in JOINT_NAMES for a in "xyz"]
@@ -153,7 +158,7 @@ class RecordingWriter:
             ("view_status", pa.list_(pa.string(), len(self.cameras))),
             ("view_cut", pa.list_(pa.float32(), len(self.cameras))), ("log_marginal", pa.float64()),
             ("plausibility", pa.float32()), ("hypothesis", pa.int8()), ("hypothesis_probability", pa.float32()),
-            ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
+            ("inside", pa.float32()), ("joints", j), ("joints_calibration", j), ("joint_std", j), ("root", v3), ("root_calibration", v3),
         ]
         if self.contours:
             fields.append(("contours_px", pa.list_(pa.list_(pa.list_(pa.float32(), 2), self.n_points), len(self.views))))
@@ -167,8 +172,16 @@ class RecordingWriter:
         if sum(len(r) for r in self._held) >= ROW_GROUP:
             self._flush()
         self.n_rows += len(rows)
+        ok = np.isfinite(rows.inside)
+        self._inside[0] += float(rows.inside[ok].sum())
+        self._inside[1] += int(ok.sum())
         for s in rows.status:
             self.counts[str(s)] = self.counts.get(str(s), 0) + 1
+
+    @property
+    def inside_mean(self) -> float:
+        """The mean of the ``inside`` column over the rows written with joints (NaN: none)."""
+        return self._inside[0] / self._inside[1] if self._inside[1] else float("nan")
 
     def _time(self, rows: PersonRows) -> np.ndarray:
         return rows.frame / self.fps if self.fps > 0 else np.full(len(rows), np.nan)
@@ -188,7 +201,7 @@ class RecordingWriter:
         status, logm = pa.array(rows.status.astype(str).tolist()), pa.array(rows.log_marginal.astype(np.float64))
         fx, fy = pa.array(rows.floor[:, 0].astype(np.float32)), pa.array(rows.floor[:, 1].astype(np.float32))
         plaus = [pa.array(rows.plausibility.astype(np.float32)), pa.array(rows.hypothesis.astype(np.int8)),
-                 pa.array(rows.hypothesis_probability.astype(np.float32))]
+                 pa.array(rows.hypothesis_probability.astype(np.float32)), pa.array(rows.inside.astype(np.float32))]
         table = pa.Table.from_arrays([
             frame, pa.array(time), person, status, fx, fy, pa.array(n_views), pa.array(views), vs,
             _fixed(rows.view_cut), logm, *plaus,
