@@ -190,3 +190,83 @@ def test_share_inside_counts_the_joints_opencv_finds_inside_each_used_outline():
                 total += 1
         assert got[r] == pytest.approx(hits / total)
     assert 0 < np.nanmin(got) < np.nanmax(got) <= 1
+
+
+#: a person-like body of boxes (metres, z up): torso, head, two legs, two arms held out
+_PARTS = [((-0.18, -0.1, 0.9), (0.18, 0.1, 1.5)), ((-0.09, -0.09, 1.5), (0.09, 0.09, 1.75)),
+          ((-0.16, -0.07, 0.0), (-0.04, 0.07, 0.9)), ((0.04, -0.07, 0.0), (0.16, 0.07, 0.9)),
+          ((-0.6, -0.05, 1.35), (-0.18, 0.05, 1.45)), ((0.18, -0.05, 1.0), (0.26, 0.05, 1.45))]
+
+
+def _body_outlines(cameras, rng, n=200):
+    """(1, K, n, 2) px: each camera's outline of the union of :data:`_PARTS` (filled, traced by OpenCV), resampled;
+    in each camera the body is shifted by 3 cm and each part by another 2 cm (standard deviations), as real
+    outlines disagree (segmentation, calibration, timing): no point need lie inside every outline."""
+    out = []
+    for cam in cameras:
+        mask = np.zeros((cam.height, cam.width), np.uint8)
+        shift = rng.normal(0, 0.03, 3)
+        for lo, hi in _PARTS:
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            corners = corners + shift + rng.normal(0, 0.02, 3)
+            cv2.fillConvexPoly(mask, cv2.convexHull(np.round(cam.project(corners)).astype(np.int32)), 1)
+        cs, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        c = max(cs, key=cv2.contourArea).reshape(-1, 2).astype(float)
+        closed = np.vstack([c, c[:1]])
+        cum = np.r_[0, np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))]
+        at = np.linspace(0, cum[-1], n, endpoint=False)
+        out.append(np.stack([np.interp(at, cum, closed[:, 0]), np.interp(at, cum, closed[:, 1])], axis=1))
+    return np.stack(out)[None]
+
+
+def test_the_fit_reaches_the_minimum_a_general_minimiser_finds():
+    """Each joint's energy E (module doc) after the fit against the lowest that SciPy's Powell minimiser finds
+    from the start and from the fit's answer, E written here independently: OpenCV's pointPolygonTest for the
+    signed distance, the margin at the joint's depth, the prior. Four full-HD cameras 90 degrees apart around a
+    body of boxes whose outlines disagree a little (:func:`_body_outlines`) and have concave corners (armpits,
+    crotch); joints start up to 40 cm from it. There a Gauss-Newton step, which sees only the views a joint is
+    outside of, often carries it out of another view, and is refused."""
+    from scipy.optimize import minimize
+
+    from silpose.app.recordings.silhouette_fit import MIN_STD_M, SIGMA_PX
+    from silpose.shared.camera import ring_rig
+
+    rng = np.random.default_rng(5)
+    cams = list(ring_rig(4, 20.0, 90.0, 4.0, 1.5, (0.0, 0.0, 0.9), 1000.0, 1920, 1080))
+    outlines = _body_outlines(cams, rng)
+    R = 8
+    inside_points = np.array([[0.0, 0.0, 1.2], [-0.1, 0.0, 0.4], [0.1, 0.0, 0.5], [-0.4, 0.0, 1.4], [0.22, 0.0, 1.2],
+                              [0.0, 0.0, 1.6], [0.0, 0.0, 1.0]])
+    joints = inside_points[rng.integers(0, len(inside_points), (R, N_JOINTS))] + rng.uniform(-0.4, 0.4, (R, N_JOINTS, 3))
+    std = rng.uniform(0.02, 0.15, (R, N_JOINTS, 3))
+    outlines = np.repeat(outlines, R, axis=0)
+    used = np.ones((R, len(cams)), bool)
+    fitted = fit_to_silhouettes(joints, std, outlines, used, cams)
+    polys = [outlines[0, k].astype(np.float32).reshape(-1, 1, 2) for k in range(len(cams))]
+    margins = joint_margins()
+
+    def energy(x, r, j):
+        e = float((((x - joints[r, j]) / np.maximum(std[r, j], MIN_STD_M)) ** 2).sum())
+        for k, cam in enumerate(cams):
+            p = cam.project(x[None])[0]
+            s = -cv2.pointPolygonTest(polys[k], (float(p[0]), float(p[1])), True)  # positive outside
+            m = margins[j] * cam.K[0, 0] / cam.to_camera(x[None])[0, 2]
+            e += max(s + m, 0.0) ** 2 / SIGMA_PX ** 2
+        return e
+
+    gaps = []
+    for r in range(R):
+        for j in range(N_JOINTS):
+            start = energy(joints[r, j], r, j)
+            if start == 0:
+                continue  # inside by the margin: nothing to fit
+            got = energy(fitted[r, j], r, j)
+            best = min(minimize(energy, x0, args=(r, j), method="Powell", options={"xtol": 1e-5, "ftol": 1e-9}).fun
+                       for x0 in (joints[r, j], fitted[r, j]))
+            assert got <= start * (1 + 1e-9)  # the fit never raises a joint's energy
+            gaps.append((got - best) / start)  # the share of the possible decrease the fit missed
+    gaps = np.array(gaps)
+    assert len(gaps) > 100
+    # measured: 135 joints, all within 1 % of the minimum; halving refused steps (at most twice, 3 steps): 87 %,
+    # one joint left where it started
+    assert np.mean(gaps < 0.01) > 0.95
