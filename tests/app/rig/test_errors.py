@@ -160,7 +160,8 @@ def test_easymocap_and_pose2sim_problems(tmp_path, known_calibration):
     assert "missing field translation" in msg
     toml = write_pose2sim(tmp_path / "Calib.toml", known_calibration)
     toml.write_text(toml.read_text().replace("fisheye = false", "fisheye = true", 1))
-    assert error_of([toml]).startswith(f"{toml}: field cam_01.fisheye: fisheye lenses are not supported")
+    # a fisheye camera whose distortions are the standard model's five
+    assert error_of([toml]).startswith(f"{toml}: field cam_01.distortions: a fisheye camera has 4 coefficients")
     toml.write_text("[metadata]\nadjusted = false\n")
     assert error_of([toml]).startswith(f"{toml}: no camera table")
     toml.write_text("[cam_1\n")

@@ -73,7 +73,7 @@ def _rig_table(meta: dict) -> str:
         rows.append(
             f"| {c['name']} | {K[0, 0]:.2f} | {K[1, 1]:.2f} | {K[0, 2]:.2f} | {K[1, 2]:.2f} | "
             f"{centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f} | {c['width']}x{c['height']} | "
-            f"{'zeros' if not np.any(c.get('dist', [])) else c['dist']} |"
+            f"{'zeros' if not np.any(c.get('dist', [])) else c['dist']}{' (fisheye)' if c.get('fisheye') else ''} |"
         )
     return "\n".join(rows)
 

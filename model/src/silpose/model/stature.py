@@ -27,7 +27,6 @@ from __future__ import annotations
 
 from typing import Sequence
 
-import cv2
 import numpy as np
 
 #: metres: the joints are modelled as those of a walker of this stature (keeps w's meaning in metres)
@@ -37,14 +36,11 @@ REFERENCE_STATURE = 1.75
 def _pixel_rays(cam, points: np.ndarray) -> np.ndarray:
     """World directions (N, 3) of the rays through pixels ``points`` (N, 2) of camera ``cam``.
 
-    Undistorts with the camera's OpenCV coefficients when any is non-zero; ``d = Rᵀ K⁻¹ [u, v, 1]``.
+    ``d = Rᵀ [x, y, 1]`` with ``(x, y)`` the pixel's undistorted normalised coordinates (``Camera.normalised``:
+    ``K⁻¹ [u, v, 1]`` without distortion).
     """
-    pts = np.asarray(points, dtype=np.float64)
-    if np.any(np.asarray(cam.dist) != 0):
-        norm = cv2.undistortPoints(pts.reshape(-1, 1, 2), cam.K, np.asarray(cam.dist, dtype=np.float64))
-        h = np.concatenate([norm.reshape(-1, 2), np.ones((len(pts), 1))], axis=1)
-    else:
-        h = np.concatenate([pts, np.ones((len(pts), 1))], axis=1) @ cam.K_inv.T
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    h = np.concatenate([cam.normalised(pts), np.ones((len(pts), 1))], axis=1)
     return h @ cam.R  # row-wise R^T h
 
 

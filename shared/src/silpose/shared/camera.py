@@ -44,7 +44,7 @@ CONVENTION = "silpose assumes z up, metres, the floor at z = 0 and people walkin
 #: Calibration file suffixes that ``silpose rig import`` reads (``load_rig`` refuses them with a hint).
 CALIBRATION_SUFFIXES = (".xml", ".yml", ".yaml", ".toml", ".calibration")
 _RIG_KEYS = {"cameras", "transform", "workspace", "source"}
-_CAMERA_KEYS = {"name", "K", "R", "t", "width", "height", "dist"}
+_CAMERA_KEYS = {"name", "K", "R", "t", "width", "height", "dist", "fisheye"}
 
 
 def is_rig_dict(d) -> bool:

@@ -95,6 +95,7 @@ class CalibratedCamera:
         source: the file it came from; ``where`` prefixes field names in errors (e.g. ``cam_01.``).
         group: the set of poses it belongs to when a file holds several per camera (Human3.6M's subjects
             ``S1`` ... in a JSON of intrinsics and per-subject extrinsics); None otherwise.
+        fisheye: ``dist`` is OpenCV's fisheye model (k1, k2, k3, k4; :class:`silpose.shared.pinhole.Camera`).
     """
 
     name: str
@@ -106,6 +107,7 @@ class CalibratedCamera:
     source: str
     where: str = ""
     group: str | None = None
+    fisheye: bool = False
 
     def field_name(self, name: str) -> str:
         """``"<file>: field <where><name>"``, the start of an error about one of its fields."""

@@ -15,11 +15,13 @@ model               params                                      OpenCV ``dist``
 ``RADIAL``          ``f cx cy k1 k2``                           ``k1 k2 0 0 0``
 ``OPENCV``          ``fx fy cx cy k1 k2 p1 p2``                 ``k1 k2 p1 p2 0``
 ``FULL_OPENCV``     ``fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6``     ``k1 k2 p1 p2 k3 k4 k5 k6``
+``OPENCV_FISHEYE``  ``fx fy cx cy k1 k2 k3 k4``                 fisheye ``k1 k2 k3 k4``
 ==================  ==========================================  ================================
 
 (COLMAP's ``src/colmap/sensor/models.h`` applies the same polynomials as OpenCV, FULL_OPENCV being OpenCV's
-rational model.) Fisheye and other models (``OPENCV_FISHEYE``, ``FOV``, ``THIN_PRISM_FISHEYE``, ...) are
-refused: undistort first (``colmap image_undistorter`` writes a PINHOLE model) or reconstruct with OPENCV.
+rational model, OPENCV_FISHEYE OpenCV's fisheye model: a camera with ``fisheye`` set.) Other models (``FOV``,
+``THIN_PRISM_FISHEYE``, ``SIMPLE_FISHEYE``, ...) are refused: undistort first (``colmap image_undistorter``
+writes a PINHOLE model) or reconstruct with OPENCV or OPENCV_FISHEYE.
 
 **Principal point.** COLMAP puts the image's top-left *corner* at (0, 0), so the centre of the top-left pixel
 is (0.5, 0.5) and a centred principal point is (W/2, H/2) (``models.h``; ``doc/faq.rst``: "cx_colmap =
@@ -82,7 +84,7 @@ _MODEL_IDS = {name: i for i, (name, _) in MODELS.items()}
 #: The models silpose reads -> their parameter names.
 _READ = {"SIMPLE_PINHOLE": "f cx cy", "PINHOLE": "fx fy cx cy", "SIMPLE_RADIAL": "f cx cy k",
          "RADIAL": "f cx cy k1 k2", "OPENCV": "fx fy cx cy k1 k2 p1 p2",
-         "FULL_OPENCV": "fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6"}
+         "FULL_OPENCV": "fx fy cx cy k1 k2 p1 p2 k3 k4 k5 k6", "OPENCV_FISHEYE": "fx fy cx cy k1 k2 k3 k4"}
 #: Frames of one camera agree when their rotations differ by at most this (degrees) ...
 MAX_FRAME_ROTATION_DEG = 0.1
 #: ... and their centres by at most this fraction of the cameras' spread (the diagonal of their bounding box).
@@ -351,13 +353,14 @@ def _quaternion(R: np.ndarray) -> np.ndarray:
 
 
 def _intrinsics(cam: _Camera, source: str, image: str) -> tuple[np.ndarray, np.ndarray]:
-    """(K with silpose's principal point, OpenCV dist) of a model silpose reads; the refusal otherwise."""
+    """(K with silpose's principal point, OpenCV dist -- the fisheye model's 4 coefficients for OPENCV_FISHEYE) of a
+    model silpose reads; the refusal otherwise."""
     where = f"{source}: {cam.where}: camera {cam.id}"
     if cam.model not in _READ:
-        kind = "a fisheye or non-OpenCV" if cam.model in _NUM_PARAMS else "an unknown"
+        kind = "a non-OpenCV" if cam.model in _NUM_PARAMS else "an unknown"
         raise RigError(f"{where} (of image {image!r}): model {cam.model} is {kind} camera model; silpose reads "
                        f"{', '.join(_READ)}: undistort the images first (colmap image_undistorter writes a PINHOLE "
-                       "model) or reconstruct again with the OPENCV or PINHOLE camera model")
+                       "model) or reconstruct again with the OPENCV, OPENCV_FISHEYE or PINHOLE camera model")
     p = cam.params
     if cam.model in ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL"):
         fx = fy = p[0]
@@ -365,7 +368,7 @@ def _intrinsics(cam: _Camera, source: str, image: str) -> tuple[np.ndarray, np.n
     else:
         fx, fy, cx, cy, extra = p[0], p[1], p[2], p[3], p[4:]
     K = camera_matrix(np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]]), f"{where}: PARAMS")
-    if cam.model == "FULL_OPENCV":
+    if cam.model in ("FULL_OPENCV", "OPENCV_FISHEYE"):
         return K, extra.copy()
     dist = np.zeros(5)
     dist[:extra.size] = extra  # k | k1 k2 | k1 k2 p1 p2
@@ -448,7 +451,8 @@ def read_colmap(path: str | Path, notes: list[str] | None = None) -> list[Calibr
                     f"{shift:.3g} model units away from image {first.name!r}: the camera moved; silpose needs fixed "
                     "cameras (keep one image per camera, or name each image's camera by its folder)")
         out.append(CalibratedCamera(name=name, K=K, dist=dist, R=R, t=np.asarray(t, dtype=np.float64).copy(),
-                                    size=(cam.width, cam.height), source=i_src, where=f"{name}."))
+                                    size=(cam.width, cam.height), source=i_src, where=f"{name}.",
+                                    fisheye=cam.model == "OPENCV_FISHEYE"))
     if notes is not None:
         if by_folder:
             notes.append(f"{i_src}: cameras named after their images' folders")
@@ -475,11 +479,13 @@ def _colmap_params(c: CalibratedCamera) -> tuple[str, list[float]]:
     if K[0, 1] != 0:
         raise ValueError(f"camera {c.name!r}: COLMAP models have no skew")
     d = np.asarray(c.dist, dtype=np.float64).ravel()
+    pinhole = [K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5]
+    if c.fisheye:
+        return "OPENCV_FISHEYE", pinhole + list(d[:4])
     if d.size > 8 and np.any(d[8:] != 0):
         raise ValueError(f"camera {c.name!r}: COLMAP has no thin-prism or tilt terms (OpenCV dist beyond k6)")
     full = np.zeros(8)
     full[:min(d.size, 8)] = d[:8]
-    pinhole = [K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5]
     if not np.any(full):
         return "PINHOLE", pinhole
     if not np.any(full[4:]):
@@ -490,8 +496,8 @@ def _colmap_params(c: CalibratedCamera) -> tuple[str, list[float]]:
 def write_colmap(folder: str | Path, cameras: list[CalibratedCamera], binary: bool = False,
                  frames: int = 1) -> tuple[Path, Path]:
     """Write ``cameras`` as a COLMAP model in ``folder`` (tests and examples): ``cameras`` + ``images``, text or
-    binary. One COLMAP camera per camera (PINHOLE without distortion, OPENCV, or FULL_OPENCV when k3..k6 are
-    used; ``cx``, ``cy`` + 0.5); its image ``<name>.jpg``, or with ``frames`` > 1 that many images
+    binary. One COLMAP camera per camera (PINHOLE without distortion, OPENCV, FULL_OPENCV when k3..k6 are
+    used, OPENCV_FISHEYE for a fisheye lens; ``cx``, ``cy`` + 0.5); its image ``<name>.jpg``, or with ``frames`` > 1 that many images
     ``<name>/frame0001.jpg`` ... with the same pose. Returns (cameras, images)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

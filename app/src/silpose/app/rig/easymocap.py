@@ -108,6 +108,9 @@ def read_easymocap(path: str | Path, skipped: list[str] | None = None) -> list[C
 def write_easymocap(folder: str | Path, cameras: list[CalibratedCamera]) -> tuple[Path, Path]:
     """Write ``folder/intri.yml`` and ``folder/extri.yml`` as EasyMocap does (``R_`` Rodrigues and
     ``Rot_`` matrix, ``T_``; ``H_``/``W_`` when the size is known). Returns the two paths."""
+    fisheye = [c.name for c in cameras if c.fisheye]
+    if fisheye:
+        raise ValueError(f"camera {fisheye[0]!r}: EasyMocap's files have no fisheye lens model")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     out = []

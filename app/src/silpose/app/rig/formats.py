@@ -193,7 +193,7 @@ def _opencv_read(p: Path, ctx: ReadContext):
 FORMATS: tuple[Format, ...] = (
     Format("easymocap", "intri.yml + extri.yml", "EasyMocap", _easymocap_detect, _easymocap_read,
            files_of=_easymocap_files),
-    Format("pose2sim", "*.toml", "Pose2Sim, anipose", lambda p: p.suffix.lower() == ".toml", _pose2sim_read),
+    Format("pose2sim", "*.toml", "Pose2Sim, anipose (fisheye lenses too)", lambda p: p.suffix.lower() == ".toml", _pose2sim_read),
     Format("skeletool", "*.calibration", "Skeletool, Captury (MPI-INF-3DHP, DynaCap)", _skeletool_detect,
            _skeletool_read),
     Format("qualisys", "*.qca.txt (XML)", "Qualisys Track Manager (Pose2Sim's demos)", _qualisys_detect,

@@ -117,7 +117,7 @@ def _cameras(calib, sizes, transform: WorldTransform) -> list[Camera]:
     for c, (w, h) in zip(calib, sizes):
         R, t = transform.camera_to_silpose(c.R, c.t)
         try:
-            out.append(Camera(c.name, c.K, R, t, w, h, c.dist))
+            out.append(Camera(c.name, c.K, R, t, w, h, c.dist, fisheye=c.fisheye))
         except RigError as exc:
             raise RigError(f"{c.source}: {exc}") from None
     return out

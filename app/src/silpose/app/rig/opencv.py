@@ -191,6 +191,8 @@ def write_opencv_camera(path: str | Path, camera: CalibratedCamera, keys: dict[s
     suffix = path.suffix.lower()
     if suffix not in (".xml", ".yml", ".yaml"):
         raise RigError(f"{path}: OpenCV calibration files must end in .xml, .yml or .yaml")
+    if camera.fisheye:
+        raise ValueError(f"camera {camera.name!r}: OpenCV calibration files do not say that a lens is a fisheye")
     if rotation not in ("rvec", "matrix", "both"):
         raise ValueError(f"rotation must be 'rvec', 'matrix' or 'both', got {rotation!r}")
     k = {**DEFAULT_KEYS, **(keys or {})}

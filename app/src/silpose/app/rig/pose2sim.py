@@ -3,14 +3,15 @@
 Each camera table (``[cam_01]``, ``[int_cam01_img]``, ``[cam_0]`` ...) holds ``name``, ``size``
 ([width, height]), ``matrix`` (3x3), ``distortions`` (k1, k2, p1, p2[, k3]), ``rotation``
 (Rodrigues vector) and ``translation`` (world->camera, in the calibration's unit: metres for
-Pose2Sim, the board's unit for anipose), and optionally ``fisheye`` (must be false: silpose's
-cameras are pinhole + OpenCV distortion). Tables without a camera matrix (``[metadata]``) are
+Pose2Sim, the board's unit for anipose), and optionally ``fisheye`` (true: ``distortions`` are the 4
+coefficients k1..k4 of OpenCV's fisheye model, as aniposelib's ``FisheyeCamera`` writes them). Tables without a camera matrix (``[metadata]``) are
 skipped. The camera is named by ``name``, else by its table's key. Other spellings of the fields
 are accepted as for OpenCV files (:data:`.calibration.FIELD_ALIASES`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import tomllib
@@ -55,10 +56,15 @@ def read_pose2sim(path: str | Path) -> list[CalibratedCamera]:
         if not reader.matches("camera matrix"):
             continue
         fisheye = table.get("fisheye", False)
-        if fisheye is not False:
-            raise RigError(f"{source}: field {key}.fisheye: fisheye lenses are not supported (silpose's cameras are "
-                           "pinhole + OpenCV distortion); recalibrate with the standard model")
-        cams.append(reader.camera(key))
+        if not isinstance(fisheye, bool):
+            raise RigError(f"{source}: field {key}.fisheye: expected true or false, got {fisheye!r}")
+        cam = reader.camera(key)
+        if fisheye:
+            if np.asarray(cam.dist).size != 4:
+                raise RigError(f"{source}: field {key}.distortions: a fisheye camera has 4 coefficients (k1, k2, k3, "
+                               f"k4), got {np.asarray(cam.dist).size}")
+            cam = dataclasses.replace(cam, fisheye=True)
+        cams.append(cam)
     if not cams:
         raise RigError(f"{source}: no camera table (a [cam_*] table with name, size, matrix, distortions, rotation, "
                        "translation)")
@@ -86,7 +92,7 @@ def write_pose2sim(path: str | Path, cameras: list[CalibratedCamera]) -> Path:
             f"distortions = {_toml_list(np.asarray(c.dist).ravel())}",
             f"rotation = {_toml_list(rotation_to_rvec(c.R))}",
             f"translation = {_toml_list(np.asarray(c.t).ravel())}",
-            "fisheye = false",
+            f"fisheye = {'true' if c.fisheye else 'false'}",
             "",
         ]
     lines += ["[metadata]", "adjusted = false", "error = 0.0", ""]

@@ -163,7 +163,7 @@ def write_qualisys(path: str | Path, cameras: list[CalibratedCamera]) -> Path:
             raise ValueError(f"camera {c.name!r} has no image size")
         d = np.zeros(5)
         given = np.asarray(c.dist, dtype=np.float64).ravel()
-        if given.size > 5 and np.any(given[5:] != 0):
+        if c.fisheye or given.size > 5 and np.any(given[5:] != 0):
             raise ValueError(f"camera {c.name!r}: the QTM format has k1, k2, p1, p2, k3 only")
         d[: min(5, given.size)] = given[:5]
         K = np.asarray(c.K, dtype=np.float64)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from silpose.shared.atomic import write_figure_atomic
@@ -47,6 +46,8 @@ def camera_row(cam: Camera, rig: Rig, height: float = PERSON_HEIGHT_M) -> dict[s
     # not in view: behind the camera, or beyond its lens model (project() gives NaN there)
     person_px = float(np.linalg.norm(head - feet)) if np.all(cam.to_camera(person)[:, 2] > 0) else float("nan")
     dist = "none" if not np.any(cam.dist) else " ".join(f"{v:.4g}" for v in cam.dist)
+    if cam.fisheye:
+        dist = f"fisheye k1..k4 {dist}"
     return {
         "camera": cam.name,
         "centre x, y, z (m)": f"{c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}",
@@ -130,7 +131,7 @@ def _floor_footprint(cam: Camera, reach: float, samples: int = 30) -> np.ndarray
                              np.stack([np.full_like(s, W - 1), s * (H - 1)], 1),
                              np.stack([(1 - s) * (W - 1), np.full_like(s, H - 1)], 1),
                              np.stack([np.zeros_like(s), (1 - s) * (H - 1)], 1)])
-    n = cv2.undistortPoints(border.reshape(-1, 1, 2), cam.K, cam.dist).reshape(-1, 2)
+    n = cam.normalised(border)
     rays = np.concatenate([n, np.ones((len(n), 1))], 1) @ cam.R  # world directions (R^T d)
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     c = cam.center
@@ -168,7 +169,7 @@ def draw_rig(rig: Rig, out: str | Path, title: str | None = None, height: float 
         col = colours(i % 10)
         c = cam.center
         mid = (cam.height - 1) / 2
-        edge = cv2.undistortPoints(np.array([[[0.0, mid]], [[cam.width - 1.0, mid]]]), cam.K, cam.dist).reshape(-1, 2)
+        edge = cam.normalised(np.array([[0.0, mid], [cam.width - 1.0, mid]]))
         rays = np.concatenate([edge, np.ones((2, 1))], 1) @ cam.R
         rays[:, 2] = 0.0
         rays /= np.linalg.norm(rays, axis=1, keepdims=True) + 1e-12

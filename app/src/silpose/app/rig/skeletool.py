@@ -140,7 +140,7 @@ def write_skeletool(path: str | Path, cameras: list[CalibratedCamera]) -> Path:
         if c.size is None:
             raise ValueError(f"camera {c.name!r} has no image size")
         d = np.asarray(c.dist, dtype=np.float64)
-        if d.size >= 4 and np.any(d[2:4] != 0) or d.size > 5:
+        if c.fisheye or d.size >= 4 and np.any(d[2:4] != 0) or d.size > 5:
             raise ValueError(f"camera {c.name!r}: the Skeletool format has only radial k1, k2, k3")
         radial = [float(x) for x in (d[[0, 1, 4]] if d.size == 5 else d[:2])]
         while radial and radial[-1] == 0.0:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from silpose.shared.camera import Camera
@@ -86,15 +85,12 @@ class VisibilityGrid:
 
 def normalised_bounds(cam: Camera, samples: int = 16) -> np.ndarray:
     """(2, 2) [[x_min, y_min], [x_max, y_max]] of the undistorted normalised coordinates of the image
-    border (``cv2.undistortPoints``), grown by 10 %: points beyond cannot be in the image."""
+    border (``Camera.normalised``), grown by 10 %: points beyond cannot be in the image."""
     W, H = cam.width, cam.height
     s = np.linspace(0.0, 1.0, samples)
     border = np.concatenate([np.stack([s * (W - 1), np.zeros_like(s)], 1), np.stack([s * (W - 1), np.full_like(s, H - 1)], 1),
                              np.stack([np.zeros_like(s), s * (H - 1)], 1), np.stack([np.full_like(s, W - 1), s * (H - 1)], 1)])
-    if np.any(cam.dist):
-        n = cv2.undistortPoints(border.reshape(-1, 1, 2), cam.K, cam.dist).reshape(-1, 2)
-    else:
-        n = (border - cam.K[:2, 2]) @ np.linalg.inv(cam.K[:2, :2]).T
+    n = cam.normalised(border)
     lo, hi = n.min(axis=0), n.max(axis=0)
     pad = 0.1 * (hi - lo)
     return np.stack([lo - pad, hi + pad])
@@ -106,11 +102,12 @@ def project_fast(cam: Camera, points: np.ndarray) -> np.ndarray:
     OpenCV's distortion model written out for 4, 5, 8 and 12 coefficients (radial k1..k6 as a
     rational function, tangential p1 p2, thin prism s1..s4):
     ``x'' = x' (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6) + 2 p1 x'y' + p2 (r^2 + 2 x'^2)
-    + s1 r^2 + s2 r^4`` and likewise for y''; 14 coefficients (tilted sensor) go through ``cam.project``.
+    + s1 r^2 + s2 r^4`` and likewise for y''; 14 coefficients (tilted sensor) and fisheye lenses go through
+    ``cam.project``.
     Like ``cam.project``, NaN beyond the lens model's :attr:`~silpose.shared.pinhole.Camera.max_radius`.
     """
     d = np.zeros(12)
-    if cam.dist.size > 12:
+    if cam.dist.size > 12 or cam.fisheye:
         return cam.project(points)
     d[: cam.dist.size] = cam.dist
     k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d
