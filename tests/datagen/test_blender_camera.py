@@ -72,6 +72,8 @@ def test_blender_needs_square_pixels_and_no_distortion():
         to_blender(Camera("odd", K, cam.R, cam.t, cam.width, cam.height))
     with pytest.raises(RigError, match="field dist"):
         to_blender(Camera("lens", cam.K, cam.R, cam.t, cam.width, cam.height, dist=[0.1, 0, 0, 0, 0]))
+    with pytest.raises(RigError, match="field fisheye"):  # an equidistant fisheye: zero coefficients, still a fisheye
+        to_blender(Camera("wide", cam.K, cam.R, cam.t, cam.width, cam.height, dist=[0, 0, 0, 0], fisheye=True))
 
 
 def test_from_blender_ignores_object_scale():

@@ -60,6 +60,9 @@ def check_blender_compatible(cam: Camera, tol: float = 1e-9) -> None:
         )
     if abs(K[0, 1]) > tol or np.any(np.abs(K[2] - (0, 0, 1)) > tol) or np.any(np.abs(K[1, 0]) > tol):
         raise RigError(f"camera {cam.name!r} field K: the Blender renderer needs zero skew and K[2] = (0, 0, 1)")
+    if cam.fisheye:
+        raise RigError(f"camera {cam.name!r} field fisheye: the Blender renderer cannot render a fisheye lens "
+                       "(use --renderer raster)")
     if np.any(cam.dist != 0):
         raise RigError(
             f"camera {cam.name!r} field dist: the Blender renderer cannot render lens distortion "
