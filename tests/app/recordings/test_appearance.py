@@ -197,3 +197,24 @@ def test_max_people_reaches_the_tracker_and_is_for_several_people_only(tiny_mode
                                            "--no-progress"])
     assert res.exit_code == 0, res.output
     assert made[0].max_people == 3 and made[0].look_weight > 0
+
+
+def test_stature_through_a_lens_against_bisection():
+    """With lens distortion (standard or fisheye) the height on the vertical is the bisection's on
+    ``cam.project``; the pinhole's closed form alone would be centimetres off there."""
+    from silpose.app.recordings.appearance import stature_at
+    from silpose.datagen.lab import lab_rig
+    from silpose.shared.camera import Camera
+
+    base = lab_rig()[0]
+    lenses = [Camera("barrel", base.K, base.R, base.t, base.width, base.height, [-0.3, 0.1, 0.0, 0.0, 0.0]),
+              Camera("gopro", base.K, base.R, base.t, base.width, base.height, [0.05, -0.01, 0.0, 0.0], fisheye=True)]
+    pinhole = Camera("pinhole", base.K, base.R, base.t, base.width, base.height)
+    for cam in lenses:
+        for xy, h in (([0.4, -0.3], 1.62), ([-1.0, 0.8], 1.85), ([1.2, 0.2], 1.2)):
+            xy = np.array(xy)
+            row = float(cam.project(np.array([[xy[0], xy[1], h]]))[0, 1])
+            assert abs(stature_at(cam, xy, row) - _height_on_vertical(cam, xy, row)) < 1e-3
+        off = [abs(stature_at(pinhole, np.array(xy), float(cam.project(np.array([[*xy, 1.85]]))[0, 1])) - 1.85)
+               for xy in ([-1.0, 0.8], [1.2, 0.2])]
+        assert max(off) > 0.01  # the lens matters there

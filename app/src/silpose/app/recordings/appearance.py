@@ -72,8 +72,21 @@ class Look:
     colour: np.ndarray | None = None
 
 
+#: metres: heights on the vertical where a camera with a lens is projected to find a row's height (5 cm apart)
+LENS_HEIGHTS_M = np.linspace(0.0, 3.0, 61)
+
+
 def stature_at(cam, xy: np.ndarray, row: float) -> float:
-    """Metres: height at which the vertical through floor point ``xy`` (2,) projects to image row ``row`` (px)."""
+    """Metres: height at which the vertical through floor point ``xy`` (2,) projects to image row ``row`` (px).
+
+    Without lens distortion, the pinhole's closed form; with it (``dist`` or a fisheye), the rows of
+    :data:`LENS_HEIGHTS_M` through ``cam.project``, interpolated (NaN where they do not fall steadily with height)."""
+    if getattr(cam, "fisheye", False) or np.any(np.asarray(cam.dist)):
+        pts = np.column_stack([np.full(LENS_HEIGHTS_M.size, xy[0]), np.full(LENS_HEIGHTS_M.size, xy[1]), LENS_HEIGHTS_M])
+        rows = cam.project(pts)[:, 1]
+        if not (np.all(np.isfinite(rows)) and np.all(np.diff(rows) < 0)) or not rows[-1] <= row <= rows[0]:
+            return float("nan")
+        return float(np.interp(row, rows[::-1], LENS_HEIGHTS_M[::-1]))
     P = np.asarray(cam.K, float) @ np.asarray(cam.R, float)
     a = P @ np.array([xy[0], xy[1], 0.0]) + np.asarray(cam.K, float) @ np.asarray(cam.t, float).ravel()
     b = P[:, 2]
