@@ -89,3 +89,18 @@ def test_bad_lenses_are_one_line_errors(change, message):
     d["cameras"][0].update(change)
     with pytest.raises(RigError, match=message):
         Rig.from_dict(d, "rig.json")
+
+
+def test_a_dataset_of_fisheye_cameras_says_so_and_reads_back():
+    """The shards' metadata: the camera frame convention names the fisheye model only when a camera has it,
+    and the rig read back from the metadata projects as the one written."""
+    from silpose.shared.dataset_schema import DEFAULT_CONVENTIONS, build_metadata, rig_from_metadata
+
+    rig = Rig((_camera(), default_rig()[0]))
+    meta = build_metadata(rig.to_dict()["cameras"], {}, 64, generator_version="test")
+    assert "fisheye" in meta["conventions"]["camera_frame"]
+    plain = build_metadata(default_rig().to_dict()["cameras"], {}, 64, generator_version="test")
+    assert plain["conventions"]["camera_frame"] == DEFAULT_CONVENTIONS["camera_frame"]
+    back = rig_from_metadata(json.loads(json.dumps(meta)))
+    X = np.random.default_rng(2).uniform(-1, 1, (20, 3)) + [0, 0, 1]
+    assert back[0].fisheye and np.array_equal(back[0].project(X), rig[0].project(X), equal_nan=True)

@@ -333,8 +333,8 @@ def write_card(root: str | Path) -> Path:
     parts += [
         "## Schema\n", _schema_table(meta, subject, gait),
         "\nEvery shard's Arrow schema metadata holds one JSON document under the key `silpose`: "
-        "`format_version`, `cameras` (name, K, R, t, width, height, dist), `joint_names`, `parents`, "
-        "`terminal_joints`, `n_points`, `units`, `conventions`, `generator`, `config`.\n",
+        "`format_version`, `cameras` (name, K, R, t, width, height, dist; `fisheye`: true for OpenCV's fisheye "
+        "model), `joint_names`, `parents`, `terminal_joints`, `n_points`, `units`, `conventions`, `generator`, `config`.\n",
         "## Units and conventions\n",
         *[f"- **{k}**: {v}" for k, v in meta["conventions"].items()],
         f"\nJoints (`joint_names` order, parent in brackets): "

@@ -244,6 +244,9 @@ def build_metadata(cameras: list[dict], config: dict, n_points: int, generator_v
     extra = {k: v for k, v in (rig_frame or {}).items() if k in RIG_FRAME_METADATA}
     if "workspace" in extra:
         conventions["world_frame"] = "right-handed, metres, z up, floor at z = 0, workspace: metadata field 'workspace'"
+    if any(isinstance(c, dict) and c.get("fisheye") for c in cameras):
+        conventions["camera_frame"] = (DEFAULT_CONVENTIONS["camera_frame"] + "; a camera with `fisheye`: true has "
+                                       "OpenCV's fisheye model instead (cv2.fisheye; `dist` = k1, k2, k3, k4)")
     if "transform" in extra:
         conventions["calibration_frame"] = (
             "metadata field 'transform' maps the rig's calibration frame to the world frame: "
