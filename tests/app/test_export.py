@@ -83,6 +83,24 @@ def test_trc_reads_back_in_opensim_axes(recording, tmp_path):
     assert np.abs(xyz[ok] - expected[ok]).max() < TOL_M
 
 
+def test_an_exported_trc_is_a_motion_clip(recording, tmp_path):
+    """``silpose export --to trc`` then ``silpose motions import``'s TRC reader: the joints come back in silpose's
+    frame, the frame without joints filled from its neighbours."""
+    from silpose.datagen.motion.keypoint_clips import read_keypoint_clip
+
+    path, world, _ = recording
+    res = CliRunner().invoke(build_app(), ["export", str(path), "--to", "trc", "--person", "1", "-o",
+                                           str(tmp_path / "p1.trc")])
+    assert res.exit_code == 0, res.output
+    meta, heads, _ = read_keypoint_clip(tmp_path / "p1.trc")
+    assert meta["frame_time"] == pytest.approx(1 / FPS) and meta["frames"] == 12
+    for i, role in enumerate(meta["names"]):
+        j = JOINT_NAMES.index(role)
+        ok = np.arange(12) != 4
+        assert np.abs(heads[ok, i] - world[0][ok, j]).max() < TOL_M
+        assert np.abs(heads[4, i] - 0.5 * (world[0][3, j] + world[0][5, j])).max() < TOL_M
+
+
 def test_trc_in_the_calibration_frame_and_units(recording, tmp_path):
     path, _, cal = recording
     out = tmp_path / "p2.trc"

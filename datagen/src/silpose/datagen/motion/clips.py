@@ -2,7 +2,8 @@
 
 Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`), each FBX or glTF
 file by Blender too (:func:`silpose.datagen.blender.scene_clip.import_scene_clip`, in metres), each AMC file
-by :func:`.acclaim.read_clip` (in metres), in a spawned worker process and its per-frame joint positions are cached by the file's sha256 in
+by :func:`.acclaim.read_clip` (in metres), each TRC file of joint keypoints by
+:func:`.keypoint_clips.read_keypoint_clip` (in metres), in a spawned worker process and its per-frame joint positions are cached by the file's sha256 in
 ``<cache>/<sha256>-v<CACHE_VERSION>/`` (an AMC file's hash covers its ASF skeleton too) (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
 the file's unit, and ``meta.json``: joint names, parents, frame count, frame time, rest pose,
 importer version; ``meta.json`` is written last, so an entry without it is incomplete and
@@ -29,6 +30,7 @@ from silpose.shared.atomic import atomic_path, write_json_atomic
 from ..blender.bvh import import_clip
 from ..blender.scene_clip import SCENE_SUFFIXES, SceneClipError, import_scene_clip
 from .acclaim import AcclaimError, clip_sha256, read_clip
+from .keypoint_clips import KeypointClipError, read_keypoint_clip
 from .bvh_check import BvhError
 from ..executor import WorkerDied, spawned_map
 from .joint_maps import ResolvedMap, resolve_map
@@ -83,6 +85,11 @@ def is_acclaim(path: str | Path) -> bool:
     return Path(path).suffix.lower() == ".amc"
 
 
+def is_keypoint_clip(path: str | Path) -> bool:
+    """A clip of joint keypoints (a TRC marker file, :mod:`.keypoint_clips`) rather than a BVH file."""
+    return Path(path).suffix.lower() == ".trc"
+
+
 def is_scene_clip(path: str | Path) -> bool:
     """An FBX or glTF clip (Blender's bundled importers, :mod:`silpose.datagen.blender.scene_clip`)."""
     return Path(path).suffix.lower() in SCENE_SUFFIXES
@@ -90,7 +97,7 @@ def is_scene_clip(path: str | Path) -> bool:
 
 def states_axes(path: str | Path) -> bool:
     """A clip file that states its up axis (FBX, glTF: their importers turn it Z up), so its rest pose is not
-    used to find up (:func:`.joint_maps.upright_turn`: BVH and ASF/AMC state none). An animation-only glTF
+    used to find up (:func:`.joint_maps.upright_turn`: BVH, ASF/AMC and TRC state none). An animation-only glTF
     has no rest pose but its first frame, which may lie (a clip of someone getting up)."""
     return is_scene_clip(path)
 
@@ -104,11 +111,13 @@ def import_into_cache(path: str, dest: str) -> str | None:
     try:
         if is_acclaim(path):
             meta, heads, tails = read_clip(path)
+        elif is_keypoint_clip(path):
+            meta, heads, tails = read_keypoint_clip(path)
         elif is_scene_clip(path):
             meta, heads, tails = import_scene_clip(path)
         else:
             meta, heads, tails = import_clip(path)
-    except (BvhError, AcclaimError, SceneClipError) as exc:
+    except (BvhError, AcclaimError, SceneClipError, KeypointClipError) as exc:
         return str(exc)
     except Exception as exc:  # any other failure inside Blender, still one line naming the file
         return f"{path}: import failed ({type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''})"

@@ -5,9 +5,10 @@
     [motion]
     source = "bvh"                 # "procedural" (default: the walk cycle) | "bvh" (motion-capture clips)
     bvh = ["clips/*.bvh"]          # globs relative to the config file; every match is a clip (.bvh; also
-                                   # .fbx/.glb/.gltf, and .amc with its .asf beside it: these in metres, scale 1)
+                                   # .fbx/.glb/.gltf, .trc of joint keypoints, and .amc with its .asf beside it:
+                                   # these in metres, scale 1)
     scale = 0.056444               # metres per BVH unit (defaults for every clip; see below)
-    joint_map = "auto"             # "auto" | "cmu" | "mixamo" | "hip-knee" | "bandai" | "cc-base" | "daz" | "mocapnet" | "cmu-asf" | "my_map.toml"
+    joint_map = "auto"             # "auto" | "cmu" | "mixamo" | "hip-knee" | "bandai" | "cc-base" | "daz" | "mocapnet" | "cmu-asf" | "keypoints" | "my_map.toml"
     stride = 1                     # use every stride-th frame
     frames = [0, -1]               # first and last frame used (inclusive; negative counts from the end)
     mirror = false                 # draw a left/right mirrored copy half of the time (augmentation)

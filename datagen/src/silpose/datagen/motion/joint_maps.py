@@ -42,7 +42,9 @@ detected with ``"auto"`` (the first map whose required joints all exist in the c
   whose head is the thorax's end; the shoulder is ``lhumerus``, whose head is the clavicle's end);
 - ``mocapnet``: the lower-case names of the MocapNET / MakeHuman skeletons (hip, abdomen, chest,
   neck, head, lcollar, lshoulder, lelbow, lhand, lhip, lknee, lfoot; the hip joint's parent is
-  ``lbuttock`` or ``lhipjoint``; toes not mapped: their names differ between the variants).
+  ``lbuttock`` or ``lhipjoint``; toes not mapped: their names differ between the variants);
+- ``keypoints``: clips of joint keypoints (TRC marker files, :mod:`.keypoint_clips`), whose bones are named after
+  silpose's roles (``pelvis``, ``neck``, ``l_shoulder`` ...).
 
 Any other skeleton: a user TOML file, one ``role = "BVH joint name"`` line per role
 (``joint_map = "my_map.toml"``, relative to the config file)::
@@ -134,8 +136,11 @@ BUILTIN_MAPS["cmu-asf"] = {
              {k: f"r{v}" for k, v in (("shoulder", "humerus"), ("elbow", "radius"), ("wrist", "wrist"), ("hip", "femur"),
                                        ("knee", "tibia"), ("ankle", "foot"), ("toe", "toes"))}),
 }
+#: Keypoint clips (TRC, :mod:`.keypoint_clips`): one bone per role, named after the role.
+BUILTIN_MAPS["keypoints"] = {r: r for r in ROLES}
 #: Order in which ``"auto"`` tries the built-in maps.
-AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz", "mocapnet", "cmu-asf")
+AUTO_ORDER: tuple[str, ...] = ("cmu", "mixamo", "hip-knee", "bandai", "cc-base", "daz", "mocapnet", "cmu-asf",
+                               "keypoints")
 #: Name of the map ``"auto"`` reads off the skeleton when no built-in map fits (:mod:`.name_match`).
 MATCHED_MAP = "matched"
 
