@@ -101,6 +101,20 @@ def test_an_exported_trc_is_a_motion_clip(recording, tmp_path):
         assert np.abs(heads[4, i] - 0.5 * (world[0][3, j] + world[0][5, j])).max() < TOL_M
 
 
+def test_an_exported_c3d_is_a_motion_clip(recording, tmp_path):
+    """``silpose export --to c3d`` then the keypoint clip reader: silpose's frame (its screen axes), float32."""
+    from silpose.datagen.motion.keypoint_clips import read_keypoint_clip
+
+    path, world, _ = recording
+    res = CliRunner().invoke(build_app(), ["export", str(path), "--to", "c3d", "--person", "2", "-o",
+                                           str(tmp_path / "p2.c3d")])
+    assert res.exit_code == 0, res.output
+    meta, heads, _ = read_keypoint_clip(tmp_path / "p2.c3d")
+    assert meta["frame_time"] == pytest.approx(1 / FPS) and meta["frames"] == 12
+    for i, role in enumerate(meta["names"]):
+        assert np.abs(heads[:, i] - world[1][:, JOINT_NAMES.index(role)]).max() < TOL_M
+
+
 def test_trc_in_the_calibration_frame_and_units(recording, tmp_path):
     path, _, cal = recording
     out = tmp_path / "p2.trc"

@@ -10,13 +10,14 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from silpose.datagen.motion.build import ClipSource, import_clips
-from silpose.datagen.motion.keypoint_clips import KeypointClipError, read_keypoint_clip
+from silpose.datagen.motion.keypoint_clips import KeypointClipError, read_keypoint_clip, z_up_from_screen
 from silpose.datagen.motion.library import ROLES as LIBRARY_ROLES
 from silpose.datagen.motion.library import load_library
 
@@ -136,6 +137,46 @@ def test_a_library_of_the_clip_holds_its_poses_and_a_z_up_file_is_stood_up(tmp_p
     assert json.loads((tmp_path / "lib1" / "manifest.json").read_text())["clips"][0]["rest_up"] == "-y"
 
 
+def write_c3d(path, positions: dict[str, np.ndarray], names: dict[str, str], rate: float = 30.0,
+              screen=("+X", "+Y"), unvisited: dict[str, list[int]] | None = None):
+    """A C3D file through the c3d library's writer: millimetres, Y up by default (``(x, y, z)`` Z up written
+    ``(x, z, -y)``), a point with residual -1 where not seen."""
+    import c3d
+
+    tracks = {names[r]: p for r, p in positions.items() if r in names}
+    writer = c3d.Writer(point_rate=rate, point_scale=-1.0, point_units="mm  ")
+    writer.set_point_labels(list(tracks))
+    writer.set_screen_axis(X=screen[0], Y=screen[1])
+    frames = []
+    for f in range(len(next(iter(tracks.values())))):
+        pts = np.zeros((len(tracks), 5), np.float32)
+        for i, (m, p) in enumerate(tracks.items()):
+            x, y, z = p[f] * 1000.0
+            pts[i, :3] = (x, z, -y) if screen[1] == "+Y" else (x, y, z)
+            if f in (unvisited or {}).get(m, []):
+                pts[i, :4] = (0, 0, 0, -1)
+        frames.append((pts, np.zeros((0, 0), np.float32)))
+    writer.add_frames(frames)
+    with open(path, "wb") as handle, warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="No analog data")  # point data only
+        writer.write(handle)
+    return path
+
+
+@pytest.mark.parametrize("screen", [("+X", "+Y"), ("+X", "+Z")], ids=["y-up", "z-up"])
+def test_c3d_points_read_in_metres_z_up(tmp_path, screen):
+    pos = skeleton_motion(8, seed=2)
+    c3d_file = write_c3d(tmp_path / "a.c3d", pos, POSE2SIM, screen=screen, unvisited={"LElbow": [3]})
+    meta, heads, _ = read_keypoint_clip(c3d_file)
+    index = {r: i for i, r in enumerate(meta["names"])}
+    assert set(index) == set(POSE2SIM) and meta["frame_time"] == pytest.approx(1 / 30) and meta["frames"] == 8
+    for role in POSE2SIM:
+        keep = np.arange(8) != (3 if role == "l_elbow" else -1)
+        assert np.abs(np.asarray(heads[keep, index[role]], np.float64) - pos[role][keep]).max() < 1e-4  # float32 mm
+    e = np.asarray(heads[3, index["l_elbow"]], np.float64)
+    assert np.abs(e - 0.5 * (pos["l_elbow"][2] + pos["l_elbow"][4])).max() < 1e-4  # the unseen point filled
+
+
 @pytest.mark.parametrize("edit, message", [
     (lambda t: "hello\n" + t, r"line 1: not a TRC file"),
     (lambda t: t.replace("\tmm\t", "\tfurlong\t", 1), r"line 3: field Units: 'furlong' is not one of"),
@@ -149,6 +190,23 @@ def test_bad_files_are_one_line_errors(tmp_path, edit, message):
     trc.write_text(edit(trc.read_text()))
     with pytest.raises(KeypointClipError, match=f"^{trc}: {message}") as err:
         read_keypoint_clip(trc)
+    assert "\n" not in str(err.value)
+
+
+def test_screen_axes_turn_up_to_z_and_right_to_x():
+    for x_screen, y_screen in (("+X", "+Y"), ("-Y", "+Z"), ("+Z", "-X"), ("-X", "-Y")):
+        R = z_up_from_screen(x_screen, y_screen)
+        up, right = (np.eye(3)["XYZ".index(a[1])] * (1 if a[0] == "+" else -1) for a in (y_screen, x_screen))
+        assert np.allclose(R @ up, [0, 0, 1]) and np.allclose(R @ right, [1, 0, 0])
+        assert np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)  # a rotation
+    assert np.array_equal(z_up_from_screen("", ""), np.eye(3)) and np.array_equal(z_up_from_screen("+X", "+X"), np.eye(3))
+
+
+def test_a_broken_c3d_file_is_one_line(tmp_path):
+    bad = tmp_path / "bad.c3d"
+    bad.write_bytes(b"\x02P" + bytes(100))
+    with pytest.raises(KeypointClipError, match=f"^{bad}: not a readable C3D file") as err:
+        read_keypoint_clip(bad)
     assert "\n" not in str(err.value)
 
 

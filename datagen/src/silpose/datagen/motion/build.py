@@ -1,7 +1,7 @@
-"""Building or extending a motion library from BVH, ASF/AMC, FBX, glTF or TRC files (``silpose motions import``).
+"""Building or extending a motion library from BVH, ASF/AMC, FBX, glTF, TRC or C3D files (``silpose motions import``).
 
 Every file is read by silpose's own importer (Blender's ``io_anim_bvh`` for BVH, its bundled FBX
-and glTF importers for those, :mod:`.acclaim` for the CMU database's ASF/AMC, :mod:`.keypoint_clips` for TRC files of joint keypoints; in
+and glTF importers for those, :mod:`.acclaim` for the CMU database's ASF/AMC, :mod:`.keypoint_clips` for TRC and C3D files of joint keypoints; in
 spawned workers, cached by sha256, :mod:`.clips`), mapped onto silpose's roles (:mod:`.joint_maps`, ``"auto"`` or
 a given map), thinned to the library's frame rate and stored in the library's own form
 (:mod:`.library`). A file that fails (not a BVH file, truncated, a skeleton no map fits, no frame
@@ -21,7 +21,7 @@ from .acclaim import CMU_FPS, AcclaimError, clip_sha256, skeleton_of
 from .bvh_check import BvhError, check_structure
 from .clips import (cache_root, entry_dir, import_into_cache, is_acclaim, is_keypoint_clip, is_scene_clip, read_entry,
                     states_axes)
-from .keypoint_clips import KeypointClipError, check_trc
+from .keypoint_clips import KeypointClipError, check_keypoint_clip
 from .joint_maps import JointMapError, resolve_map
 from .library import DEFAULT_FPS, Library, LibraryError, check_writable, derive_clip, load_library, write_library
 
@@ -118,13 +118,13 @@ def clip_ids(sources: list[ClipSource]) -> dict[Path, str]:
 
 def check_clip(path: Path) -> None:
     """The checks before importing: a BVH file's structure (:func:`.bvh_check.check_structure`), an
-    AMC file's skeleton beside it (:func:`.acclaim.skeleton_of`), a TRC file's header and marker names
-    (:func:`.keypoint_clips.check_trc`); FBX and glTF files are checked by their importers. Raises BvhError /
+    AMC file's skeleton beside it (:func:`.acclaim.skeleton_of`), a TRC or C3D file's header and marker
+    names (:func:`.keypoint_clips.check_keypoint_clip`); FBX and glTF files are checked by their importers. Raises BvhError /
     AcclaimError / KeypointClipError."""
     if is_acclaim(path):
         skeleton_of(path)
     elif is_keypoint_clip(path):
-        check_trc(path)
+        check_keypoint_clip(path)
     elif not is_scene_clip(path):
         check_structure(path)
 

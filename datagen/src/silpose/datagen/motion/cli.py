@@ -23,7 +23,7 @@ def _subject_order(s: str) -> tuple[int, str]:
 
 
 #: Clip files ``silpose motions import`` finds in folders: BVH, the AMC motions of ASF/AMC, FBX and glTF.
-CLIP_SUFFIXES = (".bvh", ".amc", ".fbx", ".glb", ".gltf", ".trc")
+CLIP_SUFFIXES = (".bvh", ".amc", ".fbx", ".glb", ".gltf", ".trc", ".c3d")
 
 
 def subject_of(path: Path) -> str:
@@ -53,14 +53,14 @@ def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
 
 @app.command("import")
 def import_(
-    paths: Annotated[list[Path], typer.Argument(help="BVH, AMC, FBX, glTF (.glb/.gltf) or TRC (joint keypoints: Pose2Sim, OpenSim, silpose export) files, or folders (searched recursively for them; an AMC file's skeleton is the .asf beside it).")],
+    paths: Annotated[list[Path], typer.Argument(help="BVH, AMC, FBX, glTF (.glb/.gltf) TRC or C3D (joint keypoints: Pose2Sim, OpenSim, silpose export) files, or folders (searched recursively for them; an AMC file's skeleton is the .asf beside it).")],
     library: Annotated[Path, typer.Option("--library", "-l", help="Library folder to create or extend (only silpose's own files may be in it).")] = Path("motion-library"),
     group: Annotated[str, typer.Option(help="Activity group of every imported clip (e.g. walk, dance, sports).")] = "other",
     split: Annotated[str, typer.Option(help="train or test (hold out whole subjects for test).")] = "train",
     subject: Annotated[str, typer.Option(help="Performer of the clips (recorded; held-out test sets hold out subjects). "
                                               "'auto': each file's name up to its first '_' (CMU: 86_01.amc -> 86).")] = "",
     licence: Annotated[str, typer.Option(help="Licence / source of the clips, recorded with each clip and shown in dataset cards.")] = "",
-    scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions). ASF/AMC, FBX, glTF and TRC clips are read in metres: leave 1.")] = 1.0,
+    scale: Annotated[float, typer.Option(min=0.0, help="Metres per BVH unit (1.0 m, 0.01 cm, 0.056444 CMU conversions). ASF/AMC, FBX, glTF, TRC and C3D clips are read in metres: leave 1.")] = 1.0,
     joint_map: Annotated[str, typer.Option("--joint-map", help="auto, a built-in map (cmu, mixamo, hip-knee, bandai, cc-base, daz, mocapnet, cmu-asf, keypoints) or a TOML file.")] = "auto",
     first: Annotated[int, typer.Option(min=0, help="First frame kept (1 drops a calibration pose in frame 0).")] = 0,
     fps: Annotated[float, typer.Option(min=1.0, help="Frame rate the clips are thinned to.")] = 30.0,

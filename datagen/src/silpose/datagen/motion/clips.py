@@ -2,7 +2,7 @@
 
 Each BVH file is imported once by Blender (:func:`silpose.datagen.blender.bvh.import_clip`), each FBX or glTF
 file by Blender too (:func:`silpose.datagen.blender.scene_clip.import_scene_clip`, in metres), each AMC file
-by :func:`.acclaim.read_clip` (in metres), each TRC file of joint keypoints by
+by :func:`.acclaim.read_clip` (in metres), each TRC or C3D file of joint keypoints by
 :func:`.keypoint_clips.read_keypoint_clip` (in metres), in a spawned worker process and its per-frame joint positions are cached by the file's sha256 in
 ``<cache>/<sha256>-v<CACHE_VERSION>/`` (an AMC file's hash covers its ASF skeleton too) (``heads.npy`` and ``tails.npy``, (F, B, 3) float32 in
 the file's unit, and ``meta.json``: joint names, parents, frame count, frame time, rest pose,
@@ -30,7 +30,7 @@ from silpose.shared.atomic import atomic_path, write_json_atomic
 from ..blender.bvh import import_clip
 from ..blender.scene_clip import SCENE_SUFFIXES, SceneClipError, import_scene_clip
 from .acclaim import AcclaimError, clip_sha256, read_clip
-from .keypoint_clips import KeypointClipError, read_keypoint_clip
+from .keypoint_clips import KEYPOINT_SUFFIXES, KeypointClipError, read_keypoint_clip
 from .bvh_check import BvhError
 from ..executor import WorkerDied, spawned_map
 from .joint_maps import ResolvedMap, resolve_map
@@ -86,8 +86,8 @@ def is_acclaim(path: str | Path) -> bool:
 
 
 def is_keypoint_clip(path: str | Path) -> bool:
-    """A clip of joint keypoints (a TRC marker file, :mod:`.keypoint_clips`) rather than a BVH file."""
-    return Path(path).suffix.lower() == ".trc"
+    """A clip of joint keypoints (a TRC or C3D file, :mod:`.keypoint_clips`) rather than a BVH file."""
+    return Path(path).suffix.lower() in KEYPOINT_SUFFIXES
 
 
 def is_scene_clip(path: str | Path) -> bool:

@@ -5,7 +5,7 @@
     [motion]
     source = "bvh"                 # "procedural" (default: the walk cycle) | "bvh" (motion-capture clips)
     bvh = ["clips/*.bvh"]          # globs relative to the config file; every match is a clip (.bvh; also
-                                   # .fbx/.glb/.gltf, .trc of joint keypoints, and .amc with its .asf beside it:
+                                   # .fbx/.glb/.gltf, .trc/.c3d of joint keypoints, and .amc with its .asf beside it:
                                    # these in metres, scale 1)
     scale = 0.056444               # metres per BVH unit (defaults for every clip; see below)
     joint_map = "auto"             # "auto" | "cmu" | "mixamo" | "hip-knee" | "bandai" | "cc-base" | "daz" | "mocapnet" | "cmu-asf" | "keypoints" | "my_map.toml"

@@ -1,5 +1,6 @@
 """Clips of joint keypoints: TRC marker files (OpenSim's format; Pose2Sim's triangulated keypoints, silpose's own
-``silpose export --to trc``), read without Blender.
+``silpose export --to trc``) and C3D files of such points (Pose2Sim, ``silpose export --to c3d``), read without
+Blender.
 
 A keypoint clip holds the 3D positions of named joints per frame, not a skeleton of rotations. silpose's motion
 library stores bone *directions* between its roles (:mod:`.library`), so keypoints at the joint centres are all a
@@ -14,6 +15,11 @@ rate from ``DataRate``. TRC states no axes; OpenSim and Pose2Sim write Y up, so 
 turned Z up as Blender's BVH importer turns a BVH file, ``(x, y, z) -> (x, -z, y)``; a clip written Z up is
 stood up like a BVH clip (:func:`.joint_maps.upright_turn`, from the clip's median pose).
 
+**C3D** (through the ``c3d`` library): the POINT data, labels from ``POINT:LABELS``, units from ``POINT:UNITS``,
+the rate from ``POINT:RATE``; a point with a negative residual is not seen. Its axes from ``POINT:X_SCREEN`` and
+``POINT:Y_SCREEN`` (the axes pointing right and up on screen: the up axis is turned to z, the right one to x);
+without them the file is taken as Z up (mocap systems' usual frame), and stood up like any clip if it lies.
+
 **Names** (case, ``_``, ``-``, ``.`` and spaces ignored; ``Left``/``Right`` prefixes read as ``L``/``R``):
 silpose's own joint names (``pelvis``, ``l_shoulder`` ...), Pose2Sim's and OpenPose's (``Hip``, ``Neck``,
 ``Head``, ``Nose``, ``LShoulder``, ``LElbow``, ``LWrist``, ``LHip``, ``LKnee``, ``LAnkle``, ``LBigToe`` ...),
@@ -27,13 +33,18 @@ seen is missing.
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .joint_maps import REQUIRED_ROLES, ROLES
 
-__all__ = ["KeypointClipError", "PARENTS", "read_trc", "read_keypoint_clip", "check_trc", "IMPORTER"]
+__all__ = ["KeypointClipError", "PARENTS", "KEYPOINT_SUFFIXES", "read_trc", "read_c3d", "read_keypoint_clip",
+           "check_keypoint_clip", "IMPORTER"]
+
+#: File suffixes of keypoint clips.
+KEYPOINT_SUFFIXES = (".trc", ".c3d")
 
 IMPORTER = "silpose-trc"
 #: Each role's parent in the role tree (the pelvis is the root).
@@ -178,18 +189,73 @@ def role_tracks(names: list[str], xyz: np.ndarray, path: Path) -> dict[str, np.n
             out["head"] = tracks["nose"]
     missing = [r for r in REQUIRED_ROLES if r not in out]
     if missing:
-        raise KeypointClipError(f"{path}: no marker for {', '.join(missing)} (markers: {', '.join(names)}); "
-                                "see silpose.datagen.motion.keypoint_clips for the names read")
+        listed = ", ".join(names[:12]) + (f" and {len(names) - 12} more" if len(names) > 12 else "")
+        raise KeypointClipError(f"{path}: no marker for {', '.join(missing)} (markers: {listed}); joint centres "
+                                "are read by name (docs/motion-capture.md, TRC and C3D)")
     return out
 
 
-def check_trc(path: str | Path) -> None:
-    """The checks before importing a TRC clip (its header and marker names); KeypointClipError otherwise."""
+def check_keypoint_clip(path: str | Path) -> None:
+    """The checks before importing a keypoint clip (it reads, and its markers name the joints); KeypointClipError
+    otherwise."""
     read_keypoint_clip(path)
 
 
+def _axis(text: str) -> np.ndarray | None:
+    t = str(text).strip().upper()
+    if len(t) != 2 or t[0] not in "+-" or t[1] not in "XYZ":
+        return None
+    v = np.zeros(3)
+    v["XYZ".index(t[1])] = 1.0 if t[0] == "+" else -1.0
+    return v
+
+
+def z_up_from_screen(x_screen: str, y_screen: str) -> np.ndarray:
+    """(3, 3) the rotation taking a C3D file's axes to silpose's: ``POINT:Y_SCREEN`` (up on screen) to +z and
+    ``POINT:X_SCREEN`` (right on screen) to +x; the identity when they are missing or not two different axes."""
+    right, up = _axis(x_screen), _axis(y_screen)
+    if right is None or up is None or abs(float(right @ up)) > 0.5:
+        return np.eye(3)
+    return np.stack([right, np.cross(up, right), up])
+
+
+def read_c3d(path: str | Path) -> tuple[float, list[str], np.ndarray]:
+    """(frames per second, point labels (M,), positions (F, M, 3) metres, silpose's axes (z up); NaN: not seen)."""
+    import c3d  # the C3D format's maintained reader
+
+    path = Path(path)
+    if not path.is_file():
+        raise KeypointClipError(f"{path}: clip file not found")
+    try:
+        with open(path, "rb") as handle, warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="No analog data")  # point data is all a clip needs
+            reader = c3d.Reader(handle)
+            labels = [str(n).strip() for n in reader.point_labels]
+            rate = float(reader.point_rate)
+            units = reader.get("POINT:UNITS")
+            unit_text = units.string_value.strip().lower() if units is not None else "m"
+            screen = reader.get_screen_axis() or ("", "")
+            frames = []
+            for _, points, _ in reader.read_frames():
+                p = np.array(points[:, :3], dtype=np.float64)
+                p[points[:, 3] < 0] = np.nan
+                frames.append(p)
+    except KeypointClipError:
+        raise
+    except Exception as exc:  # the library raises ValueError, struct.error, AssertionError ... on a bad file
+        raise KeypointClipError(f"{path}: not a readable C3D file ({type(exc).__name__}: {str(exc).strip()[:120]})") from None
+    if unit_text not in UNITS:
+        raise KeypointClipError(f"{path}: field POINT:UNITS: {unit_text!r} is not one of {', '.join(sorted(set(UNITS)))}")
+    if not np.isfinite(rate) or rate <= 0:
+        raise KeypointClipError(f"{path}: field POINT:RATE: expected a positive frame rate, got {rate}")
+    if not frames or not labels:
+        raise KeypointClipError(f"{path}: no point data")
+    xyz = np.stack(frames)[:, :len(labels)] * UNITS[unit_text]
+    return rate, labels[:xyz.shape[1]], xyz @ z_up_from_screen(*screen).T
+
+
 def read_keypoint_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
-    """Read a TRC file as a clip of role bones.
+    """Read a TRC or C3D file as a clip of role bones.
 
     Returns:
         meta: as :func:`silpose.datagen.blender.bvh.import_clip`'s (``names`` (the roles present), ``parents``,
@@ -202,13 +268,17 @@ def read_keypoint_clip(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
         KeypointClipError: one line naming the file.
     """
     path = Path(path)
-    rate, markers, xyz = read_trc(path)
+    if path.suffix.lower() == ".c3d":
+        rate, markers, xyz = read_c3d(path)
+    else:
+        rate, markers, xyz = read_trc(path)
+        xyz = xyz @ Z_UP_FROM_Y_UP.T
     tracks = role_tracks(markers, xyz, path)
     names = [r for r in ROLES if r in tracks]
     order = sorted(names, key=lambda r: _depth(r))  # parents before children
     index = {r: i for i, r in enumerate(order)}
     parents = [-1 if PARENTS[r] is None else index[PARENTS[r]] for r in order]
-    heads = np.stack([tracks[r] for r in order], axis=1) @ Z_UP_FROM_Y_UP.T  # (F, B, 3)
+    heads = np.stack([tracks[r] for r in order], axis=1)  # (F, B, 3)
     tails = np.empty_like(heads)
     for r in order:
         b = index[r]
