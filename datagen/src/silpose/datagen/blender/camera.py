@@ -62,11 +62,12 @@ def check_blender_compatible(cam: Camera, tol: float = 1e-9) -> None:
         raise RigError(f"camera {cam.name!r} field K: the Blender renderer needs zero skew and K[2] = (0, 0, 1)")
     if cam.fisheye:
         raise RigError(f"camera {cam.name!r} field fisheye: the Blender renderer cannot render a fisheye lens "
-                       "(use --renderer raster)")
+                       "(silhouettes: use --renderer raster; textured frames, gen-frames, need cameras without one)")
     if np.any(cam.dist != 0):
         raise RigError(
             f"camera {cam.name!r} field dist: the Blender renderer cannot render lens distortion "
-            f"{cam.dist.tolist()} (use --renderer raster)"
+            f"{cam.dist.tolist()} (silhouettes: use --renderer raster; textured frames, gen-frames, need cameras "
+            "without distortion)"
         )
 
 
