@@ -75,7 +75,7 @@ def write_trc(path, positions: dict[str, np.ndarray], names: dict[str, str], rat
 def test_reads_positions_in_metres_z_up_and_fills_gaps(tmp_path):
     pos = skeleton_motion(12)
     trc = write_trc(tmp_path / "a.trc", pos, POSE2SIM, gaps={"LWrist": [0, 5, 6], "RKnee": [11]},
-                    extra={"RHeel": pos["r_ankle"] - [0, 0.05, 0]})
+                    extra={"RHeel": pos["r_ankle"] - [0, 0.05, 0], "*1": pos["head"], "*2": pos["neck"]})  # not read
     meta, heads, tails = read_keypoint_clip(trc)
     index = {r: i for i, r in enumerate(meta["names"])}
     assert set(index) == set(POSE2SIM) and meta["frames"] == 12 and meta["frame_time"] == pytest.approx(1 / 30)
@@ -183,6 +183,7 @@ def test_c3d_points_read_in_metres_z_up(tmp_path, screen):
     (lambda t: t.replace("30.0\t30.0", "0\t30.0", 1), r"line 3: field DataRate: expected a positive frame rate"),
     (lambda t: t.replace("\t17\tmm", "\t18\tmm", 1), r"line 4: 17 marker names, but field NumMarkers says 18"),
     (lambda t: t.replace("LKnee", "LeftThing", 1), r"no marker for l_knee \(markers: "),
+    (lambda t: t.replace("LKnee", "LShoulder", 1), r"markers 'LShoulder' and 'LShoulder' have the same name"),
     (lambda t: re.sub(r"\n3\t([^\t]*)\t[^\t]*", r"\n3\t\1\tabc", t, count=1), r"line 9: 'abc' is not a number"),
 ])
 def test_bad_files_are_one_line_errors(tmp_path, edit, message):

@@ -165,14 +165,19 @@ def _filled(track: np.ndarray) -> np.ndarray | None:
 
 def role_tracks(names: list[str], xyz: np.ndarray, path: Path) -> dict[str, np.ndarray]:
     """Each role's (F, 3) track from the markers (module doc: names, fallbacks, gaps)."""
-    normal = [_normal(n) for n in names]
+    used = {a for names_ in ALIASES.values() for a in names_} | {"lear", "rear", "nose"}
     seen_names: dict[str, str] = {}
-    for n, raw in zip(normal, names):
+    tracks: dict[str, np.ndarray] = {}
+    for i, raw in enumerate(names):
+        n = _normal(raw)
+        if n not in used:
+            continue  # heels, eyes, anatomical or unlabelled markers: not read
         if n in seen_names:
             raise KeypointClipError(f"{path}: markers {seen_names[n]!r} and {raw!r} have the same name")
         seen_names[n] = raw
-    tracks = {n: _filled(xyz[:, i]) for i, n in enumerate(normal)}
-    tracks = {n: t for n, t in tracks.items() if t is not None}
+        track = _filled(xyz[:, i])
+        if track is not None:
+            tracks[n] = track
     out: dict[str, np.ndarray] = {}
     for role in ROLES:
         found = next((tracks[a] for a in ALIASES[role] if a in tracks), None)
