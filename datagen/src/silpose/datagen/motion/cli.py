@@ -53,7 +53,7 @@ def _bvh_files(paths: list[Path]) -> tuple[list[Path], list[str]]:
 
 @app.command("import")
 def import_(
-    paths: Annotated[list[Path], typer.Argument(help="BVH, AMC, FBX, glTF (.glb/.gltf) TRC or C3D (joint keypoints: Pose2Sim, OpenSim, silpose export) files, or folders (searched recursively for them; an AMC file's skeleton is the .asf beside it).")],
+    paths: Annotated[list[Path], typer.Argument(help="BVH, AMC, FBX, glTF (.glb/.gltf), TRC or C3D (joint keypoints: Pose2Sim, OpenSim, silpose export) files, or folders (searched recursively for them; an AMC file's skeleton is the .asf beside it).")],
     library: Annotated[Path, typer.Option("--library", "-l", help="Library folder to create or extend (only silpose's own files may be in it).")] = Path("motion-library"),
     group: Annotated[str, typer.Option(help="Activity group of every imported clip (e.g. walk, dance, sports).")] = "other",
     split: Annotated[str, typer.Option(help="train or test (hold out whole subjects for test).")] = "train",
@@ -68,9 +68,9 @@ def import_(
     workers: Annotated[Optional[int], typer.Option("--workers", "-j", min=1, help="Import processes (default: all cores).")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Show a progress bar over the files read.")] = True,
 ) -> None:
-    """Import BVH, ASF/AMC, FBX or glTF clips into a motion library (BVH, FBX and glTF read by
-    Blender's own importers, ASF/AMC by silpose's; stored as bone directions and root motion). A clip
-    that cannot be imported is reported in one line and skipped."""
+    """Import BVH, ASF/AMC, FBX, glTF, TRC or C3D clips into a motion library (BVH, FBX and glTF read by
+    Blender's own importers, ASF/AMC and the joint keypoints of TRC and C3D files by silpose's; stored as bone
+    directions and root motion). A clip that cannot be imported is reported in one line and skipped."""
     from .build import ClipSource, import_clips
     from .joint_maps import BUILTIN_MAPS
     from .library import LibraryError
