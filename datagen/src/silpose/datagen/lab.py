@@ -306,11 +306,13 @@ def unpack_masks(truth) -> np.ndarray:
 
 
 def make_lab_recording(out: Path, *, walkers=DEFAULT_WALKERS, n_frames: int = 75, fps: float = LAB_FPS, seed: int = 0,
-                       renderer: str = "raster") -> Path:
+                       renderer: str = "raster", rig: Rig | None = None) -> Path:
     """Write a lab recording to ``out`` (the driver; never imports bpy). Returns ``out``.
 
     ``out/calibration/<camera>.yml`` (mm, z down, origin at a floor corner), ``out/rig.json`` (the same rig
     in silpose's frame), ``out/masks/<camera>.mp4`` and ``out/truth.npz`` (:func:`render_lab`, in a spawned worker).
+    ``rig``: other cameras than :func:`lab_rig`'s (the same walkers seen through them); a rig with fisheye lenses
+    gets no ``calibration/`` (OpenCV's files do not say that a lens is a fisheye).
 
     Raises:
         LabRenderError: the rendering raised (the message names ``out`` and the error) or its worker died (its
@@ -318,8 +320,9 @@ def make_lab_recording(out: Path, *, walkers=DEFAULT_WALKERS, n_frames: int = 75
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    rig = lab_rig()
-    write_lab_calibration(out / "calibration", rig)
+    rig = lab_rig() if rig is None else rig
+    if not any(cam.fisheye for cam in rig):
+        write_lab_calibration(out / "calibration", rig)
     with atomic_path(out / "rig.json") as tmp:
         tmp.write_text(rig.to_json())
     config = {"seed": seed, "rig": rig.to_dict(), "walkers": [asdict(w) for w in walkers], "n_frames": int(n_frames),
