@@ -24,7 +24,7 @@ from silpose.model.hypotheses import single_answer, temporal_choice
 from silpose.segment import BackgroundModel, plate_alignment, plate_mismatch_std, warp_plate
 from silpose.datagen.testing import synthetic_record
 from silpose.model import ShapeStructureModel
-from silpose.model.persistence import save_model
+from silpose.model.persistence import load_model, save_model
 from silpose.shared.camera import default_rig
 from silpose.shared.cli import build_app
 from silpose.shared.contours import extract_contour
@@ -164,8 +164,36 @@ def test_one_person_takes_each_views_largest_blob(tiny_model, tiny_model_file, r
                                                            ["cam0", "cam2", "cam3"]]
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
     assert [f["status"] for f in seg["frames"]] == fr.status.tolist()
+    assert "joints inside the person's outline in the views used" in res.output
     res = _invoke("infer", tiny_model_file, "--videos", tmp_path / "masks", "--masks", "--people", "2", "--no-progress")
     assert res.exit_code == 2 and "--people: 2 is not 1" in res.output
+
+
+def test_the_inside_column_counts_the_joints_opencv_finds_inside_the_used_outlines(tiny_model_file, rig, tools,
+                                                                                   tmp_path):
+    """``--people 1`` writes, per frame, the share of the placed joints inside the used views' outlines (2 px):
+    against ``cv2.pointPolygonTest`` on the outlines silpose traced, with the silhouette fit and without it (a
+    thin cylinder, so that the tiny model's unfitted joints stick out of it)."""
+    masks = np.stack([tools.cylinder_masks(rig, [p], radius=0.06) for p in tools.walk((-0.4, 0.0), (0.4, 0.2), 3)], 1)
+    for k, cam in enumerate(rig):
+        _write(tmp_path / "masks" / cam.name, list(masks[k]))
+    fr = run_one_person(load_model(tiny_model_file), tmp_path / "masks", RecordingOptions(masks=True, overlays=False))
+    shares = {}
+    for fit in ("--silhouette-fit", "--no-silhouette-fit"):
+        out = tmp_path / f"{fit}.json"
+        res = _invoke("infer", tiny_model_file, "--videos", tmp_path / "masks", "--masks", "--people", "1", "--out", out,
+                      "--no-progress", fit)
+        assert res.exit_code == 0, res.output
+        assert "joints inside the person's outline in the views used" in res.output
+        shares[fit] = []
+        for i, f in enumerate(json.loads(out.read_text())["frames"]):
+            world = np.asarray(f["joints"]) + np.asarray(f["root"])
+            hits = [cv2.pointPolygonTest(fr.contours[i, k].astype(np.float32).reshape(-1, 1, 2), (float(x), float(y)),
+                                         True) >= -2.0 for k in np.flatnonzero(fr.present[i]) for x, y in rig[k].project(world)]
+            assert f["inside"] == pytest.approx(np.mean(hits), abs=1e-4)
+            shares[fit].append(f["inside"])
+    assert max(shares["--no-silhouette-fit"]) < 1.0
+    assert min(np.subtract(shares["--silhouette-fit"], shares["--no-silhouette-fit"])) > 0  # the fit moves them in
 
 
 def test_overlays_png_and_mp4(tiny_model, frames_folder, rig, tmp_path):

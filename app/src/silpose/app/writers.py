@@ -10,8 +10,9 @@
   blob or hole from, ``silpose.model.robust.excursions``; comma-separated, empty when none), ``views_reindexed``
   (the views whose points it slid back along their outline, ``silpose.model.robust.reindex``; the same form), and per hypothesis k ``hyp<k>_probability`` / ``hyp<k>_heading_deg``;
   from cameras (one person: ``--people 1``, ``--frames``), the answer placed in the room: ``root_x/_y/_z``
-  (metres, silpose's frame: z up, floor z = 0; the joints above are then relative to it) and ``<joint>_cal_x``
-  ... (the joints in the calibration's own frame and units);
+  (metres, silpose's frame: z up, floor z = 0; the joints above are then relative to it), ``<joint>_cal_x``
+  ... (the joints in the calibration's own frame and units) and ``inside`` (the share of the joints that project
+  inside the person's outline in the views used, 2 px; ``silpose.app.recordings.silhouette_fit.share_inside``);
 - reconstructed contours: ``<out stem>.contours.npz`` (no pickle);
 - view status per (frame, camera): ``<out stem>.segmentation.json`` (one person from cameras: ``--people 1``,
   ``--frames``; :mod:`silpose.app.recordings.one_person`).
@@ -106,7 +107,7 @@ def _optional(a, n: int, fill=np.nan) -> np.ndarray:
 
 
 def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_path: str = "", status=None,
-                 world=None, transform=None) -> None:
+                 world=None, transform=None, inside=None) -> None:
     """Write the joints of an InferenceResult of N frames (module doc).
 
     Args:
@@ -118,6 +119,7 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         world: optional (N, 19, 3) metres, silpose's frame: the answer placed in the room (NaN rows: not placed);
             the file's joints are then its joints relative to its root, and the root is written too.
         transform: with ``world``, the rig's ``WorldTransform`` (silpose's frame -> the calibration's).
+        inside: optional (N,) share of the placed joints inside the person's outlines in the views used (NaN: none).
     """
     path = Path(path)
     n = len(frames)
@@ -156,6 +158,8 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
                     **({} if root is None else {
                         "root": None if not np.isfinite(root[i]).all() else root[i].round(6).tolist(),
                         "joints_calibration": None if not np.isfinite(cal[i]).all() else cal[i].round(6).tolist()}),
+                    **({} if inside is None else {
+                        "inside": None if not np.isfinite(inside[i]) else round(float(inside[i]), 4)}),
                     "joint_std": result.joint_std[i].round(6).tolist(),
                     "log_marginal": float(result.log_marginal[i]),
                     "component": int(np.argmax(result.responsibilities[i])),
@@ -201,6 +205,8 @@ def write_joints(path: Path, frames, result, rig_names, sample_id=None, model_pa
         for j, jn in enumerate(JOINT_NAMES):
             for a, axis in enumerate("xyz"):
                 cols[f"{jn}_cal_{axis}"] = pa.array(cal[:, j, a])
+    if inside is not None:
+        cols["inside"] = pa.array(np.asarray(inside, np.float32))
     meta = {"model": model_path, "units": UNITS, "joint_names": list(JOINT_NAMES), "views": names}
     if root is not None:
         meta["root_units"] = PLACED_UNITS

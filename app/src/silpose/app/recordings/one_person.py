@@ -53,7 +53,7 @@ from .frames_source import bad_frame, frames_folder_run
 from .overlay_png import draws_overlays, overlay_sink
 from .pipeline import RecordingOptions, check_background_options, make_silhouettes
 from .placement import place_without_floor
-from .silhouette_fit import fit_to_silhouettes
+from .silhouette_fit import fit_to_silhouettes, share_inside
 from .resolution import min_blob_area, to_rig_px, to_work_px, work_camera, work_size
 from .silhouettes import at_size
 from .sources import CameraReader, open_recording, parse_offsets
@@ -375,8 +375,9 @@ def run_one_person_inference(model_path: Path, source: Path, *, out: Path, opt: 
                         progress=progress, warn=warn)
     rig_names = list(model.rig_.names)
     status = frame_status(fr.result)
+    inside = share_inside(fr.joints_world, fr.contours, fr.present, list(model.rig_))
     write_joints(out, fr.frames, fr.result, rig_names, None, str(model_path), status=status, world=fr.joints_world,
-                 transform=model.rig_.transform)
+                 transform=model.rig_.transform, inside=inside)
     seg_path = sibling(out, ".segmentation.json")
     areas = sorted(set(fr.min_area.values()))
     write_segmentation(seg_path, fr, source, "/".join(str(a) for a in areas) + " px at the working resolution")
@@ -395,6 +396,8 @@ def run_one_person_inference(model_path: Path, source: Path, *, out: Path, opt: 
     lines.append(f"views used {int((st == VIEW_OK).sum())} of {st.size}"
                  + "".join(f", {n} {s}" for s, n in counts.items())
                  + (f"; {none} frame(s) had no usable view (NaN joints)" if none else ""))
+    if np.isfinite(inside).any():
+        lines.append(f"joints inside the person's outline in the views used: {np.nanmean(inside):.3f} (column inside)")
     lines.append("seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in fr.timings.items()))
     lines += status_warnings(fr.frames, status, getattr(model, "plausibility_", None) is not None)
     return "\n".join(lines)
