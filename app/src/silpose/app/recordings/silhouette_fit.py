@@ -29,8 +29,8 @@ reaches :data:`DAMPING_MAX`. The one-sided residual is what makes damping pay: a
 views a joint is outside of, so it often carries the joint out of another view's outline, and the full step is
 refused. An earlier version halved refused steps (at most twice, 3 steps) and stopped a joint whose third try
 failed: on Pose2Sim's demos (a 1,200-sample model of their rig) it left 0.921 / 0.901 of the joints inside (2 px)
-where this fit, at the same 10 evaluations of E, leaves 0.980 / 0.969 (halving 6 times over 10 steps, up to 71
-evaluations: 0.978 / 0.962, twice the time). On the synthetic lab recordings of the table below, whose model
+where this fit, with at most 10 steps tried per joint (the old one: 9), leaves 0.980 / 0.969 (halving 6 times over
+10 steps, up to 71 tries: 0.978 / 0.962, twice the time). On the synthetic lab recordings of the table below, whose model
 places the joints well, the two agree (joints inside the clean silhouettes, world / relative error: four walkers
 crossing 0.938 / 12.01 / 10.03 cm both; apart 0.994 / 8.56 / 6.88 both; two walkers 0.9998 vs 0.9999, 4.27 /
 3.72 both; a model of 2,000 lab-rig walkers trained anew, 200 and 150 frames); the run's place stage (placement and
