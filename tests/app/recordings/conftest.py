@@ -110,15 +110,14 @@ def lab(tmp_path_factory):
     return make_lab_recording(tmp_path_factory.mktemp("lab") / "lab", n_frames=LAB_FRAMES)
 
 
-@pytest.fixture(scope="session")
-def lab_model(tmp_path_factory):
-    """A small model trained (real generator and trainer) on a dataset rendered for the lab rig."""
+def train_small_model(root, rig):
+    """``root/lab.npz``: a small model (M 3, q 12) trained by the real generator and trainer on :data:`LAB_TRAIN`
+    walkers rendered for ``rig``."""
     from silpose.app.training import run_training
     from silpose.datagen.config import load_config
     from silpose.datagen.pipeline import generate
 
-    root = tmp_path_factory.mktemp("labdata")
-    (root / "lab_rig.json").write_text(lab_rig().to_json())
+    (root / "lab_rig.json").write_text(rig.to_json())
     (root / "lab.toml").write_text(
         f'name = "lab"\nseed = 0\nrenderer = "raster"\nshard_size = 120\nn_points = {LAB_POINTS}\nmax_redraws = 50\n'
         f'[splits]\ntrain = {LAB_TRAIN}\ntest = 0\n[rig]\nfile = "lab_rig.json"\n')
@@ -126,6 +125,12 @@ def lab_model(tmp_path_factory):
     out = root / "lab.npz"
     run_training(str(root / "data"), out=out, progress=False, n_components=3, n_latent=12, n_init=1, max_iter=60)
     return out
+
+
+@pytest.fixture(scope="session")
+def lab_model(tmp_path_factory):
+    """A small model trained (real generator and trainer) on a dataset rendered for the lab rig."""
+    return train_small_model(tmp_path_factory.mktemp("labdata"), lab_rig())
 
 
 @pytest.fixture(scope="session")
