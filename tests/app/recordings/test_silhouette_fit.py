@@ -261,7 +261,7 @@ def test_the_fit_reaches_the_minimum_a_general_minimiser_finds():
             if start == 0:
                 continue  # inside by the margin: nothing to fit
             got = energy(fitted[r, j], r, j)
-            best = min(minimize(energy, x0, args=(r, j), method="Powell", options={"xtol": 1e-5, "ftol": 1e-9}).fun
+            best = min(minimize(energy, x0, args=(r, j), method="Powell", options={"xtol": 1e-4, "ftol": 1e-7}).fun
                        for x0 in (joints[r, j], fitted[r, j]))
             assert got <= start * (1 + 1e-9)  # the fit never raises a joint's energy
             gaps.append((got - best) / start)  # the share of the possible decrease the fit missed
