@@ -383,7 +383,8 @@ def learning_curve_section(reports_dir: Path) -> list[str]:
             continue
         data = json.loads(path.read_text(encoding="utf-8"))
         st, first = data.get("settings", {}), data["rows"][0]
-        out += [f"### `{path.parent.name}` (data `{st.get('data', '?')}`, q {first.get('n_latent', '?')}, "
+        w = f", structure weight {st['structure_weight']:g}" if "structure_weight" in st else ""
+        out += [f"### `{path.parent.name}` (data `{st.get('data', '?')}`, q {first.get('n_latent', '?')}{w}, "
                 f"{first.get('n_test', '?')} test samples): every view / one view, cm", ""] + table
         fits = ", ".join(f"N {r['n_samples']:,} M {r['n_components']}: {r['fit_s']:.0f} s"
                          for r in data["rows"])
@@ -392,8 +393,9 @@ def learning_curve_section(reports_dir: Path) -> list[str]:
 
 
 def coverage_section(reports_dir: Path) -> list[str]:
-    """Every ``<reports>/<name>/coverage.json`` (``python -m silpose.eval.coverage``): the error of the nearest
-    training pose, overall and per activity group."""
+    """Every ``<reports>/<name>/coverage.json`` (``silpose eval``; ``python -m silpose.eval.coverage``): the error of
+    the nearest training pose, overall and per activity group, and the model's error on samples it was fitted on
+    beside its test error (``silpose.eval.in_sample``) when the report has them."""
     out = []
     for path in sorted(reports_dir.glob("*/coverage.json")):
         try:
@@ -404,6 +406,13 @@ def coverage_section(reports_dir: Path) -> list[str]:
         out += [f"`{path.parent.name}`: the nearest of {c['n_train']:,} training poses to each of {c['n_test']} test "
                 f"poses is {c['mean_cm']:.2f} cm off on average (median {c['median_cm']:.2f}): no answer drawn from "
                 "the training poses does better.", ""]
+        m = c.get("model")
+        if m:
+            out += [f"The model ({m['inference']}, {m['noise']} noise) on {m['n']} of the samples it was fitted on: "
+                    f"{m['in_sample_mean_cm']:.2f} cm (median {m['in_sample_median_cm']:.2f}); on the test poses: "
+                    f"{m['test_mean_cm']:.2f} cm (median {m['test_median_cm']:.2f}). The first is what the model leaves on "
+                    "poses and bodies it has seen; the difference is what the test poses' distance from the training "
+                    "poses costs (`silpose.eval.in_sample`).", ""]
         if groups:
             out += ["| group | " + " | ".join(groups) + " |", "|---|" + "---|" * len(groups),
                     "| nearest training pose, cm | " + " | ".join(f"{g['mean_cm']:.2f}" for g in groups.values()) + " |",
@@ -434,7 +443,7 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
         parts += ["## Motions: per activity group", ""] + groups
     cover = coverage_section(bench.parent.parent)
     if cover:
-        parts += ["## Pose coverage: the nearest training pose (an oracle)", ""] + cover
+        parts += ["## Pose coverage: the nearest training pose (an oracle) and the model on its own samples", ""] + cover
     curve = learning_curve_section(bench.parent.parent)
     if curve:
         parts += ["## Learning curve (posterior mean, standard noise)", ""] + curve

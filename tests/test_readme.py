@@ -93,7 +93,9 @@ def test_coverage_section_comes_from_each_presets_coverage_report(tmp_path):
     reports = tmp_path / "reports"
     (reports / "motions").mkdir(parents=True)
     cov = {"mean_cm": 10.584, "median_cm": 9.35, "n_train": 48000, "n_test": 400,
-           "groups": {"walk": {"mean_cm": 7.591, "n": 16}, "bend": {"mean_cm": 13.716, "n": 107}}}
+           "groups": {"walk": {"mean_cm": 7.591, "n": 16}, "bend": {"mean_cm": 13.716, "n": 107}},
+           "model": {"n": 400, "noise": "standard", "inference": "robust, every view", "in_sample_mean_cm": 12.004,
+                     "in_sample_median_cm": 9.111, "test_mean_cm": 16.488, "test_median_cm": 11.5}}
     (reports / "motions" / "coverage.json").write_text(json.dumps(cov))
     readme = tmp_path / "README.md"
     shutil.copy(README, readme)
@@ -101,6 +103,8 @@ def test_coverage_section_comes_from_each_presets_coverage_report(tmp_path):
     text = (tmp_path / "r.md").read_text()
     assert "nearest of 48,000 training poses to each of 400 test poses is 10.58 cm off" in text
     assert "| group | walk | bend |" in text and "| nearest training pose, cm | 7.59 | 13.72 |" in text
+    assert ("The model (robust, every view, standard noise) on 400 of the samples it was fitted on: 12.00 cm "
+            "(median 9.11); on the test poses: 16.49 cm (median 11.50)") in text
 
 
 def test_speed_block_comes_from_the_bench_report(tmp_path):

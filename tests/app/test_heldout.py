@@ -9,11 +9,9 @@ import pytest
 from typer.testing import CliRunner
 
 from silpose.app.heldout import clip_groups, heldout_split
-from silpose.datagen.testing import synthetic_record, write_synthetic_dataset
-from silpose.shared.camera import default_rig
+from silpose.datagen.testing import write_synthetic_dataset
 from silpose.shared.cli import build_app
-from silpose.shared.dataset import load_split, write_shard
-from silpose.shared.dataset_schema import build_metadata
+from silpose.shared.dataset import load_split
 
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 
@@ -28,22 +26,8 @@ def clip_of(i: int) -> int:
 @pytest.fixture(scope="module")
 def clip_dataset(tmp_path_factory):
     """80 train rows in two shards with ``gait.clip`` (:func:`clip_of`), 5 test rows."""
-    root = tmp_path_factory.mktemp("data") / "clips"
-    root.mkdir()
-    rig = default_rig()
-    config = {"name": "clips", "seed": 3, "rig": rig.to_dict(), "n_points": N_POINTS}
-    meta = build_metadata(rig.to_dict()["cameras"], config, N_POINTS, generator_version="test")
-
-    def record(split, i):
-        r = synthetic_record(config, split, i)
-        r["gait"] = {"clip": float(clip_of(i)), "frame": float(i % 8), "mirror": 0.0, **r["gait"]}
-        return r
-
-    for s, rows in enumerate((range(0, 40), range(40, 80))):
-        write_shard(root / f"train-{s:05d}-of-00002.parquet", [record("train", i) for i in rows], meta)
-    write_shard(root / "test-00000-of-00001.parquet", [record("test", i) for i in range(5)], meta)
-    (root / "manifest.json").write_text(json.dumps({"name": "clips"}))
-    return root
+    return write_synthetic_dataset(tmp_path_factory.mktemp("data") / "clips", (40, 40), N_POINTS, name="clips",
+                                   seed=3, clip_of=clip_of)
 
 
 def test_walk_only_dataset_keeps_the_random_split(tmp_path):

@@ -50,6 +50,12 @@ def test_every_artefact_is_written(evaluated):
             img = cv2.imread(str(out / name))
             assert img is not None and img.shape[0] > 200 and img.std() > 10, name  # a real, non-blank image
     assert not list(out.glob(".*tmp"))  # no temporaries left behind
+    cover = json.loads((out / "coverage.json").read_text())  # the walk-only stick figures have no groups
+    assert "groups" not in cover and cover["n_test"] == cover["model"]["n"] > 0
+    assert cover["model"]["in_sample_mean_cm"] > 0
+    head = json.loads((out / "headline.json").read_text())  # the test figure is E4's robust answer, every view
+    robust = head["pose_mean_cm_by_method_and_n_views"]["4"]["mppca robust"]
+    assert cover["model"]["test_mean_cm"] == pytest.approx(robust, rel=1e-9)
 
 
 def _quartet(values) -> str:

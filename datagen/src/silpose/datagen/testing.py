@@ -112,9 +112,11 @@ def synthetic_record(config: dict, split: str, index: int) -> dict:
 
 
 def write_synthetic_dataset(root, shard_rows=(30, 25, 30, 15), n_points: int = 16, n_test: int = 5,
-                            name: str = "sharded", seed: int = 5) -> Path:
+                            name: str = "sharded", seed: int = 5, clip_of=None) -> Path:
     """A dataset folder of :func:`synthetic_record` rows written with the dataset writer: train shards of
     ``shard_rows`` rows each (uneven by default), one test shard of ``n_test`` rows, a manifest; default rig.
+    ``clip_of``: row index -> motion-capture clip (0 = the procedural walk), written to every row's ``gait``
+    as a clip-posed dataset's are (``clip``, ``frame`` = index mod 8, ``mirror`` 0); None: no clips.
     Returns ``root`` (created; must not exist)."""
     import json
 
@@ -127,12 +129,18 @@ def write_synthetic_dataset(root, shard_rows=(30, 25, 30, 15), n_points: int = 1
     rig = default_rig()
     config = {"name": name, "seed": seed, "rig": rig.to_dict(), "n_points": n_points}
     meta = build_metadata(rig.to_dict()["cameras"], config, n_points, generator_version="test")
+    def record(split: str, i: int) -> dict:
+        r = synthetic_record(config, split, i)
+        if clip_of is not None:
+            r["gait"] = {"clip": float(clip_of(i)), "frame": float(i % 8), "mirror": 0.0, **r["gait"]}
+        return r
+
     start = 0
     for s, n in enumerate(shard_rows):
-        records = [synthetic_record(config, "train", i) for i in range(start, start + n)]
+        records = [record("train", i) for i in range(start, start + n)]
         write_shard(root / f"train-{s:05d}-of-{len(shard_rows):05d}.parquet", records, meta)
         start += n
-    write_shard(root / "test-00000-of-00001.parquet", [synthetic_record(config, "test", i) for i in range(n_test)], meta)
+    write_shard(root / "test-00000-of-00001.parquet", [record("test", i) for i in range(n_test)], meta)
     (root / "manifest.json").write_text(json.dumps({"name": name}))
     return root
 

@@ -4,9 +4,10 @@ For every test sample, the training sample whose root-relative joints (world ori
 structure target, :mod:`silpose.shared.skeleton`) are nearest in the paper's pose error, the mean joint
 distance (:func:`silpose.shared.metrics.pose_error_cm`), and that error. It is the error of a lookup that
 knew the true pose and could only answer with a training pose: no method that picks a training pose can
-beat it on average, and a prior whose answers stay near its training poses (the MPPCA's components are local
-linear models of them) is bounded by it in practice. When a test split's error sits near this figure, more
-*motions* (clips) lower it, not more samples of the same clips or a better inference.
+beat it on average. A model that interpolates between training poses can: on the default preset (the procedural
+walk) the nearest of 2,000 training poses is 3.61 cm off, the MPPCA's robust answer 3.32 cm. So the figure says
+how far the test poses lie from the training poses, not where a model must stop; :mod:`.in_sample` gives the
+other half, the model's error on poses it was fitted on. ``silpose eval`` writes both to ``coverage.json``.
 
 Reported per activity group of the test clips (:func:`.groups.sample_groups`)::
 

@@ -145,6 +145,8 @@ class EvalData:
         image_size: (K, 2) (height, width) px per view.
         train_groups: (N_train,) walker of each training row (rows with identical subject parameters, and
             a row's mirrored and ragged copies; None: one walker per row).
+        train_fitted: the first ``train_fitted`` training rows are samples the 4-view model was fitted on (set by
+            ``silpose.eval.run.match_training_subset``; None: not known).
     """
 
     train_contours: np.ndarray
@@ -160,6 +162,7 @@ class EvalData:
     test_length: np.ndarray | None = None
     test_area: np.ndarray | None = None
     train_groups: np.ndarray | None = None
+    train_fitted: int | None = None
 
     @property
     def n_views(self) -> int:

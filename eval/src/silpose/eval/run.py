@@ -21,7 +21,7 @@ import pyarrow.parquet as pq
 
 from silpose.model.augment import Roughness, training_rows
 from silpose.model.persistence import load_model
-from silpose.model.selection import validation_split
+from silpose.app.heldout import clip_groups, heldout_split
 from silpose.shared.atomic import atomic_path, write_json_atomic, write_text_atomic
 from silpose.shared.dataset import DatasetError, load_split
 from silpose.shared.metrics import CANVAS_MARGIN_PX
@@ -33,6 +33,7 @@ from .errors import EvalInputError
 from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .coverage import coverage
+from .in_sample import in_sample_error
 from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
@@ -66,31 +67,36 @@ def load_data(data_dir: str | Path, n_test: int | None, with_masks: bool, test_d
     return EvalData.from_splits(train, test, n_test)
 
 
-def match_training_subset(data: EvalData, model) -> str:
+def match_training_subset(data: EvalData, model, groups: np.ndarray | None = None) -> str:
     """Restrict ``data``'s training arrays to the samples the 4-view model was fitted on.
 
-    ``silpose train`` holds out a seeded part of the train split (``validation_split(n, fraction,
-    seed)``); the single-view models, the baselines and chance must see the same samples, so E1 and
-    E4 compare like with like. Reproduced from the model's ``dataset_info_`` (n_samples, n_heldout)
-    and ``random_state``; if that is impossible every training sample is used. Returns a note.
+    ``silpose train`` holds out a seeded part of the train split (``silpose.app.heldout.heldout_split``: whole
+    clips of a motion-capture dataset, else a random part of the rows); the single-view models, the baselines,
+    chance and the in-sample figure must see the same samples, so E1 and E4 compare like with like. Reproduced
+    from the model's ``dataset_info_`` (n_samples, n_heldout), its ``random_state`` and ``groups`` (N,), the
+    train split's clip groups (``silpose.app.heldout.clip_groups``; None for a walk-only dataset); if that is
+    impossible every training sample is used. Sets ``data.train_fitted``. Returns a note.
     """
     info = getattr(model, "dataset_info_", None) or {}
     n = len(data.train_joints)
     n_held, n_fit = int(info.get("n_heldout", 0) or 0), int(info.get("n_fit", n) or n)
     if n_held <= 0:
+        data.train_fitted = n
         return f"single-view models and baselines are trained on all {n} training samples, like the 4-view model"
     if int(info.get("n_samples", -1)) != n:
         return (f"the model's training record ({info.get('n_samples')} samples) does not match this train split ({n}); "
                 f"single-view models and baselines use all {n} samples")
-    seed = int(model.random_state or 0)
-    fit_idx, _ = validation_split(n, n_held / n, seed)
+    config = getattr(model, "training_config_", None) or {}
+    seed = int(config.get("seed", model.random_state or 0))
+    by_clip = config.get("heldout_by", "clip" if groups is not None else "sample") == "clip"
+    fit_idx, _ = heldout_split(n, float(config.get("heldout_fraction", n_held / n)), seed, groups if by_clip else None)
     if len(fit_idx) != n_fit:
         return f"could not reproduce the trainer's held-out split; single-view models and baselines use all {n} samples"
     data.train_contours = data.train_contours[fit_idx]
     data.train_joints = data.train_joints[fit_idx]
+    data.train_fitted = len(fit_idx)
     if data.train_groups is not None:
         data.train_groups = data.train_groups[fit_idx]
-    config = getattr(model, "training_config_", None) or {}
     rough = config.get("roughness")
     mirrors = tuple(RigMirror.from_dict(m) for m in config.get("mirrors") or ())
     extra = ""
@@ -214,7 +220,7 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     if getattr(model, "n_rig_views_", data.n_views) != data.n_views or len(model.layout_.views) != data.n_views:
         raise EvalInputError(f"model {model_path} models views {model.layout_.views} of a {model.n_rig_views_}-view rig, "
                              f"but the evaluation needs a model over all {data.n_views} views of {data_dir}")
-    train_note = match_training_subset(data, model)
+    train_note = match_training_subset(data, model, clip_groups(data_dir, "train"))
     load_s = time.perf_counter() - t0
     ev = Evaluation(data=data, model=model, config=config, progress=progress)
     ev.notes.append(train_note)
@@ -243,7 +249,11 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     written = write_reports(ev, out_dir, settings, title or f"silpose evaluation — {Path(data_dir).name}", groups)
     if groups:
         written["groups"] = write_group_report(ev.frame(), groups, out_dir, title or f"silpose evaluation — {Path(data_dir).name}")
-        written["coverage"] = write_json_atomic(Path(out_dir) / "coverage.json", coverage(data_dir, test_dir))
+    cover = coverage(data_dir, test_dir)
+    model_figures = in_sample_error(ev)
+    if model_figures is not None:
+        cover["model"] = model_figures
+    written["coverage"] = write_json_atomic(Path(out_dir) / "coverage.json", cover)
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
