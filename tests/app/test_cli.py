@@ -342,20 +342,22 @@ def test_fits_pools_em_fits_and_reports_each(dataset, tmp_path):
 
 
 def test_a_dataset_config_train_table_sets_the_defaults(tmp_path):
-    """A preset's ``[train]`` (stored in the dataset's config) gives M, q and the pooled fits unless the command line
-    gives its own; streaming cannot pool, so it fits once and says so; a malformed entry is a one-line error."""
-    data = write_dataset(tmp_path / "d", "trained", train={"components": 3, "latent": 2, "fits": 2})
+    """A preset's ``[train]`` (stored in the dataset's config) gives M, q, the pooled fits and the structure weight
+    unless the command line gives its own; streaming cannot pool, so it fits once and says so; a malformed entry is
+    a one-line error."""
+    data = write_dataset(tmp_path / "d", "trained",
+                         train={"components": 3, "latent": 2, "fits": 2, "structure_weight": 7.5})
     common = ("--max-iter", "10", "--no-progress")
     res = _invoke("train", data, *common, "--out", tmp_path / "a.npz")
     assert res.exit_code == 0, res.output
     hp = read_header(tmp_path / "a.npz")["hyperparameters"]
-    assert (hp["n_components"], hp["n_latent"], hp["n_fits"]) == (3, 2, 2)
-    assert "the dataset's [train] settings (components 3, latent 2, fits 2)" in res.output
+    assert (hp["n_components"], hp["n_latent"], hp["n_fits"], hp["structure_weight"]) == (3, 2, 2, 7.5)
+    assert "the dataset's [train] settings (components 3, latent 2, fits 2, structure_weight 7.5)" in res.output
     assert "lowered" not in res.output  # the preset's sizes count as chosen, like the user's
-    res = _invoke("train", data, *common, "-M", "4", "--fits", "1", "--out", tmp_path / "b.npz")
+    res = _invoke("train", data, *common, "-M", "4", "--fits", "1", "--structure-weight", "2", "--out", tmp_path / "b.npz")
     assert res.exit_code == 0, res.output
     hp = read_header(tmp_path / "b.npz")["hyperparameters"]
-    assert (hp["n_components"], hp["n_latent"], hp["n_fits"]) == (4, 2, 1)
+    assert (hp["n_components"], hp["n_latent"], hp["n_fits"], hp["structure_weight"]) == (4, 2, 1, 2.0)
     res = _invoke("train", data, *common, "--streaming", "--out", tmp_path / "c.npz")
     assert res.exit_code == 0, res.output
     assert read_header(tmp_path / "c.npz")["hyperparameters"]["n_fits"] == 1
@@ -364,3 +366,6 @@ def test_a_dataset_config_train_table_sets_the_defaults(tmp_path):
     res = _invoke("train", bad, *common, "--out", tmp_path / "e.npz")
     assert res.exit_code != 0 and "config.train.fits' must be an integer >= 1" in res.output
     assert str(bad) in res.output and not (tmp_path / "e.npz").exists()
+    bad_w = write_dataset(tmp_path / "bad_w", "trained", train={"structure_weight": -1.0})
+    res = _invoke("train", bad_w, *common, "--out", tmp_path / "f.npz")
+    assert res.exit_code != 0 and "config.train.structure_weight' must be a number > 0" in res.output

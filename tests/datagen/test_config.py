@@ -57,9 +57,11 @@ def test_user_toml_and_worker_config(tmp_path):
 def test_train_table_is_stored_but_changes_no_sample(tmp_path):
     """``[train]`` reaches the dataset's config (where ``silpose train`` reads it) and nothing a sample depends on."""
     plain = load_config(write(tmp_path, BASE))
-    trained = load_config(write(tmp_path, BASE + "[train]\ncomponents = 25\nfits = 5\n", "trained.toml"))
-    assert trained.train == {"components": 25, "fits": 5} and plain.train is None
-    assert trained.to_dict()["train"] == {"components": 25, "fits": 5} and "train" not in plain.to_dict()
+    trained = load_config(write(tmp_path, BASE + "[train]\ncomponents = 25\nfits = 5\nstructure_weight = 10\n",
+                                "trained.toml"))
+    table = {"components": 25, "fits": 5, "structure_weight": 10.0}
+    assert trained.train == table and plain.train is None and isinstance(trained.train["structure_weight"], float)
+    assert trained.to_dict()["train"] == table and "train" not in plain.to_dict()
     assert trained.data_config() == plain.data_config()
     assert trained.worker_config() == plain.worker_config()
 
@@ -87,7 +89,10 @@ def test_uneven_last_shard(tmp_path):
         ("shard_size = 4\n", "", "'shard_size' missing"),
         ("test = 4\n", "test = 4\n[train]\nfits = 0\n", "'fits' must be in [1,"),
         ("test = 4\n", "test = 4\n[train]\ncomponents = 2.5\n", "'components' must be an integer"),
-        ("test = 4\n", "test = 4\n[train]\nepochs = 3\n", "'train.epochs': unknown; known: components, latent, fits"),
+        ("test = 4\n", "test = 4\n[train]\nepochs = 3\n",
+         "'train.epochs': unknown; known: components, latent, fits, structure_weight"),
+        ("test = 4\n", "test = 4\n[train]\nstructure_weight = 0\n", "'structure_weight' must be a number > 0"),
+        ("test = 4\n", "test = 4\n[train]\nstructure_weight = \"10\"\n", "'structure_weight' must be a number > 0"),
         ("max_redraws = 50", "max_redraws = 50\ntrain = 3", "'train' must be a table"),
     ],
 )

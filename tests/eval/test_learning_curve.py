@@ -36,3 +36,13 @@ def test_main_writes_every_point(stick_dataset, tmp_path):
     assert [(r["n_samples"], r["n_components"]) for r in data["rows"]] == [(40, 2), (80, 2)]
     assert data["settings"]["fit"] == "in memory"
     assert (tmp_path / "learning_curve.csv").read_text().count("\n") == 3
+
+
+def test_the_structure_weight_reaches_the_fits(stick_dataset, tmp_path):
+    """Without [train] in the dataset the model's default weight is used; --structure-weight changes the fits."""
+    common = [str(stick_dataset), "--n", "80", "--m", "2", "--q", "2", "--max-iter", "3"]
+    assert learning_curve.main(common + ["--out", str(tmp_path / "a")]) == 0
+    assert learning_curve.main(common + ["--structure-weight", "3", "--out", str(tmp_path / "b")]) == 0
+    a, b = (json.loads((tmp_path / x / "learning_curve.json").read_text()) for x in ("a", "b"))
+    assert a["settings"]["structure_weight"] == 30.0 and b["settings"]["structure_weight"] == 3.0
+    assert a["rows"][0]["pose_all_views_cm"] != b["rows"][0]["pose_all_views_cm"]

@@ -85,7 +85,9 @@ AUTO_MIRROR_MAX_ROWS = 10_000
 MIRROR_MODES = ("auto", "on", "off")
 #: A dataset config's ``[train]`` fields (``silpose.datagen.config.TRAIN_KEYS``; read from the stored config, so
 #: this package does not import the generator)
-TRAIN_FIELDS = ("components", "latent", "fits")
+TRAIN_FIELDS = ("components", "latent", "fits", "structure_weight")
+#: the [train] fields that are numbers > 0, not counts
+TRAIN_FLOAT_FIELDS = ("structure_weight",)
 from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
@@ -138,9 +140,9 @@ def supported_size(n_fit: int, m: int, q: int, *, fixed_m: bool = False, fixed_q
 
 
 def dataset_training(metadata: dict, root: Path) -> dict:
-    """The dataset's ``[train]`` settings (``silpose.datagen.config.TRAIN_KEYS``: components, latent, fits), as
-    stored in its config: ``{field: int >= 1}``, ``{}`` for a dataset without them. A malformed entry is a
-    one-line TrainingError naming the dataset and the field."""
+    """The dataset's ``[train]`` settings (``silpose.datagen.config.TRAIN_KEYS``: components, latent, fits,
+    structure_weight), as stored in its config: ``{field: int >= 1}`` (``structure_weight``: float > 0), ``{}`` for
+    a dataset without them. A malformed entry is a one-line TrainingError naming the dataset and the field."""
     train = (metadata.get("config") or {}).get("train")
     if train is None:
         return {}
@@ -150,6 +152,11 @@ def dataset_training(metadata: dict, root: Path) -> dict:
     for key, value in train.items():
         if key not in TRAIN_FIELDS:
             raise TrainingError(f"{root}: field 'config.train.{key}': unknown; known: {', '.join(TRAIN_FIELDS)}")
+        if key in TRAIN_FLOAT_FIELDS:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < float(value) < float("inf"):
+                raise TrainingError(f"{root}: field 'config.train.{key}' must be a number > 0, got {value!r}")
+            out[key] = float(value)
+            continue
         if not isinstance(value, int) or isinstance(value, bool) or value < 1:
             raise TrainingError(f"{root}: field 'config.train.{key}' must be an integer >= 1, got {value!r}")
         out[key] = value
@@ -288,6 +295,7 @@ def run_training(
         preset = dataset_training(metadata, root)
         n_components = preset.get("components") if n_components is None else n_components
         n_latent = preset.get("latent") if n_latent is None else n_latent
+        structure_weight = preset.get("structure_weight") if structure_weight is None else structure_weight
         if n_fits is None and preset.get("fits", 1) > 1 and streaming:
             preset_note = f"the dataset's [train] fits = {preset['fits']} not used: pooled fits are made in memory"
         elif n_fits is None:

@@ -24,6 +24,7 @@ Keys (all validated; errors are one line naming the file and the field)::
     components = 25             # mixture components M per fit
     latent = 40                 # latent dimensions q
     fits = 5                    # EM fits pooled into one mixture (M x fits components)
+    structure_weight = 10.0     # weight w of the joint block in the shape vector (a number > 0)
 
 Relative rig and clip paths are resolved against the TOML file's folder. Walkers are placed uniformly in the
 workspace (the rig's, or ``[workspace]``); every camera must see it up to a tall person's head
@@ -65,8 +66,11 @@ SPLITS = ("train", "test")
 WORKSPACE_CHECK_HEIGHT = PERSON_HEIGHT_M
 _KEYS = {"name", "seed", "renderer", "blender_engine", "shard_size", "n_points", "max_redraws", "splits", "rig",
          "workspace", "frames", "motion", "train"}
-#: The ``[train]`` table's fields (each optional, an integer >= 1): ``silpose train``'s M, q and pooled fits.
-TRAIN_KEYS = ("components", "latent", "fits")
+#: The ``[train]`` table's fields (each optional): ``silpose train``'s M, q and pooled fits (integers >= 1) and the
+#: structure weight w (a number > 0, :data:`TRAIN_FLOAT_KEYS`).
+TRAIN_KEYS = ("components", "latent", "fits", "structure_weight")
+#: The ``[train]`` fields that are numbers, not counts.
+TRAIN_FLOAT_KEYS = ("structure_weight",)
 #: Sections read by other commands and ignored here: ``[frames]`` (``silpose gen-frames``, :mod:`.frames.config`).
 _OTHER_SECTIONS = {"frames"}
 
@@ -264,13 +268,25 @@ def config_from_dict(raw: dict, source: str = "config") -> GenConfig:
 
 
 def parse_train(spec, src: str) -> dict:
-    """The ``[train]`` table (module docstring): ``{field: int >= 1}`` for the :data:`TRAIN_KEYS` it names."""
+    """The ``[train]`` table (module docstring): ``{field: value}`` for the :data:`TRAIN_KEYS` it names (counts
+    int >= 1, :data:`TRAIN_FLOAT_KEYS` float > 0)."""
     if not isinstance(spec, dict):
         raise ConfigError(f"{src}: field 'train' must be a table with {', '.join(TRAIN_KEYS)}")
     unknown = sorted(set(spec) - set(TRAIN_KEYS))
     if unknown:
         raise ConfigError(f"{src}: field 'train.{unknown[0]}': unknown; known: {', '.join(TRAIN_KEYS)}")
-    return {k: _int(spec, k, f"{src}: train", 1, 100_000) for k in TRAIN_KEYS if k in spec}
+    out = {}
+    for k in TRAIN_KEYS:
+        if k not in spec:
+            continue
+        if k in TRAIN_FLOAT_KEYS:
+            v = spec[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0 < float(v) < float("inf")):
+                raise ConfigError(f"{src}: train: field {k!r} must be a number > 0, got {v!r}")
+            out[k] = float(v)
+        else:
+            out[k] = _int(spec, k, f"{src}: train", 1, 100_000)
+    return out
 
 
 def _portable_rig_spec(spec) -> dict:

@@ -1,8 +1,10 @@
 """Learning curve N x M: held-out joint error of the MPPCA prior against training samples and components.
 
-``python -m silpose.eval.learning_curve DATA [--n 5000 20000 ...] [--m 20 50 100 200] [--q 30] [--out DIR]``
+``python -m silpose.eval.learning_curve DATA [--n 5000 20000 ...] [--m 20 50 100 200] [--q 30]
+[--structure-weight W] [--out DIR]``
 
-For every (N, M) a ``ShapeStructureModel(M, q)`` is fitted on N rows of the train split (the first N of
+For every (N, M) a ``ShapeStructureModel(M, q)`` with the structure weight W (default: the dataset's ``[train]``
+``structure_weight``, as ``silpose train`` uses it, else the model's default) is fitted on N rows of the train split (the first N of
 one seeded permutation, so the sets are nested; the sparse E-step from M 64 on, ``silpose.model.mppca``):
 in memory, or out of core with ``--streaming`` (``fit_stream``), and scored on
 the test split (for the ``motions`` preset: clips of subjects training never saw) with the standard
@@ -28,10 +30,12 @@ from typing import Sequence
 
 import numpy as np
 
+from silpose.app.training import dataset_training
+from silpose.model.defaults import DEFAULT_STRUCTURE_WEIGHT
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.streaming import DatasetShards
 from silpose.shared.atomic import write_text_atomic
-from silpose.shared.dataset import load_split
+from silpose.shared.dataset import list_shards, load_split, read_metadata
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 
@@ -42,7 +46,8 @@ COLUMNS = ("n_samples", "n_components", "n_latent", "pose_all_views_cm", "pose_1
 
 
 def curve_point(data: Path, joints: np.ndarray, noisy: np.ndarray, n: int, m: int, q: int, *, seed: int = 0,
-                max_iter: int = 60, tol: float = 1e-3, structure_weight: float = 30.0, train=None) -> dict:
+                max_iter: int = 60, tol: float = 1e-3, structure_weight: float = DEFAULT_STRUCTURE_WEIGHT,
+                train=None) -> dict:
     """Fit one (N, M) model on ``n`` training rows (:func:`training_rows`) and score it on the noisy test
     contours (N_test, K, n, 2) px against the test joints (N_test, 19, 3) m. ``train``: the train split in
     memory (a ``DatasetSplit`` with contours and joints): the fit is in memory; None: out of core
@@ -98,6 +103,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--n", type=int, nargs="+", default=[5000, 20000, 50000], help="training samples")
     ap.add_argument("--m", type=int, nargs="+", default=[20, 50, 100, 200], help="mixture components")
     ap.add_argument("--q", type=int, default=30, help="latent dimensions per component")
+    ap.add_argument("--structure-weight", type=float, default=None,
+                    help="weight of the joint block (default: the dataset's [train] structure_weight, else "
+                         f"{DEFAULT_STRUCTURE_WEIGHT:g})")
     ap.add_argument("--n-test", type=int, default=None, help="first N test samples (default all)")
     ap.add_argument("--max-iter", type=int, default=60)
     ap.add_argument("--tol", type=float, default=1e-3)
@@ -107,13 +115,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="fit out of core (fit_stream) instead of loading the train split's contours into memory")
     args = ap.parse_args(argv)
     out = args.out or Path("reports") / args.data.name
+    weight = args.structure_weight
+    if weight is None:
+        metadata = read_metadata(list_shards(args.data, "train")[0]) if list_shards(args.data, "train") else {}
+        weight = dataset_training(metadata, args.data).get("structure_weight", DEFAULT_STRUCTURE_WEIGHT)
+    if not weight > 0:
+        ap.error(f"--structure-weight must be > 0, got {weight}")
     test = load_split(args.data, "test")
     contours = np.asarray(test.contours, np.float64)[: args.n_test]
     test_joints = np.asarray(test.joints, np.float64)[: args.n_test]
     noisy = apply_noise(STANDARD_NOISE, contours, np.asarray(test.sample_id)[: args.n_test], args.seed)
 
     train = None if args.streaming else load_split(args.data, "train", columns=["joints", "contours"])
-    settings = {"data": str(args.data), "n": args.n, "m": args.m, "q": args.q, "max_iter": args.max_iter,
+    settings = {"data": str(args.data), "n": args.n, "m": args.m, "q": args.q, "structure_weight": weight,
+                "max_iter": args.max_iter,
                 "fit": "streaming" if args.streaming else "in memory",
                 "tol": args.tol, "seed": args.seed, "noise": STANDARD_NOISE.to_dict(),
                 "error": "mean root-relative joint error (cm) of the posterior mean on the test split"}
@@ -123,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if n < m:
                 continue
             row = curve_point(args.data, test_joints, noisy, n, m, args.q, seed=args.seed, max_iter=args.max_iter,
-                              tol=args.tol, train=train)
+                              tol=args.tol, structure_weight=weight, train=train)
             rows.append(row)
             print(json.dumps(row), flush=True)
             write_curve(out, settings, rows)
