@@ -211,20 +211,6 @@ def decode_reference(videos: str, clips: str, n_background: int = 20, model: str
     return out
 
 
-def peak_rss_bytes() -> int:
-    """This process's peak resident set size: ``VmHWM`` (Linux), else ``ru_maxrss``."""
-    import resource
-
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
 def warm_compiled() -> None:
     """Import numba's compiled loops and load them from numba's cache, as a run does once per process (~1 s: numba's
     import), so that a run's clock holds only its own work, like the other once-per-process imports."""
@@ -272,6 +258,7 @@ def measure(model: str, videos: str, out: str, overlays: bool, threads: int | No
 
     from silpose.app.recordings.pipeline import RecordingOptions, run_recording
     from silpose.model.persistence import load_model
+    from silpose.shared.memory import peak_rss_bytes
 
     m = load_model(model)
     # the imports a run makes once per process, before the baseline and the clock: the floor plan's (pyplot, its

@@ -19,6 +19,7 @@ from silpose.model.augment import Roughness, augment_rows, roughen_contours, tra
 from silpose.model.selection import DEFAULT_GRID, validation_split
 from silpose.shared.camera import Rig, default_rig, ring_rig
 from silpose.shared.cli import build_app
+from silpose.shared.memory import peak_rss_bytes
 from silpose.shared.dataset import load_split, write_shard
 from silpose.shared.dataset_schema import build_metadata
 from silpose.shared.rig_symmetry import rig_mirrors
@@ -66,6 +67,10 @@ def test_train_writes_model_and_report(trained, dataset):
     report = json.loads(out.with_suffix(".report.json").read_text())
     assert report["n_fit"] == 72 and report["n_heldout"] == 8
     assert report["em"]["n_iter"] == len(report["em"]["loglik_curve"]) >= 1
+    # the process's peak memory (the CLI ran in this test process): Python with numpy holds more than 50 MB, and
+    # the peak then can be no more than the process's peak now
+    assert 0.05 < report["em"]["peak_rss_gib"] <= peak_rss_bytes() / 2**30
+    assert f"peak memory of the process {report['em']['peak_rss_gib']:.2f} GiB" in out.with_suffix(".report.md").read_text()
     assert np.isfinite(report["heldout"]["mean_loglik"]) and report["heldout"]["joint_error_cm"] > 0
     # train vs held-out log-likelihood, both per sample for structure weight 1, recomputed from the model
     model = load_model(out)

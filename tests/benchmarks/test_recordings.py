@@ -52,22 +52,6 @@ def test_ping_pong_plays_forwards_then_backwards(tmp_path):
     assert levels == [0, 1, 2, 3, 3, 2, 1, 0, 0, 1, 2, 3]
 
 
-def test_peak_rss_is_this_process_own():
-    import subprocess
-    import sys
-
-    from benchmarks.recordings import peak_rss_bytes
-
-    ballast = np.ones(60 * 2**20, np.uint8)  # 60 MiB in this process ...
-    assert peak_rss_bytes() > ballast.size
-    code = ("import sys; sys.path.insert(0, sys.argv[1]); from benchmarks.recordings import peak_rss_bytes; "
-            "print(peak_rss_bytes())")
-    from benchmarks.subproc import ROOT
-
-    child = int(subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True).stdout)
-    assert child < ballast.size  # ... not in a child it starts (ru_maxrss would carry it over exec)
-
-
 def test_overlay_shares_compare_each_overlay_run_with_its_plain_run():
     from benchmarks.recordings import _overlay_shares
 

@@ -25,3 +25,33 @@ def test_freed_heap_blocks_are_returned():
     after = _rss_kb()
     assert before - after > 100_000, (before, after)  # > 100 MB of the ~200 MB back
     del keep
+
+
+def test_peak_rss_covers_a_block_touched_and_freed():
+    """After a 300 MB block is touched and freed, the peak is still at least the resident size the process had
+    while it held the block (psutil's figure, an independent reader); the current size has fallen by then."""
+    import psutil
+
+    from silpose.shared.memory import peak_rss_bytes
+
+    before = peak_rss_bytes()
+    block = np.ones(300 * 2**20 // 8)  # touched: resident
+    during = psutil.Process().memory_info().rss
+    del block
+    after = peak_rss_bytes()
+    assert after >= during - 2**20 and after >= before
+    assert psutil.Process().memory_info().rss < during - 200 * 2**20  # what a current-size reader would give
+
+
+def test_peak_rss_is_this_process_own():
+    """A child started by this process reports its own peak, not the parent's (``ru_maxrss`` would carry the
+    parent's over ``exec``)."""
+    import subprocess
+
+    from silpose.shared.memory import peak_rss_bytes
+
+    ballast = np.ones(60 * 2**20, np.uint8)  # 60 MiB in this process ...
+    assert peak_rss_bytes() > ballast.size
+    code = "from silpose.shared.memory import peak_rss_bytes; print(peak_rss_bytes())"
+    child = int(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    assert child < ballast.size  # ... not in a child it starts

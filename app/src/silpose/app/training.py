@@ -92,7 +92,7 @@ from silpose.model.shards import split_global_rows
 from silpose.model.streaming import EXECUTORS, DatasetShards
 from silpose.shared.atomic import write_text_atomic
 from silpose.shared.dataset import DatasetError, list_shards, load_split, read_shard
-from silpose.shared.memory import release_freed_memory
+from silpose.shared.memory import peak_rss_bytes, release_freed_memory
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.output_dir import claim_files
 from silpose.shared.rig_symmetry import RigMirror, rig_mirrors
@@ -417,6 +417,7 @@ def run_training(
             "loglik_curve": [float(v) for v in mix.lower_bounds_],
             "all_segments": em.curves,
             "fit_time_s": float(wall),
+            "peak_rss_gib": peak_rss_bytes() / 2**30,
             "n_fit_rows": int(mix.n_fit_samples_),
             "pooled_runs": list(getattr(mix, "runs_", None) or []),
             "rows_per_component": {"min": float(rows_per_comp.min()), "median": float(np.median(rows_per_comp)),
@@ -536,6 +537,7 @@ def report_markdown(r: dict, selection) -> str:
         f"inference noise s² = {hp['noise_variance']:g}",
         f"- EM: {em['n_iter']} iterations ({'converged' if em['converged'] else 'NOT converged'}, tol {hp['tol']:g}), "
         f"best of {hp['n_init']} runs, {em['fit_time_s']:.1f} s in total"
+        + (f", peak memory of the process {em['peak_rss_gib']:.2f} GiB" if "peak_rss_gib" in em else "")
         + (f"; streamed over {r['mode']['n_shards']} shards ({r['mode']['executor']})" if r.get("mode", {}).get("streaming")
            else "; in memory"),
         f"- EM moved from its k-means start: {'yes' if em['real_em'] else 'NO'} (log-likelihood {em['initial_loglik']:.2f} "

@@ -22,7 +22,6 @@ import argparse
 import csv
 import io
 import json
-import resource
 import time
 import warnings
 from pathlib import Path
@@ -36,6 +35,7 @@ from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.streaming import DatasetShards
 from silpose.shared.atomic import write_text_atomic
 from silpose.shared.dataset import list_shards, load_split, read_metadata
+from silpose.shared.memory import peak_rss_bytes
 from silpose.shared.metrics import pose_error_cm
 from silpose.shared.seeds import VALIDATION_STREAM, derive_rng
 
@@ -75,7 +75,7 @@ def curve_point(data: Path, joints: np.ndarray, noisy: np.ndarray, n: int, m: in
     return {"n_samples": int(n), "n_components": int(m), "n_latent": int(q), "pose_all_views_cm": all_views,
             "pose_1_view_cm": float(np.mean(one)), "fit_s": fit_s, "n_iter": int(mix.n_iter_),
             "converged": bool(mix.converged_), "e_step": mix.e_step_,
-            "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, "n_test": int(len(joints))}
+            "peak_rss_gib": peak_rss_bytes() / 2**30, "n_test": int(len(joints))}
 
 
 def training_rows(data: Path, n: int, seed: int = 0) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Giving freed memory back to the operating system.
+"""Giving freed memory back to the operating system, and the process's peak memory.
 
 glibc's malloc raises its mmap threshold each time a large block is freed (up to 32 MB), so the
 blocks of a long computation that follow -- EM's per-block products, say -- come from the heap,
@@ -14,7 +14,7 @@ import ctypes
 import ctypes.util
 import sys
 
-__all__ = ["release_freed_memory"]
+__all__ = ["release_freed_memory", "peak_rss_bytes"]
 
 
 def release_freed_memory() -> bool:
@@ -31,3 +31,19 @@ def release_freed_memory() -> bool:
     trim.restype = ctypes.c_int
     trim(0)
     return True
+
+
+def peak_rss_bytes() -> int:
+    """This process's peak resident set size, bytes: ``VmHWM`` of ``/proc/self/status`` (Linux), else
+    ``getrusage``'s ``ru_maxrss`` (which ``exec`` does not reset, and which macOS gives in bytes, Linux in KiB)."""
+    import resource
+
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(rss if sys.platform == "darwin" else rss * 1024)
