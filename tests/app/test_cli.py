@@ -24,7 +24,7 @@ from silpose.shared.dataset import load_split, write_shard
 from silpose.shared.dataset_schema import build_metadata
 from silpose.shared.rig_symmetry import rig_mirrors
 from silpose.shared.skeleton import JOINT_NAMES
-from silpose.model.hypotheses import single_answer
+from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, single_answer, temporal_choice
 
 N_POINTS = 24
 
@@ -127,6 +127,15 @@ def test_infer_dataset_parquet_and_json_match_the_api(trained, dataset, tmp_path
     np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), single_answer(plain.joints, plain.hypotheses), atol=1e-6)
     assert [len(f["hypotheses"]) for f in doc["frames"]] == list((plain.hypotheses.component >= 0).sum(axis=1))
     assert all(f["views_trimmed"] == [] and f["views_reindexed"] == [] for f in doc["frames"])  # --no-robust: none
+    # --temporal: 8 hypotheses per frame, chosen along the frames by the Viterbi path; the answer is the chosen one
+    res = _invoke("infer", model_path, dataset, "--out", tmp_path / "t.json", "--no-robust", "--temporal")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "t.json").read_text())
+    seq = model.infer(test.contours, hypotheses=TEMPORAL_HYPOTHESES)
+    path = temporal_choice(seq.hypotheses)
+    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]),
+                               seq.hypotheses.joints[np.arange(len(path)), path], atol=1e-6)
+    assert [len(f["hypotheses"]) for f in doc["frames"]] == list((seq.hypotheses.component >= 0).sum(axis=1))
     # the views whose excursions robust inference trimmed, by camera name, in both formats
     names = model.rig_.names
     assert list(table["views_trimmed"]) == [",".join(names[k] for k in np.flatnonzero(r)) for r in ref.excursions_trimmed]

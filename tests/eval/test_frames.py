@@ -22,7 +22,7 @@ from typer.testing import CliRunner
 from silpose.app.recordings.silhouettes import room_view
 from silpose.app.recordings.sources import open_recording
 from silpose.datagen.testing import synthetic_record
-from silpose.model.hypotheses import single_answer, temporal_choice
+from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, sequence_answer, temporal_choice
 from silpose.model.persistence import load_model
 from silpose.segment import BackgroundModel, plate_alignment, plate_mismatch_std, warp_plate
 from silpose.shared.camera import default_rig
@@ -108,8 +108,9 @@ def _reference(model, frames, drop=()):
                 continue
             if c.area >= 50:
                 cont[i, k], present[i, k] = c.points, True
-    # silpose infer --frames: robust inference, top-3 hypotheses, the Viterbi choice along the frames
-    res = model.infer(cont, present, input_views=range(len(names)), hypotheses=3, robust=True, untangle=True)
+    # silpose infer --frames: robust inference, 8 hypotheses, the Viterbi choice along the frames
+    res = model.infer(cont, present, input_views=range(len(names)), hypotheses=TEMPORAL_HYPOTHESES, robust=True,
+                      untangle=True)
     res.hypotheses.chosen = temporal_choice(res.hypotheses, valid=present.any(axis=1))
     return res, present
 
@@ -124,7 +125,7 @@ def test_frames_cli_writes_joints_equal_to_a_hand_made_pipeline(model_path, fram
     assert list(table["frame"]) == [f"{i:05d}" for i in range(N_TEST)]
     ref, present = _reference(load_model(model_path), frames_dir)
     assert present.all()
-    np.testing.assert_allclose(got, single_answer(ref.joints, ref.hypotheses), atol=1e-5)
+    np.testing.assert_allclose(got, sequence_answer(ref.joints, ref.hypotheses), atol=1e-5)
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
     assert all(s == "ok" for f in seg["frames"] for s in f["status"])
     with np.load(out.with_name("j.contours.npz"), allow_pickle=False) as z:
@@ -143,7 +144,8 @@ def test_missing_camera_folder_is_a_missing_view(model_path, frames_dir, tmp_pat
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
     assert seg["counts"]["cam2"]["no video"] == N_TEST and seg["counts"]["cam0"]["ok"] == N_TEST
     ref, _ = _reference(load_model(model_path), partial, drop=("cam2",))
-    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), single_answer(ref.joints, ref.hypotheses), atol=1e-5)
+    np.testing.assert_allclose(np.array([f["joints"] for f in doc["frames"]]), sequence_answer(ref.joints, ref.hypotheses),
+                               atol=1e-5)
 
 
 def test_empty_segmentation_is_a_missing_view_for_that_frame(model_path, frames_dir, tmp_path):

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from silpose.model.hypotheses import (
+    TEMPORAL_POSE_SIGMA_M,
+    TEMPORAL_TEMPERATURE,
     Hypotheses,
     consensus_choice,
     heading,
@@ -17,6 +19,7 @@ from silpose.model.hypotheses import (
     is_flip,
     online_choice,
     single_answer,
+    sequence_answer,
     temporal_choice,
     top_hypotheses,
     wrap_angle,
@@ -82,13 +85,17 @@ def test_consensus_follows_the_majority_of_votes():
     assert list(consensus_choice(h, votes)) == [1, 0, 0]
 
 
-def _brute_force(h: Hypotheses, sigma: float) -> list[int]:
+def _brute_force(h: Hypotheses, sigma: float, temperature: float = 1.0, pose_sigma: float | None = None) -> list[int]:
     t, k = h.probability.shape
     best, arg = np.inf, None
     for path in itertools.product(range(k), repeat=t):
-        cost = -np.log(h.probability[np.arange(t), path]).sum()
+        cost = -np.log(h.probability[np.arange(t), path]).sum() / temperature
         d = wrap_angle(np.diff(h.heading[np.arange(t), path]))
         cost += 0.5 * np.sum((d / sigma) ** 2)
+        if pose_sigma is not None:
+            chosen = h.joints[np.arange(t), path]  # (t, 19, 3)
+            dj = np.array([np.mean(np.linalg.norm(chosen[i + 1] - chosen[i], axis=1)) for i in range(t - 1)])
+            cost += 0.5 * np.sum((dj / pose_sigma) ** 2)
         if cost < best:
             best, arg = cost, list(path)
     return arg
@@ -102,15 +109,53 @@ def test_temporal_choice_is_the_optimal_path_and_removes_a_flip():
     prob = np.tile([0.8, 0.2], (t_len, 1))
     prob[3] = [0.1, 0.9]  # frame 3 alone favours the flipped hypothesis
     h = Hypotheses(joints, prob, np.tile([0, 1], (t_len, 1)), heading(joints), np.zeros(t_len, dtype=np.intp))
-    path = temporal_choice(h, turn_sigma_deg=20.0)
+    path = temporal_choice(h, turn_sigma_deg=20.0, temperature=1.0, pose_sigma_m=None)
     assert list(path) == [0] * t_len
     assert list(path) == _brute_force(h, np.radians(20.0))
-    # random hypotheses: the Viterbi path equals the exhaustive optimum
-    for _ in range(5):
-        prob = rng.dirichlet(np.ones(3), size=5)
-        joints = np.stack([[_skeleton(a) for a in rng.uniform(-np.pi, np.pi, 3)] for _ in range(5)])
-        hr = Hypotheses(joints, prob, np.tile([0, 1, 2], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
-        assert list(temporal_choice(hr, turn_sigma_deg=40.0)) == _brute_force(hr, np.radians(40.0))
+    # random hypotheses: the Viterbi path equals the exhaustive optimum, untempered and tempered, with and without
+    # the joints' continuity (random poses too, so the joint term and the heading term disagree)
+    for temperature, pose_sigma in ((1.0, None), (3.0, None), (1.0, 0.3), (100.0, 0.15)):
+        for _ in range(5):
+            prob = rng.dirichlet(np.ones(3), size=5)
+            joints = np.stack([[_skeleton(a) + rng.normal(0, 0.1, (N_JOINTS, 3)) for a in rng.uniform(-np.pi, np.pi, 3)]
+                               for _ in range(5)])
+            hr = Hypotheses(joints, prob, np.tile([0, 1, 2], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
+            assert (list(temporal_choice(hr, turn_sigma_deg=40.0, temperature=temperature, pose_sigma_m=pose_sigma))
+                    == _brute_force(hr, np.radians(40.0), temperature, pose_sigma))
+
+
+def test_the_tempered_choice_follows_the_continuous_heading_not_the_overconfident_frames():
+    """Overconfident responsibilities (module doc): in every frame the top hypothesis holds 0.9999 of the weight,
+    but its heading jumps 69 deg between frames (a component that fits each frame's outline, facing no steady way);
+    the other hypothesis faces one way throughout. Untempered, the path follows the weights (9.2 nats a frame to
+    leave them, 6.0 for each jump); tempered (the default), it follows the steady heading."""
+    t_len = 8
+    jump = np.where(np.arange(t_len) % 2 == 0, np.pi, np.pi - 1.2)
+    joints = np.stack([[_skeleton(0.0), _skeleton(a)] for a in jump])
+    prob = np.tile([1e-4, 1 - 1e-4], (t_len, 1))
+    h = Hypotheses(joints, prob, np.tile([0, 1], (t_len, 1)), heading(joints), np.zeros(t_len, dtype=np.intp))
+    assert list(temporal_choice(h, temperature=1.0, pose_sigma_m=None)) == [1] * t_len
+    assert list(temporal_choice(h, temperature=1.0, pose_sigma_m=None)) == _brute_force(h, np.radians(20.0))
+    assert list(temporal_choice(h)) == [0] * t_len
+    assert list(temporal_choice(h)) == _brute_force(h, np.radians(20.0), TEMPORAL_TEMPERATURE, TEMPORAL_POSE_SIGMA_M)
+    with pytest.raises(ValueError, match="temperature"):
+        temporal_choice(h, temperature=0.0)
+    with pytest.raises(ValueError, match="pose_sigma_m"):
+        temporal_choice(h, pose_sigma_m=-1.0)
+
+
+def test_the_joint_term_follows_the_moving_limbs_when_the_heading_cannot_tell():
+    """Two hypotheses face the same way, one the steadily moving pose, the other a pose that jumps back and forth
+    by 20 cm (a leg forward in one frame, back in the next) and holds more weight in every frame. The heading
+    term cannot tell them apart; the joint term keeps the steady one."""
+    t_len = 6
+    steady = np.stack([_skeleton(0.0) + 0.01 * t for t in range(t_len)])
+    jumpy = np.stack([_skeleton(0.0) + (0.2 if t % 2 else -0.2) * np.eye(3)[0] for t in range(t_len)])
+    joints = np.stack([steady, jumpy], axis=1)
+    h = Hypotheses(joints, np.tile([0.3, 0.7], (t_len, 1)), np.tile([0, 1], (t_len, 1)), heading(joints),
+                   np.zeros(t_len, dtype=np.intp))
+    assert list(temporal_choice(h, pose_sigma_m=None)) == [1] * t_len
+    assert list(temporal_choice(h)) == [0] * t_len
 
 
 def test_online_choice_is_the_viterbi_step_from_the_previous_choice():
@@ -129,7 +174,8 @@ def test_online_choice_is_the_viterbi_step_from_the_previous_choice():
         two = Hypotheses(np.stack([np.stack([_skeleton(prev_facing[i])] * 3), joints[i]]),
                          np.array([[1.0, 0.0, 0.0], prob[i]]), np.array([[0, -1, -1], [0, 1, 2]]),
                          np.array([[prev[i], np.nan, np.nan], heading(joints[i])]), np.zeros(2, dtype=np.intp))
-        assert got[i] == temporal_choice(two, frame_gap=np.array([1.0, gap[i]]), turn_sigma_deg=30.0)[1]
+        assert got[i] == temporal_choice(two, frame_gap=np.array([1.0, gap[i]]), turn_sigma_deg=30.0, temperature=1.0,
+                                         pose_sigma_m=None)[1]
     # a flipped hypothesis more probable by 0.9 : 0.1 loses against a track facing the other way
     flip = np.stack([[_skeleton(np.pi), _skeleton(0.0)]])
     hf = Hypotheses(flip, np.array([[0.9, 0.1]]), np.array([[0, 1]]), heading(flip), np.zeros(1, dtype=np.intp))
@@ -158,6 +204,20 @@ def test_single_answer_keeps_the_mean_unless_the_choice_faces_the_other_way():
     np.testing.assert_array_equal(single_answer(mean, None), mean)
 
 
+def test_sequence_answer_is_the_chosen_hypothesis_where_there_is_one():
+    mean = np.stack([_skeleton(0.1), _skeleton(0.2), _skeleton(0.0)])
+    joints = np.stack([[_skeleton(0.3), _skeleton(np.pi)], [_skeleton(0.25), _skeleton(0.2)],
+                       [_skeleton(np.pi), _skeleton(0.0)]])
+    h = Hypotheses(joints, np.tile([0.6, 0.4], (3, 1)), np.array([[0, 1], [0, 1], [0, -1]]), heading(joints),
+                   np.array([0, 1, 1]))
+    got = sequence_answer(mean, h)
+    np.testing.assert_array_equal(got[0], joints[0, 0])  # 17 deg from the mean: still the hypothesis
+    np.testing.assert_array_equal(got[1], joints[1, 1])
+    np.testing.assert_array_equal(got[2], mean[2])  # the chosen slot is unused: the mean
+    np.testing.assert_array_equal(sequence_answer(mean, h, chosen=np.zeros(3, np.intp))[2], joints[2, 0])
+    np.testing.assert_array_equal(sequence_answer(mean, None), mean)
+
+
 def test_temporal_choice_bridges_frames_without_views():
     facing = np.zeros(5)
     joints = np.stack([[_skeleton(f), _skeleton(f + np.pi)] for f in facing])
@@ -165,10 +225,10 @@ def test_temporal_choice_bridges_frames_without_views():
     prob[4] = [0.3, 0.7]
     h = Hypotheses(joints, prob, np.tile([0, 1], (5, 1)), heading(joints), np.zeros(5, dtype=np.intp))
     valid = np.array([True, True, False, False, True])
-    assert list(temporal_choice(h, valid=valid, turn_sigma_deg=20.0)) == [0, 0, 0, 0, 0]
+    assert list(temporal_choice(h, valid=valid, turn_sigma_deg=20.0, temperature=1.0, pose_sigma_m=None)) == [0] * 5
     # a long gap allows a real turn: with sigma grown by the gap, frame 4's evidence wins
     gap = np.array([1, 1, 1, 1, 40.0])
-    assert temporal_choice(h, valid=valid, frame_gap=gap, turn_sigma_deg=20.0)[4] == 1
+    assert temporal_choice(h, valid=valid, frame_gap=gap, turn_sigma_deg=20.0, temperature=1.0, pose_sigma_m=None)[4] == 1
     with pytest.raises(ValueError, match="turn_sigma_deg"):
         temporal_choice(h, turn_sigma_deg=0.0)
 

@@ -20,7 +20,7 @@ from silpose.app.recordings.pipeline import RecordingOptions, run_recording
 from silpose.app.recordings.resolution import min_blob_area, work_size
 from silpose.app.recordings.silhouettes import binarise, room_view
 from silpose.app.recordings.sources import open_recording
-from silpose.model.hypotheses import single_answer, temporal_choice
+from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, sequence_answer, temporal_choice
 from silpose.segment import BackgroundModel, plate_alignment, plate_mismatch_std, warp_plate
 from silpose.datagen.testing import synthetic_record
 from silpose.model import ShapeStructureModel
@@ -109,9 +109,10 @@ def test_frames_alias_equals_a_hand_made_pipeline(tiny_model, tiny_model_file, f
             assert c.area >= min_blob_area(cam, cam, rig.workspace.center)
             cont[i, k] = c.points
     present = np.ones((N, len(rig)), bool)
-    ref = tiny_model.infer(cont, present, input_views=range(len(rig)), hypotheses=3, robust=True, untangle=True)
+    ref = tiny_model.infer(cont, present, input_views=range(len(rig)), hypotheses=TEMPORAL_HYPOTHESES, robust=True,
+                           untangle=True)
     ref.hypotheses.chosen = temporal_choice(ref.hypotheses, valid=present.any(axis=1))
-    np.testing.assert_allclose(got, single_answer(ref.joints, ref.hypotheses), atol=1e-5)
+    np.testing.assert_allclose(got, sequence_answer(ref.joints, ref.hypotheses), atol=1e-5)
     seg = json.loads(out.with_name("j.segmentation.json").read_text())
     assert seg["counts"]["cam0"]["ok"] == N and set(seg["statuses"]) >= {"ok", "too small", "empty mask", "no video"}
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.model.hypotheses import temporal_choice
+from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, sequence_answer, temporal_choice
 from silpose.model.persistence import load_model
 from silpose.model.result import InferenceResult
 from silpose.model.shape_model import ShapeStructureModel
@@ -91,10 +91,20 @@ def infer_rows(model: ShapeStructureModel, contours: np.ndarray, present: np.nda
 
 
 def apply_temporal(result: InferenceResult) -> InferenceResult:
-    """Choose among ``result.hypotheses`` along the frames (one track, in order); frames without a view are bridged."""
+    """Choose among ``result.hypotheses`` along the frames (one track, in order; frames without a view are bridged),
+    and answer with the choice: ``result.joints`` becomes each frame's chosen hypothesis where it has one
+    (:func:`silpose.model.hypotheses.sequence_answer`; the posterior standard deviations and reconstructed contours
+    stay the posterior mean's). Returns ``result``, changed in place."""
     if result.hypotheses is not None:
         result.hypotheses.chosen = temporal_choice(result.hypotheses, valid=result.views_present.any(axis=1))
+        result.joints = sequence_answer(result.joints, result.hypotheses)
     return result
+
+
+def hypotheses_kept(hypotheses: int, temporal: bool) -> int:
+    """Hypotheses to keep per frame: ``hypotheses``, at least :data:`silpose.model.hypotheses.TEMPORAL_HYPOTHESES`
+    when they are chosen along the frames (``temporal``; 0 stays 0: no hypotheses, the posterior mean)."""
+    return max(int(hypotheses), TEMPORAL_HYPOTHESES) if temporal and int(hypotheses) > 0 else int(hypotheses)
 
 
 def frame_status(result: InferenceResult) -> np.ndarray:
@@ -126,9 +136,9 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
                   temporal: bool = False) -> str:
     """Load the model, read the input, infer, write outputs; returns a summary (``warning:`` lines last).
 
-    Every frame gets the top-3 hypotheses, a single answer (the posterior mean, unless the chosen hypothesis
-    -- the most probable, or with ``temporal`` the one on the Viterbi path over the frames in order -- faces
-    the other way: ``silpose.model.hypotheses.single_answer``), a plausibility percentile and a status; reconstructed
+    Every frame gets the top-3 hypotheses (8 with ``temporal``), a single answer (the posterior mean, unless the most
+    probable hypothesis faces the other way: ``silpose.model.hypotheses.single_answer``; with ``temporal``, the
+    hypothesis on the Viterbi path over the frames in order: :func:`apply_temporal`), a plausibility percentile and a status; reconstructed
     contours are untangled (simple polygons). A frame without any usable view gets NaN joints and the
     status ``no silhouette`` (it does not stop the run); an input where no frame has one is an error.
     """
@@ -154,8 +164,8 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
             + ("" if is_dataset(input_path) else f"; a pixel is foreground when brighter than --threshold "
                f"({threshold}; 0/1 mask images are detected): lower it for dim masks")
         )
-    options = InferOptions(noise_variance=noise_variance, hypotheses=TOP_K, robust=robust, untangle=True,
-                           temporal=temporal)
+    options = InferOptions(noise_variance=noise_variance, hypotheses=hypotheses_kept(TOP_K, temporal), robust=robust,
+                           untangle=True, temporal=temporal)
     result = infer_rows(model, contours, present, options=options)
     if temporal:
         apply_temporal(result)

@@ -4,7 +4,7 @@
   root-relative, world orientation; file metadata ``silpose_infer``) or JSON (``.json``). The joints
   are the frame's single answer (``silpose.model.hypotheses.single_answer``): the posterior mean,
   or, where the chosen hypothesis (``hypothesis``, 1-based; its ``heading_deg``) faces the other way,
-  that hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
+  that hypothesis; chosen along the frames (``silpose.app.inference.apply_temporal``), the chosen hypothesis. Also per frame: ``status`` (``ok``, ``implausible``,
   ``no silhouette``), ``plausibility`` (percentile, ``silpose.model.plausibility``; NaN when the
   model has no calibration), ``views_trimmed`` (the views whose outline robust inference cut a shadow,
   blob or hole from, ``silpose.model.robust.excursions``; comma-separated, empty when none), ``views_reindexed``

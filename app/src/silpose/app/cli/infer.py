@@ -48,7 +48,7 @@ def infer(
     progress: Annotated[bool, typer.Option(help="Show a progress bar (cameras).")] = True,
     robust: Annotated[Optional[bool], typer.Option(help="Robust inference: contour points far from the reconstruction (holes, blobs, shadows) are down-weighted, the loops such blobs add to an outline cut (column views_trimmed), and points slid along an outline by a bite or blob put back (column views_reindexed). Default: on, except for --masks (the lab's own masks: measured more accurate and faster without it).")] = None,
     carve: Annotated[Optional[bool], typer.Option(help="Several people: cut each person's views down to their visual hull (the part of each blob the other cameras support) before the views are judged, so clutter touching a person in one camera (a prop, a lamp, someone standing still) is cut off (column view_cut). Default: on for colour videos, off for --masks.")] = None,
-    temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 3 hypotheses along the frames in order (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
+    temporal: Annotated[Optional[bool], typer.Option(help="Choose among each frame's 8 most probable hypotheses along the frames in order and answer with the chosen one (one person); default: on for cameras, off for INPUT (several people: always along each person's track).")] = None,
     silhouette_fit: Annotated[bool, typer.Option(help="Cameras: move each joint, as little as its posterior uncertainty allows, inside the person's outline in every view used (the model's answer can put a wrist or an ankle beside the limb the cameras saw).")] = True,
     max_people: Annotated[Optional[int], typer.Option("--max-people", min=1, help="Several people: at most N ids (the head count, if known). A new person beyond N takes the id of the lost person who looks most alike (stature, build, clothing colours), wherever they were lost. Default: no limit.")] = None,
 ) -> None:
@@ -72,8 +72,8 @@ def infer(
 
     A camera without a video is a missing view; an empty or tiny segmentation is a missing view for that frame.
     Joints of INPUT and of one person are written root-relative in metres (world orientation), as Parquet or
-    JSON: the single answer among the frame's 3 most probable hypotheses (their probabilities and facing
-    directions are columns too). Every frame gets a plausibility percentile and a status: "implausible" frames
+    JSON: the single answer among the frame's 3 most probable hypotheses, or with --temporal the hypothesis chosen
+    along the frames among 8 (their probabilities and facing directions are columns too). Every frame gets a plausibility percentile and a status: "implausible" frames
     (not a person, several people, a broken silhouette) and frames without any usable view are reported
     with a warning on stderr.
     """

@@ -16,8 +16,8 @@ blob kept, no per-frame gain), the segmentation ``silpose infer --frames`` has a
 ``segment_params`` override them.
 
 Inference runs per chunk of time steps (:func:`silpose.app.inference.infer_rows`: robust inference, the top-3
-hypotheses, untangled contours; a step without a usable view gets NaN joints); at the end, with ``temporal``,
-each step's single answer is chosen among its hypotheses along the whole sequence (one track, the Viterbi path:
+hypotheses (8 with ``temporal``), untangled contours; a step without a usable view gets NaN joints); at the end,
+with ``temporal``, each step's answer is the hypothesis chosen along the whole sequence (one track, the Viterbi path:
 :func:`silpose.app.inference.apply_temporal`). The answer is then put in the room (:func:`place_in_room`): the
 views alone place its root, there being no floor grid (:func:`.placement.place_without_floor`), and with
 ``opt.silhouette_fit`` each joint moves inside the person's outline in every view used (:mod:`.silhouette_fit`), as
@@ -45,7 +45,8 @@ from silpose.model.hypotheses import single_answer
 from silpose.model.persistence import load_model
 
 from ..errors import RecordingError
-from ..inference import InferOptions, apply_temporal, frame_status, infer_rows, merge_results, status_warnings
+from ..inference import (InferOptions, apply_temporal, frame_status, hypotheses_kept, infer_rows, merge_results,
+                         status_warnings)
 from ..view_status import VIEW_EMPTY, VIEW_ENDED, VIEW_NO_VIDEO, VIEW_NOT_MODELLED, VIEW_OK, VIEW_TOO_SMALL
 from ..writers import sibling, write_contours, write_joints, write_segmentation
 from .blobs import Blobs, blob_contour, find_blobs
@@ -196,8 +197,8 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     mapper = pool.map if pool else map
     robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
-    options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=robust,
-                           untangle=True)
+    options = InferOptions(noise_variance=opt.noise_variance, hypotheses=hypotheses_kept(opt.hypotheses, temporal),
+                           robust=robust, untangle=True)
     overlays = None
     if draws_overlays(opt.overlays):
         if overlay_dir is None:
