@@ -31,6 +31,13 @@ def load_reports(reports: Path) -> dict[str, dict]:
             found[path.parent.name] = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
             print(f"results: skipping {path} ({exc})", file=sys.stderr)
+            continue
+        seq = path.with_name("sequences.json")  # E7 (silpose.eval.sequences), kept beside the headline
+        if seq.is_file():
+            try:
+                found[path.parent.name]["sequences"] = json.loads(seq.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:
+                print(f"results: skipping {seq} ({exc})", file=sys.stderr)
     names = [p for p in PRESETS] + [n for n in found if n not in PRESETS]
     return {n: found.get(n) for n in names}
 
@@ -94,6 +101,15 @@ def _garbage(h):
             f"{_f(most('standard'), '{:.1f} %')} / {_f(most('mask mild'), '{:.1f} %')}")
 
 
+def _sequences(h):
+    q = _get(h, "sequences")
+    if not q:
+        return None
+    best = next((k for k in q if k.startswith("best_of_") and k.endswith("_mean_cm")), None)
+    return (f"{q['per_frame_mean_cm']:.2f} / {q['temporal_mean_cm']:.2f} / {q[best]:.2f} (flips "
+            f"{q['per_frame_flips_pct']:.1f} → {q['temporal_flips_pct']:.1f} %; {q['n_sequences']} sequences)")
+
+
 def _train(h):
     r = training_report(h)
     if r is None:
@@ -139,6 +155,8 @@ ROWS = [
      lambda h: None if _noise(h, "standard", "knn") is None else " / ".join(
          _f(_noise(h, n, "knn")) for n in ("standard", "mask mild", "mask strong")), None),
     ("front/back flips, 4 views, standard noise: single answer / best of 3", _flips, None),
+    ("recordings (test clips, or walkers, played for 1 s at 30 fps), 4 views, robust: each frame alone / chosen "
+     "along the frames (`silpose infer`'s answer for one person) / best of 8 hypotheses (cm)", _sequences, None),
     ("4 views, standard noise: posterior mean / robust / kNN / ridge / MLP (cm)", lambda h: _baselines(h, 4), None),
     ("1 view (each view alone, their mean), standard noise: posterior mean / robust / kNN / ridge / MLP (cm)",
      lambda h: _baselines(h, 1), None),
@@ -171,7 +189,7 @@ ROWS = [
 ]
 
 #: The README's short table: (label, row index in ROWS).
-README_ROWS = [0, 1, 3, 5, 6, 7, 9]
+README_ROWS = [0, 1, 3, 6, 7, 8, 10]
 
 
 def results_table(reports: dict[str, dict | None], rows=None) -> str:
@@ -353,6 +371,25 @@ def group_section(reports: dict[str, dict | None]) -> list[str]:
     return out
 
 
+def sequences_section(reports: dict[str, dict | None]) -> list[str]:
+    """Per activity group, E7's recordings (``silpose.eval.sequences``): each frame alone vs chosen along the frames."""
+    out = []
+    for name, h in reports.items():
+        q = _get(h, "sequences") if h else None
+        if not q or not q.get("by_group"):
+            continue
+        best = next(k for k in q if k.startswith("best_of_") and k.endswith("_mean_cm"))
+        out += [f"`{name}`: {q['n_sequences']} sequences of {q['length']} frames, {q['frames_scored']} frames scored "
+                f"({q['inference']}, {q['noise']} noise); cm.", "",
+                "| group | frames | each frame alone | chosen along the frames | best of the hypotheses |",
+                "|---|---|---|---|---|"]
+        for g, v in q["by_group"].items():
+            out.append(f"| {g} | {v['frames']} | {v['per_frame_mean_cm']:.2f} | {v['temporal_mean_cm']:.2f} | "
+                       f"{v[best]:.2f} |")
+        out.append("")
+    return out
+
+
 def curve_table(path: Path) -> list[str]:
     """One ``learning_curve.json`` (``python -m silpose.eval.learning_curve``) as an N x M table of the
     error with every view / one view (cm); [] when it cannot be read or has no rows."""
@@ -441,6 +478,9 @@ def results_markdown(reports: dict[str, dict | None], bench: Path) -> str:
     groups = group_section(reports)
     if groups:
         parts += ["## Motions: per activity group", ""] + groups
+    seq = sequences_section(reports)
+    if seq:
+        parts += ["## Recordings: each frame alone and chosen along the frames, per activity group", ""] + seq
     cover = coverage_section(bench.parent.parent)
     if cover:
         parts += ["## Pose coverage: the nearest training pose (an oracle) and the model on its own samples", ""] + cover

@@ -68,3 +68,33 @@ def _write_v1_shard(path, records: list[dict], metadata: dict) -> None:
 def write_v1_shard():
     """``write_v1_shard(path, records, metadata)``: a shard in the previous dataset format (version 1)."""
     return _write_v1_shard
+
+
+#: a tiny motion-library dataset (``library_dataset``): the motions preset's sources at a few samples
+LIBRARY_SMALL = """name = "library-small"
+seed = 5
+renderer = "raster"
+shard_size = 8
+n_points = 60
+max_redraws = 50
+[splits]
+train = 24
+test = 6
+[motion]
+source = "library"
+procedural_walk = 0.2
+mirror = true
+"""
+
+
+@pytest.fixture(scope="session")
+def library_dataset(tmp_path_factory):
+    """A dataset posed from the bundled motion library (24 train, 6 test samples), made by ``silpose gen``'s own
+    pipeline with the raster renderer (one spawned Blender worker)."""
+    from silpose.datagen.config import load_config
+    from silpose.datagen.pipeline import generate
+
+    root = tmp_path_factory.mktemp("library")
+    (root / "small.toml").write_text(LIBRARY_SMALL)
+    generate(load_config(root / "small.toml"), root / "ds", workers=1, progress=False)
+    return root / "ds"

@@ -52,6 +52,7 @@ def test_every_artefact_is_written(evaluated):
     assert not list(out.glob(".*tmp"))  # no temporaries left behind
     cover = json.loads((out / "coverage.json").read_text())  # the walk-only stick figures have no groups
     assert "groups" not in cover and cover["n_test"] == cover["model"]["n"] > 0
+    assert not (out / "sequences.json").exists()  # E7 needs a dataset written by silpose gen
     assert cover["model"]["in_sample_mean_cm"] > 0
     head = json.loads((out / "headline.json").read_text())  # the test figure is E4's robust answer, every view
     robust = head["pose_mean_cm_by_method_and_n_views"]["4"]["mppca robust"]

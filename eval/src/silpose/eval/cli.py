@@ -21,8 +21,10 @@ def evaluate(
     out: Optional[Path] = typer.Option(None, help="Output folder (default: reports/<name>/)."),
     n_test: Optional[int] = typer.Option(None, min=1, help="Use the first N test examples (default: all)."),
     seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
-    experiments: str = typer.Option("E1,E2,E3,E4,E5,E6", help="Comma-separated subset of E1..E6 (E6: flips, robust "
-                                    "inference, missing views, self-intersections, plausibility)."),
+    experiments: str = typer.Option("E1,E2,E3,E4,E5,E6,E7", help="Comma-separated subset of E1..E7 (E6: flips, robust "
+                                    "inference, missing views, self-intersections, plausibility; E7: test clips or "
+                                    "walkers played as 1 s recordings, each frame's answer vs the choice along the "
+                                    "frames)."),
     jitter_px: Optional[float] = typer.Option(None, help="Standard test noise: per-point jitter in px (default 1)."),
     patch_depth_px: Optional[float] = typer.Option(None, help="Standard test noise: patch peak depth in px (default 8)."),
     n_patches: Optional[int] = typer.Option(None, help="Standard test noise: patches per view (default 6)."),
@@ -37,8 +39,9 @@ def evaluate(
                                                    "motion-capture clips); each gets its own report folder under "
                                                    "--out, and test_sets.md puts them side by side."),
 ) -> None:
-    """Run experiments E1-E5 of the paper (section 6) and E6 (how honest the inference is) and write reports/<name>/: summary.md, results.parquet,
-    headline.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
+    """Run experiments E1-E5 of the paper (section 6), E6 (how honest the inference is) and E7 (recordings: test
+    clips played as sequences) and write reports/<name>/: summary.md, results.parquet, headline.json, coverage.json,
+    sequences.json, box plots and example figures. Needs `just gen <preset>` and `just train <preset>` first.
 
     When data/<name>/frames holds a frames dataset (camera frames + truth), also segments the frames and
     writes frames.md (mask IoU; pose and Chamfer errors from segmented vs true silhouettes), frames.parquet,
@@ -69,9 +72,9 @@ def evaluate(
     except OutputFolderError as exc:
         fail("eval", str(exc))
     exps = tuple(e.strip().upper() for e in experiments.split(",") if e.strip())
-    bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5", "E6")]
+    bad = [e for e in exps if e not in ("E1", "E2", "E3", "E4", "E5", "E6", "E7")]
     if bad:
-        raise typer.BadParameter(f"unknown experiment(s) {bad}; choose from E1,E2,E3,E4,E5,E6", param_hint="--experiments")
+        raise typer.BadParameter(f"unknown experiment(s) {bad}; choose from E1,E2,E3,E4,E5,E6,E7", param_hint="--experiments")
     changes = {k: v for k, v in dict(jitter_px=jitter_px, patch_depth_px=patch_depth_px, n_patches=n_patches,
                                       patch_length=patch_length).items() if v is not None}
     try:

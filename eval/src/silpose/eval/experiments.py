@@ -103,7 +103,8 @@ class EvalConfig:
             ``(1 + mlp_noisy_copies) x baseline_rows`` rows). kNN and chance see every training sample (kNN
             holds one float32 copy of its views' rows). At 43,200 motions samples the cap changed the
             baselines' errors by less than the test set's noise (docs/training-at-scale.md).
-        experiments: which of "E1".."E6" to run.
+        experiments: which of "E1".."E7" to run (E7, recordings: :mod:`silpose.eval.sequences`, run by
+            :func:`silpose.eval.run.run_evaluation`).
     """
 
     n_test: int | None = None
@@ -115,7 +116,7 @@ class EvalConfig:
     mlp: MLPSettings = field(default_factory=MLPSettings)
     mlp_noisy_copies: int = 2
     baseline_rows: int | None = 20_000
-    experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6")
+    experiments: tuple[str, ...] = ("E1", "E2", "E3", "E4", "E5", "E6", "E7")
 
     def to_dict(self) -> dict:
         return {

@@ -34,6 +34,7 @@ from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .coverage import coverage
 from .in_sample import in_sample_error
+from .sequences import sequence_experiment
 from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
@@ -254,6 +255,14 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     if model_figures is not None:
         cover["model"] = model_figures
     written["coverage"] = write_json_atomic(Path(out_dir) / "coverage.json", cover)
+    if "E7" in config.experiments:  # recordings: the test clips played as sequences (silpose.eval.sequences)
+        if progress is not None:
+            progress("E7: sequences", 0, 1)
+        seq = sequence_experiment(ev, test_dir if test_dir is not None else data_dir)
+        if seq is not None:
+            written["sequences"] = write_json_atomic(Path(out_dir) / "sequences.json", seq)
+        if progress is not None:
+            progress("E7: sequences", 1, 1)
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written
