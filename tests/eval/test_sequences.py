@@ -70,3 +70,16 @@ def test_the_module_cli_says_what_is_missing(stick_dataset, tmp_path, capsys):
 
     assert main([str(tmp_path / "none"), str(tmp_path / "m.npz")]) == 2
     assert "none: not found" in capsys.readouterr().err
+
+
+def test_the_figure_shows_the_sequences(scored, tmp_path):
+    import cv2
+
+    from silpose.eval.sequences import plot_sequences
+
+    *_, out = scored
+    assert len(out["scored"]["sequence"]) == out["frames_scored"]
+    path = plot_sequences(out, tmp_path / "e7.png")
+    img = cv2.imread(str(path))
+    assert img is not None and img.shape[0] > 200 and img.std() > 10  # a real, non-blank image
+    assert plot_sequences({"scored": {}}, tmp_path / "none.png") is None

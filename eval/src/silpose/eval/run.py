@@ -34,7 +34,7 @@ from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .coverage import coverage
 from .in_sample import in_sample_error
-from .sequences import sequence_experiment
+from .sequences import plot_sequences, sequence_experiment
 from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
@@ -261,6 +261,9 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         seq = sequence_experiment(ev, test_dir if test_dir is not None else data_dir)
         if seq is not None:
             written["sequences"] = write_json_atomic(Path(out_dir) / "sequences.json", seq)
+            figure = plot_sequences(seq, Path(out_dir) / "e7_sequences.png")
+            if figure is not None:
+                written["e7_sequences"] = figure
         if progress is not None:
             progress("E7: sequences", 1, 1)
     written.update(frames_written)

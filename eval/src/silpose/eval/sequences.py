@@ -40,7 +40,7 @@ from silpose.shared.metrics import pose_error_cm
 from .errors import EvalInputError
 from .noise import apply_noise
 
-__all__ = ["HYPOTHESES", "SEQUENCE_LENGTH", "SEQUENCES_PER_CLIP", "SEQUENCE_NOISE_OFFSET", "pick_sequences", "render_dataset_sequences",
+__all__ = ["plot_sequences", "HYPOTHESES", "SEQUENCE_LENGTH", "SEQUENCES_PER_CLIP", "SEQUENCE_NOISE_OFFSET", "pick_sequences", "render_dataset_sequences",
            "score_sequences", "sequence_experiment"]
 
 #: frames per sequence (1 s at the bundled library's 30 fps)
@@ -147,7 +147,8 @@ def score_sequences(model, rendered: dict, noise, seed: int, groups: dict[int, s
     Returns:
         a JSON-ready dict: counts, the three answers' mean and median errors, flips (%), the share of
         frames where the choice along the frames took another hypothesis than the frame's own, and ``by_group``.
-        Keys ``{per_frame,temporal,best_of_8}_{mean,median}_cm`` (``best_of_8``: of :data:`HYPOTHESES`).
+        Keys ``{per_frame,temporal,best_of_8}_{mean,median}_cm`` (``best_of_8``: of :data:`HYPOTHESES`); ``scored``
+        holds every scored frame's sequence, frame and three errors (cm, 3 decimals), for :func:`plot_sequences`.
     """
     a = _stack(rendered, int(model.n_rig_views_), int(model.layout_.n_points))
     n = len(a["joints"])
@@ -184,6 +185,8 @@ def score_sequences(model, rendered: dict, noise, seed: int, groups: dict[int, s
     for k in ("per_frame", "temporal"):
         out[f"{k}_flips_pct"] = 100.0 * float(is_flip(answers[k][rows], truth[rows]).mean())
     out["changed_pct"] = 100.0 * float(np.mean(temporal[rows] != hyp.chosen[rows]))
+    out["scored"] = {"sequence": a["sequence"][rows].tolist(), "t": a["t"][rows].tolist(),
+                     **{f"{k}_cm": [round(float(v), 3) for v in e] for k, e in err.items()}}
     if groups:
         clip_of_frame = rendered["clip"][a["sequence"][rows]]
         by = {}
@@ -192,6 +195,51 @@ def score_sequences(model, rendered: dict, noise, seed: int, groups: dict[int, s
             by[g] = {"frames": int(m.sum()), **{f"{k}_mean_cm": float(np.mean(e[m])) for k, e in err.items()}}
         out["by_group"] = by
     return out
+
+
+def plot_sequences(out: dict, path: str | Path, n_panels: int = 6) -> Path | None:
+    """E7's figure: pose error along the frames of the ``n_panels`` sequences whose answer the choice along the frames
+    changed most (half where it helped most, half where it hurt most), each frame alone vs chosen along the frames,
+    the best hypothesis dotted. None when ``out`` has no scored frames."""
+    from .plots import pyplot, save_figure
+
+    sc = out.get("scored") or {}
+    if not sc.get("sequence"):
+        return None
+    seq = np.asarray(sc["sequence"])
+    pf, tm = np.asarray(sc["per_frame_cm"]), np.asarray(sc["temporal_cm"])
+    best = np.asarray(next(v for k, v in sc.items() if k.startswith("best_of_")))
+    ids = np.unique(seq)
+    gain = np.array([np.mean(pf[seq == s] - tm[seq == s]) for s in ids])
+    order = np.argsort(-gain)
+    half = max(1, n_panels // 2)
+    picked = list(dict.fromkeys([*order[:half].tolist(), *order[::-1][:n_panels - half].tolist()]))[:n_panels]
+    plt = pyplot()
+    cols = min(3, len(picked))
+    rows = int(np.ceil(len(picked) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.8 * rows), squeeze=False, sharey=True)
+    t_all = np.asarray(sc["t"])
+    for ax, k in zip(axes.flat, picked):
+        m = seq == ids[k]
+        t = t_all[m]
+        ax.plot(t, pf[m], color="0.55", label="each frame alone")
+        ax.plot(t, tm[m], color="C0", lw=2, label="chosen along the frames")
+        ax.plot(t, best[m], color="C2", ls=":", label="best hypothesis (oracle)")
+        group = (out.get("sequence_groups") or {}).get(str(int(ids[k])), "")
+        ax.set_title(f"sequence {int(ids[k])}{' (' + group + ')' if group else ''}: {gain[k]:+.1f} cm", fontsize=9)
+        ax.grid(alpha=0.3)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("pose error (cm)")
+    for ax in axes[-1]:
+        ax.set_xlabel("frame (30 fps)")
+    for ax in list(axes.flat)[len(picked):]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7, loc="upper right")
+    fig.suptitle(f"E7, recordings: {out['n_sequences']} sequences, mean {out['per_frame_mean_cm']:.2f} cm each frame "
+                 f"alone, {out['temporal_mean_cm']:.2f} cm chosen along the frames (panels: the largest gains and "
+                 "losses)", fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    return save_figure(fig, path)
 
 
 def sequence_experiment(ev, data_dir: str | Path, length: int = SEQUENCE_LENGTH, per_clip: int = SEQUENCES_PER_CLIP,
@@ -209,6 +257,8 @@ def sequence_experiment(ev, data_dir: str | Path, length: int = SEQUENCE_LENGTH,
     groups = {i: str(c.get("group", "?")) for i, c in enumerate(clips)} or None
     out = score_sequences(ev.model, rendered, ev.config.noise, ev.config.seed, groups)
     out["sample_ids"] = [int(v) for v in rendered["sample_id"]]
+    if groups:
+        out["sequence_groups"] = {str(s): groups.get(int(c), "?") for s, c in enumerate(rendered["clip"])}
     ev.timings["sequences"] = time.perf_counter() - t0
     return out
 
@@ -248,6 +298,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{HYPOTHESES} {out[best]:.2f} cm ({ev.timings['sequences']:.0f} s)")
     if args.out:
         write_json_atomic(args.out, out)
+        print(plot_sequences(out, args.out.with_name("e7_sequences.png")))
     return 0
 
 
