@@ -361,6 +361,15 @@ def online_choice(hyp: Hypotheses, prev_heading: np.ndarray, *, frame_gap: np.nd
     return np.where(keep, hyp.chosen, chosen).astype(np.intp)
 
 
+def _chosen(hyp: Hypotheses, chosen: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(slots (N,), the chosen hypotheses' joints (N, 19, 3), whether each is usable (N,) bool)."""
+    slots = hyp.chosen if chosen is None else np.asarray(chosen, dtype=np.intp)
+    rows = np.arange(len(slots))
+    pick = hyp.joints[rows, slots]
+    usable = (hyp.component[rows, slots] >= 0) & np.isfinite(pick).all(axis=(1, 2))
+    return slots, pick, usable
+
+
 def single_answer(posterior_mean: np.ndarray, hyp: Hypotheses | None, chosen: np.ndarray | None = None) -> np.ndarray:
     """(N, 19, 3) the single answer per frame (module doc): ``posterior_mean`` (N, 19, 3), replaced by the
     chosen hypothesis (``chosen`` (N,) slots, default ``hyp.chosen``) in the frames where that hypothesis's
@@ -368,12 +377,9 @@ def single_answer(posterior_mean: np.ndarray, hyp: Hypotheses | None, chosen: np
     mean = np.asarray(posterior_mean, dtype=np.float64)
     if hyp is None:
         return mean
-    slots = hyp.chosen if chosen is None else np.asarray(chosen, dtype=np.intp)
-    rows = np.arange(len(slots))
-    pick = hyp.joints[rows, slots]
-    turned = np.abs(wrap_angle(hyp.heading[rows, slots] - heading(mean))) > FLIP_ANGLE
-    turned &= (hyp.component[rows, slots] >= 0) & np.isfinite(pick).all(axis=(1, 2))
-    return np.where(turned[:, None, None], pick, mean)
+    slots, pick, usable = _chosen(hyp, chosen)
+    turned = np.abs(wrap_angle(hyp.heading[np.arange(len(slots)), slots] - heading(mean))) > FLIP_ANGLE
+    return np.where((turned & usable)[:, None, None], pick, mean)
 
 
 def sequence_answer(posterior_mean: np.ndarray, hyp: Hypotheses | None, chosen: np.ndarray | None = None) -> np.ndarray:
@@ -383,8 +389,5 @@ def sequence_answer(posterior_mean: np.ndarray, hyp: Hypotheses | None, chosen: 
     mean = np.asarray(posterior_mean, dtype=np.float64)
     if hyp is None:
         return mean
-    slots = hyp.chosen if chosen is None else np.asarray(chosen, dtype=np.intp)
-    rows = np.arange(len(slots))
-    pick = hyp.joints[rows, slots]
-    ok = (hyp.component[rows, slots] >= 0) & np.isfinite(pick).all(axis=(1, 2))
-    return np.where(ok[:, None, None], pick, mean)
+    _, pick, usable = _chosen(hyp, chosen)
+    return np.where(usable[:, None, None], pick, mean)
