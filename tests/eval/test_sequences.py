@@ -83,3 +83,13 @@ def test_the_figure_shows_the_sequences(scored, tmp_path):
     img = cv2.imread(str(path))
     assert img is not None and img.shape[0] > 200 and img.std() > 10  # a real, non-blank image
     assert plot_sequences({"scored": {}}, tmp_path / "none.png") is None
+
+
+def test_the_summary_section_carries_the_figures(scored):
+    from silpose.eval.sequences import e7_markdown
+
+    *_, out = scored
+    text = "\n".join(e7_markdown(out))
+    assert f"| each frame alone | {out['per_frame_mean_cm']:.2f} | {out['per_frame_median_cm']:.2f} |" in text
+    assert f"| {out['temporal_mean_cm']:.2f} | {out['temporal_median_cm']:.2f} |" in text
+    assert e7_markdown({}) == []

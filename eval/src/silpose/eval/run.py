@@ -34,7 +34,7 @@ from .experiments import EvalConfig, EvalData, Evaluation, Progress, views_label
 from .frames_eval import frames_note, write_frames_report
 from .coverage import coverage
 from .in_sample import in_sample_error
-from .sequences import plot_sequences, sequence_experiment
+from .sequences import e7_markdown, plot_sequences, sequence_experiment
 from .groups import group_headline, sample_groups, write_group_report
 from .e6_inference import e6_markdown
 from .report import headline, markdown_summary, pct_per_px
@@ -156,6 +156,11 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
                                                        caption + " — example nearest the median pose error")
     if ev.extra.get("E6"):
         written.update(e6_figures.write_e6_figures(ev, out))
+    if ev.extra.get("E7"):  # silpose.eval.sequences: its figures, its JSON and its section of summary.md
+        written["sequences"] = write_json_atomic(out / "sequences.json", ev.extra["E7"])
+        figure = plot_sequences(ev.extra["E7"], out / "e7_sequences.png")
+        if figure is not None:
+            written["e7_sequences"] = figure
     head = _jsonable({"silpose_version": silpose_version(), **headline(df),
                       **({"e6": ev.extra["E6"]} if ev.extra.get("E6") else {}),
                       "chamfer_pct_per_px": pct_per_px(settings), "settings": settings, "timings_s": ev.timings,
@@ -167,7 +172,7 @@ def write_reports(ev: Evaluation, out_dir: str | Path, settings: dict, title: st
     written["headline"] = out / "headline.json"
     pngs = [p.name for k, p in written.items() if p.suffix == ".png"]
     md = markdown_summary(df, _jsonable(settings), title, figures=pngs, notes=ev.notes,
-                          sections=e6_markdown(ev.extra.get("E6") or {}),
+                          sections=e6_markdown(ev.extra.get("E6") or {}) + e7_markdown(ev.extra.get("E7") or {}),
                           baseline_timing=ev.extra.get("baseline_timing"))
     write_text_atomic(out / "summary.md", md)
     written["summary"] = out / "summary.md"
@@ -243,6 +248,14 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
         "chamfer_canvas_margin_px": CANVAS_MARGIN_PX,
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
     }
+    if "E7" in config.experiments:  # recordings: the test clips played as sequences (silpose.eval.sequences)
+        if progress is not None:
+            progress("E7: sequences", 0, 1)
+        seq = sequence_experiment(ev, test_dir if test_dir is not None else data_dir)
+        if seq is not None:
+            ev.extra["E7"] = seq
+        if progress is not None:
+            progress("E7: sequences", 1, 1)
     t1 = time.perf_counter()
     groups = sample_groups(test_dir if test_dir is not None else data_dir)
     if groups:
@@ -255,17 +268,6 @@ def run_evaluation(data_dir: str | Path, model_path: str | Path, out_dir: str | 
     if model_figures is not None:
         cover["model"] = model_figures
     written["coverage"] = write_json_atomic(Path(out_dir) / "coverage.json", cover)
-    if "E7" in config.experiments:  # recordings: the test clips played as sequences (silpose.eval.sequences)
-        if progress is not None:
-            progress("E7: sequences", 0, 1)
-        seq = sequence_experiment(ev, test_dir if test_dir is not None else data_dir)
-        if seq is not None:
-            written["sequences"] = write_json_atomic(Path(out_dir) / "sequences.json", seq)
-            figure = plot_sequences(seq, Path(out_dir) / "e7_sequences.png")
-            if figure is not None:
-                written["e7_sequences"] = figure
-        if progress is not None:
-            progress("E7: sequences", 1, 1)
     written.update(frames_written)
     ev.timings["reports"] = time.perf_counter() - t1
     return ev, written

@@ -40,7 +40,7 @@ from silpose.shared.metrics import pose_error_cm
 from .errors import EvalInputError
 from .noise import apply_noise
 
-__all__ = ["plot_sequences", "HYPOTHESES", "SEQUENCE_LENGTH", "SEQUENCES_PER_CLIP", "SEQUENCE_NOISE_OFFSET", "pick_sequences", "render_dataset_sequences",
+__all__ = ["e7_markdown", "plot_sequences", "HYPOTHESES", "SEQUENCE_LENGTH", "SEQUENCES_PER_CLIP", "SEQUENCE_NOISE_OFFSET", "pick_sequences", "render_dataset_sequences",
            "score_sequences", "sequence_experiment"]
 
 #: frames per sequence (1 s at the bundled library's 30 fps)
@@ -240,6 +240,26 @@ def plot_sequences(out: dict, path: str | Path, n_panels: int = 6) -> Path | Non
                  "losses)", fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return save_figure(fig, path)
+
+
+def e7_markdown(out: dict) -> list[str]:
+    """The E7 section of ``summary.md`` (empty without figures)."""
+    if not out:
+        return []
+    best = f"best_of_{HYPOTHESES}"
+    lines = ["## E7 — recordings: the test clips played as sequences", "",
+             f"{out['n_sequences']} sequences of {out['length']} frames (30 fps), {out['frames_scored']} frames scored "
+             f"({out['frames_without_view']} without a view); {out['inference']}, {out['noise']} noise; pose error, cm.",
+             "", "| answer | mean | median | flips (%) |", "|---|---|---|---|",
+             f"| each frame alone | {out['per_frame_mean_cm']:.2f} | {out['per_frame_median_cm']:.2f} | "
+             f"{out['per_frame_flips_pct']:.1f} |",
+             f"| chosen along the frames (`silpose infer`, one person) | {out['temporal_mean_cm']:.2f} | "
+             f"{out['temporal_median_cm']:.2f} | {out['temporal_flips_pct']:.1f} |",
+             f"| best of {HYPOTHESES} hypotheses (an oracle) | {out[best + '_mean_cm']:.2f} | "
+             f"{out[best + '_median_cm']:.2f} | – |", "",
+             f"The choice along the frames took another hypothesis than the frame's own in {out['changed_pct']:.0f} % of "
+             "the frames. Figure: `e7_sequences.png`.", ""]
+    return lines
 
 
 def sequence_experiment(ev, data_dir: str | Path, length: int = SEQUENCE_LENGTH, per_clip: int = SEQUENCES_PER_CLIP,
