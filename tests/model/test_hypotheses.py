@@ -12,12 +12,13 @@ import pytest
 from silpose.model.hypotheses import (
     TEMPORAL_POSE_SIGMA_M,
     TEMPORAL_TEMPERATURE,
+    TEMPORAL_TURN_SIGMA_DEG,
     Hypotheses,
     consensus_choice,
+    continue_choice,
     heading,
     heading_error,
     is_flip,
-    online_choice,
     single_answer,
     sequence_answer,
     temporal_choice,
@@ -101,6 +102,15 @@ def _brute_force(h: Hypotheses, sigma: float, temperature: float = 1.0, pose_sig
     return arg
 
 
+def _brute_force_per_frame(h: Hypotheses, sigma: float, temperature: np.ndarray) -> list[int]:
+    """The exhaustive optimum with frame t's log-probabilities divided by ``temperature[t]`` (no joint term)."""
+    t, k = h.probability.shape
+    costs = {path: -np.sum(np.log(h.probability[np.arange(t), path]) / temperature)
+             + 0.5 * np.sum((wrap_angle(np.diff(h.heading[np.arange(t), path])) / sigma) ** 2)
+             for path in itertools.product(range(k), repeat=t)}
+    return list(min(costs, key=costs.get))
+
+
 def test_temporal_choice_is_the_optimal_path_and_removes_a_flip():
     rng = np.random.default_rng(4)
     t_len = 6
@@ -134,10 +144,16 @@ def test_the_tempered_choice_follows_the_continuous_heading_not_the_overconfiden
     joints = np.stack([[_skeleton(0.0), _skeleton(a)] for a in jump])
     prob = np.tile([1e-4, 1 - 1e-4], (t_len, 1))
     h = Hypotheses(joints, prob, np.tile([0, 1], (t_len, 1)), heading(joints), np.zeros(t_len, dtype=np.intp))
-    assert list(temporal_choice(h, temperature=1.0, pose_sigma_m=None)) == [1] * t_len
-    assert list(temporal_choice(h, temperature=1.0, pose_sigma_m=None)) == _brute_force(h, np.radians(20.0))
+    loose = dict(turn_sigma_deg=20.0, temperature=1.0, pose_sigma_m=None)
+    assert list(temporal_choice(h, **loose)) == [1] * t_len
+    assert list(temporal_choice(h, **loose)) == _brute_force(h, np.radians(20.0))
     assert list(temporal_choice(h)) == [0] * t_len
-    assert list(temporal_choice(h)) == _brute_force(h, np.radians(20.0), TEMPORAL_TEMPERATURE, TEMPORAL_POSE_SIGMA_M)
+    assert list(temporal_choice(h)) == _brute_force(h, np.radians(TEMPORAL_TURN_SIGMA_DEG), TEMPORAL_TEMPERATURE,
+                                                    TEMPORAL_POSE_SIGMA_M)
+    # a temperature per frame: untempered frames keep the weights' choice, the tempered ones the steady heading
+    per_frame = np.where(np.arange(t_len) < 4, 1.0, TEMPORAL_TEMPERATURE)
+    got = temporal_choice(h, turn_sigma_deg=20.0, temperature=per_frame, pose_sigma_m=None)
+    assert list(got) == _brute_force_per_frame(h, np.radians(20.0), per_frame) == [1] * 4 + [0] * 4
     with pytest.raises(ValueError, match="temperature"):
         temporal_choice(h, temperature=0.0)
     with pytest.raises(ValueError, match="pose_sigma_m"):
@@ -158,35 +174,72 @@ def test_the_joint_term_follows_the_moving_limbs_when_the_heading_cannot_tell():
     assert list(temporal_choice(h)) == [0] * t_len
 
 
-def test_online_choice_is_the_viterbi_step_from_the_previous_choice():
-    """Each row's online choice equals temporal_choice over two frames whose first frame holds only the
-    track's previous heading (an independent path through the Viterbi code), and keeps a flip out."""
+def _random_track(rng, t_len: int, k: int = 3) -> Hypotheses:
+    """Hypotheses of a track of ``t_len`` frames with random weights, headings and poses; a few unused slots."""
+    joints = np.stack([[_skeleton(a) + rng.normal(0, 0.05, (N_JOINTS, 3)) for a in rng.uniform(-np.pi, np.pi, k)]
+                       for _ in range(t_len)])
+    comp = np.tile(np.arange(k), (t_len, 1))
+    comp[rng.random((t_len, k)) < 0.15] = -1
+    comp[:, 0] = 0  # every frame has a hypothesis
+    joints[comp < 0] = np.nan
+    prob = np.where(comp >= 0, rng.dirichlet(np.ones(k), size=t_len), 0.0)
+    return Hypotheses(joints, prob, comp, heading(joints), np.zeros(t_len, dtype=np.intp))
+
+
+def test_continue_choice_in_chunks_is_the_best_path_at_each_chunks_end():
+    """A track fed in chunks: each chunk's slots equal the whole-prefix Viterbi path (temporal_choice over every
+    frame up to the chunk's last, an independent run with no carried state) on the chunk's frames; frames skipped
+    by the track (gaps in the steps) widen the expected motion as frame_gap does; the first chunk alone is
+    temporal_choice of its frames. The path's end is not the chunk's written choice alone: a path that went wrong
+    can be left at the next chunk."""
     rng = np.random.default_rng(7)
-    n = 12
-    joints = np.stack([[_skeleton(a) for a in rng.uniform(-np.pi, np.pi, 3)] for _ in range(n)])
-    prob = rng.dirichlet(np.ones(3), size=n)
-    h = Hypotheses(joints, prob, np.tile([0, 1, 2], (n, 1)), heading(joints), np.zeros(n, dtype=np.intp))
-    prev_facing = rng.uniform(-np.pi, np.pi, n)
-    prev = heading(np.stack([_skeleton(a) for a in prev_facing]))
-    gap = rng.integers(1, 4, n).astype(float)
-    got = online_choice(h, prev, frame_gap=gap, turn_sigma_deg=30.0, min_probability=0.0)
-    for i in range(n):
-        two = Hypotheses(np.stack([np.stack([_skeleton(prev_facing[i])] * 3), joints[i]]),
-                         np.array([[1.0, 0.0, 0.0], prob[i]]), np.array([[0, -1, -1], [0, 1, 2]]),
-                         np.array([[prev[i], np.nan, np.nan], heading(joints[i])]), np.zeros(2, dtype=np.intp))
-        assert got[i] == temporal_choice(two, frame_gap=np.array([1.0, gap[i]]), turn_sigma_deg=30.0, temperature=1.0,
-                                         pose_sigma_m=None)[1]
-    # a flipped hypothesis more probable by 0.9 : 0.1 loses against a track facing the other way
-    flip = np.stack([[_skeleton(np.pi), _skeleton(0.0)]])
-    hf = Hypotheses(flip, np.array([[0.9, 0.1]]), np.array([[0, 1]]), heading(flip), np.zeros(1, dtype=np.intp))
-    assert online_choice(hf, np.array([0.05]))[0] == 1
-    assert online_choice(hf, np.array([np.nan]))[0] == 0  # no previous choice: keep the frame's own
-    # ... unless the other hypothesis is nearly impossible: never follow a 1e-3 component to stay continuous
-    unlikely = Hypotheses(flip, np.array([[0.999, 0.001]]), np.array([[0, 1]]), heading(flip), np.zeros(1, dtype=np.intp))
-    assert online_choice(unlikely, np.array([0.05]))[0] == 0
-    assert online_choice(unlikely, np.array([0.05]), min_probability=0.0)[0] == 1
-    with pytest.raises(ValueError, match="shape"):
-        online_choice(hf, np.zeros(2))
+    for trial in range(6):
+        t_len = 14
+        h = _random_track(rng, t_len)
+        steps = np.cumsum(rng.integers(1, 3, t_len)) + 100
+        kw = dict(turn_sigma_deg=40.0, temperature=(1.0, 10.0)[trial % 2], pose_sigma_m=(None, 0.2)[trial % 2])
+        end, got = None, np.zeros(t_len, dtype=np.intp)
+        bounds = [0, 1, 5, 6, 11, t_len]
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            got[a:b], end = continue_choice(h.take(np.arange(a, b)), steps[a:b], end, **kw)
+            prefix = temporal_choice(h.take(np.arange(b)), frame_gap=np.diff(steps[:b], prepend=steps[0]).astype(float),
+                                     **kw)
+            assert list(got[a:b]) == list(prefix[a:b])
+            assert end.step == steps[b - 1] and end.cost.min() == 0.0
+        first, _ = continue_choice(h.take(np.arange(5)), steps[:5], None, **kw)
+        assert list(first) == list(temporal_choice(h.take(np.arange(5)), frame_gap=np.diff(steps[:5], prepend=steps[0])
+                                                   .astype(float), **kw))
+
+
+def test_a_continued_track_leaves_a_flip_the_next_frames_refute():
+    """The first chunk's only frame favours a flipped pose (0.9 : 0.1) and has to be answered alone; the next chunk
+    faces the other way throughout. Carried costs let the new chunk start from the right-facing hypothesis of the
+    frame before (its slots say so), where only the written choice carried would keep the flip."""
+    facing = np.linspace(0.0, 0.3, 6)
+    joints = np.stack([[_skeleton(f), _skeleton(f + np.pi)] for f in facing])
+    prob = np.tile([0.7, 0.3], (6, 1))
+    prob[0] = [0.1, 0.9]
+    h = Hypotheses(joints, prob, np.tile([0, 1], (6, 1)), heading(joints), np.zeros(6, dtype=np.intp))
+    kw = dict(temperature=1.0, pose_sigma_m=None)
+    first, end = continue_choice(h.take(np.arange(1)), np.array([0]), None, **kw)
+    assert list(first) == [1]  # alone, the flip wins
+    rest, end = continue_choice(h.take(np.arange(1, 6)), np.arange(1, 6), end, **kw)
+    assert list(rest) == [0] * 5
+    assert list(temporal_choice(h, **kw)) == [0] * 6  # the whole sequence at once agrees
+    hard = h.take(np.arange(6))  # only the written choice carried: frame 0 holds the flip alone
+    hard.component[0, 0], hard.probability[0] = -1, [0.0, 1.0]
+    assert list(temporal_choice(hard, **kw)[1:]) == [1] * 5
+    # a chunk without a usable hypothesis keeps slot 0 and leaves the path's end where it was
+    empty = Hypotheses(np.full((2, 2, N_JOINTS, 3), np.nan), np.zeros((2, 2)), np.full((2, 2), -1), np.full((2, 2), np.nan),
+                       np.zeros(2, dtype=np.intp))
+    slots, same = continue_choice(empty, np.array([7, 8]), end, **kw)
+    assert list(slots) == [0, 0] and same is end
+    with pytest.raises(ValueError, match="steps"):
+        continue_choice(h.take(np.arange(2)), np.array([3, 3]), None)
+    with pytest.raises(ValueError, match="steps"):
+        continue_choice(h.take(np.arange(2)), np.array([5, 6]), end)  # not after the end's step (5)
+    with pytest.raises(ValueError, match="hypotheses"):
+        continue_choice(_random_track(np.random.default_rng(0), 2, k=3), np.array([9, 10]), end)
 
 
 def test_single_answer_keeps_the_mean_unless_the_choice_faces_the_other_way():

@@ -37,13 +37,21 @@ hypothesis per frame maximising
 
 where ``dtheta_t`` is the heading change between consecutive chosen hypotheses, ``dj_t`` the mean
 distance of their 19 joints (root-relative), ``sigma`` and ``sigma_j`` the expected turn and joint
-motion per frame (``turn_sigma_deg`` and ``pose_sigma_m``, times the frame gap) and ``T_temp`` a
-temperature (:data:`TEMPORAL_TEMPERATURE`). A flipped frame costs a 180 deg turn twice, so a path
-through the right-facing hypotheses wins unless the evidence for the flip is overwhelming. The
-temperature is there because the responsibilities are overconfident (a frame's top hypothesis often
-holds 0.998 of the weight, ``silpose.model.mixing``): untempered, a wrong-facing top hypothesis wins
-its frames whatever its neighbours say. Tempered, the path is the steadiest sequence of poses among
-the frames' hypotheses, the weights breaking near-ties. Cost O(T K^2).
+motion per frame (``turn_sigma_deg`` and ``pose_sigma_m``, :data:`TEMPORAL_TURN_SIGMA_DEG` and
+:data:`TEMPORAL_POSE_SIGMA_M`, times the frame gap) and ``T_temp`` a temperature. A flipped frame costs a
+180 deg turn twice, so a path through the right-facing hypotheses wins unless the evidence for the flip is
+overwhelming. The temperature is there because the responsibilities are overconfident (a frame's top
+hypothesis often holds 0.998 of the weight, ``silpose.model.mixing``): untempered, a wrong-facing top
+hypothesis wins its frames whatever its neighbours say. Cost O(T K^2).
+
+How overconfident depends on the model, so ``T_temp`` is the model's own, per number of present views,
+calibrated when it is trained (``silpose.model.mixing``, "The hypotheses' temperature": the temperature under
+which the hypotheses' probabilities best predict which of them is nearest the truth, on held-out samples);
+:data:`TEMPORAL_TEMPERATURE` for a model without one. With every view the motions preset's model calibrates to 15,
+the default preset's to 7, models of the default preset's data with 3 and 10 components (one fit each) to 10 and
+5. The motion terms were first tuned with a fixed ``T_temp`` of 100 on the motions preset (20 deg and 0.15 m per
+frame); they are now sqrt(5) times smaller, 9 deg and 0.067 m, which gives the same paths at a temperature of 20.
+A fixed 100 let a small model's steadiest sequence of component means win whatever the frames said.
 
 The answer along a sequence (:func:`sequence_answer`): the chosen hypothesis itself. Chosen along the
 frames, the hypothesis carries evidence the posterior mean does not have, and the mean of the frame's
@@ -51,7 +59,7 @@ components (what :func:`single_answer` keeps unless the choice faces the other w
 hypotheses the path rejected.
 
 Measured (``silpose.eval.sequences``: 1 s sequences at 30 fps, standard noise, robust inference, 4
-views, cm, 2026-12-06). Every setting was chosen on sequences of the train split's held-out part (the
+views, cm, 2026-12-06). The earlier settings were chosen on sequences of the train split's held-out part (the
 samples ``silpose train`` leaves out: motions preset, 32 sequences of 6 held-out clips and 8 procedural
 walkers; default preset, 40 walkers); the test sequences (held-out subjects' clips; test walkers) were
 scored afterwards:
@@ -61,19 +69,44 @@ scored afterwards:
 | each frame alone (:func:`single_answer`) | 13.87 | 12.30 | 3.75 | 3.21 |
 | before: 3 hypotheses, untempered, no joint term, :func:`single_answer` | 13.33 | 12.60 | 3.66 | 3.19 |
 | 8 hypotheses, T_temp 100, no joint term, the chosen hypothesis | 11.12 | 10.57 | 3.58 | 3.24 |
-| **8 hypotheses, T_temp 100, sigma_j 0.15 m, the chosen hypothesis (now)** | **10.62** | **10.54** | **3.57** | **3.22** |
-| the same, untempered (T_temp 1) | 12.81 | 12.43 | 3.61 | 3.27 |
+| 8 hypotheses, T_temp 100, 20 deg, 0.15 m, the chosen hypothesis | 10.62 | 10.54 | 3.57 | 3.22 |
+| **the model's calibrated T_temp (motions 15, default 7), 9 deg, 0.067 m (now)** | **11.40** | **10.54** | **3.58** | **3.24** |
+| untempered (T_temp 1, 20 deg, 0.15 m) | 12.81 | 12.43 | 3.61 | 3.27 |
 | best of the 8 (an oracle) | 8.08 | 8.53 | 3.32 | 2.98 |
 
 Held-out choices: T_temp 10 / 30 / 100 gave 11.36 / 11.28 / 11.12 (no joint term); sigma_j 0.05 / 0.1 /
-0.15 / 0.2 / 0.3 m gave 11.63 / 10.61 / 10.62 / 10.65 / 10.90; :func:`single_answer` after the same
+0.15 / 0.2 / 0.3 m gave 11.63 / 10.61 / 10.62 / 10.65 / 10.90 (T_temp 100); :func:`single_answer` after the same
 choice 11.47. Flips (facing more than 90 deg from the truth), motions test clips: 9.7 % before, 3.0 %
-now. The default preset's walkers move by a few tenths of a centimetre either way.
+now. Smaller models (the default preset's data, one fit; held-out / test): M 3, q 12: each frame alone 10.39 /
+9.61, T_temp 100 9.56 / 9.90, calibrated (10) 9.23 / 8.96; M 10, q 30: 5.23 / 4.02, 4.31 / 3.87, calibrated (5)
+4.30 / 3.85. The calibration costs the motions preset's held-out sequences 0.8 cm and its test sequences nothing.
 
-A stream (:func:`online_choice`). When frames arrive one step at a time (a recording of several
-people, ``silpose infer --videos``), each track keeps only its last chosen heading and the next frame
-takes the hypothesis minimising the same per-step cost, ``-log p(h) + (dtheta / sigma)^2 / 2``: the
-forward half of the Viterbi path, without looking ahead.
+A stream (:func:`continue_choice`). When frames arrive a chunk at a time (a recording of several people,
+``silpose infer --videos``: 16 steps per chunk), each track keeps where its path ended (:class:`PathEnd`: the
+accumulated cost of the best path into each hypothesis of its latest frame) and the next chunk's frames continue
+the same Viterbi recursion from it. The chunk's slots are the path that is best at its last frame: frames early in
+a chunk are decided with up to 15 frames of look-ahead, the last with none, and a chunk never revises the frames
+already written. The next chunk may start from any hypothesis of the frame before it, at the cost of the best
+path into that hypothesis, not only from the one written.
+
+Without the whole recording to look ahead, a tempered choice locks a track into the facing its first frames
+favour: in the lab recording of the tests (``silpose.datagen.lab``, a small model) one walker's first 31 frames
+favour the wrong facing, and the tempered stream kept it for all of them (that walker 26.8 cm, the whole
+sequence at once 9.5 cm). A stream is therefore decided untempered, with the looser motion of the earlier
+setting (:data:`STREAM_CHOICE`): a frame's evidence can turn the path at once. Measured on the sequences above
+cut into chunks of 16 (cm; "small": models of the default preset's data with M 3, q 12 and M 10, q 30, one fit
+each; the lab: the world-frame error of ``tests/app/recordings/test_lab.py``):
+
+| | motions, held-out / test | default, held-out / test | small M 3, held-out / test | small M 10, held-out / test | lab |
+|---|---|---|---|---|---|
+| before: the previous frame's heading only (3 hypotheses, untempered, :func:`single_answer`) | 13.87 / 12.52 | 3.75 / 3.21 | 10.38 / 9.60 | 5.23 / 4.02 | 14.22 |
+| **carried costs, :data:`STREAM_CHOICE` (now)** | **12.69 / 12.25** | **3.61 / 3.27** | **9.96 / 9.38** | **4.47 / 3.88** | **14.66** |
+| carried costs, tempered as a whole sequence is (calibrated) | 10.48 / 11.03 | 3.58 / 3.24 | 9.23 / 9.06 | 4.30 / 3.84 | 17.19 |
+| only the previous chunk's written choice carried (T_temp 100, 20 deg, 0.15 m) | 9.98 / 11.12 | 3.57 / 3.22 | – | – | – |
+| the whole sequence at once (:func:`temporal_choice`, now) | 11.40 / 10.54 | 3.58 / 3.24 | 9.23 / 8.96 | 4.30 / 3.85 | – |
+
+(The sequences are 30 frames: chunks of 16 cut each into 16 and 14. With chunks of 8, carrying only the written
+choice was worse than no look-ahead at all: 12.93 / 14.09 on the motions.)
 """
 
 from __future__ import annotations
@@ -93,11 +126,14 @@ __all__ = [
     "top_hypotheses",
     "consensus_choice",
     "temporal_choice",
-    "online_choice",
+    "PathEnd",
+    "continue_choice",
     "single_answer",
     "sequence_answer",
     "TEMPORAL_TEMPERATURE",
     "TEMPORAL_POSE_SIGMA_M",
+    "TEMPORAL_TURN_SIGMA_DEG",
+    "STREAM_CHOICE",
     "TEMPORAL_HYPOTHESES",
 ]
 
@@ -105,10 +141,16 @@ __all__ = [
 FLIP_ANGLE = np.pi / 2
 #: smallest probability used in log p (keeps -log p finite for hypotheses with weight ~0).
 PROB_FLOOR = 1e-12
-#: temperature of the frames' log-probabilities in :func:`temporal_choice` (module doc, "A sequence")
-TEMPORAL_TEMPERATURE = 100.0
+#: temperature of the frames' log-probabilities in :func:`temporal_choice` for a model without its own calibration
+#: (``silpose.model.mixing``; module doc, "A sequence")
+TEMPORAL_TEMPERATURE = 20.0
+#: expected heading change per frame in :func:`temporal_choice` (degrees, standard deviation)
+TEMPORAL_TURN_SIGMA_DEG = 9.0
 #: expected motion of the joints per frame in :func:`temporal_choice` (mean over the 19 joints, metres)
-TEMPORAL_POSE_SIGMA_M = 0.15
+TEMPORAL_POSE_SIGMA_M = 0.067
+#: the settings of :func:`continue_choice` for a stream decided a chunk at a time (module doc, "A stream"):
+#: untempered, with the looser motion that a temperature of 100 was tuned with
+STREAM_CHOICE = {"temperature": 1.0, "turn_sigma_deg": 20.0, "pose_sigma_m": 0.15}
 #: hypotheses a choice along a sequence needs per frame (module doc: 3 left the right-facing pose out too often)
 TEMPORAL_HYPOTHESES = 8
 
@@ -270,7 +312,7 @@ def consensus_choice(hyp: Hypotheses, vote_headings: np.ndarray) -> np.ndarray:
 
 
 def temporal_choice(hyp: Hypotheses, *, valid: np.ndarray | None = None, frame_gap: np.ndarray | None = None,
-                    turn_sigma_deg: float = 20.0, temperature: float = TEMPORAL_TEMPERATURE,
+                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float | np.ndarray = TEMPORAL_TEMPERATURE,
                     pose_sigma_m: float | None = TEMPORAL_POSE_SIGMA_M) -> np.ndarray:
     """(T,) slot per frame of the Viterbi path over the hypotheses of one person's T frames (module doc).
 
@@ -281,84 +323,137 @@ def temporal_choice(hyp: Hypotheses, *, valid: np.ndarray | None = None, frame_g
         frame_gap: (T,) frames elapsed since the previous frame (first entry ignored); None = 1 each.
             The expected turn grows with the gap: sigma = turn_sigma_deg * gap.
         turn_sigma_deg: expected heading change between consecutive frames (degrees, standard deviation).
-        temperature: the frames' log-probabilities are divided by it (> 0; 1 = untempered).
+        temperature: the frames' log-probabilities are divided by it (> 0; 1 = untempered): one for every frame,
+            or (T,) one per frame (a model's calibrated temperature per view count,
+            ``silpose.model.mixing.Mixing.hypothesis_temperature``).
         pose_sigma_m: expected mean joint motion between consecutive frames (metres, standard deviation; grows
             with the gap like the turn's); None = no joint term.
     Returns:
         (T,) int slots; ``hyp.chosen`` is not modified.
     """
-    if not temperature > 0:
-        raise ValueError(f"temperature must be > 0, got {temperature}")
+    t_len = hyp.probability.shape[0]
+    ok = _frames_used(hyp, valid)
+    gap = np.ones(t_len) if frame_gap is None else np.asarray(frame_gap, dtype=np.float64)
+    if gap.shape != (t_len,):
+        raise ValueError(f"valid and frame_gap must have shape ({t_len},)")
+    chosen, _ = _viterbi(hyp, ok, gap, None, turn_sigma_deg, temperature, pose_sigma_m)
+    return chosen
+
+
+@dataclass(frozen=True)
+class PathEnd:
+    """Where the Viterbi path of a track stood after its latest frame (module doc, "A stream"): what
+    :func:`continue_choice` goes on from.
+
+    Attributes:
+        cost: (K,) accumulated cost of the best path ending in each hypothesis of that frame, the least 0 (inf:
+            an unused slot).
+        heading: (K,) radians, the frame's hypotheses' headings (NaN in unused slots).
+        joints: (K, 19, 3) metres, root-relative, the frame's hypotheses (NaN in unused slots).
+        step: the frame's time step.
+    """
+
+    cost: np.ndarray
+    heading: np.ndarray
+    joints: np.ndarray
+    step: int
+
+
+def continue_choice(hyp: Hypotheses, steps: np.ndarray, start: PathEnd | None = None, *,
+                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float | np.ndarray = TEMPORAL_TEMPERATURE,
+                    pose_sigma_m: float | None = TEMPORAL_POSE_SIGMA_M) -> tuple[np.ndarray, PathEnd | None]:
+    """The next frames of one track along the path of :func:`temporal_choice` (module doc, "A stream").
+
+    Args:
+        hyp: hypotheses of the track's next T frames, in time order.
+        steps: (T,) int, their time steps (increasing; the gap between two is the ``frame_gap``).
+        start: the path's end after the track's earlier frames (None: these are its first).
+        turn_sigma_deg, temperature, pose_sigma_m: as for :func:`temporal_choice`.
+    Returns:
+        (T,) int slots -- the path over all the track's frames so far that is best at the last of these, on these
+        frames (a frame without a usable hypothesis keeps slot 0 and is bridged) -- and the path's new end (``start``
+        when no frame had a hypothesis). Earlier frames' slots are never revised: with ``start`` None this is
+        :func:`temporal_choice` of these frames.
+    """
+    st = np.asarray(steps)
+    t_len = hyp.probability.shape[0]
+    if st.shape != (t_len,) or (t_len and not np.issubdtype(st.dtype, np.integer)):
+        raise ValueError(f"steps must be ({t_len},) integers, got {st.shape} {st.dtype}")
+    prev = st[:1] if start is None else np.array([start.step])
+    gap = np.diff(st, prepend=prev).astype(np.float64)
+    if np.any(gap[(start is None):] < 1):
+        raise ValueError("steps must increase, and follow the start's step")
+    if start is not None and start.cost.shape != (hyp.k,):
+        raise ValueError(f"start holds {start.cost.shape[0]} hypotheses, the frames {hyp.k}")
+    ok = _frames_used(hyp, None)
+    chosen, cost = _viterbi(hyp, ok, gap, start, turn_sigma_deg, temperature, pose_sigma_m)
+    if cost is None:
+        return chosen, start
+    last = int(np.flatnonzero(ok)[-1])
+    return chosen, PathEnd(cost=cost, heading=hyp.heading[last].copy(), joints=hyp.joints[last].copy(),
+                           step=int(st[last]))
+
+
+def _frames_used(hyp: Hypotheses, valid: np.ndarray | None) -> np.ndarray:
+    """(T,) bool: frames with at least one hypothesis (and ``valid``, when given)."""
+    has = (hyp.component >= 0).any(axis=1)
+    if valid is None:
+        return has
+    v = np.asarray(valid, dtype=bool)
+    if v.shape != has.shape:
+        raise ValueError(f"valid and frame_gap must have shape ({has.shape[0]},)")
+    return v & has
+
+
+def _viterbi(hyp: Hypotheses, ok: np.ndarray, gap: np.ndarray, start: PathEnd | None, turn_sigma_deg: float,
+             temperature: float | np.ndarray, pose_sigma_m: float | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The Viterbi path of the module doc over the frames ``ok`` (T,) bool, ``gap`` (T,) frames since the previous
+    frame (the first: since ``start``'s frame; ignored without a start). Returns the (T,) slots and the (K,) costs
+    of the paths ending at the last frame used, the least 0 (None: no frame used)."""
+    t_len, k = hyp.probability.shape
+    temp = np.asarray(temperature, dtype=np.float64)
+    if temp.shape not in ((), (t_len,)) or not np.all(temp > 0):
+        raise ValueError(f"temperature must be > 0, one or ({t_len},), got {temperature}")
     if pose_sigma_m is not None and not pose_sigma_m > 0:
         raise ValueError(f"pose_sigma_m must be > 0 or None, got {pose_sigma_m}")
-    t_len, k = hyp.probability.shape
-    ok = (hyp.component >= 0).any(axis=1) if valid is None else np.asarray(valid, dtype=bool) & (hyp.component >= 0).any(axis=1)
-    gap = np.ones(t_len) if frame_gap is None else np.asarray(frame_gap, dtype=np.float64)
-    if gap.shape != (t_len,) or ok.shape != (t_len,):
-        raise ValueError(f"valid and frame_gap must have shape ({t_len},)")
     if turn_sigma_deg <= 0:
         raise ValueError(f"turn_sigma_deg must be > 0, got {turn_sigma_deg}")
     sigma = np.radians(float(turn_sigma_deg))
     usable = hyp.component >= 0
-    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)) / float(temperature), np.inf)  # (T, K)
+    per_frame = temp.reshape(-1, 1) if temp.ndim else temp
+    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)) / per_frame, np.inf)  # (T, K)
     chosen = np.zeros(t_len, dtype=np.intp)
     frames = np.flatnonzero(ok)
     if frames.size == 0:
-        return chosen
+        return chosen, None
+
+    def pair(prev_heading, prev_joints, t, g):  # (K_prev, K_now) cost of moving from the previous hypotheses to t's
+        d = wrap_angle(hyp.heading[t][None, :] - prev_heading[:, None])
+        c = 0.5 * (np.nan_to_num(d, nan=np.pi) / (sigma * g)) ** 2
+        if pose_sigma_m is not None:  # mean joint distance, metres; unused slots are inf anyway
+            dj = np.linalg.norm(prev_joints[:, None] - hyp.joints[t][None, :], axis=-1).mean(axis=-1)
+            c = c + 0.5 * (np.nan_to_num(dj, nan=0.0) / (pose_sigma_m * g)) ** 2
+        return c
+
     # accumulated gaps between consecutive valid frames (a bridged invalid frame adds its gap)
     cum = np.cumsum(gap)
-    cost = unary[frames[0]].copy()
+    first = frames[0]
+    if start is None:
+        cost = unary[first].copy()
+    else:  # the first frame used is cum[first] frames after the start's (bridged frames included)
+        cost = np.min(start.cost[:, None] + pair(start.heading, start.joints, first, max(cum[first], 1e-9)),
+                      axis=0) + unary[first]
     back = np.zeros((frames.size, k), dtype=np.intp)
     for s in range(1, frames.size):
         t, prev = frames[s], frames[s - 1]
-        g = max(cum[t] - cum[prev], 1e-9)
-        d = wrap_angle(hyp.heading[t][None, :] - hyp.heading[prev][:, None])  # (K_prev, K_now)
-        pair = 0.5 * (np.nan_to_num(d, nan=np.pi) / (sigma * g)) ** 2
-        if pose_sigma_m is not None:  # mean joint distance (K_prev, K_now), metres; unused slots are inf anyway
-            dj = np.linalg.norm(hyp.joints[prev][:, None] - hyp.joints[t][None, :], axis=-1).mean(axis=-1)
-            pair = pair + 0.5 * (np.nan_to_num(dj, nan=0.0) / (pose_sigma_m * g)) ** 2
-        total = cost[:, None] + pair
+        total = cost[:, None] + pair(hyp.heading[prev], hyp.joints[prev], t, max(cum[t] - cum[prev], 1e-9))
         back[s] = np.argmin(total, axis=0)
         cost = total[back[s], np.arange(k)] + unary[t]
     slot = int(np.argmin(cost))
     for s in range(frames.size - 1, -1, -1):
         chosen[frames[s]] = slot
         slot = int(back[s, slot])
-    return chosen
-
-
-def online_choice(hyp: Hypotheses, prev_heading: np.ndarray, *, frame_gap: np.ndarray | None = None,
-                  turn_sigma_deg: float = 20.0, min_probability: float = 0.05) -> np.ndarray:
-    """(N,) slot per row: the next step of a choice made online, row by row (module doc, "A stream").
-
-    Args:
-        hyp: hypotheses of N rows (each row one track's newest frame).
-        prev_heading: (N,) radians, the heading the row's track chose at its previous frame; NaN = no
-            previous choice (the row keeps ``hyp.chosen``).
-        frame_gap: (N,) frames since that previous choice (None = 1 each); sigma = turn_sigma_deg * gap.
-        turn_sigma_deg: expected heading change per frame (degrees, standard deviation).
-        min_probability: hypotheses less probable than this are never chosen over the frame's own choice
-            (with one wrong choice and no look-ahead, a track could otherwise keep following near-impossible
-            component means to stay continuous).
-    Returns:
-        (N,) int slots; ``hyp.chosen`` is not modified.
-    """
-    n = len(hyp.chosen)
-    prev = np.asarray(prev_heading, dtype=np.float64)
-    gap = np.ones(n) if frame_gap is None else np.asarray(frame_gap, dtype=np.float64)
-    if prev.shape != (n,) or gap.shape != (n,):
-        raise ValueError(f"prev_heading and frame_gap must have shape ({n},)")
-    if turn_sigma_deg <= 0:
-        raise ValueError(f"turn_sigma_deg must be > 0, got {turn_sigma_deg}")
-    sigma = np.radians(float(turn_sigma_deg)) * np.maximum(gap, 1e-9)
-    usable = (hyp.component >= 0) & (hyp.probability >= min_probability)
-    usable[np.arange(n), hyp.chosen] |= hyp.component[np.arange(n), hyp.chosen] >= 0
-    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)), np.inf)  # (N, K)
-    d = wrap_angle(hyp.heading - prev[:, None])
-    cost = unary + 0.5 * (np.nan_to_num(d, nan=np.pi) / sigma[:, None]) ** 2
-    chosen = np.argmin(cost, axis=1)
-    keep = ~np.isfinite(prev) | ~usable.any(axis=1)
-    return np.where(keep, hyp.chosen, chosen).astype(np.intp)
+    return chosen, cost - cost[np.isfinite(cost)].min()
 
 
 def _chosen(hyp: Hypotheses, chosen: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -7,10 +7,10 @@ import time
 
 import numpy as np
 
-from silpose.model.hypotheses import online_choice, single_answer
+from silpose.model.hypotheses import STREAM_CHOICE, continue_choice, sequence_answer
 from silpose.shared.skeleton import N_JOINTS
 
-from ..inference import InferOptions, infer_rows
+from ..inference import InferOptions, hypotheses_kept, infer_rows
 from .overlay_png import OverlayPngs, draws_overlays
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
@@ -22,12 +22,14 @@ from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, ST
 
 
 def infer_chunk(model, people: list[Person], rig, names, modelled, transform, opt, first_frame,
-                timings, last_heading: dict):
+                timings, paths: dict):
     """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3); ``opt``: the
     run's :class:`~.pipeline.RecordingOptions`.
 
-    With ``opt.hypotheses``, each row's joints are the hypothesis chosen online along its track
-    (``last_heading``: track key -> (step, heading), updated in place); the root is placed for that pose."""
+    With ``opt.hypotheses``, each row's joints are the hypothesis chosen along its track, the path over the track's
+    frames so far that is best at the chunk's last (:func:`silpose.model.hypotheses.continue_choice`; ``paths``: track
+    key -> the path's :class:`~silpose.model.hypotheses.PathEnd`, updated in place); the root is placed for that
+    pose."""
     R, K = len(people), len(names)
     lay = model.fitted_layout()
     V, n_pts = len(lay.views), lay.n_points
@@ -49,20 +51,19 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
         c = np.stack([people[i].contours for i in rows])
         # untangled (simple) contours only matter where they are drawn or written (~0.2 ms a contour, batched)
         robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
-        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=int(opt.hypotheses), robust=robust,
-                               untangle=draws_overlays(opt.overlays) or opt.contours)
+        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=hypotheses_kept(opt.hypotheses, True),
+                               robust=robust, untangle=draws_overlays(opt.overlays) or opt.contours)
         res = infer_rows(model, c, used[rows], options=options)
         pose = res.joints
         if res.hypotheses is not None:
             hyp = res.hypotheses
-            for j, i in enumerate(rows):  # people are in step order: a track's rows are chosen in time order
-                key, step = people[i].track.key, people[i].step
-                prev_step, prev = last_heading.get(key, (step, np.nan))
-                one = hyp.take(np.array([j]))
-                hyp.chosen[j] = online_choice(one, np.array([prev]), frame_gap=np.array([max(step - prev_step, 1)],
-                                                                                        float))[0]
-                last_heading[key] = (step, float(hyp.heading[j, hyp.chosen[j]]))
-            pose = single_answer(res.joints, hyp)
+            keys = np.array([people[i].track.key for i in rows])
+            steps = np.array([people[i].step for i in rows], np.int64)
+            for key in dict.fromkeys(keys.tolist()):  # people are in step order: a track's rows are in time order
+                mine = np.flatnonzero(keys == key)
+                hyp.chosen[mine], paths[key] = continue_choice(hyp.take(mine), steps[mine], paths.get(key),
+                                                               **STREAM_CHOICE)
+            pose = sequence_answer(res.joints, hyp)
             hyp_slot[rows] = hyp.chosen + 1
             hyp_p[rows] = hyp.probability[np.arange(len(rows)), hyp.chosen]
         timings["infer"] += time.perf_counter() - t0

@@ -186,8 +186,9 @@ class RecordingOptions:
     robust: robust inference (``silpose.model.robust``: contour points far from the reconstruction are
     down-weighted); None = on for colour videos (silpose's segmentation leaves holes, blobs and shadows), off
     for mask videos (measured on the lab recording of :mod:`silpose.datagen.lab`, M 10 q 30 model: world-frame
-    error 5.8 cm without, 6.3 cm with; 115 vs 87 time steps/s). hypotheses: top-K kept per person-frame, the single answer chosen online along each
-    track (:func:`silpose.model.hypotheses.online_choice`); 0 = the posterior mean. work_person_px: frames are
+    error 5.8 cm without, 6.3 cm with; 115 vs 87 time steps/s). hypotheses: top-K kept per person-frame (at least
+    :data:`silpose.model.hypotheses.TEMPORAL_HYPOTHESES`), the answer the hypothesis chosen along each track, chunk by
+    chunk (:func:`silpose.model.hypotheses.continue_choice`); 0 = the posterior mean. work_person_px: frames are
     processed at the size where a person is about this tall (:mod:`.resolution`; 0: the rig camera's size).
     absorb_s: colour videos: seconds after which foreground outside every person's box becomes background
     (module docstring; 0: never). overlay_dir: the overlays' folder (None: ``out/overlays``). carve: cut each person's
@@ -410,7 +411,7 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
     views_hist = [0] * (len(modelled) + 1)
     floor_tracks: dict[int, list] = {}
     pending: list[tuple[int, PersonRows, list[Track], np.ndarray]] = []
-    last_heading: dict[int, tuple[int, float]] = {}  # track key -> (step, heading) of its last chosen hypothesis
+    paths: dict = {}  # track key -> the end of its path among the hypotheses (silpose.model.hypotheses.PathEnd)
     threads = default_camera_threads(len(cams), threaded) if opt.threads is None else int(opt.threads)
     pool = ThreadPoolExecutor(max_workers=threads) if threads > 0 else None
     cam_list = list(cams.values())
@@ -486,7 +487,7 @@ def _run(model, videos, out, options: RecordingOptions | None, *, progress: Call
             if not seen_chunk:
                 break
             rows, world = infer_chunk(model, people, rig, names, modelled, transform, opt, first_frame, timings,
-                                       last_heading)
+                                       paths)
             pending.append((step - 1, rows, [p.track for p in people], np.array([p.step for p in people], int)))
             if overlays is not None:
                 t0 = time.perf_counter()

@@ -20,8 +20,8 @@ view_cut            per rig camera, the share (0-1) of the person's blob cut off
 log_marginal        the model's log density of the observed views (NaN without joints)
 plausibility        that density as a percentile (0-100) of held-out training inputs with the same
                     views (``silpose.model.plausibility``; NaN when the model has no calibration)
-hypothesis          the slot (1-based) of the chosen pose among the top-K hypotheses, chosen online
-                    along the person's track (``silpose.model.hypotheses.online_choice``; 0: none)
+hypothesis          the slot (1-based) of the answer among the top-K hypotheses, chosen along the person's
+                    track (``silpose.model.hypotheses.continue_choice``; 0: none)
 hypothesis_probability  its posterior probability
 inside              the share (0-1) of the joints, over the views used, that project inside the person's own
                     outline there (2 px of tolerance; ``silhouette_fit.share_inside``): how well the answer agrees
