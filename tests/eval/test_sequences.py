@@ -13,7 +13,7 @@ from silpose.app.training import fit_dataset
 from silpose.eval.experiments import EvalConfig
 from silpose.eval.noise import apply_noise
 from silpose.eval.sequences import (HYPOTHESES, SEQUENCE_NOISE_OFFSET, pick_sequences, render_dataset_sequences,
-                                    score_sequences)
+                                    score_sequences, sequence_experiment)
 from silpose.model.hypotheses import single_answer
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.shared.contours import normalise
@@ -27,6 +27,11 @@ def test_pick_sequences_takes_the_first_samples_of_every_clip():
     got = pick_sequences(ids, clips, 2)
     assert [(int(clips[i]), int(ids[i])) for i in got] == [(0, 5), (1, 8), (1, 9), (2, 3), (2, 4)]
     assert len(pick_sequences(ids, clips, 1)) == 3
+    # a limit keeps every clip's first sample before any clip's second, in the same order
+    assert [(int(clips[i]), int(ids[i])) for i in pick_sequences(ids, clips, 2, limit=4)] == [(0, 5), (1, 8), (1, 9),
+                                                                                              (2, 3)]
+    assert [(int(clips[i]), int(ids[i])) for i in pick_sequences(ids, clips, 2, limit=2)] == [(0, 5), (1, 8)]
+    assert pick_sequences(ids, clips, 2, limit=10) == got and pick_sequences(ids, clips, 2, limit=0) == []
 
 
 @pytest.fixture(scope="module")
@@ -93,3 +98,17 @@ def test_the_summary_section_carries_the_figures(scored):
     assert f"| each frame alone | {out['per_frame_mean_cm']:.2f} | {out['per_frame_median_cm']:.2f} |" in text
     assert f"| {out['temporal_mean_cm']:.2f} | {out['temporal_median_cm']:.2f} |" in text
     assert e7_markdown({}) == []
+
+
+def test_the_experiment_plays_at_most_n_test_sequences(scored, library_dataset):
+    """``silpose eval --n-test N`` asks for a quick run: E7 plays at most N sequences, the first sample of the
+    first N clips (a clip's second sample only once every clip has one)."""
+    model, _, cfg, _ = scored
+    ev = SimpleNamespace(model=model, config=EvalConfig(n_test=2), timings={})
+    out = sequence_experiment(ev, library_dataset, length=4)
+    test = load_split(library_dataset, "test", columns=["gait"])
+    clips = np.asarray(test.gait["clip"])
+    first_of = {int(c): int(test.sample_id[clips == c].min()) for c in np.unique(clips)}
+    assert len(first_of) >= 2
+    assert out["n_sequences"] == 2 and out["frames"] == 8 and ev.timings["sequences"] > 0
+    assert out["sample_ids"] == [first_of[c] for c in sorted(first_of)[:2]]

@@ -19,7 +19,7 @@ def evaluate(
     preset_or_data_dir: str = typer.Argument("default", help="Preset name (reads data/<preset>/) or a dataset folder."),
     model: Optional[Path] = typer.Option(None, help="Model file (default: models/<name>.npz)."),
     out: Optional[Path] = typer.Option(None, help="Output folder (default: reports/<name>/)."),
-    n_test: Optional[int] = typer.Option(None, min=1, help="Use the first N test examples (default: all)."),
+    n_test: Optional[int] = typer.Option(None, min=1, help="Use the first N test examples, and at most N sequences in E7 (default: all)."),
     seed: int = typer.Option(0, help="Seed of the test noise and the chance draws."),
     experiments: str = typer.Option("E1,E2,E3,E4,E5,E6,E7", help="Comma-separated subset of E1..E7 (E6: flips, robust "
                                     "inference, missing views, self-intersections, plausibility; E7: test clips or "

@@ -55,24 +55,30 @@ HYPOTHESES = hypotheses_kept(TOP_K, temporal=True)
 SEQUENCE_NOISE_OFFSET = 1 << 41
 
 
-def pick_sequences(sample_ids: np.ndarray, clips: np.ndarray, per_clip: int) -> list[int]:
+def pick_sequences(sample_ids: np.ndarray, clips: np.ndarray, per_clip: int, limit: int | None = None) -> list[int]:
     """Positions (into ``sample_ids``) of the first ``per_clip`` samples of every clip (0 = the procedural walk),
-    clips in increasing order, samples in increasing id."""
+    clips in increasing order, samples in increasing id; at most ``limit`` of them (None: no limit), every clip's
+    first sample before any clip's second, and so on (as many clips as the limit allows)."""
     order = np.lexsort((np.asarray(sample_ids), np.asarray(clips)))
     taken: dict[int, int] = defaultdict(int)
-    out = []
+    out, rank = [], []
     for i in order:
         c = int(clips[i])
         if taken[c] < per_clip:
+            rank.append(taken[c])
             taken[c] += 1
             out.append(int(i))
+    if limit is not None and len(out) > limit:
+        keep = set(np.argsort(np.array(rank), kind="stable")[:max(int(limit), 0)].tolist())
+        out = [p for j, p in enumerate(out) if j in keep]
     return out
 
 
 def render_dataset_sequences(data_dir: str | Path, length: int = SEQUENCE_LENGTH, per_clip: int = SEQUENCES_PER_CLIP,
-                             workers: int = 1, walk_sequences: int = WALK_SEQUENCES) -> dict | None:
+                             workers: int = 1, walk_sequences: int = WALK_SEQUENCES,
+                             limit: int | None = None) -> dict | None:
     """Render the sequences of ``data_dir``'s test split (module docstring): ``per_clip`` per library clip, or
-    ``walk_sequences`` of a walk dataset; None for a dataset posed from BVH clips or not written by ``silpose gen``
+    ``walk_sequences`` of a walk dataset, at most ``limit`` (:func:`pick_sequences`); None for a dataset posed from BVH clips or not written by ``silpose gen``
     (no generator config in its metadata).
 
     Returns ``{"sample_id": (S,), "clip": (S,), "records": [[record, ...] per sequence]}``
@@ -95,7 +101,7 @@ def render_dataset_sequences(data_dir: str | Path, length: int = SEQUENCE_LENGTH
     except SequenceError as exc:
         raise EvalInputError(str(exc)) from None
     clips = np.zeros(len(test.sample_id), np.int64) if walk else np.asarray(test.gait["clip"], np.int64)
-    picked = pick_sequences(test.sample_id, clips, walk_sequences if walk else per_clip)
+    picked = pick_sequences(test.sample_id, clips, walk_sequences if walk else per_clip, limit)
     if not picked:
         return None
     requests = [(int(test.sample_id[i]), int(test.extra["redraws"][i])) for i in picked]
@@ -264,13 +270,14 @@ def e7_markdown(out: dict) -> list[str]:
 
 def sequence_experiment(ev, data_dir: str | Path, length: int = SEQUENCE_LENGTH, per_clip: int = SEQUENCES_PER_CLIP,
                         workers: int = 1) -> dict | None:
-    """Render and score the test sequences of ``data_dir`` for an evaluation ``ev`` (its model, noise and seed);
+    """Render and score the test sequences of ``data_dir`` for an evaluation ``ev`` (its model, noise and seed; at
+    most its ``n_test`` sequences, as ``silpose eval --n-test`` asks for a quick run);
     None for a dataset posed from BVH clips or not written by ``silpose gen``. Adds ``{"sequences": seconds}`` to
     ``ev.timings``."""
     import time
 
     t0 = time.perf_counter()
-    rendered = render_dataset_sequences(data_dir, length, per_clip, workers)
+    rendered = render_dataset_sequences(data_dir, length, per_clip, workers, limit=ev.config.n_test)
     if rendered is None:
         return None
     clips = ((read_metadata(list_shards(Path(data_dir), "test")[0]).get("config") or {}).get("motion") or {}).get("clips") or []
