@@ -83,30 +83,26 @@ now. Smaller models (the default preset's data, one fit; held-out / test): M 3, 
 
 A stream (:func:`continue_choice`). When frames arrive a chunk at a time (a recording of several people,
 ``silpose infer --videos``: 16 steps per chunk), each track keeps where its path ended (:class:`PathEnd`: the
-accumulated cost of the best path into each hypothesis of its latest frame) and the next chunk's frames continue
-the same Viterbi recursion from it. The chunk's slots are the path that is best at its last frame: frames early in
-a chunk are decided with up to 15 frames of look-ahead, the last with none, and a chunk never revises the frames
-already written. The next chunk may start from any hypothesis of the frame before it, at the cost of the best
-path into that hypothesis, not only from the one written.
-
-Without the whole recording to look ahead, a tempered choice locks a track into the facing its first frames
-favour: in the lab recording of the tests (``silpose.datagen.lab``, a small model) one walker's first 31 frames
-favour the wrong facing, and the tempered stream kept it for all of them (that walker 26.8 cm, the whole
-sequence at once 9.5 cm). A stream is therefore decided untempered, with the looser motion of the earlier
-setting (:data:`STREAM_CHOICE`): a frame's evidence can turn the path at once. Measured on the sequences above
-cut into chunks of 16 (cm; "small": models of the default preset's data with M 3, q 12 and M 10, q 30, one fit
-each; the lab: the world-frame error of ``tests/app/recordings/test_lab.py``):
+accumulated cost of the best path into each hypothesis of its latest decided frame) and the next frames continue
+the same Viterbi recursion from it, with the same settings as a whole sequence. A frame is decided by the path that
+is best at the end of the frames known by then, and never revised once written. How far that look-ahead reaches
+matters: without it, a track is locked into the facing its first frames favour. In the lab recording of the tests
+(``silpose.datagen.lab``, a small model), one walker's first 31 frames favour the wrong facing; decided each chunk
+alone, every one of them kept it (that walker 26.8 cm, the whole sequence at once 9.5 cm). So the pipeline decides
+a chunk only once the next one is inferred (``silpose.app.recordings.chunk_rows.choose_along_tracks``): every frame
+sees 16 to 31 frames ahead, and its rows are not written earlier than that anyway (tracks are decided over 0.6 s
+and more). Measured on the sequences above, cut into chunks of 16 as a recording is (cm; "small": models of the
+default preset's data with M 3, q 12 and M 10, q 30, one fit each; the lab: the world-frame error of
+``tests/app/recordings/test_lab.py``, the clean per-person masks' posterior mean 13.77):
 
 | | motions, held-out / test | default, held-out / test | small M 3, held-out / test | small M 10, held-out / test | lab |
 |---|---|---|---|---|---|
 | before: the previous frame's heading only (3 hypotheses, untempered, :func:`single_answer`) | 13.87 / 12.52 | 3.75 / 3.21 | 10.38 / 9.60 | 5.23 / 4.02 | 14.22 |
-| **carried costs, :data:`STREAM_CHOICE` (now)** | **12.69 / 12.25** | **3.61 / 3.27** | **9.96 / 9.38** | **4.47 / 3.88** | **14.66** |
-| carried costs, tempered as a whole sequence is (calibrated) | 10.48 / 11.03 | 3.58 / 3.24 | 9.23 / 9.06 | 4.30 / 3.84 | 17.19 |
-| only the previous chunk's written choice carried (T_temp 100, 20 deg, 0.15 m) | 9.98 / 11.12 | 3.57 / 3.22 | – | – | – |
-| the whole sequence at once (:func:`temporal_choice`, now) | 11.40 / 10.54 | 3.58 / 3.24 | 9.23 / 8.96 | 4.30 / 3.85 | – |
+| each chunk decided alone | 10.52 / 11.03 | 3.58 / 3.24 | 9.14 / 9.06 | 4.30 / 3.84 | 17.19 |
+| the same, untempered, 20 deg and 0.15 m | 12.63 / 12.25 | 3.61 / 3.27 | 9.97 / 9.38 | 4.47 / 3.88 | 14.66 |
+| **each chunk decided with the next one ahead (now)** | **11.44 / 10.54** | **3.58 / 3.24** | **9.14 / 8.96** | **4.30 / 3.84** | **13.26** |
 
-(The sequences are 30 frames: chunks of 16 cut each into 16 and 14. With chunks of 8, carrying only the written
-choice was worse than no look-ahead at all: 12.93 / 14.09 on the motions.)
+On these 1 s sequences (two chunks) the last row is the whole sequence at once; the lab recording is 50 frames.
 """
 
 from __future__ import annotations
@@ -133,7 +129,6 @@ __all__ = [
     "TEMPORAL_TEMPERATURE",
     "TEMPORAL_POSE_SIGMA_M",
     "TEMPORAL_TURN_SIGMA_DEG",
-    "STREAM_CHOICE",
     "TEMPORAL_HYPOTHESES",
 ]
 
@@ -148,9 +143,6 @@ TEMPORAL_TEMPERATURE = 20.0
 TEMPORAL_TURN_SIGMA_DEG = 9.0
 #: expected motion of the joints per frame in :func:`temporal_choice` (mean over the 19 joints, metres)
 TEMPORAL_POSE_SIGMA_M = 0.067
-#: the settings of :func:`continue_choice` for a stream decided a chunk at a time (module doc, "A stream"):
-#: untempered, with the looser motion that a temperature of 100 was tuned with
-STREAM_CHOICE = {"temperature": 1.0, "turn_sigma_deg": 20.0, "pose_sigma_m": 0.15}
 #: hypotheses a choice along a sequence needs per frame (module doc: 3 left the right-facing pose out too often)
 TEMPORAL_HYPOTHESES = 8
 
@@ -227,6 +219,12 @@ class Hypotheses:
         """The hypotheses of frames ``rows``."""
         return Hypotheses(self.joints[rows], self.probability[rows], self.component[rows], self.heading[rows],
                           self.chosen[rows])
+
+    @classmethod
+    def concat(cls, parts: "list[Hypotheses]") -> "Hypotheses":
+        """The frames of ``parts`` (each with the same K) one after the other."""
+        return cls(*(np.concatenate([getattr(p, name) for p in parts])
+                     for name in ("joints", "probability", "component", "heading", "chosen")))
 
 
 def top_hypotheses(component_joints: np.ndarray, responsibilities: np.ndarray, k: int = 3,

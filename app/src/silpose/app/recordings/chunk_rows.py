@@ -1,16 +1,20 @@
-"""A chunk of time steps' people (:mod:`.pipeline`) turned into rows: inference, placement in the room and the
-silhouette fit; rows written one per person and step once their tracks are decided; overlays drawn."""
+"""A chunk of time steps' people (:mod:`.pipeline`) turned into rows: inference (:func:`infer_people`); the answer
+chosen along each track once the next chunk is inferred (:func:`choose_along_tracks`); placement in the room and the
+silhouette fit (:func:`place_chunk`); rows written one per person and step once their tracks are decided
+(:func:`emit_rows`); overlays drawn (:func:`draw_chunk`)."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from silpose.model.hypotheses import STREAM_CHOICE, continue_choice, sequence_answer
+from silpose.model.hypotheses import Hypotheses, continue_choice, sequence_answer
+from silpose.model.result import InferenceResult
 from silpose.shared.skeleton import N_JOINTS
 
-from ..inference import InferOptions, hypotheses_kept, infer_rows
+from ..inference import InferOptions, hypotheses_kept, hypothesis_temperature, infer_rows
 from .overlay_png import OverlayPngs, draws_overlays
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
@@ -21,15 +25,108 @@ from .step_people import Person
 from .writers import STATUS_IMPLAUSIBLE, STATUS_NO_VIEW, STATUS_NOT_DETECTED, STATUS_OK, PersonRows, RecordingWriter
 
 
-def infer_chunk(model, people: list[Person], rig, names, modelled, transform, opt, first_frame,
-                timings, paths: dict):
-    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3); ``opt``: the
-    run's :class:`~.pipeline.RecordingOptions`.
+@dataclass
+class ChunkInference:
+    """A chunk's people inferred (:func:`infer_people`), before each row's answer is chosen along its track and placed
+    (:func:`place_chunk`). The pipeline holds it until the next chunk is inferred: that chunk is the choice's
+    look-ahead (:func:`choose_along_tracks`).
 
-    With ``opt.hypotheses``, each row's joints are the hypothesis chosen along its track, the path over the track's
-    frames so far that is best at the chunk's last (:func:`silpose.model.hypotheses.continue_choice`; ``paths``: track
-    key -> the path's :class:`~silpose.model.hypotheses.PathEnd`, updated in place); the root is placed for that
-    pose."""
+    Attributes:
+        people: the chunk's R people (rows), in step order; seen: the chunk's camera frames, one dict per step (for the
+            overlays); step0: the chunk's first step.
+        view_status: (R, K) per rig camera; used: (R, K) bool, the views inferred from; detected: (R,) bool.
+        rows: (R_inf,) the people inferred (detected, with a usable view); contours: (R_inf, K, n, 2) px, theirs;
+        result: their :class:`~silpose.model.result.InferenceResult` (None without rows); temperature: (R_inf,) their
+            hypotheses' temperature (:func:`silpose.app.inference.hypothesis_temperature`).
+    """
+
+    people: list[Person]
+    seen: list
+    step0: int
+    view_status: np.ndarray
+    used: np.ndarray
+    detected: np.ndarray
+    rows: np.ndarray
+    contours: np.ndarray | None = None
+    result: InferenceResult | None = None
+    temperature: np.ndarray | None = None
+
+    @property
+    def hypotheses(self) -> Hypotheses | None:
+        return None if self.result is None else self.result.hypotheses
+
+    @property
+    def keys(self) -> np.ndarray:
+        """(R_inf,) the inferred rows' track keys."""
+        return np.array([self.people[i].track.key for i in self.rows])
+
+    @property
+    def steps(self) -> np.ndarray:
+        """(R_inf,) int, the inferred rows' time steps."""
+        return np.array([self.people[i].step for i in self.rows], np.int64)
+
+    @property
+    def last_step(self) -> int:
+        return self.step0 + len(self.seen) - 1
+
+
+def infer_people(model, people: list[Person], seen: list, step0: int, names, modelled, opt, timings) -> ChunkInference:
+    """The model's inference of a chunk's people from their usable modelled views (``opt``: the run's
+    :class:`~.pipeline.RecordingOptions`; at least :data:`~silpose.model.hypotheses.TEMPORAL_HYPOTHESES` hypotheses
+    kept when ``opt.hypotheses``)."""
+    R, K = len(people), len(names)
+    view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
+    is_modelled = np.array([c in modelled for c in names])
+    view_status[:, ~is_modelled] = np.where(view_status[:, ~is_modelled] == VIEW_OK, VIEW_NOT_MODELLED,
+                                            view_status[:, ~is_modelled])
+    used = view_status == VIEW_OK
+    detected = np.array([np.all(np.isfinite(p.floor)) for p in people], bool)
+    chunk = ChunkInference(people, seen, step0, view_status, used, detected, np.flatnonzero(detected & used.any(axis=1)))
+    if len(chunk.rows):
+        t0 = time.perf_counter()
+        chunk.contours = np.stack([people[i].contours for i in chunk.rows])
+        # untangled (simple) contours only matter where they are drawn or written (~0.2 ms a contour, batched)
+        robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
+        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=hypotheses_kept(opt.hypotheses, True),
+                               robust=robust, untangle=draws_overlays(opt.overlays) or opt.contours)
+        chunk.result = infer_rows(model, chunk.contours, used[chunk.rows], options=options)
+        chunk.temperature = hypothesis_temperature(model, used[chunk.rows])
+        timings["infer"] += time.perf_counter() - t0
+    return chunk
+
+
+def choose_along_tracks(chunk: ChunkInference, ahead: ChunkInference | None, paths: dict) -> None:
+    """Set the chosen hypothesis of every inferred row of ``chunk`` (in place): per track, the slots on these rows of the
+    path over the track's frames so far and ``ahead``'s (the next chunk, None at the end) that is best at the last of
+    them (:func:`silpose.model.hypotheses.continue_choice`, tempered as a whole sequence is). ``paths``: track key ->
+    the end of its path after its rows already chosen, moved past ``chunk``'s (in place). Every row is decided with at
+    least the next chunk's frames ahead: the rows are written no earlier than that anyway (the tracks' ids,
+    :func:`emit_rows`)."""
+    hyp = chunk.hypotheses
+    if hyp is None:
+        return
+    keys, steps, temp = chunk.keys, chunk.steps, chunk.temperature
+    a_hyp = None if ahead is None else ahead.hypotheses
+    a_keys = ahead.keys if a_hyp is not None else np.zeros(0, keys.dtype)
+    for key in dict.fromkeys(keys.tolist()):
+        mine = np.flatnonzero(keys == key)
+        start = paths.get(key)
+        own = hyp.take(mine)
+        chosen, paths[key] = continue_choice(own, steps[mine], start, temperature=temp[mine])
+        later = np.flatnonzero(a_keys == key)
+        if len(later):  # the path best at the end of the look-ahead, on this chunk's rows
+            joined = Hypotheses.concat([own, a_hyp.take(later)])
+            slots, _ = continue_choice(joined, np.r_[steps[mine], ahead.steps[later]], start,
+                                       temperature=np.r_[temp[mine], ahead.temperature[later]])
+            chosen = slots[:len(mine)]
+        hyp.chosen[mine] = chosen
+
+
+def place_chunk(model, chunk: ChunkInference, rig, names, transform, opt, first_frame, timings):
+    """PersonRows of the chunk's people (person ids filled in at emission), and world joints (R, 19, 3): each inferred
+    row's answer (its chosen hypothesis, :func:`choose_along_tracks`; the posterior mean without hypotheses) with the
+    root placed in the room, and fitted inside the silhouettes with ``opt.silhouette_fit``."""
+    people, rows, used = chunk.people, chunk.rows, chunk.used
     R, K = len(people), len(names)
     lay = model.fitted_layout()
     V, n_pts = len(lay.views), lay.n_points
@@ -38,36 +135,16 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
     contours, logm, plaus, hyp_p, inside = nan(V, n_pts, 2), nan(), nan(), nan(), nan()
     hyp_slot = np.zeros(R, np.int8)
     status = np.array([STATUS_NOT_DETECTED] * R, dtype=object)
-    view_status = np.array([p.status for p in people], dtype=object).reshape(R, K)
-    is_modelled = np.array([c in modelled for c in names])
-    view_status[:, ~is_modelled] = np.where(view_status[:, ~is_modelled] == VIEW_OK, VIEW_NOT_MODELLED,
-                                            view_status[:, ~is_modelled])
-    used = view_status == VIEW_OK
-    detected = np.array([np.all(np.isfinite(p.floor)) for p in people], bool)
-    status[detected] = STATUS_NO_VIEW
-    rows = np.flatnonzero(detected & used.any(axis=1))
-    if len(rows):
+    status[chunk.detected] = STATUS_NO_VIEW
+    res = chunk.result
+    if res is not None:
         t0 = time.perf_counter()
-        c = np.stack([people[i].contours for i in rows])
-        # untangled (simple) contours only matter where they are drawn or written (~0.2 ms a contour, batched)
-        robust = (not opt.masks) if opt.robust is None else bool(opt.robust)
-        options = InferOptions(noise_variance=opt.noise_variance, hypotheses=hypotheses_kept(opt.hypotheses, True),
-                               robust=robust, untangle=draws_overlays(opt.overlays) or opt.contours)
-        res = infer_rows(model, c, used[rows], options=options)
-        pose = res.joints
+        c = chunk.contours
+        pose = sequence_answer(res.joints, res.hypotheses)
         if res.hypotheses is not None:
             hyp = res.hypotheses
-            keys = np.array([people[i].track.key for i in rows])
-            steps = np.array([people[i].step for i in rows], np.int64)
-            for key in dict.fromkeys(keys.tolist()):  # people are in step order: a track's rows are in time order
-                mine = np.flatnonzero(keys == key)
-                hyp.chosen[mine], paths[key] = continue_choice(hyp.take(mine), steps[mine], paths.get(key),
-                                                               **STREAM_CHOICE)
-            pose = sequence_answer(res.joints, hyp)
             hyp_slot[rows] = hyp.chosen + 1
             hyp_p[rows] = hyp.probability[np.arange(len(rows)), hyp.chosen]
-        timings["infer"] += time.perf_counter() - t0
-        t0 = time.perf_counter()
         cams = [rig[v] for v in res.views]
         floor = np.stack([people[i].floor for i in rows])
         r = place_roots(pose, res.centroid, res.views_present, cams, floor)
@@ -88,7 +165,7 @@ def infer_chunk(model, people: list[Person], rig, names, modelled, transform, op
     floor = np.stack([p.floor for p in people]) if R else np.zeros((0, 2))
     rows_out = PersonRows(
         frame=np.array([p.step for p in people], np.int64) + first_frame, person=np.zeros(R, np.int32),
-        status=status, floor=floor, view_status=view_status, views_used=used,
+        status=status, floor=floor, view_status=chunk.view_status, views_used=used,
         view_cut=np.stack([p.cut for p in people]) if R else np.zeros((0, K)), log_marginal=logm,
         plausibility=plaus, hypothesis=hyp_slot, hypothesis_probability=hyp_p, joints=joints,
         joints_calibration=transform.to_calibration(joints), joint_std=std, root=root,

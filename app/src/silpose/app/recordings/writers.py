@@ -21,7 +21,7 @@ log_marginal        the model's log density of the observed views (NaN without j
 plausibility        that density as a percentile (0-100) of held-out training inputs with the same
                     views (``silpose.model.plausibility``; NaN when the model has no calibration)
 hypothesis          the slot (1-based) of the answer among the top-K hypotheses, chosen along the person's
-                    track (``silpose.model.hypotheses.continue_choice``; 0: none)
+                    track (``silpose.app.recordings.chunk_rows.choose_along_tracks``; 0: none)
 hypothesis_probability  its posterior probability
 inside              the share (0-1) of the joints, over the views used, that project inside the person's own
                     outline there (2 px of tolerance; ``silhouette_fit.share_inside``): how well the answer agrees
