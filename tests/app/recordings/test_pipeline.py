@@ -73,6 +73,24 @@ def test_ids_follow_each_cylinder(tiny_model, two_cylinders, tmp_path):
     assert s.n_persons == 2 and sum(s.views_hist) == 40 and s.views_hist[4] > 0
 
 
+def test_small_chunks_and_no_hypotheses_write_the_same_rows(tiny_model, two_cylinders, tmp_path):
+    """Chunks of 3 steps (each decided once the next is inferred, the last with none ahead) write every person-frame
+    the default chunks write; without hypotheses every row answers with the posterior mean (hypothesis slot 0),
+    with them each inferred row names its chosen slot."""
+    keys = {}
+    for name, opt in (("default", RecordingOptions(masks=True, overlays=False)),
+                      ("small", RecordingOptions(masks=True, overlays=False, chunk=3)),
+                      ("mean", RecordingOptions(masks=True, overlays=False, chunk=3, hypotheses=0))):
+        run_recording(tiny_model, two_cylinders, tmp_path / name, opt)
+        t, r = _rows(tmp_path / name)
+        keys[name] = sorted(zip(r["frame"], r["person"]))
+        ok = np.array(r["status"]) == "ok"
+        slot = t.column("hypothesis").to_numpy()
+        assert ok.sum() > 20
+        assert (slot[ok] == 0).all() if name == "mean" else (slot[ok] >= 1).all()
+    assert keys["small"] == keys["default"] == keys["mean"] and len(keys["default"]) == 40
+
+
 def test_missing_camera_black_frames_and_a_blob_in_one_camera(rig, tiny_model, tools, tmp_path):
     videos = tmp_path / "v"
     track = tools.walk((-1.0, -0.5), (1.0, -0.5), 12)
