@@ -90,8 +90,8 @@ matters: without it, a track is locked into the facing its first frames favour. 
 (``silpose.datagen.lab``, a small model), one walker's first 31 frames favour the wrong facing; decided each chunk
 alone, every one of them kept it (that walker 26.8 cm, the whole sequence at once 9.5 cm). So the pipeline decides
 a chunk only once the next one is inferred (``silpose.app.recordings.chunk_rows.choose_along_tracks``): every frame
-sees 16 to 31 frames ahead, and its rows are not written earlier than that anyway (tracks are decided over 0.6 s
-and more). Measured on the sequences above, cut into chunks of 16 as a recording is (cm; "small": models of the
+sees 16 to 31 frames ahead, and its rows wait about that long anyway for their tracks to be decided (0.9 s,
+``silpose.app.recordings.tracking``). Measured on the sequences above, cut into chunks of 16 as a recording is (cm; "small": models of the
 default preset's data with M 3, q 12 and M 10, q 30, one fit each; the lab: the world-frame error of
 ``tests/app/recordings/test_lab.py``, the clean per-person masks' posterior mean 13.77):
 
