@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
-from silpose.model.hypotheses import (TEMPORAL_HYPOTHESES, TEMPORAL_TEMPERATURE, Hypotheses, heading, is_flip,
-                                      single_answer, top_hypotheses)
-from silpose.model.mixing import (HYPOTHESIS_TEMPERATURES, MARGIN, Mixing, agreeing_choice, calibrate_mixing,
-                                  hypothesis_log_loss, mixed_joints, mixture_terms, vote_agreement)
+from silpose.model.hypotheses import heading, is_flip, single_answer, top_hypotheses
+from silpose.model.mixing import (Mixing, agreeing_choice, calibrate_mixing, mixed_joints, mixture_terms,
+                                  vote_agreement)
 from silpose.model.persistence import load_model, save_model
 from silpose.model.shape_model import ShapeStructureModel
 from silpose.model.synthetic import make_linear_shapes
@@ -94,39 +93,6 @@ def test_mixing_dict_round_trip_and_errors():
         Mixing.from_dict({"temperatures": {"4": 0.5}, "vote_weight": 0.0}, source="model.npz")
     with pytest.raises(ValueError, match=r"model\.npz: field 'vote_weight'"):
         Mixing.from_dict({"temperatures": {}}, source="model.npz")
-    # the hypotheses' temperatures: kept, checked, and absent from a model file written before them
-    h = Mixing(temperatures={4: 10.0}, hypothesis_temperatures={4: 20.0, 1: 5.0})
-    back = Mixing.from_dict(h.to_dict())
-    assert back.hypothesis_temperatures == {4: 20.0, 1: 5.0}
-    np.testing.assert_array_equal(back.hypothesis_temperature(np.array([1, 2, 4])), [5.0, TEMPORAL_TEMPERATURE, 20.0])
-    old = h.to_dict()
-    del old["hypothesis_temperatures"]
-    assert Mixing.from_dict(old).hypothesis_temperatures == {}
-    with pytest.raises(ValueError, match=r"model\.npz.*hypothesis_temperatures.*>= 1"):
-        Mixing.from_dict({**h.to_dict(), "hypothesis_temperatures": {"4": 0.0}}, source="model.npz")
-
-
-def test_hypothesis_log_loss_is_least_where_the_tempered_probabilities_match_the_frequencies():
-    """Two hypotheses of weight 0.999 and 0.001 in every frame, the second nearest the truth in 40 % of them: the
-    log loss of the tempered probabilities is least where they are 0.6 / 0.4, T* = ln(999) / ln(1.5), and there it
-    is the entropy of the frequencies (temperature scaling's optimum, worked by hand)."""
-    n = 50
-    true = np.stack([_walker_facing_x()] * n)
-    near, far = true.copy(), true + 0.2
-    second_best = np.arange(n) < 20  # 40 %
-    joints = np.stack([np.where(second_best[:, None, None], far, near), np.where(second_best[:, None, None], near, far)],
-                      axis=1)
-    hyp = Hypotheses(joints, np.tile([0.999, 0.001], (n, 1)), np.tile([0, 1], (n, 1)), heading(joints),
-                     np.zeros(n, dtype=np.intp))
-    t_star = np.log(999.0) / np.log(1.5)
-    grid = [1.0, 5.0, t_star, 50.0, 1000.0]
-    loss = hypothesis_log_loss(hyp, true, grid)
-    assert int(np.argmin(loss)) == 2
-    np.testing.assert_allclose(loss[2], -(0.6 * np.log(0.6) + 0.4 * np.log(0.4)), rtol=1e-9)
-    np.testing.assert_allclose(loss[0], -(0.6 * np.log(0.999) + 0.4 * np.log(0.001)), rtol=1e-9)  # T = 1: as given
-    # an unused slot (component -1, NaN joints) takes no share: the one hypothesis left is certain, loss 0
-    hyp.component[:, 1], hyp.probability[:, 1], hyp.joints[:, 1] = -1, 0.0, np.nan
-    np.testing.assert_allclose(hypothesis_log_loss(hyp, true, [1.0, 10.0]), 0.0, atol=1e-12)
 
 
 def test_calibration_is_chosen_on_held_out_rows_saved_and_used(fitted, tmp_path):
@@ -134,13 +100,6 @@ def test_calibration_is_chosen_on_held_out_rows_saved_and_used(fitted, tmp_path)
     c, j = data.contours[120:150], data.joints[120:150]
     mix = calibrate_mixing(model, c, j, robust=False, temperatures=(1.0, 3.0), vote_weights=(0.0, 5.0))
     assert set(mix.temperatures) == {1, 2, 3, 4} and mix.vote_weight in (0.0, 5.0) and mix.n_inputs == 30
-    # the hypotheses' temperature of every view count is the grid value of least log loss there (all 4 views: the
-    # same inference, independently: infer's own hypotheses)
-    assert set(mix.hypothesis_temperatures) == {1, 2, 3, 4}
-    hyp4 = model.infer(c, robust=False, mixing=False, hypotheses=TEMPORAL_HYPOTHESES).hypotheses
-    loss4 = hypothesis_log_loss(hyp4, j, HYPOTHESIS_TEMPERATURES)
-    near_least = np.flatnonzero(loss4 <= loss4.min() * (1 + MARGIN))
-    assert mix.hypothesis_temperatures[4] == HYPOTHESIS_TEMPERATURES[near_least[0]]
     # the recorded errors are those infer gives with and without the calibration (all 4 views)
     plain = pose_error_cm(model.infer(c, mixing=False).joints, j).mean()
     tuned = pose_error_cm(model.infer(c, mixing=mix).joints, j).mean()

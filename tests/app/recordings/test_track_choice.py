@@ -27,13 +27,13 @@ def _track(facing: np.ndarray, prob: np.ndarray, rng) -> Hypotheses:
     return Hypotheses(joints, prob, np.tile([0, 1], (len(facing), 1)), heading(joints), np.zeros(len(facing), np.intp))
 
 
-def _chunk(rows: list[tuple[int, int]], hyp: Hypotheses, temperature: float) -> ChunkInference:
+def _chunk(rows: list[tuple[int, int]], hyp: Hypotheses) -> ChunkInference:
     """A chunk of rows (track key, step) with their hypotheses (the inference's result stands in by its hypotheses)."""
     people = [SimpleNamespace(track=SimpleNamespace(key=k), step=s) for k, s in rows]
     n = len(rows)
     return ChunkInference(people=people, seen=[], step0=min(s for _, s in rows), view_status=np.full((n, 1), "ok"),
                           used=np.ones((n, 1), bool), detected=np.ones(n, bool), rows=np.arange(n),
-                          result=SimpleNamespace(hypotheses=hyp), temperature=np.full(n, temperature))
+                          result=SimpleNamespace(hypotheses=hyp))
 
 
 def test_a_chunk_is_decided_by_the_path_best_at_the_end_of_the_next():
@@ -48,9 +48,9 @@ def test_a_chunk_is_decided_by_the_path_best_at_the_end_of_the_next():
     three = _track(facing + 2.0, rng.dirichlet([1, 1], 10), rng)
     first, second = np.arange(4), np.arange(4, 10)
 
-    def chunks():  # each chunk holds both tracks' rows, in step order, untempered
+    def chunks():  # each chunk holds both tracks' rows, in step order
         return [_chunk([(k, s) for s in part for k in (7, 3)], Hypotheses.concat(
-            [h.take(np.array([s])) for s in part for h in (seven, three)]), 1.0) for part in (first, second)]
+            [h.take(np.array([s])) for s in part for h in (seven, three)])) for part in (first, second)]
 
     c1, _ = chunks()
     choose_along_tracks(c1, None, {})
@@ -62,7 +62,7 @@ def test_a_chunk_is_decided_by_the_path_best_at_the_end_of_the_next():
     assert paths[7].step == 3 and paths[3].step == 3  # the paths end after the chunk decided, not the look-ahead
     choose_along_tracks(c2, None, paths)
     rest = c2.hypotheses.chosen[::2]
-    kw = dict(temperature=1.0)
+    kw = {}
     assert list(alone) == list(temporal_choice(seven.take(first), **kw)) == [1] * 4
     whole = temporal_choice(seven, **kw)
     assert list(ahead) == list(whole[first]) == [0] * 4

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, TEMPORAL_TEMPERATURE, sequence_answer, temporal_choice
+from silpose.model.hypotheses import TEMPORAL_HYPOTHESES, sequence_answer, temporal_choice
 from silpose.model.persistence import load_model
 from silpose.model.result import InferenceResult
 from silpose.model.shape_model import ShapeStructureModel
@@ -90,28 +90,15 @@ def infer_rows(model: ShapeStructureModel, contours: np.ndarray, present: np.nda
     return merge_results([res, nan_result(model, n - len(ok), opts)], [ok, np.flatnonzero(~modelled)], n)
 
 
-def apply_temporal(result: InferenceResult, model: ShapeStructureModel | None = None) -> InferenceResult:
+def apply_temporal(result: InferenceResult) -> InferenceResult:
     """Choose among ``result.hypotheses`` along the frames (one track, in order; frames without a view are bridged),
     and answer with the choice: ``result.joints`` becomes each frame's chosen hypothesis where it has one
     (:func:`silpose.model.hypotheses.sequence_answer`; the posterior standard deviations and reconstructed contours
-    stay the posterior mean's). The hypotheses' temperature is ``model``'s (:func:`hypothesis_temperature`).
-    Returns ``result``, changed in place."""
+    stay the posterior mean's). Returns ``result``, changed in place."""
     if result.hypotheses is not None:
-        result.hypotheses.chosen = temporal_choice(result.hypotheses, valid=result.views_present.any(axis=1),
-                                                   temperature=hypothesis_temperature(model, result.views_present))
+        result.hypotheses.chosen = temporal_choice(result.hypotheses, valid=result.views_present.any(axis=1))
         result.joints = sequence_answer(result.joints, result.hypotheses)
     return result
-
-
-def hypothesis_temperature(model: ShapeStructureModel | None, views_present: np.ndarray) -> np.ndarray:
-    """(N,) the temperature of each frame's hypotheses along a sequence, from its present views (N, K) bool: the
-    model's calibration (:meth:`silpose.model.mixing.Mixing.hypothesis_temperature`), else
-    :data:`silpose.model.hypotheses.TEMPORAL_TEMPERATURE`."""
-    n_present = np.asarray(views_present, dtype=bool).sum(axis=1)
-    mixing = getattr(model, "mixing_", None)
-    if mixing is None:
-        return np.full(len(n_present), TEMPORAL_TEMPERATURE)
-    return mixing.hypothesis_temperature(n_present)
 
 
 def hypotheses_kept(hypotheses: int, temporal: bool) -> int:
@@ -181,7 +168,7 @@ def run_inference(model_path: Path, input_path: Path, *, out: Path, split: str =
                            untangle=True, temporal=temporal)
     result = infer_rows(model, contours, present, options=options)
     if temporal:
-        apply_temporal(result, model)
+        apply_temporal(result)
     status = frame_status(result)
     rig_names = list(model.rig_.names) if model.rig_ is not None else None
     write_joints(out, frames, result, rig_names, sample_id, str(model_path), status=status)

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from silpose.datagen.sequences import SequenceError, dataset_worker_config, render_sequences_spawned
-from silpose.app.inference import TOP_K, hypotheses_kept, hypothesis_temperature
+from silpose.app.inference import TOP_K, hypotheses_kept
 from silpose.model.hypotheses import Hypotheses, is_flip, sequence_answer, single_answer, temporal_choice
 from silpose.shared.contours import normalise
 from silpose.shared.dataset import list_shards, load_split, read_metadata
@@ -175,7 +175,7 @@ def score_sequences(model, rendered: dict, noise, seed: int, groups: dict[int, s
         f = np.flatnonzero(a["sequence"] == s)
         part = Hypotheses(joints=hyp.joints[f], probability=hyp.probability[f], component=hyp.component[f],
                           heading=hyp.heading[f], chosen=hyp.chosen[f])
-        temporal[f] = temporal_choice(part, valid=ok[f], temperature=hypothesis_temperature(model, a["present"][f]))
+        temporal[f] = temporal_choice(part, valid=ok[f])
     truth = a["joints"]
     answers = {"per_frame": single_answer(mean, hyp), "temporal": sequence_answer(mean, hyp, chosen=temporal)}
     err = {k: pose_error_cm(v[rows], truth[rows]) for k, v in answers.items()}

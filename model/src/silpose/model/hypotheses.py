@@ -40,18 +40,19 @@ distance of their 19 joints (root-relative), ``sigma`` and ``sigma_j`` the expec
 motion per frame (``turn_sigma_deg`` and ``pose_sigma_m``, :data:`TEMPORAL_TURN_SIGMA_DEG` and
 :data:`TEMPORAL_POSE_SIGMA_M`, times the frame gap) and ``T_temp`` a temperature. A flipped frame costs a
 180 deg turn twice, so a path through the right-facing hypotheses wins unless the evidence for the flip is
-overwhelming. The temperature is there because the responsibilities are overconfident (a frame's top
-hypothesis often holds 0.998 of the weight, ``silpose.model.mixing``): untempered, a wrong-facing top
-hypothesis wins its frames whatever its neighbours say. Cost O(T K^2).
+overwhelming. Cost O(T K^2).
 
-How overconfident depends on the model, so ``T_temp`` is the model's own, per number of present views,
-calibrated when it is trained (``silpose.model.mixing``, "The hypotheses' temperature": the temperature under
-which the hypotheses' probabilities best predict which of them is nearest the truth, on held-out samples);
-:data:`TEMPORAL_TEMPERATURE` for a model without one. With every view the motions preset's model calibrates to 15,
-the default preset's to 7, models of the default preset's data with 3 and 10 components (one fit each) to 10 and
-5. The motion terms were first tuned with a fixed ``T_temp`` of 100 on the motions preset (20 deg and 0.15 m per
-frame); they are now sqrt(5) times smaller, 9 deg and 0.067 m, which gives the same paths at a temperature of 20.
-A fixed 100 let a small model's steadiest sequence of component means win whatever the frames said.
+The temperature divides the frames' evidence against the motion terms; only the ratio sigma^2 / T_temp matters. The
+responsibilities are overconfident (a frame's top hypothesis often holds 0.998 of the weight,
+``silpose.model.mixing``), and on the motions preset a high temperature helped: T_temp 100 with 20 deg and 0.15 m
+(ratio 4) was the earlier setting. It failed smaller models: with few, broad components the steadiest sequence of
+component means wins whatever the frames say, a whole track facing the wrong way (a lab-rig model of 5 components on
+400 walkers, the benchmark's recording of two walkers: 7.67 cm at ratio 81, 13.01 cm at ratio 8, 16.80 cm with
+the earlier setting; every frame's posterior mean 8.02). Calibrating a temperature per model on the trainer's held-out frames (temperature
+scaling of the hypotheses' probabilities) did not predict it: that calibration gave 10 for both lab-rig models of the
+tests and benchmark, and 15 for the motions preset, while the paths wanted ratios from 8 to 80. So the choice is
+untempered (:data:`TEMPORAL_TEMPERATURE` 1) with 9 deg and 0.067 m (ratio 81), never far from the best of the
+ratios tried on ten sets of sequences (below).
 
 The answer along a sequence (:func:`sequence_answer`): the chosen hypothesis itself. Chosen along the
 frames, the hypothesis carries evidence the posterior mean does not have, and the mean of the frame's
@@ -69,17 +70,28 @@ scored afterwards:
 | each frame alone (:func:`single_answer`) | 13.87 | 12.30 | 3.75 | 3.21 |
 | before: 3 hypotheses, untempered, no joint term, :func:`single_answer` | 13.33 | 12.60 | 3.66 | 3.19 |
 | 8 hypotheses, T_temp 100, no joint term, the chosen hypothesis | 11.12 | 10.57 | 3.58 | 3.24 |
-| 8 hypotheses, T_temp 100, 20 deg, 0.15 m, the chosen hypothesis | 10.62 | 10.54 | 3.57 | 3.22 |
-| **the model's calibrated T_temp (motions 15, default 7), 9 deg, 0.067 m (now)** | **11.40** | **10.54** | **3.58** | **3.24** |
-| untempered (T_temp 1, 20 deg, 0.15 m) | 12.81 | 12.43 | 3.61 | 3.27 |
+| 8 hypotheses, T_temp 100, 20 deg, 0.15 m, the chosen hypothesis (before) | 10.62 | 10.54 | 3.57 | 3.22 |
+| the same, untempered (T_temp 1, 20 deg, 0.15 m) | 12.81 | 12.43 | 3.61 | 3.27 |
+| **untempered, 9 deg, 0.067 m (now)** | **11.92** | **11.02** | **3.61** | **3.26** |
 | best of the 8 (an oracle) | 8.08 | 8.53 | 3.32 | 2.98 |
 
-Held-out choices: T_temp 10 / 30 / 100 gave 11.36 / 11.28 / 11.12 (no joint term); sigma_j 0.05 / 0.1 /
-0.15 / 0.2 / 0.3 m gave 11.63 / 10.61 / 10.62 / 10.65 / 10.90 (T_temp 100); :func:`single_answer` after the same
-choice 11.47. Flips (facing more than 90 deg from the truth), motions test clips: 9.7 % before, 3.0 %
-now. Smaller models (the default preset's data, one fit; held-out / test): M 3, q 12: each frame alone 10.39 /
-9.61, T_temp 100 9.56 / 9.90, calibrated (10) 9.23 / 8.96; M 10, q 30: 5.23 / 4.02, 4.31 / 3.87, calibrated (5)
-4.30 / 3.85. The calibration costs the motions preset's held-out sequences 0.8 cm and its test sequences nothing.
+Held-out choices of the earlier setting: T_temp 10 / 30 / 100 gave 11.36 / 11.28 / 11.12 (no joint term); sigma_j
+0.05 / 0.1 / 0.15 / 0.2 / 0.3 m gave 11.63 / 10.61 / 10.62 / 10.65 / 10.90 (T_temp 100); :func:`single_answer` after
+the same choice 11.47. Flips (facing more than 90 deg from the truth), motions test clips: 9.7 % each frame alone,
+3.0 % with the earlier setting. The ratio sigma^2 / T_temp on more sets (untempered; 6 / 9 / 12 deg with 0.045 /
+0.067 / 0.09 m; the sequences cut into chunks of 16, each decided with the next ahead, "A stream"; held-out / test;
+"small": models of the default preset's data with M 3, q 12 and M 10, q 30, one fit each; the lab models: the
+tests' lab recording with its M 3 model and the benchmark's with its M 5 model, the root-relative error of the
+rows the pipeline inferred, their hypotheses chosen again; cm):
+
+| | every frame's posterior mean | 6 deg | **9 deg (now)** | 12 deg | the earlier T_temp 100, 20 deg, 0.15 m |
+|---|---|---|---|---|---|
+| motions | 13.87 / 12.30 | 11.30 / 11.23 | **11.92 / 11.02** | 12.44 / 11.60 | 10.62 / 10.54 (whole sequences) |
+| default | 3.75 / 3.21 | 3.60 / 3.25 | **3.61 / 3.26** | 3.61 / 3.27 | 3.57 / 3.22 (whole sequences) |
+| small M 3 | 10.39 / 9.60 | 9.45 / 9.08 | **9.47 / 9.13** | 9.60 / 9.12 | 9.56 / 9.90 (whole sequences) |
+| small M 10 | 5.23 / 4.02 | 4.39 / 3.86 | **4.42 / 3.87** | 4.45 / 3.88 | 4.31 / 3.87 (whole sequences) |
+| lab, tests' recording (50 frames) | 15.10 | 14.02 | **14.00** | 15.65 | – |
+| lab, benchmark's recording (150 frames) | 8.02 | 8.23 | **7.67** | 7.50 | 16.80 (whole sequences) |
 
 A stream (:func:`continue_choice`). When frames arrive a chunk at a time (a recording of several people,
 ``silpose infer --videos``: 16 steps per chunk), each track keeps where its path ended (:class:`PathEnd`: the
@@ -88,21 +100,22 @@ the same Viterbi recursion from it, with the same settings as a whole sequence. 
 is best at the end of the frames known by then, and never revised once written. How far that look-ahead reaches
 matters: without it, a track is locked into the facing its first frames favour. In the lab recording of the tests
 (``silpose.datagen.lab``, a small model), one walker's first 31 frames favour the wrong facing; decided each chunk
-alone, every one of them kept it (that walker 26.8 cm, the whole sequence at once 9.5 cm). So the pipeline decides
+alone, the path kept it for all of them (the recording's world-frame error 17.32 cm, 13.30 with the next chunk
+ahead). So the pipeline decides
 a chunk only once the next one is inferred (``silpose.app.recordings.chunk_rows.choose_along_tracks``): every frame
 sees 16 to 31 frames ahead, and its rows wait about that long anyway for their tracks to be decided (0.9 s,
-``silpose.app.recordings.tracking``). Measured on the sequences above, cut into chunks of 16 as a recording is (cm; "small": models of the
-default preset's data with M 3, q 12 and M 10, q 30, one fit each; the lab: the world-frame error of
-``tests/app/recordings/test_lab.py``, the clean per-person masks' posterior mean 13.77):
+``silpose.app.recordings.tracking``). Measured on the sequences above, cut into chunks of 16 as a recording is
+(cm, held-out / test; the lab recordings: world-frame error through the pipeline itself, the tests' with its M 3
+model, the benchmark's with its M 5 model, clean per-person masks' posterior mean 13.77 and 8.22):
 
-| | motions, held-out / test | default, held-out / test | small M 3, held-out / test | small M 10, held-out / test | lab |
-|---|---|---|---|---|---|
-| before: the previous frame's heading only (3 hypotheses, untempered, :func:`single_answer`) | 13.87 / 12.52 | 3.75 / 3.21 | 10.38 / 9.60 | 5.23 / 4.02 | 14.22 |
-| each chunk decided alone | 10.52 / 11.03 | 3.58 / 3.24 | 9.14 / 9.06 | 4.30 / 3.84 | 17.19 |
-| the same, untempered, 20 deg and 0.15 m | 12.63 / 12.25 | 3.61 / 3.27 | 9.97 / 9.38 | 4.47 / 3.88 | 14.66 |
-| **each chunk decided with the next one ahead (now)** | **11.44 / 10.54** | **3.58 / 3.24** | **9.14 / 8.96** | **4.30 / 3.84** | **13.26** |
+| | motions | default | small M 3 | small M 10 | lab, tests' | lab, benchmark's |
+|---|---|---|---|---|---|---|
+| before: the previous frame's heading only (3 hypotheses, :func:`single_answer`) | 13.87 / 12.52 | 3.75 / 3.21 | 10.38 / 9.60 | 5.23 / 4.02 | 14.22 | 7.84 |
+| each chunk decided alone | 11.77 / 11.12 | 3.61 / 3.26 | 9.47 / 9.12 | 4.42 / 3.87 | 17.32 | – |
+| **each chunk decided with the next one ahead (now)** | **11.92 / 11.02** | **3.61 / 3.26** | **9.47 / 9.13** | **4.42 / 3.87** | **13.30** | **7.57** |
 
-On these 1 s sequences (two chunks) the last row is the whole sequence at once; the lab recording is 50 frames.
+On these 1 s sequences (two chunks) the last row is the whole sequence at once; the lab recordings are 50 and 150
+frames.
 """
 
 from __future__ import annotations
@@ -136,9 +149,8 @@ __all__ = [
 FLIP_ANGLE = np.pi / 2
 #: smallest probability used in log p (keeps -log p finite for hypotheses with weight ~0).
 PROB_FLOOR = 1e-12
-#: temperature of the frames' log-probabilities in :func:`temporal_choice` for a model without its own calibration
-#: (``silpose.model.mixing``; module doc, "A sequence")
-TEMPORAL_TEMPERATURE = 20.0
+#: temperature of the frames' log-probabilities in :func:`temporal_choice` (module doc, "A sequence": untempered)
+TEMPORAL_TEMPERATURE = 1.0
 #: expected heading change per frame in :func:`temporal_choice` (degrees, standard deviation)
 TEMPORAL_TURN_SIGMA_DEG = 9.0
 #: expected motion of the joints per frame in :func:`temporal_choice` (mean over the 19 joints, metres)
@@ -310,7 +322,7 @@ def consensus_choice(hyp: Hypotheses, vote_headings: np.ndarray) -> np.ndarray:
 
 
 def temporal_choice(hyp: Hypotheses, *, valid: np.ndarray | None = None, frame_gap: np.ndarray | None = None,
-                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float | np.ndarray = TEMPORAL_TEMPERATURE,
+                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float = TEMPORAL_TEMPERATURE,
                     pose_sigma_m: float | None = TEMPORAL_POSE_SIGMA_M) -> np.ndarray:
     """(T,) slot per frame of the Viterbi path over the hypotheses of one person's T frames (module doc).
 
@@ -321,9 +333,7 @@ def temporal_choice(hyp: Hypotheses, *, valid: np.ndarray | None = None, frame_g
         frame_gap: (T,) frames elapsed since the previous frame (first entry ignored); None = 1 each.
             The expected turn grows with the gap: sigma = turn_sigma_deg * gap.
         turn_sigma_deg: expected heading change between consecutive frames (degrees, standard deviation).
-        temperature: the frames' log-probabilities are divided by it (> 0; 1 = untempered): one for every frame,
-            or (T,) one per frame (a model's calibrated temperature per view count,
-            ``silpose.model.mixing.Mixing.hypothesis_temperature``).
+        temperature: the frames' log-probabilities are divided by it (> 0; 1 = untempered).
         pose_sigma_m: expected mean joint motion between consecutive frames (metres, standard deviation; grows
             with the gap like the turn's); None = no joint term.
     Returns:
@@ -358,7 +368,7 @@ class PathEnd:
 
 
 def continue_choice(hyp: Hypotheses, steps: np.ndarray, start: PathEnd | None = None, *,
-                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float | np.ndarray = TEMPORAL_TEMPERATURE,
+                    turn_sigma_deg: float = TEMPORAL_TURN_SIGMA_DEG, temperature: float = TEMPORAL_TEMPERATURE,
                     pose_sigma_m: float | None = TEMPORAL_POSE_SIGMA_M) -> tuple[np.ndarray, PathEnd | None]:
     """The next frames of one track along the path of :func:`temporal_choice` (module doc, "A stream").
 
@@ -404,22 +414,20 @@ def _frames_used(hyp: Hypotheses, valid: np.ndarray | None) -> np.ndarray:
 
 
 def _viterbi(hyp: Hypotheses, ok: np.ndarray, gap: np.ndarray, start: PathEnd | None, turn_sigma_deg: float,
-             temperature: float | np.ndarray, pose_sigma_m: float | None) -> tuple[np.ndarray, np.ndarray | None]:
+             temperature: float, pose_sigma_m: float | None) -> tuple[np.ndarray, np.ndarray | None]:
     """The Viterbi path of the module doc over the frames ``ok`` (T,) bool, ``gap`` (T,) frames since the previous
     frame (the first: since ``start``'s frame; ignored without a start). Returns the (T,) slots and the (K,) costs
     of the paths ending at the last frame used, the least 0 (None: no frame used)."""
     t_len, k = hyp.probability.shape
-    temp = np.asarray(temperature, dtype=np.float64)
-    if temp.shape not in ((), (t_len,)) or not np.all(temp > 0):
-        raise ValueError(f"temperature must be > 0, one or ({t_len},), got {temperature}")
+    if not temperature > 0:
+        raise ValueError(f"temperature must be > 0, got {temperature}")
     if pose_sigma_m is not None and not pose_sigma_m > 0:
         raise ValueError(f"pose_sigma_m must be > 0 or None, got {pose_sigma_m}")
     if turn_sigma_deg <= 0:
         raise ValueError(f"turn_sigma_deg must be > 0, got {turn_sigma_deg}")
     sigma = np.radians(float(turn_sigma_deg))
     usable = hyp.component >= 0
-    per_frame = temp.reshape(-1, 1) if temp.ndim else temp
-    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)) / per_frame, np.inf)  # (T, K)
+    unary = np.where(usable, -np.log(np.maximum(hyp.probability, PROB_FLOOR)) / float(temperature), np.inf)  # (T, K)
     chosen = np.zeros(t_len, dtype=np.intp)
     frames = np.flatnonzero(ok)
     if frames.size == 0:

@@ -24,16 +24,6 @@ in 22 % of the frames, the best of the top 3 hypotheses in 1.8 %.
 Both are calibrated per model on held-out training samples (:func:`calibrate_mixing`: the grid point of least
 mean joint error, robust inference, every subset of views), never on test data, and saved in the model file
 (``silpose.model.persistence``). A model without a calibration answers with the plain posterior mean.
-
-The hypotheses' temperature. The choice among hypotheses along a recording (``silpose.model.hypotheses``, "A
-sequence") tempers the hypotheses' probabilities too, but there they weigh a frame's evidence against the
-motion between frames, not one another in a mean. Its temperature per view count, ``S_k``, is calibrated on the
-same held-out samples by the likelihood of the right answer (temperature scaling): the top
-:data:`~silpose.model.hypotheses.TEMPORAL_HYPOTHESES` hypotheses' probabilities raised to ``1 / S_k`` and
-renormalised should give the hypothesis nearest the truth its due share, ``S_k`` the grid value of
-:data:`HYPOTHESIS_TEMPERATURES` of least mean negative log-likelihood of that hypothesis. A large model's
-responsibilities are overconfident and need a high ``S_k``; a small model's are not, and a high one would let
-the steadiest sequence of component means win whatever the frames say. Measured in docs/mixing.md.
 Measured (robust inference, the evaluation's standard noise, mean joint error cm; validation = the trainer's
 held-out rows with another noise seed): docs/mixing.md.
 """
@@ -48,18 +38,14 @@ import numpy as np
 from silpose.shared.metrics import pose_error_cm
 
 from .checks import model_inputs
-from .hypotheses import FLIP_ANGLE, PROB_FLOOR, TEMPORAL_HYPOTHESES, TEMPORAL_TEMPERATURE, Hypotheses, heading, \
-    top_hypotheses, wrap_angle
+from .hypotheses import FLIP_ANGLE, Hypotheses, heading, wrap_angle
 from .plausibility import view_subsets
 from .robust import RobustSettings, robust_infer
 
-__all__ = ["Mixing", "mixed_joints", "vote_agreement", "agreeing_choice", "mixture_terms", "calibrate_mixing",
-           "hypothesis_log_loss", "TEMPERATURES", "VOTE_WEIGHTS", "HYPOTHESIS_TEMPERATURES"]
+__all__ = ["Mixing", "mixed_joints", "vote_agreement", "agreeing_choice", "mixture_terms", "calibrate_mixing", "TEMPERATURES", "VOTE_WEIGHTS"]
 
 #: temperatures tried by :func:`calibrate_mixing`
 TEMPERATURES = (1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 7.0, 10.0, 15.0, 20.0)
-#: temperatures of the hypotheses' probabilities along a sequence tried by :func:`calibrate_mixing` (module doc)
-HYPOTHESIS_TEMPERATURES = (1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 50.0, 100.0)
 #: vote weights beta tried by :func:`calibrate_mixing`
 VOTE_WEIGHTS = (0.0, 2.0, 5.0, 10.0)
 #: held-out samples used at most (the first ones): bounds the cost on large presets (every view subset is
@@ -80,22 +66,17 @@ class Mixing:
         vote_weight: beta >= 0, weight of the heading votes of the view pairs.
         n_inputs: held-out samples the calibration used; errors_cm: {k: [error cm at T=1, at the chosen T]}
             measured there (for the record).
-        hypothesis_temperatures: {k present views: S_k >= 1}, the hypotheses' temperature along a sequence
-            (module doc); empty in model files written before it was calibrated.
     """
 
     temperatures: dict = field(default_factory=dict)
     vote_weight: float = 0.0
     n_inputs: int = 0
     errors_cm: dict = field(default_factory=dict)
-    hypothesis_temperatures: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.temperatures = {int(k): float(t) for k, t in self.temperatures.items()}
-        self.hypothesis_temperatures = {int(k): float(t) for k, t in self.hypothesis_temperatures.items()}
-        for name, temps in (("temperatures", self.temperatures), ("hypothesis_temperatures", self.hypothesis_temperatures)):
-            if any(not np.isfinite(t) or t < 1.0 for t in temps.values()):
-                raise ValueError(f"Mixing {name} must be finite and >= 1, got {temps}")
+        if any(not np.isfinite(t) or t < 1.0 for t in self.temperatures.values()):
+            raise ValueError(f"Mixing temperatures must be finite and >= 1, got {self.temperatures}")
         if not np.isfinite(self.vote_weight) or self.vote_weight < 0:
             raise ValueError(f"Mixing vote_weight must be finite and >= 0, got {self.vote_weight}")
 
@@ -104,13 +85,6 @@ class Mixing:
         k = np.asarray(n_present, dtype=np.int64)
         return np.array([self.temperatures.get(int(v), 1.0) for v in k.reshape(-1)]).reshape(k.shape)
 
-    def hypothesis_temperature(self, n_present: np.ndarray) -> np.ndarray:
-        """(N,) S per frame from its number of present views (N,) int; a view count without a calibration takes
-        :data:`~silpose.model.hypotheses.TEMPORAL_TEMPERATURE`."""
-        k = np.asarray(n_present, dtype=np.int64)
-        return np.array([self.hypothesis_temperatures.get(int(v), TEMPORAL_TEMPERATURE)
-                         for v in k.reshape(-1)]).reshape(k.shape)
-
     @property
     def needs_votes(self) -> bool:
         return self.vote_weight > 0
@@ -118,8 +92,7 @@ class Mixing:
     def to_dict(self) -> dict:
         return {"temperatures": {str(k): v for k, v in sorted(self.temperatures.items())},
                 "vote_weight": self.vote_weight, "n_inputs": self.n_inputs,
-                "errors_cm": {str(k): [float(x) for x in v] for k, v in sorted(self.errors_cm.items())},
-                "hypothesis_temperatures": {str(k): v for k, v in sorted(self.hypothesis_temperatures.items())}}
+                "errors_cm": {str(k): [float(x) for x in v] for k, v in sorted(self.errors_cm.items())}}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "mixing") -> "Mixing":
@@ -131,11 +104,10 @@ class Mixing:
             beta = float(d["vote_weight"])
             n = int(d.get("n_inputs", 0))
             errs = {int(k): [float(x) for x in v] for k, v in dict(d.get("errors_cm", {})).items()}
-            hyp_t = {int(k): float(v) for k, v in dict(d.get("hypothesis_temperatures", {})).items()}
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{source}: field {exc} is missing or invalid") from None
         try:
-            return cls(temperatures=temps, vote_weight=beta, n_inputs=n, errors_cm=errs, hypothesis_temperatures=hyp_t)
+            return cls(temperatures=temps, vote_weight=beta, n_inputs=n, errors_cm=errs)
         except ValueError as exc:
             raise ValueError(f"{source}: {exc}") from None
 
@@ -226,9 +198,7 @@ def calibrate_mixing(model, contours_px: np.ndarray, joints: np.ndarray, *, robu
     count k, given beta, the grid value of least mean error over the subsets of k views. Each choice is the
     smallest grid value whose error is within ``margin`` (relative) of the grid's least: a gain smaller than that
     on a few hundred held-out samples is not worth trusting (measured on the default preset: T 1.5 for one view
-    gained 0.07 % on its held-out rows and lost 1 % on the test split). The hypotheses' temperature S_k per view
-    count, from the same inferences: the grid value of :data:`HYPOTHESIS_TEMPERATURES` of least
-    :func:`hypothesis_log_loss` (module doc).
+    gained 0.07 % on its held-out rows and lost 1 % on the test split).
     """
     layout = model.fitted_layout()
     c = np.asarray(contours_px, dtype=np.float64)[:MAX_INPUTS]
@@ -241,7 +211,6 @@ def calibrate_mixing(model, contours_px: np.ndarray, joints: np.ndarray, *, robu
     # errors[k][b_index, t_index]: summed error over the subsets of k views
     sums: dict[int, np.ndarray] = {}
     counts: dict[int, int] = {}
-    hyp_temps: dict[int, float] = {}
     for k in range(kmod, 0, -1):
         subsets = [s for s in view_subsets(kmod) if len(s) == k]
         present = np.zeros((len(c), model.n_rig_views_), dtype=bool)  # rig order, as contours_px
@@ -254,9 +223,6 @@ def calibrate_mixing(model, contours_px: np.ndarray, joints: np.ndarray, *, robu
             for ti, t in enumerate(temps):
                 grid[bi, ti] = pose_error_cm(mixed_joints(comp, resp, t, agree, beta), j).sum()
         sums[k], counts[k] = grid, len(c)
-        hyp = top_hypotheses(comp, resp, k=TEMPORAL_HYPOTHESES)
-        loss = hypothesis_log_loss(hyp, j, HYPOTHESIS_TEMPERATURES)
-        hyp_temps[k] = HYPOTHESIS_TEMPERATURES[_smallest_near_best(loss, margin)]
     voting = [k for k in sums if k >= 3]
     if voting:
         total = sum(sums[k].min(axis=1) for k in voting)  # (B,) each beta with its best T per view count
@@ -270,25 +236,7 @@ def calibrate_mixing(model, contours_px: np.ndarray, joints: np.ndarray, *, robu
         out_t[k] = temps[ti]
         errs[k] = [float(grid[betas.index(0.0), temps.index(1.0)] / counts[k]) if 0.0 in betas and 1.0 in temps
                    else float("nan"), float(row[ti] / counts[k])]
-    return Mixing(temperatures=out_t, vote_weight=betas[bi], n_inputs=int(len(c)), errors_cm=errs,
-                  hypothesis_temperatures=hyp_temps)
-
-
-def hypothesis_log_loss(hyp: Hypotheses, joints: np.ndarray, temperatures: Sequence[float]) -> np.ndarray:
-    """(G,) mean over the frames of -log q_T(best), where q_T is the hypotheses' probabilities p raised to 1 / T and
-    renormalised over the used slots, and best the slot nearest the true ``joints`` (N, 19, 3)
-    (:meth:`~silpose.model.hypotheses.Hypotheses.best_of`); one value per temperature of ``temperatures`` (G,)."""
-    used = hyp.component >= 0
-    logp = np.where(used, np.log(np.maximum(hyp.probability, PROB_FLOOR)), -np.inf)  # (N, K)
-    best = hyp.best_of(np.asarray(joints, dtype=np.float64))
-    rows = np.flatnonzero(used.any(axis=1))
-    out = np.empty(len(temperatures))
-    for g, t in enumerate(temperatures):
-        z = logp[rows] / float(t)
-        top = z.max(axis=1, keepdims=True)
-        log_norm = top[:, 0] + np.log(np.exp(z - top).sum(axis=1))
-        out[g] = float(np.mean(log_norm - z[np.arange(len(rows)), best[rows]])) if len(rows) else 0.0
-    return out
+    return Mixing(temperatures=out_t, vote_weight=betas[bi], n_inputs=int(len(c)), errors_cm=errs)
 
 
 def _smallest_near_best(errors: np.ndarray, margin: float) -> int:

@@ -14,7 +14,7 @@ from silpose.model.hypotheses import Hypotheses, continue_choice, sequence_answe
 from silpose.model.result import InferenceResult
 from silpose.shared.skeleton import N_JOINTS
 
-from ..inference import InferOptions, hypotheses_kept, hypothesis_temperature, infer_rows
+from ..inference import InferOptions, hypotheses_kept, infer_rows
 from .overlay_png import OverlayPngs, draws_overlays
 from .overlay_video import OverlayVideos
 from .placement import place_contours, place_roots
@@ -36,8 +36,7 @@ class ChunkInference:
             overlays); step0: the chunk's first step.
         view_status: (R, K) per rig camera; used: (R, K) bool, the views inferred from; detected: (R,) bool.
         rows: (R_inf,) the people inferred (detected, with a usable view); contours: (R_inf, K, n, 2) px, theirs;
-        result: their :class:`~silpose.model.result.InferenceResult` (None without rows); temperature: (R_inf,) their
-            hypotheses' temperature (:func:`silpose.app.inference.hypothesis_temperature`).
+        result: their :class:`~silpose.model.result.InferenceResult` (None without rows).
     """
 
     people: list[Person]
@@ -49,7 +48,6 @@ class ChunkInference:
     rows: np.ndarray
     contours: np.ndarray | None = None
     result: InferenceResult | None = None
-    temperature: np.ndarray | None = None
 
     @property
     def hypotheses(self) -> Hypotheses | None:
@@ -90,7 +88,6 @@ def infer_people(model, people: list[Person], seen: list, step0: int, names, mod
         options = InferOptions(noise_variance=opt.noise_variance, hypotheses=hypotheses_kept(opt.hypotheses, True),
                                robust=robust, untangle=draws_overlays(opt.overlays) or opt.contours)
         chunk.result = infer_rows(model, chunk.contours, used[chunk.rows], options=options)
-        chunk.temperature = hypothesis_temperature(model, used[chunk.rows])
         timings["infer"] += time.perf_counter() - t0
     return chunk
 
@@ -98,26 +95,25 @@ def infer_people(model, people: list[Person], seen: list, step0: int, names, mod
 def choose_along_tracks(chunk: ChunkInference, ahead: ChunkInference | None, paths: dict) -> None:
     """Set the chosen hypothesis of every inferred row of ``chunk`` (in place): per track, the slots on these rows of the
     path over the track's frames so far and ``ahead``'s (the next chunk, None at the end) that is best at the last of
-    them (:func:`silpose.model.hypotheses.continue_choice`, tempered as a whole sequence is). ``paths``: track key ->
+    them (:func:`silpose.model.hypotheses.continue_choice`, as a whole sequence is chosen). ``paths``: track key ->
     the end of its path after its rows already chosen, moved past ``chunk``'s (in place). Every row is decided with at
     least the next chunk's frames ahead: the rows are written no earlier than that anyway (the tracks' ids,
     :func:`emit_rows`)."""
     hyp = chunk.hypotheses
     if hyp is None:
         return
-    keys, steps, temp = chunk.keys, chunk.steps, chunk.temperature
+    keys, steps = chunk.keys, chunk.steps
     a_hyp = None if ahead is None else ahead.hypotheses
     a_keys = ahead.keys if a_hyp is not None else np.zeros(0, keys.dtype)
     for key in dict.fromkeys(keys.tolist()):
         mine = np.flatnonzero(keys == key)
         start = paths.get(key)
         own = hyp.take(mine)
-        chosen, paths[key] = continue_choice(own, steps[mine], start, temperature=temp[mine])
+        chosen, paths[key] = continue_choice(own, steps[mine], start)
         later = np.flatnonzero(a_keys == key)
         if len(later):  # the path best at the end of the look-ahead, on this chunk's rows
             joined = Hypotheses.concat([own, a_hyp.take(later)])
-            slots, _ = continue_choice(joined, np.r_[steps[mine], ahead.steps[later]], start,
-                                       temperature=np.r_[temp[mine], ahead.temperature[later]])
+            slots, _ = continue_choice(joined, np.r_[steps[mine], ahead.steps[later]], start)
             chosen = slots[:len(mine)]
         hyp.chosen[mine] = chosen
 

@@ -294,7 +294,7 @@ def run_one_person(model, source, opt: RecordingOptions | None = None, *, frames
             timings[k] += v
     result = merge_results(parts, order, step)
     if temporal:
-        apply_temporal(result, model)
+        apply_temporal(result)
     frames = np.array([_frame_name(frame_names, first_frame, i) for i in range(step)])
     all_contours, all_present = np.concatenate(contours), np.concatenate(present)
     t0 = time.perf_counter()
