@@ -48,9 +48,10 @@ responsibilities are overconfident (a frame's top hypothesis often holds 0.998 o
 (ratio 4) was the earlier setting. It failed smaller models: with few, broad components the steadiest sequence of
 component means wins whatever the frames say, a whole track facing the wrong way (a lab-rig model of 5 components on
 400 walkers, the benchmark's recording of two walkers: 7.67 cm at ratio 81, 13.01 cm at ratio 8, 16.80 cm with
-the earlier setting; every frame's posterior mean 8.02). Calibrating a temperature per model on the trainer's held-out frames (temperature
-scaling of the hypotheses' probabilities) did not predict it: that calibration gave 10 for both lab-rig models of the
-tests and benchmark, and 15 for the motions preset, while the paths wanted ratios from 8 to 80. So the choice is
+the earlier setting; every frame's posterior mean 8.02). Calibrating a temperature per model on the trainer's
+held-out frames (temperature scaling of the hypotheses' probabilities) did not predict it: that calibration gave 10
+for both lab-rig models of the tests and benchmark, and 15 for the motions preset, while their paths wanted ratios
+from 4 to 81 and more. So the choice is
 untempered (:data:`TEMPORAL_TEMPERATURE` 1) with 9 deg and 0.067 m (ratio 81), never far from the best of the
 ratios tried on ten sets of sequences (below).
 
