@@ -230,3 +230,22 @@ def test_only_bench_rewrites_the_benchmark_tables_and_keeps_the_pose_tables(tmp_
             before_readme.split(block)[1].split(f"<!-- {name}:end -->")[0]
     with pytest.raises(SystemExit, match="not found: run `just bench` first"):
         mod.main(["--reports", str(tmp_path / "none"), "--out", str(out), "--readme", str(readme), "--only", "bench"])
+
+
+def test_the_baselines_ahead_of_the_mppca_are_named(tmp_path):
+    mod = _results_module()
+    ahead = {"4": {"mppca": 3.9, "mppca robust": 3.3, "knn": 5.6, "ridge": 20.4, "mlp": 5.8},
+             "2": {"mppca": 18.78, "knn": 17.69, "ridge": 27.0, "mlp": 18.5},
+             "1": {"mppca": 10.8, "mppca robust": 10.22, "knn": 10.41, "ridge": 22.6, "mlp": 13.7}}
+    assert mod._ahead({"pose_mean_cm_by_method_and_n_views": ahead}) == (
+        "2 views: kNN 17.69, MLP 18.50 vs 18.78; 1 view: kNN 10.41 vs 10.80 (robust 10.22)")
+    behind = {n: {**row, "knn": 99.0, "mlp": 99.0} for n, row in ahead.items()}
+    assert mod._ahead({"pose_mean_cm_by_method_and_n_views": behind}) == "none (1–4 views)"
+    assert mod._ahead({}) is None
+    reports = tmp_path / "reports"
+    (reports / "motions").mkdir(parents=True)
+    (reports / "motions" / "headline.json").write_text(json.dumps({"pose_mean_cm_by_method_and_n_views": ahead}))
+    readme = tmp_path / "README.md"
+    shutil.copy(README, readme)
+    mod.main(["--reports", str(reports), "--out", str(tmp_path / "r.md"), "--readme", str(readme)])
+    assert "| 2 views: kNN 17.69, MLP 18.50 vs 18.78; 1 view: kNN 10.41 vs 10.80 (robust 10.22) |" in readme.read_text()
