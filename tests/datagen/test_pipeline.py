@@ -126,6 +126,12 @@ def test_a_resume_with_another_train_table_keeps_the_shards(tmp_path):
     assert manifest["timing"]["shards_rendered"] == 0 and manifest["config"]["train"] == {"fits": 3, "latent": 2}
     assert {p.name: pq.read_table(p).to_pydict() for p in sorted(out.glob("*.parquet"))} == kept
     assert load_split(out, "train").metadata["config"]["train"] == {"fits": 3, "latent": 2}
+    # the restamped shards are the files a fresh generation of that config writes, byte for byte
+    fresh = generate(trained, tmp_path / "fresh", workers=1, render=SYNTH, progress=False)
+    assert fresh["timing"]["shards_rendered"] == len(kept)
+    for shard in sorted(out.glob("*.parquet")):
+        assert shard.read_bytes() == (tmp_path / "fresh" / shard.name).read_bytes(), shard.name
+    assert [s["sha256"] for s in manifest["shards"]] == [s["sha256"] for s in fresh["shards"]]
 
 
 def test_a_dataset_made_before_an_augmentation_field_existed_resumes_with_it_off(tmp_path):

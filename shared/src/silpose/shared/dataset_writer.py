@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,6 @@ from .atomic import atomic_path
 from .dataset_schema import (
     FORMAT_VERSION,
     MASK_IMAGE_TYPE,
-    METADATA_KEY,
     SCALAR_COLUMNS,
     TENSOR_COLUMNS,
     TENSOR_DTYPES,
@@ -49,15 +47,18 @@ def write_shard(path: str | Path, records: list[dict], metadata: dict) -> None:
 
 
 def restamp_shard(path: str | Path, metadata: dict) -> None:
-    """Rewrite the shard ``path`` with the ``silpose`` metadata document ``metadata``, its rows and schema
-    unchanged (atomically, written as :func:`write_shard` writes). For metadata fields the rows do not depend
-    on (``silpose gen``'s resume: ``silpose.datagen.shards.RESUME_NEUTRAL``)."""
+    """Rewrite the shard ``path`` with the ``silpose`` metadata document ``metadata``, its rows unchanged
+    (atomically, written as :func:`write_shard` writes). For metadata fields the rows do not depend on
+    (``silpose gen``'s resume: ``silpose.datagen.shards.RESUME_NEUTRAL``).
+
+    The rows are cast to the schema :func:`write_shard` would build for ``metadata``, so the file is byte for
+    byte the one a fresh generation writes. (A table read back from Parquet equals that schema but names its
+    list items differently, and the footer's Arrow schema, and the file's checksum, then differed.)"""
     path = Path(path)
     check_metadata(metadata, str(path))
     table = pq.read_table(path)
-    meta = dict(table.schema.metadata or {})
-    meta[METADATA_KEY] = json.dumps(metadata, sort_keys=True).encode()
-    _write_table(table.replace_schema_metadata(meta), path)
+    names = {col: [f.name for f in table.schema.field(col).type] for col in ("subject", "gait")}
+    _write_table(table.cast(build_schema(metadata, names["subject"], names["gait"])), path)
 
 
 def _write_table(table: pa.Table, path: Path) -> None:
